@@ -1,0 +1,1 @@
+//! splatbridge-convert: see ARCHITECTURE.md.

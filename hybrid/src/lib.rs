@@ -1,0 +1,1 @@
+//! splatbridge-hybrid: see ARCHITECTURE.md.

@@ -1,0 +1,1 @@
+//! splatbridge-raytrace: see ARCHITECTURE.md.

@@ -1,0 +1,363 @@
+//! Pinhole cameras in the OpenCV/COLMAP frame (x right, y down, z forward), as 3DGS uses,
+//! the `cameras.json` that 3DGS training writes, orbit rigs, and camera specs from the CLI.
+//!
+//! Pixel convention: `cx`, `cy` are continuous image coordinates in which pixel `i` spans
+//! `[i, i+1)`; the reference rasterizer samples pixel `i` at continuous coordinate `i + 0.5`
+//! when `cx = W/2` (its `ndc2Pix` puts the principal point at `(W−1)/2` in integer pixel
+//! coordinates), so renderers compute `pixel = f·x/z + c − 0.5` and sample at integers.
+//!
+//! The pose is stored camera-relative: the camera centre in world space (f64) and the
+//! world-to-camera rotation (f64), so scenes far from the origin keep their precision
+//! (`p_cam = R·(p − centre)` is formed from a difference of nearby numbers).
+
+use std::path::Path;
+
+use glam::{DMat3, DVec3, Mat3, Vec3};
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Result, SceneError};
+
+/// A pinhole camera: intrinsics in pixels and a world-to-camera pose (OpenCV frame).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Camera {
+    pub width: u32,
+    pub height: u32,
+    pub fx: f64,
+    pub fy: f64,
+    pub cx: f64,
+    pub cy: f64,
+    /// Camera centre in world coordinates.
+    pub centre: DVec3,
+    /// World-to-camera rotation: rows are the camera's x (right), y (down), z (forward) axes
+    /// expressed in world coordinates.
+    pub world_to_cam: DMat3,
+    /// A name for reports (image name, "orbit 3/8", …).
+    pub name: String,
+}
+
+impl Camera {
+    /// A camera at `eye` looking at `target`: z = normalize(target − eye), x = normalize(z × up),
+    /// y = z × x (so `up` is the world direction that appears up in the image), vertical field of
+    /// view `fov_y_deg`, square pixels, principal point at the image centre.
+    pub fn look_at(eye: DVec3, target: DVec3, up: DVec3, fov_y_deg: f64, width: u32, height: u32) -> Result<Self> {
+        if width == 0 || height == 0 {
+            return Err(SceneError::Invalid(format!("image size {width}×{height} is empty")));
+        }
+        if !(fov_y_deg > 0.0 && fov_y_deg < 180.0) {
+            return Err(SceneError::Invalid(format!(
+                "field of view {fov_y_deg}° is outside (0°, 180°)"
+            )));
+        }
+        let z = target - eye;
+        if !(z.length() > 0.0) || !z.is_finite() || !up.is_finite() {
+            return Err(SceneError::Invalid("camera eye and target coincide or are not finite".into()));
+        }
+        let z = z.normalize();
+        let x = z.cross(up);
+        if !(x.length() > 1e-12) {
+            return Err(SceneError::Invalid("camera up vector is parallel to the view direction".into()));
+        }
+        let x = x.normalize();
+        let y = z.cross(x);
+        let f = 0.5 * height as f64 / (0.5 * fov_y_deg.to_radians()).tan();
+        Ok(Camera {
+            width,
+            height,
+            fx: f,
+            fy: f,
+            cx: 0.5 * width as f64,
+            cy: 0.5 * height as f64,
+            centre: eye,
+            world_to_cam: DMat3::from_cols(x, y, z).transpose(),
+            name: "look-at".into(),
+        })
+    }
+
+    /// Horizontal and vertical field of view in radians.
+    pub fn fov(&self) -> (f64, f64) {
+        (
+            2.0 * (0.5 * self.width as f64 / self.fx).atan(),
+            2.0 * (0.5 * self.height as f64 / self.fy).atan(),
+        )
+    }
+
+    /// The same camera at another resolution: focal lengths and principal point scale with it,
+    /// so the field of view is kept.
+    pub fn resized(&self, width: u32, height: u32) -> Camera {
+        let sx = width as f64 / self.width as f64;
+        let sy = height as f64 / self.height as f64;
+        Camera {
+            width,
+            height,
+            fx: self.fx * sx,
+            fy: self.fy * sy,
+            cx: self.cx * sx,
+            cy: self.cy * sy,
+            ..self.clone()
+        }
+    }
+
+    /// Camera-to-world rotation (columns are the camera axes in world space).
+    pub fn cam_to_world(&self) -> DMat3 {
+        self.world_to_cam.transpose()
+    }
+
+    /// World point to camera coordinates (f64, camera-relative).
+    #[inline]
+    pub fn to_camera(&self, p: DVec3) -> DVec3 {
+        self.world_to_cam * (p - self.centre)
+    }
+
+    /// f32 rotation for hot loops that first subtract the centre in f64.
+    pub fn world_to_cam_f32(&self) -> Mat3 {
+        self.world_to_cam.as_mat3()
+    }
+
+    /// The world-space direction of the ray through continuous image coordinate (u, v)
+    /// (pixel `i`'s centre is `i + 0.5`), unit length.
+    pub fn ray_dir(&self, u: f64, v: f64) -> DVec3 {
+        let d = DVec3::new((u - self.cx) / self.fx, (v - self.cy) / self.fy, 1.0);
+        (self.cam_to_world() * d).normalize()
+    }
+
+    /// Check intrinsics and pose are usable (finite, positive focal lengths, non-empty image,
+    /// orthonormal rotation).
+    pub fn validate(&self) -> Result<()> {
+        let ok = self.width > 0
+            && self.height > 0
+            && self.fx > 0.0
+            && self.fy > 0.0
+            && self.fx.is_finite()
+            && self.fy.is_finite()
+            && self.cx.is_finite()
+            && self.cy.is_finite()
+            && self.centre.is_finite()
+            && self.world_to_cam.is_finite();
+        if !ok {
+            return Err(SceneError::Invalid(format!("camera '{}' has invalid intrinsics or pose", self.name)));
+        }
+        let r = self.world_to_cam;
+        let e = (r * r.transpose() - DMat3::IDENTITY).to_cols_array().iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        if e > 1e-3 {
+            return Err(SceneError::Invalid(format!(
+                "camera '{}' rotation is not orthonormal (error {e:.2e})",
+                self.name
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// One entry of the `cameras.json` that 3DGS training writes (`utils/camera_utils.py`,
+/// `camera_to_JSON`): `position` is the camera centre and `rotation` the camera-to-world
+/// rotation (rows of the 3×3 matrix), both in the world frame.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct CameraJson {
+    pub id: i64,
+    pub img_name: String,
+    pub width: u32,
+    pub height: u32,
+    pub position: [f64; 3],
+    pub rotation: [[f64; 3]; 3],
+    pub fx: f64,
+    pub fy: f64,
+}
+
+impl CameraJson {
+    pub fn to_camera(&self) -> Camera {
+        let r = &self.rotation;
+        // rotation[i][j] is row i: camera-to-world; the world-to-camera rotation is its transpose.
+        let c2w = DMat3::from_cols(
+            DVec3::new(r[0][0], r[1][0], r[2][0]),
+            DVec3::new(r[0][1], r[1][1], r[2][1]),
+            DVec3::new(r[0][2], r[1][2], r[2][2]),
+        );
+        Camera {
+            width: self.width,
+            height: self.height,
+            fx: self.fx,
+            fy: self.fy,
+            cx: 0.5 * self.width as f64,
+            cy: 0.5 * self.height as f64,
+            centre: DVec3::from_array(self.position),
+            world_to_cam: c2w.transpose(),
+            name: self.img_name.clone(),
+        }
+    }
+
+    pub fn from_camera(id: i64, cam: &Camera) -> Self {
+        let c2w = cam.cam_to_world();
+        let rows = [c2w.row(0), c2w.row(1), c2w.row(2)];
+        CameraJson {
+            id,
+            img_name: cam.name.clone(),
+            width: cam.width,
+            height: cam.height,
+            position: cam.centre.to_array(),
+            rotation: rows.map(|r| r.to_array()),
+            fx: cam.fx,
+            fy: cam.fy,
+        }
+    }
+}
+
+/// Read a 3DGS `cameras.json`; every camera is validated and errors name the entry.
+pub fn load_cameras_json(path: &Path) -> Result<Vec<Camera>> {
+    let text = std::fs::read_to_string(path).map_err(|e| SceneError::io(path, e))?;
+    let entries: Vec<CameraJson> =
+        serde_json::from_str(&text).map_err(|e| SceneError::format(path, format!("not a 3DGS cameras.json: {e}")))?;
+    entries
+        .iter()
+        .enumerate()
+        .map(|(i, e)| {
+            let c = e.to_camera();
+            c.validate()
+                .map_err(|err| SceneError::format(path, format!("camera {i} ('{}'): {err}", e.img_name)))?;
+            Ok(c)
+        })
+        .collect()
+}
+
+/// Write cameras in the 3DGS `cameras.json` layout.
+pub fn save_cameras_json(path: &Path, cams: &[Camera]) -> Result<()> {
+    let entries: Vec<CameraJson> = cams.iter().enumerate().map(|(i, c)| CameraJson::from_camera(i as i64, c)).collect();
+    let text = serde_json::to_string_pretty(&entries).map_err(|e| SceneError::Invalid(e.to_string()))?;
+    crate::image_io::write_atomic(path, text.as_bytes())
+}
+
+/// An orbit rig around a point cloud. The up axis defaults to −y, the COLMAP convention most
+/// 3DGS captures (and this project's fixtures) use: y points down in the world.
+#[derive(Clone, Debug)]
+pub struct OrbitRig {
+    pub up: Vec3,
+    /// Vertical field of view in degrees.
+    pub fov_y_deg: f64,
+    /// Elevation of the orbit above the centre's horizontal plane, in degrees.
+    pub elevation_deg: f64,
+    /// Percentile cut on each side of the robust bounds (0.02 = 2nd to 98th percentile).
+    pub percentile: f32,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl Default for OrbitRig {
+    fn default() -> Self {
+        OrbitRig {
+            up: Vec3::NEG_Y,
+            fov_y_deg: 50.0,
+            elevation_deg: 20.0,
+            percentile: 0.02,
+            width: 640,
+            height: 480,
+        }
+    }
+}
+
+impl OrbitRig {
+    /// `n` cameras evenly spaced in azimuth around the robust centre of `means`, far enough that
+    /// the robust bounding sphere fills the vertical field of view.
+    pub fn cameras(&self, cloud: &crate::GaussianCloud, n: usize) -> Result<Vec<Camera>> {
+        let (lo, hi) = cloud
+            .robust_bounds(self.percentile)
+            .ok_or_else(|| SceneError::Invalid("cannot place an orbit around an empty scene".into()))?;
+        self.cameras_around(lo.as_dvec3(), hi.as_dvec3(), n)
+    }
+
+    /// Orbit around explicit bounds.
+    pub fn cameras_around(&self, lo: DVec3, hi: DVec3, n: usize) -> Result<Vec<Camera>> {
+        let centre = 0.5 * (lo + hi);
+        let radius = (0.5 * (hi - lo).length()).max(1e-6);
+        let up = self.up.as_dvec3().normalize();
+        let dist = radius / (0.5 * self.fov_y_deg.to_radians()).sin() * 1.05;
+        // Two horizontal axes orthogonal to up.
+        let a = if up.x.abs() < 0.9 { DVec3::X } else { DVec3::Z };
+        let e1 = (a - up * a.dot(up)).normalize();
+        let e2 = up.cross(e1);
+        let el = self.elevation_deg.to_radians();
+        (0..n.max(1))
+            .map(|i| {
+                let az = std::f64::consts::TAU * i as f64 / n.max(1) as f64;
+                let dir = (e1 * az.cos() + e2 * az.sin()) * el.cos() + up * el.sin();
+                let mut cam = Camera::look_at(centre + dir * dist, centre, up, self.fov_y_deg, self.width, self.height)?;
+                cam.name = format!("orbit {i}/{n}");
+                Ok(cam)
+            })
+            .collect()
+    }
+}
+
+/// A camera as named on the command line.
+#[derive(Clone, Debug, PartialEq)]
+pub enum CameraSpec {
+    /// `orbit:N:I`: camera I of an N-camera orbit rig around the scene.
+    Orbit { n: usize, index: usize },
+    /// `scene:I`: camera I of the scene's own cameras.
+    Scene(usize),
+    /// `PATH.json:I`: camera I of a 3DGS `cameras.json`.
+    Json { path: std::path::PathBuf, index: usize },
+}
+
+impl std::str::FromStr for CameraSpec {
+    type Err = SceneError;
+
+    fn from_str(s: &str) -> Result<Self> {
+        let bad = || {
+            SceneError::Invalid(format!(
+                "camera spec '{s}' is not orbit:N:I, scene:I or PATH.json:I"
+            ))
+        };
+        let num = |t: &str| t.parse::<usize>().map_err(|_| bad());
+        if let Some(rest) = s.strip_prefix("orbit:") {
+            let (n, i) = rest.split_once(':').ok_or_else(bad)?;
+            let (n, index) = (num(n)?, num(i)?);
+            if n == 0 || index >= n {
+                return Err(SceneError::Invalid(format!("camera spec '{s}': index must be below N > 0")));
+            }
+            return Ok(CameraSpec::Orbit { n, index });
+        }
+        if let Some(rest) = s.strip_prefix("scene:") {
+            return Ok(CameraSpec::Scene(num(rest)?));
+        }
+        let (path, i) = s.rsplit_once(':').ok_or_else(bad)?;
+        if !path.ends_with(".json") {
+            return Err(bad());
+        }
+        Ok(CameraSpec::Json {
+            path: path.into(),
+            index: num(i)?,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn look_at_with_minus_y_up_is_upright_in_y_down_world() {
+        let c = Camera::look_at(DVec3::new(0.0, 0.0, -5.0), DVec3::ZERO, DVec3::NEG_Y, 60.0, 64, 48).unwrap();
+        // A point above the target (−y in a y-down world) appears in the upper half of the image.
+        let p = c.to_camera(DVec3::new(0.0, -1.0, 0.0));
+        assert!(p.y < 0.0 && p.z > 0.0);
+        let q = c.to_camera(DVec3::new(1.0, 0.0, 0.0));
+        assert!(q.x > 0.0);
+    }
+
+    #[test]
+    fn cameras_json_round_trip() {
+        let c = Camera::look_at(DVec3::new(1.0, 2.0, 3.0), DVec3::ZERO, DVec3::NEG_Y, 45.0, 100, 50).unwrap();
+        let j = CameraJson::from_camera(0, &c);
+        let back = j.to_camera();
+        assert!((back.world_to_cam - c.world_to_cam).to_cols_array().iter().all(|v| v.abs() < 1e-12));
+        assert_eq!(back.centre, c.centre);
+    }
+
+    #[test]
+    fn camera_specs_parse() {
+        assert_eq!("orbit:8:3".parse::<CameraSpec>().unwrap(), CameraSpec::Orbit { n: 8, index: 3 });
+        assert_eq!("scene:2".parse::<CameraSpec>().unwrap(), CameraSpec::Scene(2));
+        assert!(matches!("a/cameras.json:1".parse::<CameraSpec>().unwrap(), CameraSpec::Json { index: 1, .. }));
+        assert!("orbit:8:9".parse::<CameraSpec>().is_err());
+        assert!("nonsense".parse::<CameraSpec>().is_err());
+    }
+}

@@ -1,0 +1,1 @@
+//! Deterministic synthetic scenes (street, large, hard). To be completed: see issue "Foundation".

@@ -1,0 +1,16 @@
+//! Subcommands. Each module owns its clap `Args` and a `run` returning `anyhow::Result`.
+
+pub mod common;
+pub mod fixture;
+pub mod info;
+
+/// Print an error chain as `error: …` and map it to the exit status: 0 success, 2 error.
+pub fn exit_code(result: anyhow::Result<()>) -> i32 {
+    match result {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            2
+        }
+    }
+}
