@@ -53,3 +53,31 @@ pub struct DynamicScene {
     /// The manifest's `effects` object (validated names; empty when none declared).
     pub effects: serde_json::Map<String, serde_json::Value>,
 }
+
+impl DynamicScene {
+    /// A static scene holding one cloud (what a plain PLY is).
+    pub fn from_static(cloud: GaussianCloud) -> Self {
+        DynamicScene {
+            time: TimeRange {
+                start: 0.0,
+                end: 0.0,
+                fps: 1.0,
+            },
+            static_gaussians: cloud,
+            objects: Vec::new(),
+            cameras: Vec::new(),
+            effects: serde_json::Map::new(),
+        }
+    }
+
+    /// The world-space cloud at time `t`. Object ids: 0 for static Gaussians, k+1 for object k.
+    /// (Stub: objects are added untransformed until the scene graph lands.)
+    pub fn composite(&self, t: f64) -> GaussianCloud {
+        let _ = t;
+        let mut out = self.static_gaussians.clone();
+        for (k, o) in self.objects.iter().enumerate() {
+            out.extend_from(&o.gaussians, Some(k as u32 + 1));
+        }
+        out
+    }
+}

@@ -1,8 +1,17 @@
-//! Helpers shared by subcommands: progress bars that stay quiet off a terminal.
+//! Helpers shared by subcommands: scene loading, camera selection (`--camera SPEC` or an
+//! explicit look-at), output paths, and progress bars that stay quiet off a terminal.
 
 use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
 
+use anyhow::{bail, Context};
+use glam::DVec3;
 use indicatif::{ProgressBar, ProgressStyle};
+use splatbridge_scene::camera::{load_cameras_json, CameraSpec, OrbitRig};
+use splatbridge_scene::dynamic::DynamicScene;
+use splatbridge_scene::manifest::load_scene;
+use splatbridge_scene::ply::ReadOptions;
+use splatbridge_scene::{Camera, GaussianCloud};
 
 /// A progress bar on a terminal, a hidden one otherwise (pipes, CI, tests).
 pub fn progress(len: u64, what: &str) -> ProgressBar {
@@ -16,4 +25,120 @@ pub fn progress(len: u64, what: &str) -> ProgressBar {
     );
     pb.set_message(what.to_string());
     pb
+}
+
+/// Load a scene (PLY or manifest), printing the reader's warnings to stderr.
+pub fn load(path: &Path, drop_invalid: bool) -> anyhow::Result<DynamicScene> {
+    let (scene, warnings) = load_scene(path, &ReadOptions { drop_invalid })?;
+    for w in warnings {
+        eprintln!("warning: {}: {w}", path.display());
+    }
+    Ok(scene)
+}
+
+/// Camera selection shared by `render`, `trace`, `hybrid`.
+#[derive(clap::Args, Clone, Debug, Default)]
+pub struct CameraArgs {
+    /// Camera: `orbit:N:I`, `scene:I` (the scene's or file's own cameras) or `PATH.json:I`
+    /// (a 3DGS cameras.json). Default `orbit:8:0` unless --eye is given.
+    #[arg(long)]
+    pub camera: Option<String>,
+    /// Explicit camera position X,Y,Z (with --target, --up, --fov).
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub eye: Option<DVec3>,
+    /// Point the explicit camera looks at.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub target: Option<DVec3>,
+    /// World direction that appears up in the image (0,-1,0 for COLMAP-style y-down worlds).
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, default_value = "0,-1,0")]
+    pub up: DVec3,
+    /// Vertical field of view in degrees (explicit camera and orbit rigs).
+    #[arg(long, default_value_t = 50.0)]
+    pub fov: f64,
+    /// Output width in pixels (default: the camera's own, or 640 for orbit/explicit cameras).
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Output height in pixels (default: the camera's own, or 480 for orbit/explicit cameras).
+    #[arg(long)]
+    pub height: Option<u32>,
+}
+
+/// Parse `X,Y,Z`.
+pub fn parse_vec3(s: &str) -> Result<DVec3, String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|t| t.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("'{s}' is not X,Y,Z"))?;
+    match v[..] {
+        [x, y, z] if x.is_finite() && y.is_finite() && z.is_finite() => Ok(DVec3::new(x, y, z)),
+        _ => Err(format!("'{s}' is not three finite numbers X,Y,Z")),
+    }
+}
+
+impl CameraArgs {
+    /// Resolve to a camera. `cloud` frames orbit rigs; `own` are the input's own cameras
+    /// (a manifest's cameras.json or a glTF file's camera nodes) for `scene:I`.
+    pub fn resolve(&self, cloud: &GaussianCloud, own: &[Camera]) -> anyhow::Result<Camera> {
+        let (w, h) = (self.width.unwrap_or(640), self.height.unwrap_or(480));
+        if let Some(eye) = self.eye {
+            let target = self.target.context("--eye needs --target")?;
+            return Ok(Camera::look_at(eye, target, self.up, self.fov, w, h)?);
+        }
+        let spec: CameraSpec = self.camera.as_deref().unwrap_or("orbit:8:0").parse()?;
+        let cam = match spec {
+            CameraSpec::Orbit { n, index } => {
+                let rig = OrbitRig {
+                    up: self.up.as_vec3(),
+                    fov_y_deg: self.fov,
+                    width: w,
+                    height: h,
+                    ..OrbitRig::default()
+                };
+                return Ok(rig.cameras(cloud, n)?.swap_remove(index));
+            }
+            CameraSpec::Scene(i) => {
+                if own.is_empty() {
+                    bail!("scene:{i}: the input has no cameras of its own (use orbit:N:I or PATH.json:I)");
+                }
+                own.get(i)
+                    .with_context(|| format!("scene:{i}: the input has only {} cameras", own.len()))?
+                    .clone()
+            }
+            CameraSpec::Json { path, index } => {
+                let cams = load_cameras_json(&path)?;
+                cams.get(index)
+                    .with_context(|| format!("{}: camera {index} requested, file has {}", path.display(), cams.len()))?
+                    .clone()
+            }
+        };
+        Ok(match (self.width, self.height) {
+            (None, None) => cam,
+            (Some(w), None) => {
+                let h = ((w as f64 * cam.height as f64 / cam.width as f64).round() as u32).max(1);
+                cam.resized(w, h)
+            }
+            (None, Some(h)) => {
+                let w = ((h as f64 * cam.width as f64 / cam.height as f64).round() as u32).max(1);
+                cam.resized(w, h)
+            }
+            (Some(w), Some(h)) => cam.resized(w, h),
+        })
+    }
+}
+
+/// Parse `R,G,B` in [0, 1].
+pub fn parse_rgb(s: &str) -> Result<glam::Vec3, String> {
+    let v = parse_vec3(s)?;
+    if v.min_element() < 0.0 || v.max_element() > 1.0 {
+        return Err(format!("'{s}': colour components must be in [0, 1]"));
+    }
+    Ok(v.as_vec3())
+}
+
+/// `OUT` with `_NAME` inserted before the extension (for per-frame outputs).
+pub fn with_suffix(out: &Path, suffix: &str) -> PathBuf {
+    let stem = out.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let ext = out.extension().map(|e| format!(".{}", e.to_string_lossy())).unwrap_or_default();
+    out.with_file_name(format!("{stem}_{suffix}{ext}"))
 }

@@ -1,8 +1,16 @@
 //! Subcommands. Each module owns its clap `Args` and a `run` returning `anyhow::Result`.
 
+pub mod accuracy;
+pub mod bench;
 pub mod common;
+pub mod compare;
+pub mod convert;
+pub mod demo;
 pub mod fixture;
+pub mod hybrid;
 pub mod info;
+pub mod render;
+pub mod trace;
 
 /// Print an error chain as `error: …` and map it to the exit status: 0 success, 2 error.
 pub fn exit_code(result: anyhow::Result<()>) -> i32 {
