@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# Install what the tests need on a fresh Debian machine: libclang (bindgen for Embree),
+# Blender and numpy (the Blender import check), Node.js (the Khronos glTF-Validator), and
+# Embree 4 from the PyPI wheel `embreex` (scripts/get-embree.sh). Idempotent: what is there
+# already is left alone.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+need=()
+command -v blender >/dev/null 2>&1 || need+=(blender)
+python3 -c 'import numpy' >/dev/null 2>&1 || /usr/bin/python3 -c 'import numpy' >/dev/null 2>&1 || need+=(python3-numpy)
+[ -e /usr/lib/llvm-14/lib/libclang.so ] || ls /usr/lib/x86_64-linux-gnu/libclang*.so* >/dev/null 2>&1 || need+=(libclang-dev)
+command -v node >/dev/null 2>&1 || need+=(nodejs npm)
+command -v unzip >/dev/null 2>&1 || need+=(unzip)
+if ((${#need[@]})); then
+  if [ "$(id -u)" = 0 ]; then
+    echo "setup: installing ${need[*]}"
+    apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${need[@]}" >/dev/null
+  else
+    echo "setup: please install: ${need[*]} (apt-get needs root)" >&2
+    exit 1
+  fi
+fi
+
+if [ -x scripts/get-embree.sh ]; then
+  scripts/get-embree.sh
+fi
+
+# The glTF-Validator installs itself into ~/.cache/gltf-validator on first use; warm it here
+# so a failure to reach the npm registry shows up as a setup error, not a test failure.
+dir=${GLTF_VALIDATOR_DIR:-$HOME/.cache/gltf-validator}
+if [ ! -f "$dir/node_modules/gltf-validator/package.json" ]; then
+  mkdir -p "$dir"
+  (cd "$dir" && { [ -f package.json ] || npm init -y >/dev/null; } && npm install --silent --no-audit --no-fund gltf-validator@2.0.0-dev.3.10 >/dev/null)
+fi
+echo "setup: done"
