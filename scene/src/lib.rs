@@ -8,6 +8,7 @@
 
 pub mod camera;
 pub mod dynamic;
+pub mod effects;
 pub mod error;
 pub mod fixtures;
 pub mod frame;
@@ -19,6 +20,8 @@ pub mod ply;
 pub mod rng;
 pub mod sh;
 pub mod sh_rotate;
+pub mod trajectory;
+pub mod weather;
 
 pub use camera::Camera;
 pub use error::{Result, SceneError};
