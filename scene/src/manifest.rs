@@ -1,15 +1,433 @@
 //! The `splatbridge-scene/1` JSON manifest and scene loading (PLY or manifest).
-//! To be completed: see issue "Foundation".
+//!
+//! ```json
+//! {"format": "splatbridge-scene/1",
+//!  "time": {"start": 0.0, "end": 4.0, "fps": 10},
+//!  "static": "background.ply",
+//!  "objects": [{"name": "car_0", "gaussians": "car.ply",
+//!               "track": [{"t": 0.0, "translation": [0,0,0], "rotation": [1,0,0,0]}]}],
+//!  "cameras": "cameras.json",
+//!  "effects": {}}
+//! ```
+//! Paths are relative to the manifest's directory. Rotations are w, x, y, z like the PLY (any
+//! non-zero length; normalised on load). `static`, `objects`, `cameras` and `effects` are
+//! optional. An object gives either an explicit `track` or a generated `trajectory` rule
+//! ([`crate::trajectory::TrajectoryRule`], sampled at the scene's frame rate). Unknown keys are
+//! errors at every level, so a misspelt key is reported instead of silently ignored.
+//!
+//! Every error names the manifest (or the file it refers to) and the field: `objects[1]
+//! ('car_1'): track[2].t = 1 is not after track[1].t = 2`.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-use crate::dynamic::DynamicScene;
-use crate::error::Result;
-use crate::ply::{read_ply, ReadOptions};
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+
+use crate::camera::{load_cameras_json, save_cameras_json};
+use crate::dynamic::{
+    quat_from_wxyz, quat_wxyz, DynamicScene, PoseKey, SceneObject, TimeRange, Track,
+};
+use crate::error::{Result, SceneError};
+use crate::ply::{read_ply, write_ply, PlyFormat, ReadOptions};
+use crate::trajectory::TrajectoryRule;
+use crate::GaussianCloud;
+
+/// The format string this reader and writer understand.
+pub const FORMAT: &str = "splatbridge-scene/1";
+
+/// Effect names a manifest may declare (their parameters: [`crate::effects`]).
+pub const KNOWN_EFFECTS: [&str; 4] = ["weather", "motion_blur", "shadows", "lidar"];
+
+/// The manifest as written on disk.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Manifest {
+    pub format: String,
+    pub time: TimeJson,
+    /// Static Gaussians (a 3DGS PLY), relative to the manifest.
+    #[serde(rename = "static", default, skip_serializing_if = "Option::is_none")]
+    pub static_gaussians: Option<String>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub objects: Vec<ObjectJson>,
+    /// A 3DGS `cameras.json`, relative to the manifest.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cameras: Option<String>,
+    #[serde(default)]
+    pub effects: serde_json::Map<String, Value>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TimeJson {
+    pub start: f64,
+    pub end: f64,
+    pub fps: f64,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObjectJson {
+    pub name: String,
+    /// The object's Gaussians in its local frame (a 3DGS PLY), relative to the manifest.
+    pub gaussians: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub track: Option<Vec<KeyJson>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub trajectory: Option<TrajectoryRule>,
+}
+
+/// One pose key. f32 values: JSON numbers beyond f32 range become infinite and are rejected as
+/// non-finite.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct KeyJson {
+    pub t: f64,
+    pub translation: [f32; 3],
+    /// w, x, y, z.
+    pub rotation: [f32; 4],
+}
+
+fn bad(path: &Path, what: impl Into<String>) -> SceneError {
+    SceneError::format(path, what)
+}
 
 /// Load anything accepted where a scene is expected: a 3DGS PLY (a static scene) or a
-/// `splatbridge-scene/1` manifest. Warnings are returned for the caller to print.
+/// `splatbridge-scene/1` manifest (by the `.json` extension). Warnings are returned for the
+/// caller to print; those from files a manifest refers to start with that file's name.
 pub fn load_scene(path: &Path, opts: &ReadOptions) -> Result<(DynamicScene, Vec<String>)> {
+    let is_json = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    if is_json {
+        return load_manifest(path, opts);
+    }
     let (cloud, report) = read_ply(path, opts)?;
     Ok((DynamicScene::from_static(cloud), report.warnings))
+}
+
+/// Parse and validate a manifest's text (no files are touched). `path` names it in errors.
+pub fn parse_manifest(path: &Path, text: &str) -> Result<Manifest> {
+    let value: Value =
+        serde_json::from_str(text).map_err(|e| bad(path, format!("not valid JSON: {e}")))?;
+    let obj = value
+        .as_object()
+        .ok_or_else(|| bad(path, "a scene manifest is a JSON object"))?;
+    match obj.get("format") {
+        None => {
+            return Err(bad(
+                path,
+                format!(
+                    "no \"format\" key (a scene manifest starts with \"format\": \"{FORMAT}\")"
+                ),
+            ))
+        }
+        Some(Value::String(f)) if f == FORMAT => {}
+        Some(f) => {
+            return Err(bad(
+                path,
+                format!("unknown format {f} (this reader understands \"{FORMAT}\")"),
+            ))
+        }
+    }
+    if let Some(Value::Object(effects)) = obj.get("effects") {
+        check_effect_names(path, effects)?;
+    }
+    let m: Manifest = serde_json::from_str(text).map_err(|e| bad(path, e.to_string()))?;
+    validate_manifest(path, &m)?;
+    Ok(m)
+}
+
+fn check_effect_names(path: &Path, effects: &serde_json::Map<String, Value>) -> Result<()> {
+    for (name, v) in effects {
+        if !KNOWN_EFFECTS.contains(&name.as_str()) {
+            return Err(bad(
+                path,
+                format!(
+                    "effects: unknown effect \"{name}\" (known: {})",
+                    KNOWN_EFFECTS.join(", ")
+                ),
+            ));
+        }
+        if !v.is_object() {
+            return Err(bad(
+                path,
+                format!("effects.{name}: expected an object of parameters, found {v}"),
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn validate_manifest(path: &Path, m: &Manifest) -> Result<()> {
+    let time = TimeRange {
+        start: m.time.start,
+        end: m.time.end,
+        fps: m.time.fps,
+    };
+    time.validate().map_err(|e| bad(path, e))?;
+    check_effect_names(path, &m.effects)?;
+    crate::effects::Effects::from_json(&m.effects).map_err(|e| bad(path, e))?;
+    for (k, o) in m.objects.iter().enumerate() {
+        let at = format!("objects[{k}] ('{}')", o.name);
+        if o.name.trim().is_empty() {
+            return Err(bad(path, format!("objects[{k}].name is empty")));
+        }
+        if let Some(j) = m.objects[..k].iter().position(|p| p.name == o.name) {
+            return Err(bad(
+                path,
+                format!("{at}: name already used by objects[{j}]"),
+            ));
+        }
+        if o.gaussians.trim().is_empty() {
+            return Err(bad(path, format!("{at}.gaussians is empty")));
+        }
+        match (&o.track, &o.trajectory) {
+            (Some(_), Some(_)) => {
+                return Err(bad(
+                    path,
+                    format!("{at}: give either \"track\" or \"trajectory\", not both"),
+                ))
+            }
+            (None, None) => {
+                return Err(bad(
+                    path,
+                    format!("{at}: no \"track\" (or \"trajectory\") given"),
+                ))
+            }
+            (Some(keys), None) => {
+                track_from_json(keys)
+                    .validate()
+                    .map_err(|e| bad(path, format!("{at}: {e}")))?;
+            }
+            (None, Some(rule)) => {
+                rule.track(time.start, time.end, time.fps)
+                    .and_then(|tr| {
+                        tr.validate()
+                            .map_err(crate::trajectory::TrajectoryError)
+                            .map(|_| tr)
+                    })
+                    .map_err(|e| bad(path, format!("{at}: {e}")))?;
+            }
+        }
+    }
+    Ok(())
+}
+
+fn track_from_json(keys: &[KeyJson]) -> Track {
+    // Rotations are kept raw here so validation can see a zero quaternion; normalised after.
+    Track::new(
+        keys.iter()
+            .map(|k| PoseKey {
+                t: k.t,
+                pose: crate::dynamic::Pose {
+                    translation: k.translation.into(),
+                    rotation: quat_from_wxyz(k.rotation),
+                },
+            })
+            .collect(),
+    )
+}
+
+/// Load a `splatbridge-scene/1` manifest: validate it, check every referenced file exists (all
+/// missing ones are named together), then read the PLYs and cameras.
+pub fn load_manifest(path: &Path, opts: &ReadOptions) -> Result<(DynamicScene, Vec<String>)> {
+    let text = std::fs::read_to_string(path).map_err(|e| SceneError::io(path, e))?;
+    let m = parse_manifest(path, &text)?;
+    let dir = path.parent().unwrap_or(Path::new(""));
+    let resolve = |p: &str| dir.join(p);
+
+    let mut refs: Vec<(String, &str)> = Vec::new();
+    if let Some(s) = &m.static_gaussians {
+        refs.push(("static".into(), s));
+    }
+    for (k, o) in m.objects.iter().enumerate() {
+        refs.push((
+            format!("objects[{k}] ('{}').gaussians", o.name),
+            &o.gaussians,
+        ));
+    }
+    if let Some(c) = &m.cameras {
+        refs.push(("cameras".into(), c));
+    }
+    let missing: Vec<String> = refs
+        .iter()
+        .filter(|(_, p)| !resolve(p).is_file())
+        .map(|(field, p)| format!("{field} \"{p}\" ({})", resolve(p).display()))
+        .collect();
+    if !missing.is_empty() {
+        return Err(bad(path, format!("missing files: {}", missing.join("; "))));
+    }
+
+    let mut warnings = Vec::new();
+    let mut read = |field: &str, rel: &str| -> Result<GaussianCloud> {
+        let (cloud, report) =
+            read_ply(&resolve(rel), opts).map_err(|e| bad(path, format!("{field}: {e}")))?;
+        warnings.extend(report.warnings.into_iter().map(|w| format!("{rel}: {w}")));
+        Ok(cloud)
+    };
+    let static_gaussians = match &m.static_gaussians {
+        Some(s) => read("static", s)?,
+        None => GaussianCloud::new(0),
+    };
+    let time = TimeRange {
+        start: m.time.start,
+        end: m.time.end,
+        fps: m.time.fps,
+    };
+    let mut objects = Vec::with_capacity(m.objects.len());
+    for (k, o) in m.objects.iter().enumerate() {
+        let field = format!("objects[{k}] ('{}').gaussians", o.name);
+        let gaussians = read(&field, &o.gaussians)?;
+        let mut track = match (&o.track, &o.trajectory) {
+            (Some(keys), _) => track_from_json(keys),
+            (None, Some(rule)) => rule
+                .track(time.start, time.end, time.fps)
+                .map_err(|e| bad(path, format!("objects[{k}] ('{}'): {e}", o.name)))?,
+            (None, None) => unreachable!("validated: every object has a track or a trajectory"),
+        };
+        for key in &mut track.keys {
+            key.pose.rotation = crate::dynamic::normalize_or_identity(key.pose.rotation);
+        }
+        objects.push(SceneObject {
+            name: o.name.clone(),
+            gaussians,
+            track,
+        });
+    }
+    let cameras = match &m.cameras {
+        Some(c) => {
+            load_cameras_json(&resolve(c)).map_err(|e| bad(path, format!("cameras: {e}")))?
+        }
+        None => Vec::new(),
+    };
+    let scene = DynamicScene {
+        time,
+        static_gaussians,
+        objects,
+        cameras,
+        effects: m.effects,
+    };
+    scene.validate().map_err(|e| bad(path, e.to_string()))?;
+    Ok((scene, warnings))
+}
+
+/// What [`save_manifest`] wrote.
+#[derive(Clone, Debug)]
+pub struct SavedScene {
+    /// The manifest, `DIR/scene.json`.
+    pub manifest: PathBuf,
+    /// Every file written, the manifest last.
+    pub files: Vec<PathBuf>,
+}
+
+/// A file name for an object: its name with anything but ASCII letters, digits, `-` and `_`
+/// replaced by `_`.
+fn file_stem_for(name: &str) -> String {
+    let s: String = name
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    if s.is_empty() {
+        "object".into()
+    } else {
+        s
+    }
+}
+
+/// The manifest describing `scene` with the given file names (no files written).
+pub fn manifest_for(
+    scene: &DynamicScene,
+    static_file: Option<&str>,
+    object_files: &[String],
+    cameras_file: Option<&str>,
+) -> Manifest {
+    Manifest {
+        format: FORMAT.into(),
+        time: TimeJson {
+            start: scene.time.start,
+            end: scene.time.end,
+            fps: scene.time.fps,
+        },
+        static_gaussians: static_file.map(str::to_string),
+        objects: scene
+            .objects
+            .iter()
+            .zip(object_files)
+            .map(|(o, f)| ObjectJson {
+                name: o.name.clone(),
+                gaussians: f.clone(),
+                track: Some(
+                    o.track
+                        .keys
+                        .iter()
+                        .map(|k| KeyJson {
+                            t: k.t,
+                            translation: k.pose.translation.to_array(),
+                            rotation: quat_wxyz(k.pose.rotation),
+                        })
+                        .collect(),
+                ),
+                trajectory: None,
+            })
+            .collect(),
+        cameras: cameras_file.map(str::to_string),
+        effects: scene.effects.clone(),
+    }
+}
+
+/// Write `scene` into `dir` (created if needed): `static.ply` (when there are static
+/// Gaussians), one `NAME.ply` per object (binary little-endian), `cameras.json` (when the
+/// scene has cameras) and the manifest `scene.json`, each atomically. Tracks are written as
+/// explicit keys. The scene is validated first.
+pub fn save_manifest(dir: &Path, scene: &DynamicScene) -> Result<SavedScene> {
+    scene.validate()?;
+    std::fs::create_dir_all(dir).map_err(|e| SceneError::io(dir, e))?;
+    let mut files = Vec::new();
+    let static_file = if scene.static_gaussians.is_empty() {
+        None
+    } else {
+        let p = dir.join("static.ply");
+        write_ply(&p, &scene.static_gaussians, PlyFormat::BinaryLittleEndian)?;
+        files.push(p);
+        Some("static.ply")
+    };
+    let mut used: Vec<String> = vec!["static".into(), "scene".into(), "cameras".into()];
+    let mut object_files = Vec::new();
+    for o in &scene.objects {
+        let base = file_stem_for(&o.name);
+        let mut stem = base.clone();
+        let mut n = 1;
+        while used.contains(&stem) {
+            stem = format!("{base}_{n}");
+            n += 1;
+        }
+        used.push(stem.clone());
+        let name = format!("{stem}.ply");
+        let p = dir.join(&name);
+        write_ply(&p, &o.gaussians, PlyFormat::BinaryLittleEndian)?;
+        files.push(p);
+        object_files.push(name);
+    }
+    let cameras_file = if scene.cameras.is_empty() {
+        None
+    } else {
+        let p = dir.join("cameras.json");
+        save_cameras_json(&p, &scene.cameras)?;
+        files.push(p);
+        Some("cameras.json")
+    };
+    let m = manifest_for(scene, static_file, &object_files, cameras_file);
+    let manifest = dir.join("scene.json");
+    let mut text =
+        serde_json::to_string_pretty(&m).map_err(|e| SceneError::Invalid(e.to_string()))?;
+    text.push('\n');
+    crate::image_io::write_atomic(&manifest, text.as_bytes())?;
+    files.push(manifest.clone());
+    Ok(SavedScene { manifest, files })
 }
