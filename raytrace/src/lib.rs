@@ -1,1 +1,24 @@
-//! splatbridge-raytrace: see ARCHITECTURE.md.
+//! splatbridge-raytrace: a BVH ray tracer that renders exactly what was exported (GLB/glTF/OBJ
+//! triangle scenes, mode `mesh`) and ray-traces the Gaussians themselves (mode `gaussian`,
+//! after 3DGRT), over two interchangeable BVH backends (obvhs, and Embree 4 behind the
+//! `embree` feature).
+//!
+//! Entry points: [`scene_load::load_path`] / [`scene_load::load_glb_bytes`] give a
+//! [`model::TriScene`]; [`composite::MeshTracer`] renders it; [`gaussian::GaussianTracer`]
+//! renders a `GaussianCloud`; [`secondary`] answers transmittance and closest-opaque queries.
+
+pub mod backend;
+pub mod composite;
+#[cfg(feature = "embree")]
+pub mod embree_backend;
+pub mod error;
+pub mod model;
+pub mod obvhs_backend;
+pub mod render;
+pub mod tri;
+
+pub use backend::{BackendKind, BuildPreset};
+pub use composite::MeshTracer;
+pub use error::{Result, TraceError};
+pub use model::TriScene;
+pub use render::{RenderOptions, Stats};

@@ -1,0 +1,134 @@
+//! One interface over the BVH libraries: build over triangles or over boxes (custom
+//! primitives such as Gaussian proxies), then enumerate the candidate primitives along a ray.
+//!
+//! The caller's closure does the exact primitive test (the watertight triangle test or the
+//! Gaussian's response), so every backend produces identical hits from identical candidates:
+//! backends differ only in which candidates they visit and how fast. The closure may lower the
+//! cull distance (the k-nearest pattern); a backend may use it to skip farther nodes or ignore
+//! it, which never changes the result, only the work.
+
+use glam::Vec3;
+
+use crate::error::{Result, TraceError};
+
+/// Which BVH library traces.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum BackendKind {
+    /// obvhs CWBVH (pure Rust).
+    #[default]
+    Obvhs,
+    /// Embree 4 (feature `embree`).
+    Embree,
+}
+
+impl std::str::FromStr for BackendKind {
+    type Err = TraceError;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "obvhs" => Ok(BackendKind::Obvhs),
+            "embree" => Ok(BackendKind::Embree),
+            _ => Err(TraceError::Invalid(format!("backend '{s}' is not obvhs or embree"))),
+        }
+    }
+}
+
+impl std::fmt::Display for BackendKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            BackendKind::Obvhs => "obvhs",
+            BackendKind::Embree => "embree",
+        })
+    }
+}
+
+/// BVH build quality. Only presets without spatial pre-splits are offered: with pre-splits one
+/// triangle sits in several leaves and an all-hits query would see it more than once.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum BuildPreset {
+    Fastest,
+    VeryFast,
+    Fast,
+    #[default]
+    Medium,
+}
+
+impl std::str::FromStr for BuildPreset {
+    type Err = TraceError;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "fastest" => Ok(BuildPreset::Fastest),
+            "very-fast" => Ok(BuildPreset::VeryFast),
+            "fast" => Ok(BuildPreset::Fast),
+            "medium" => Ok(BuildPreset::Medium),
+            _ => Err(TraceError::Invalid(format!(
+                "build preset '{s}' is not fastest, very-fast, fast or medium"
+            ))),
+        }
+    }
+}
+
+/// Whether the Embree backend is compiled in.
+pub const EMBREE_AVAILABLE: bool = cfg!(feature = "embree");
+
+/// An acceleration structure over one primitive set.
+pub trait Accel: Send + Sync {
+    /// Call `visit(primitive, &mut cull)` for (at least) every primitive whose bounds the ray
+    /// `origin + t·dir, 0 ≤ t ≤ tmax` enters. `visit` may lower `cull`.
+    fn traverse(&self, origin: Vec3, dir: Vec3, tmax: f32, visit: &mut dyn FnMut(u32, &mut f32));
+}
+
+/// An empty structure (no primitives).
+pub struct EmptyAccel;
+
+impl Accel for EmptyAccel {
+    fn traverse(&self, _: Vec3, _: Vec3, _: f32, _: &mut dyn FnMut(u32, &mut f32)) {}
+}
+
+/// Build a structure over triangles (`tris` index `verts`).
+pub fn build_triangles(kind: BackendKind, preset: BuildPreset, verts: &[Vec3], tris: &[[u32; 3]]) -> Result<Box<dyn Accel>> {
+    if tris.is_empty() {
+        return Ok(Box::new(EmptyAccel));
+    }
+    match kind {
+        BackendKind::Obvhs => Ok(Box::new(crate::obvhs_backend::ObvhsAccel::triangles(preset, verts, tris))),
+        BackendKind::Embree => embree_triangles(preset, verts, tris),
+    }
+}
+
+/// Build a structure over axis-aligned boxes (custom primitives).
+pub fn build_boxes(kind: BackendKind, preset: BuildPreset, boxes: &[(Vec3, Vec3)]) -> Result<Box<dyn Accel>> {
+    if boxes.is_empty() {
+        return Ok(Box::new(EmptyAccel));
+    }
+    match kind {
+        BackendKind::Obvhs => Ok(Box::new(crate::obvhs_backend::ObvhsAccel::boxes(preset, boxes))),
+        BackendKind::Embree => embree_boxes(preset, boxes),
+    }
+}
+
+#[cfg(feature = "embree")]
+fn embree_triangles(preset: BuildPreset, verts: &[Vec3], tris: &[[u32; 3]]) -> Result<Box<dyn Accel>> {
+    Ok(Box::new(crate::embree_backend::EmbreeAccel::triangles(preset, verts, tris)?))
+}
+
+#[cfg(feature = "embree")]
+fn embree_boxes(preset: BuildPreset, boxes: &[(Vec3, Vec3)]) -> Result<Box<dyn Accel>> {
+    Ok(Box::new(crate::embree_backend::EmbreeAccel::boxes(preset, boxes)?))
+}
+
+#[cfg(not(feature = "embree"))]
+fn embree_triangles(_: BuildPreset, _: &[Vec3], _: &[[u32; 3]]) -> Result<Box<dyn Accel>> {
+    Err(not_built())
+}
+
+#[cfg(not(feature = "embree"))]
+fn embree_boxes(_: BuildPreset, _: &[(Vec3, Vec3)]) -> Result<Box<dyn Accel>> {
+    Err(not_built())
+}
+
+#[cfg(not(feature = "embree"))]
+fn not_built() -> TraceError {
+    TraceError::Backend(
+        "the embree backend is not compiled in: run scripts/get-embree.sh, then build with `--features embree`".into(),
+    )
+}

@@ -1,0 +1,344 @@
+//! Mode `mesh`: render exactly what was exported by compositing every triangle hit front to
+//! back, as a viewer with an unlit BLEND material shows it.
+//!
+//! Per ray, a k-buffer collects the k nearest hits beyond the last composited one (ordered by
+//! the key distance, Gaussian id, instance, planar group), composites them, and tracing resumes
+//! until the transmittance falls below 1e-4 (native splatting's threshold) or no hit is left.
+//! Ordering by the full key means hits at one distance are never lost or repeated across
+//! rounds, however many there are, and the image does not depend on traversal order.
+//!
+//! A planar group (one fan of one Gaussian, see `Mesh::planar_groups`) is crossed at most
+//! once by a ray, so its hit distance is taken from the group's plane: every triangle of the
+//! fan reports the same key, and a ray through a shared edge, vertex or fan centre counts the
+//! Gaussian once. Unlike native splatting, a hit is composited before the termination test (a
+//! viewer draws an opaque triangle; the rasterizer's "stop without adding" rule would drop it),
+//! and no 0.99 clamp or 1/255 cut is applied: those belong to the Gaussians, not to the mesh.
+//!
+//! Geometry: one BVH per mesh in the mesh's local frame, relative to an anchor (the centre of
+//! its bounds) so f32 keeps precision far from the origin; at time t each visible node is an
+//! instance and the ray is carried into its frame in f64 (instancing, no per-frame rebuild).
+
+use std::time::Instant;
+
+use glam::{DAffine3, DVec3, Vec3, Vec4};
+
+use crate::backend::{build_triangles, Accel, BackendKind, BuildPreset};
+use crate::error::Result;
+use crate::model::TriScene;
+use crate::render::{ray_box, render_frame, PixelOut, RenderOptions, Stats};
+use crate::tri::WRay;
+use splatbridge_scene::{Camera, Frame};
+
+/// One mesh's acceleration structure and the data the hit test needs.
+pub struct Blas {
+    pub anchor: DVec3,
+    /// Positions relative to `anchor`, f32.
+    pub rel: Vec<Vec3>,
+    pub group: Vec<u32>,
+    /// Plane of each group in relative coordinates: `n·x = w`.
+    pub planes: Vec<Vec4>,
+    pub lo: DVec3,
+    pub hi: DVec3,
+    pub accel: Box<dyn Accel>,
+}
+
+/// A hit in the k-buffer.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// World ray parameter (distance along the unit world direction).
+    pub t: f32,
+    pub gaussian: u32,
+    pub instance: u32,
+    pub group: u32,
+    pub tri: u32,
+    pub bary: [f32; 3],
+}
+
+/// Sort key: distance, then Gaussian id, instance, group (t ≥ 0, so its bits order like it).
+pub type Key = (u32, u32, u32, u32);
+
+impl Hit {
+    #[inline]
+    pub fn key(&self) -> Key {
+        (self.t.to_bits(), self.gaussian, self.instance, self.group)
+    }
+}
+
+/// A small sorted buffer of the k smallest keys; equal keys are one hit (the lower triangle
+/// index is kept, so the choice does not depend on traversal order).
+pub struct KBuffer {
+    pub k: usize,
+    pub hits: Vec<Hit>,
+}
+
+impl KBuffer {
+    pub fn new(k: usize) -> Self {
+        KBuffer {
+            k,
+            hits: Vec::with_capacity(k + 1),
+        }
+    }
+
+    pub fn clear(&mut self) {
+        self.hits.clear();
+    }
+
+    pub fn is_full(&self) -> bool {
+        self.hits.len() >= self.k
+    }
+
+    /// Insert; returns the cull distance to use afterwards (with a relative margin of 2⁻²⁰ so
+    /// rounding in node tests never culls a hit at exactly the k-th distance).
+    #[inline]
+    pub fn insert(&mut self, h: Hit, tmax: f32) -> f32 {
+        let key = h.key();
+        if self.is_full() && key >= self.hits[self.k - 1].key() {
+            return self.cull(tmax);
+        }
+        match self.hits.binary_search_by(|x| x.key().cmp(&key)) {
+            Ok(i) => {
+                if h.tri < self.hits[i].tri {
+                    self.hits[i] = h;
+                }
+            }
+            Err(i) => {
+                self.hits.insert(i, h);
+                self.hits.truncate(self.k);
+            }
+        }
+        self.cull(tmax)
+    }
+
+    #[inline]
+    pub fn cull(&self, tmax: f32) -> f32 {
+        if self.is_full() {
+            let t = self.hits[self.k - 1].t;
+            (t + t * (1.0 / 1_048_576.0) + f32::MIN_POSITIVE).min(tmax)
+        } else {
+            tmax
+        }
+    }
+}
+
+/// An instance prepared for one time: mesh, inverse transform, world bounds.
+#[derive(Clone, Copy, Debug)]
+pub struct PreparedInstance {
+    pub mesh: usize,
+    pub to_local: DAffine3,
+    pub lo: DVec3,
+    pub hi: DVec3,
+}
+
+/// The triangle scene with one BVH per mesh.
+pub struct MeshTracer {
+    pub scene: TriScene,
+    pub blas: Vec<Blas>,
+    pub backend: BackendKind,
+    /// Seconds spent building all BVHs (including the planar grouping).
+    pub build_seconds: f64,
+}
+
+impl MeshTracer {
+    /// Build per-mesh BVHs with `backend`.
+    pub fn new(scene: TriScene, backend: BackendKind, preset: BuildPreset) -> Result<Self> {
+        let start = Instant::now();
+        let mut blas = Vec::with_capacity(scene.meshes.len());
+        for m in &scene.meshes {
+            let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+            for p in &m.positions {
+                lo = lo.min(p.as_dvec3());
+                hi = hi.max(p.as_dvec3());
+            }
+            if m.positions.is_empty() {
+                (lo, hi) = (DVec3::ZERO, DVec3::ZERO);
+            }
+            // An f32-representable anchor keeps `p − anchor` as exact as f32 allows.
+            let anchor = (0.5 * (lo + hi)).as_vec3().as_dvec3();
+            let rel: Vec<Vec3> = m.positions.iter().map(|p| (p.as_dvec3() - anchor).as_vec3()).collect();
+            let (group, ngroups) = m.planar_groups();
+            // Each group's plane from its largest triangle (best conditioned normal).
+            let mut best = vec![(0.0f64, Vec4::ZERO); ngroups as usize];
+            for (t, tri) in m.tris.iter().enumerate() {
+                let [a, b, c] = tri.map(|i| rel[i as usize].as_dvec3());
+                let n = (b - a).cross(c - a);
+                let area = n.length();
+                let g = group[t] as usize;
+                if area > best[g].0 {
+                    let n = n / area;
+                    best[g] = (area, n.as_vec3().extend(n.dot(a) as f32));
+                }
+            }
+            let planes = best.into_iter().map(|(_, p)| p).collect();
+            let accel = build_triangles(backend, preset, &rel, &m.tris)?;
+            blas.push(Blas {
+                anchor,
+                rel,
+                group,
+                planes,
+                lo,
+                hi,
+                accel,
+            });
+        }
+        Ok(MeshTracer {
+            scene,
+            blas,
+            backend,
+            build_seconds: start.elapsed().as_secs_f64(),
+        })
+    }
+
+    /// Instances visible at `t`, with inverse transforms and world bounds.
+    pub fn prepare(&self, t: f64) -> Vec<PreparedInstance> {
+        self.scene
+            .instances(t)
+            .into_iter()
+            .filter(|i| !self.scene.meshes[i.mesh].tris.is_empty())
+            .map(|i| {
+                let b = &self.blas[i.mesh];
+                let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+                for c in 0..8 {
+                    let p = DVec3::new(
+                        if c & 1 == 0 { b.lo.x } else { b.hi.x },
+                        if c & 2 == 0 { b.lo.y } else { b.hi.y },
+                        if c & 4 == 0 { b.lo.z } else { b.hi.z },
+                    );
+                    let w = i.to_world.transform_point3(p);
+                    lo = lo.min(w);
+                    hi = hi.max(w);
+                }
+                // Pad by a relative 1e-6 so rounding in the f64 transform cannot clip a hit.
+                let pad = (hi - lo).max_element() * 1e-6 + 1e-9 * hi.abs().max(lo.abs()).max_element();
+                PreparedInstance {
+                    mesh: i.mesh,
+                    to_local: i.to_world.inverse(),
+                    lo: lo - DVec3::splat(pad),
+                    hi: hi + DVec3::splat(pad),
+                }
+            })
+            .collect()
+    }
+
+    /// Fill `buf` with the k smallest-key hits with key > `after` and `tmin ≤ t ≤ tmax` along
+    /// the world ray `o + t·d` (`d` unit length).
+    pub fn collect(&self, insts: &[PreparedInstance], o: DVec3, d: DVec3, tmin: f32, tmax: f32, after: Option<Key>, buf: &mut KBuffer) {
+        buf.clear();
+        for (ii, inst) in insts.iter().enumerate() {
+            let Some((b0, b1)) = ray_box(o, d, inst.lo, inst.hi) else { continue };
+            if b1 < tmin as f64 || b0 > buf.cull(tmax) as f64 {
+                continue;
+            }
+            let blas = &self.blas[inst.mesh];
+            let mesh = &self.scene.meshes[inst.mesh];
+            let lo = (inst.to_local.transform_point3(o) - blas.anchor).as_vec3();
+            let ld = inst.to_local.transform_vector3(d).as_vec3();
+            if !lo.is_finite() || !ld.is_finite() || ld == Vec3::ZERO {
+                continue;
+            }
+            let wray = WRay::new(lo, ld);
+            let cull0 = buf.cull(tmax);
+            blas.accel.traverse(lo, ld, cull0, &mut |prim, cull| {
+                let p = prim as usize;
+                let [a, b, c] = mesh.tris[p].map(|i| blas.rel[i as usize]);
+                let Some(h) = wray.intersect(a, b, c, f32::NEG_INFINITY, f32::INFINITY) else { return };
+                let g = blas.group[p];
+                let pl = blas.planes[g as usize];
+                let nd = pl.truncate().dot(ld);
+                let tp = (pl.w - pl.truncate().dot(lo)) / nd;
+                let t = if tp.is_finite() { tp } else { h.t };
+                // +0.0 normalises −0.0 so the bit pattern orders like the value.
+                let t = t + 0.0;
+                if !(t >= tmin && t <= tmax) {
+                    return;
+                }
+                let hit = Hit {
+                    t,
+                    gaussian: mesh.tri_gaussian[p],
+                    instance: ii as u32,
+                    group: g,
+                    tri: prim,
+                    bary: h.bary,
+                };
+                if after.is_some_and(|a| hit.key() <= a) {
+                    return;
+                }
+                *cull = buf.insert(hit, tmax);
+            });
+        }
+    }
+
+    /// Shade a hit: RGBA as the viewer computes it.
+    pub fn shade(&self, insts: &[PreparedInstance], h: &Hit) -> Vec4 {
+        let mesh = &self.scene.meshes[insts[h.instance as usize].mesh];
+        mesh.shade(h.tri as usize, h.bary, &self.scene.materials, &self.scene.textures)
+    }
+
+    /// Every hit along a world ray in key order (no compositing), for tests and tools.
+    pub fn all_hits(&self, insts: &[PreparedInstance], o: DVec3, d: DVec3, k: usize) -> Vec<Hit> {
+        let mut out = Vec::new();
+        let mut buf = KBuffer::new(k.max(1));
+        let mut after = None;
+        loop {
+            self.collect(insts, o, d, 0.0, f32::INFINITY, after, &mut buf);
+            out.extend_from_slice(&buf.hits);
+            if !buf.is_full() {
+                return out;
+            }
+            after = buf.hits.last().map(Hit::key);
+        }
+    }
+
+    /// Composite one ray (world origin `o`, unit direction `d`). `depth` in the result is the
+    /// weighted mean ray parameter.
+    pub fn trace(&self, insts: &[PreparedInstance], o: DVec3, d: DVec3, opts: &RenderOptions, buf: &mut KBuffer) -> PixelOut {
+        let mut out = PixelOut::default();
+        let mut tr = 1.0f32;
+        let (mut c, mut dsum, mut wsum) = (Vec3::ZERO, 0.0f32, 0.0f32);
+        let mut after = None;
+        'rounds: loop {
+            self.collect(insts, o, d, 0.0, f32::INFINITY, after, buf);
+            out.traversals += 1;
+            for h in &buf.hits {
+                out.hits += 1;
+                let rgba = self.shade(insts, h);
+                let a = rgba.w;
+                if a > 0.0 {
+                    let w = a * tr;
+                    c += rgba.truncate() * w;
+                    dsum += w * h.t;
+                    wsum += w;
+                    tr *= 1.0 - a;
+                    if tr < opts.min_transmittance {
+                        break 'rounds;
+                    }
+                }
+            }
+            if !buf.is_full() {
+                break;
+            }
+            after = buf.hits.last().map(Hit::key);
+        }
+        out.rgb = c + opts.background * tr;
+        out.alpha = 1.0 - tr;
+        out.depth = if wsum > 0.0 { dsum / wsum } else { 0.0 };
+        out
+    }
+
+    /// Render camera `cam` at time `time`.
+    pub fn render(&self, cam: &Camera, time: f64, opts: &RenderOptions) -> Result<(Frame, Stats)> {
+        opts.validate()?;
+        let insts = self.prepare(time);
+        render_frame(cam, |o, d| {
+            thread_local! {
+                static BUF: std::cell::RefCell<KBuffer> = std::cell::RefCell::new(KBuffer::new(16));
+            }
+            BUF.with(|b| {
+                let mut b = b.borrow_mut();
+                if b.k != opts.k {
+                    *b = KBuffer::new(opts.k);
+                }
+                self.trace(&insts, o, d, opts, &mut b)
+            })
+        })
+    }
+}

@@ -1,0 +1,526 @@
+//! The triangle scene a viewer would see: meshes (positions, RGBA vertex colours, optional UVs,
+//! per-triangle material and Gaussian id), materials (glTF metallic-roughness base colour
+//! factor × texture, alpha mode), a node hierarchy with TRS and animation channels sampled at
+//! time t (glTF 2.0 §3.11: STEP, LINEAR with shortest-path slerp for rotations, CUBICSPLINE),
+//! and camera nodes.
+//!
+//! Loading (see `scene_load`) fills this model from the exported file only, so a writer bug
+//! shows up in renders. Geometry stays in each mesh's local frame: animated objects are
+//! rendered as instances under their node's world transform at t, never rebuilt.
+
+use glam::{DAffine3, DMat3, DQuat, DVec3, Vec2, Vec3, Vec4};
+use splatbridge_scene::Camera;
+
+/// glTF `alphaMode`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum AlphaMode {
+    Opaque,
+    /// Alpha ≥ cutoff renders opaque, anything below is discarded.
+    Mask(f32),
+    Blend,
+}
+
+/// Texture coordinate wrap mode (glTF sampler).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Wrap {
+    Repeat,
+    Clamp,
+    Mirror,
+}
+
+/// A decoded texture: RGB decoded from sRGB to linear (glTF base-colour textures are sRGB
+/// encoded), alpha linear as stored; row 0 is the top of the image (UV v = 0).
+#[derive(Clone, Debug)]
+pub struct Texture {
+    pub width: u32,
+    pub height: u32,
+    pub texels: Vec<Vec4>,
+    pub wrap: [Wrap; 2],
+    /// Nearest-neighbour magnification/minification (sampler filter NEAREST); bilinear otherwise.
+    pub nearest: bool,
+}
+
+/// A material reduced to what an unlit BLEND viewer uses.
+#[derive(Clone, Debug)]
+pub struct Material {
+    pub base_color: Vec4,
+    pub texture: Option<usize>,
+    pub alpha_mode: AlphaMode,
+}
+
+impl Default for Material {
+    /// glTF's default material: white, opaque.
+    fn default() -> Self {
+        Material {
+            base_color: Vec4::ONE,
+            texture: None,
+            alpha_mode: AlphaMode::Opaque,
+        }
+    }
+}
+
+/// One mesh (all its primitives merged), in its local frame.
+#[derive(Clone, Debug, Default)]
+pub struct Mesh {
+    pub name: String,
+    /// Local positions as stored in the file.
+    pub positions: Vec<Vec3>,
+    /// RGBA vertex colours (white where the file has none).
+    pub colors: Vec<Vec4>,
+    pub uvs: Option<Vec<Vec2>>,
+    pub tris: Vec<[u32; 3]>,
+    pub tri_material: Vec<u32>,
+    /// The Gaussian each triangle came from (`_GAUSSIAN_ID` of its first vertex), or, without
+    /// that attribute, the index of the connected component the triangle belongs to.
+    pub tri_gaussian: Vec<u32>,
+    /// True when `tri_gaussian` came from the file's `_GAUSSIAN_ID`.
+    pub has_gaussian_ids: bool,
+}
+
+/// glTF perspective camera parameters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Perspective {
+    pub yfov: f64,
+    pub aspect: Option<f64>,
+}
+
+/// Which property an animation channel drives.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ChannelPath {
+    Translation,
+    Rotation,
+    Scale,
+}
+
+/// Animation sampler interpolation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Interpolation {
+    Step,
+    Linear,
+    CubicSpline,
+}
+
+/// One animation channel with its sampler's keys (times in seconds, strictly increasing).
+/// Values are xyz(w); CUBICSPLINE stores (in-tangent, value, out-tangent) per key.
+#[derive(Clone, Debug)]
+pub struct Channel {
+    pub node: usize,
+    pub path: ChannelPath,
+    pub interpolation: Interpolation,
+    pub times: Vec<f64>,
+    pub values: Vec<[f64; 4]>,
+}
+
+/// A node: TRS (or a fixed matrix), optional mesh and camera.
+#[derive(Clone, Debug)]
+pub struct Node {
+    pub name: String,
+    pub parent: Option<usize>,
+    pub translation: DVec3,
+    pub rotation: DQuat,
+    pub scale: DVec3,
+    /// A node given as `matrix` (never animated, glTF forbids it).
+    pub matrix: Option<DAffine3>,
+    pub mesh: Option<usize>,
+    pub camera: Option<Perspective>,
+}
+
+impl Default for Node {
+    fn default() -> Self {
+        Node {
+            name: String::new(),
+            parent: None,
+            translation: DVec3::ZERO,
+            rotation: DQuat::IDENTITY,
+            scale: DVec3::ONE,
+            matrix: None,
+            mesh: None,
+            camera: None,
+        }
+    }
+}
+
+/// A mesh placed in the world at some time.
+#[derive(Clone, Copy, Debug)]
+pub struct Instance {
+    pub node: usize,
+    pub mesh: usize,
+    pub to_world: DAffine3,
+}
+
+/// The whole triangle scene.
+#[derive(Clone, Debug, Default)]
+pub struct TriScene {
+    pub meshes: Vec<Mesh>,
+    pub materials: Vec<Material>,
+    pub textures: Vec<Texture>,
+    pub nodes: Vec<Node>,
+    pub channels: Vec<Channel>,
+}
+
+/// Default image height for glTF cameras, which carry no pixel size (the width follows the
+/// aspect ratio); `CameraArgs` resizes when `--width/--height` are given.
+pub const GLTF_CAMERA_HEIGHT: u32 = 480;
+
+impl TriScene {
+    /// A scene of one mesh under an identity node.
+    pub fn single(mesh: Mesh, materials: Vec<Material>, textures: Vec<Texture>) -> Self {
+        TriScene {
+            meshes: vec![mesh],
+            materials,
+            textures,
+            nodes: vec![Node {
+                mesh: Some(0),
+                ..Node::default()
+            }],
+            channels: Vec::new(),
+        }
+    }
+
+    /// Total triangle count over meshes (not instances).
+    pub fn triangle_count(&self) -> usize {
+        self.meshes.iter().map(|m| m.tris.len()).sum()
+    }
+
+    /// The time range the animation channels span (`(0, 0)` without animation).
+    pub fn time_range(&self) -> (f64, f64) {
+        let mut lo = f64::INFINITY;
+        let mut hi = f64::NEG_INFINITY;
+        for c in &self.channels {
+            if let (Some(a), Some(b)) = (c.times.first(), c.times.last()) {
+                lo = lo.min(*a);
+                hi = hi.max(*b);
+            }
+        }
+        if lo <= hi {
+            (lo, hi)
+        } else {
+            (0.0, 0.0)
+        }
+    }
+
+    /// Node `i`'s local transform at time `t` (its TRS with animated channels applied).
+    pub fn local_transform(&self, i: usize, t: f64) -> DAffine3 {
+        let n = &self.nodes[i];
+        if let Some(m) = n.matrix {
+            return m;
+        }
+        let (mut tr, mut rot, mut sc) = (n.translation, n.rotation, n.scale);
+        for c in self.channels.iter().filter(|c| c.node == i) {
+            let v = sample_channel(c, t);
+            match c.path {
+                ChannelPath::Translation => tr = DVec3::new(v[0], v[1], v[2]),
+                ChannelPath::Scale => sc = DVec3::new(v[0], v[1], v[2]),
+                ChannelPath::Rotation => {
+                    let q = DQuat::from_xyzw(v[0], v[1], v[2], v[3]);
+                    let l = q.length();
+                    rot = if l > 0.0 && l.is_finite() { q / l } else { DQuat::IDENTITY };
+                }
+            }
+        }
+        DAffine3::from_scale_rotation_translation(sc, rot, tr)
+    }
+
+    /// World transforms of all nodes at time `t` (parents before children is not assumed).
+    pub fn world_transforms(&self, t: f64) -> Vec<DAffine3> {
+        let local: Vec<DAffine3> = (0..self.nodes.len()).map(|i| self.local_transform(i, t)).collect();
+        let mut world: Vec<Option<DAffine3>> = vec![None; self.nodes.len()];
+        fn resolve(i: usize, nodes: &[Node], local: &[DAffine3], world: &mut [Option<DAffine3>], depth: usize) -> DAffine3 {
+            if let Some(w) = world[i] {
+                return w;
+            }
+            // Loaders reject cycles; the depth cap keeps a malformed model finite regardless.
+            let w = match nodes[i].parent {
+                Some(p) if depth < nodes.len() => resolve(p, nodes, local, world, depth + 1) * local[i],
+                _ => local[i],
+            };
+            world[i] = Some(w);
+            w
+        }
+        (0..self.nodes.len())
+            .map(|i| resolve(i, &self.nodes, &local, &mut world, 0))
+            .collect()
+    }
+
+    /// Mesh instances visible at `t`: nodes with a mesh whose world transform is invertible
+    /// (a STEP scale of 0 hides a node, the glTF idiom for per-frame visibility).
+    pub fn instances(&self, t: f64) -> Vec<Instance> {
+        let world = self.world_transforms(t);
+        self.nodes
+            .iter()
+            .enumerate()
+            .filter_map(|(i, n)| {
+                let mesh = n.mesh?;
+                let w = world[i];
+                let det = w.matrix3.determinant();
+                (det.is_finite() && det.abs() > 1e-18 && w.translation.is_finite()).then_some(Instance {
+                    node: i,
+                    mesh,
+                    to_world: w,
+                })
+            })
+            .collect()
+    }
+
+    /// The scene's camera nodes at time `t` as OpenCV cameras. The glTF camera looks down −Z
+    /// with +Y up; OpenCV looks down +Z with +Y down, so the camera-to-world rotation is the
+    /// node's (scale removed) times diag(1, −1, −1). Pixel size: `GLTF_CAMERA_HEIGHT` rows,
+    /// columns from the aspect ratio (4:3 when absent), square pixels.
+    pub fn cameras(&self, t: f64) -> Vec<Camera> {
+        let world = self.world_transforms(t);
+        let mut out = Vec::new();
+        for (i, n) in self.nodes.iter().enumerate() {
+            let Some(p) = n.camera else { continue };
+            let w = world[i];
+            let m = w.matrix3;
+            let (x, y) = (m.x_axis, m.y_axis);
+            // Gram–Schmidt removes scale and shear; a degenerate node yields no camera.
+            let xa = x.normalize_or_zero();
+            let ya = (y - xa * xa.dot(y)).normalize_or_zero();
+            if xa == DVec3::ZERO || ya == DVec3::ZERO {
+                continue;
+            }
+            let za = xa.cross(ya);
+            let c2w = DMat3::from_cols(xa, -ya, -za);
+            let h = GLTF_CAMERA_HEIGHT;
+            let aspect = p.aspect.filter(|a| *a > 0.0 && a.is_finite()).unwrap_or(4.0 / 3.0);
+            let wpx = ((h as f64 * aspect).round() as u32).max(1);
+            let f = 0.5 * h as f64 / (0.5 * p.yfov).tan();
+            out.push(Camera {
+                width: wpx,
+                height: h,
+                fx: f,
+                fy: f,
+                cx: 0.5 * wpx as f64,
+                cy: 0.5 * h as f64,
+                centre: w.translation,
+                world_to_cam: c2w.transpose(),
+                name: if n.name.is_empty() { format!("node {i}") } else { n.name.clone() },
+            });
+        }
+        out
+    }
+}
+
+/// Sample a channel at time `t`, clamped to its first/last key outside the keyed range.
+pub fn sample_channel(c: &Channel, t: f64) -> [f64; 4] {
+    let n = c.times.len();
+    let cubic = c.interpolation == Interpolation::CubicSpline;
+    let value = |k: usize| if cubic { c.values[3 * k + 1] } else { c.values[k] };
+    if n == 0 {
+        return [0.0, 0.0, 0.0, 1.0];
+    }
+    if n == 1 || t.is_nan() || t <= c.times[0] {
+        return value(0);
+    }
+    if t >= c.times[n - 1] {
+        return value(n - 1);
+    }
+    // Last key with time ≤ t.
+    let k = c.times.partition_point(|&x| x <= t) - 1;
+    let (t0, t1) = (c.times[k], c.times[k + 1]);
+    let s = ((t - t0) / (t1 - t0)).clamp(0.0, 1.0);
+    let (a, b) = (value(k), value(k + 1));
+    match c.interpolation {
+        Interpolation::Step => a,
+        Interpolation::Linear => {
+            if c.path == ChannelPath::Rotation {
+                let qa = DQuat::from_array(a).normalize();
+                let mut qb = DQuat::from_array(b).normalize();
+                // Shortest path: glTF's slerp takes the short arc.
+                if qa.dot(qb) < 0.0 {
+                    qb = -qb;
+                }
+                qa.slerp(qb, s).normalize().to_array()
+            } else {
+                std::array::from_fn(|j| a[j] + (b[j] - a[j]) * s)
+            }
+        }
+        Interpolation::CubicSpline => {
+            let dt = t1 - t0;
+            let out_a = c.values[3 * k + 2];
+            let in_b = c.values[3 * (k + 1)];
+            let (s2, s3) = (s * s, s * s * s);
+            let h00 = 2.0 * s3 - 3.0 * s2 + 1.0;
+            let h10 = s3 - 2.0 * s2 + s;
+            let h01 = -2.0 * s3 + 3.0 * s2;
+            let h11 = s3 - s2;
+            let mut v: [f64; 4] = std::array::from_fn(|j| h00 * a[j] + h10 * dt * out_a[j] + h01 * b[j] + h11 * dt * in_b[j]);
+            if c.path == ChannelPath::Rotation {
+                let q = DQuat::from_array(v);
+                let l = q.length();
+                if l > 0.0 {
+                    v = (q / l).to_array();
+                }
+            }
+            v
+        }
+    }
+}
+
+impl Texture {
+    fn texel(&self, x: i64, y: i64) -> Vec4 {
+        let wrap = |i: i64, n: u32, m: Wrap| -> usize {
+            let n = n as i64;
+            (match m {
+                Wrap::Clamp => i.clamp(0, n - 1),
+                Wrap::Repeat => i.rem_euclid(n),
+                Wrap::Mirror => {
+                    let p = i.rem_euclid(2 * n);
+                    if p < n {
+                        p
+                    } else {
+                        2 * n - 1 - p
+                    }
+                }
+            }) as usize
+        };
+        let xi = wrap(x, self.width, self.wrap[0]);
+        let yi = wrap(y, self.height, self.wrap[1]);
+        self.texels[yi * self.width as usize + xi]
+    }
+
+    /// Sample at texture coordinate `uv` (texel centres at (i + 0.5)/size).
+    pub fn sample(&self, uv: Vec2) -> Vec4 {
+        if self.texels.is_empty() || !uv.is_finite() {
+            return Vec4::ONE;
+        }
+        let x = uv.x as f64 * self.width as f64 - 0.5;
+        let y = uv.y as f64 * self.height as f64 - 0.5;
+        if self.nearest {
+            return self.texel(x.round() as i64, y.round() as i64);
+        }
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = ((x - x0) as f32, (y - y0) as f32);
+        let (x0, y0) = (x0 as i64, y0 as i64);
+        let a = self.texel(x0, y0).lerp(self.texel(x0 + 1, y0), fx);
+        let b = self.texel(x0, y0 + 1).lerp(self.texel(x0 + 1, y0 + 1), fx);
+        a.lerp(b, fy)
+    }
+}
+
+/// glTF sRGB transfer function decode (for base-colour texture RGB).
+pub fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+impl Mesh {
+    /// RGBA at barycentric position `bary` of triangle `tri`, as an unlit BLEND viewer shades it:
+    /// vertex colour × base colour factor × texture, then the material's alpha mode.
+    pub fn shade(&self, tri: usize, bary: [f32; 3], materials: &[Material], textures: &[Texture]) -> Vec4 {
+        let [i0, i1, i2] = self.tris[tri].map(|i| i as usize);
+        let mut c = self.colors[i0] * bary[0] + self.colors[i1] * bary[1] + self.colors[i2] * bary[2];
+        let default = Material::default();
+        let m = materials.get(self.tri_material[tri] as usize).unwrap_or(&default);
+        c *= m.base_color;
+        if let (Some(tex), Some(uvs)) = (m.texture.and_then(|t| textures.get(t)), &self.uvs) {
+            let uv = uvs[i0] * bary[0] + uvs[i1] * bary[1] + uvs[i2] * bary[2];
+            c *= tex.sample(uv);
+        }
+        let a = c.w.clamp(0.0, 1.0);
+        let a = match m.alpha_mode {
+            AlphaMode::Opaque => 1.0,
+            AlphaMode::Mask(cut) => {
+                if a >= cut {
+                    1.0
+                } else {
+                    0.0
+                }
+            }
+            AlphaMode::Blend => a,
+        };
+        Vec4::new(c.x, c.y, c.z, a)
+    }
+
+    /// Fill `tri_gaussian` with connected-component indices (vertices shared through the index
+    /// buffer), for files without `_GAUSSIAN_ID`.
+    pub fn assign_components(&mut self) {
+        let n = self.positions.len();
+        let mut parent: Vec<u32> = (0..n as u32).collect();
+        fn find(p: &mut [u32], mut x: u32) -> u32 {
+            while p[x as usize] != x {
+                p[x as usize] = p[p[x as usize] as usize];
+                x = p[x as usize];
+            }
+            x
+        }
+        for t in &self.tris {
+            let a = find(&mut parent, t[0]);
+            for &v in &t[1..] {
+                let b = find(&mut parent, v);
+                if a != b {
+                    parent[b as usize] = a;
+                }
+            }
+        }
+        let mut label = vec![u32::MAX; n];
+        let mut next = 0u32;
+        self.tri_gaussian = self
+            .tris
+            .iter()
+            .map(|t| {
+                let r = find(&mut parent, t[0]) as usize;
+                if label[r] == u32::MAX {
+                    label[r] = next;
+                    next += 1;
+                }
+                label[r]
+            })
+            .collect();
+        self.has_gaussian_ids = false;
+    }
+
+    /// Planar fan groups: triangles of one Gaussian (or component) that lie in one plane form a
+    /// group, which a ray crosses at most once, so a hit on a shared edge or vertex counts once.
+    /// Two triangles share a group when their normals are parallel (|cos| > 0.99, within ~8°)
+    /// and the second's vertices lie within `1e-3 × extent + 1e-6 × |coordinate|` of the first's
+    /// plane: fans written in f32 are planar up to f32 rounding (~6e-8 of the coordinate
+    /// magnitude, which dominates far from the origin), while the fans of one volumetric
+    /// Gaussian are orthogonal and parallel faces of a solid are offset by their separation.
+    /// Returns (per-triangle group, group count).
+    pub fn planar_groups(&self) -> (Vec<u32>, u32) {
+        let mut order: Vec<u32> = (0..self.tris.len() as u32).collect();
+        order.sort_by_key(|&t| self.tri_gaussian[t as usize]);
+        let mut group = vec![u32::MAX; self.tris.len()];
+        let mut next = 0u32;
+        // Representatives of the current Gaussian's groups: (normal, point, tolerance, id).
+        let mut reps: Vec<(DVec3, DVec3, f64, u32)> = Vec::new();
+        let mut cur = u32::MAX;
+        for &t in &order {
+            let t = t as usize;
+            let g = self.tri_gaussian[t];
+            if g != cur {
+                reps.clear();
+                cur = g;
+            }
+            let [a, b, c] = self.tris[t].map(|i| self.positions[i as usize].as_dvec3());
+            let n = (b - a).cross(c - a);
+            let ext = (b - a).length().max((c - a).length()).max((c - b).length());
+            let nn = n.normalize_or_zero();
+            let found = if nn == DVec3::ZERO {
+                None
+            } else {
+                reps.iter().find(|(rn, rp, tol, _)| {
+                    rn.dot(nn).abs() > 0.99
+                        && [a, b, c].iter().all(|p| rn.dot(*p - *rp).abs() <= tol.max(1e-3 * ext) + 1e-6 * p.abs().max_element())
+                })
+            };
+            group[t] = match found {
+                Some(r) => r.3,
+                None => {
+                    let id = next;
+                    next += 1;
+                    if nn != DVec3::ZERO {
+                        reps.push((nn, a, 1e-3 * ext, id));
+                    }
+                    id
+                }
+            };
+        }
+        (group, next)
+    }
+}

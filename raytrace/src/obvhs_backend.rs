@@ -1,0 +1,73 @@
+//! The obvhs backend: a compressed wide BVH (CWBVH, Ylitie et al. 2017) built with PLOC
+//! (Meister & Bittner 2018) from the pure-Rust `obvhs` crate.
+//!
+//! Presets never pre-split triangles (see `BuildPreset`), so each primitive sits in exactly one
+//! leaf. Traversal goes through `ray_traverse`, whose closure returns a distance that shrinks
+//! the ray's `tmax`: that is how the k-nearest query culls nodes beyond the k-th hit.
+
+use std::time::Duration;
+
+use glam::{Vec3, Vec3A};
+use obvhs::aabb::Aabb;
+use obvhs::cwbvh::builder::{build_cwbvh, build_cwbvh_from_tris};
+use obvhs::cwbvh::CwBvh;
+use obvhs::ray::{Ray, RayHit};
+use obvhs::triangle::Triangle;
+use obvhs::BvhBuildParams;
+
+use crate::backend::{Accel, BuildPreset};
+
+fn params(p: BuildPreset) -> BvhBuildParams {
+    let mut b = match p {
+        BuildPreset::Fastest => BvhBuildParams::fastest_build(),
+        BuildPreset::VeryFast => BvhBuildParams::very_fast_build(),
+        BuildPreset::Fast => BvhBuildParams::fast_build(),
+        BuildPreset::Medium => BvhBuildParams::medium_build(),
+    };
+    b.pre_split = false;
+    b
+}
+
+/// A CWBVH plus the map from its leaf order to the caller's primitive indices.
+pub struct ObvhsAccel {
+    bvh: CwBvh,
+}
+
+impl ObvhsAccel {
+    pub fn triangles(preset: BuildPreset, verts: &[Vec3], tris: &[[u32; 3]]) -> Self {
+        let t: Vec<Triangle> = tris
+            .iter()
+            .map(|&[a, b, c]| Triangle {
+                v0: Vec3A::from(verts[a as usize]),
+                v1: Vec3A::from(verts[b as usize]),
+                v2: Vec3A::from(verts[c as usize]),
+            })
+            .collect();
+        let bvh = build_cwbvh_from_tris(&t, params(preset), &mut Duration::default());
+        ObvhsAccel { bvh }
+    }
+
+    pub fn boxes(preset: BuildPreset, boxes: &[(Vec3, Vec3)]) -> Self {
+        let b: Vec<Aabb> = boxes.iter().map(|(lo, hi)| Aabb::new(Vec3A::from(*lo), Vec3A::from(*hi))).collect();
+        let bvh = build_cwbvh(&b, params(preset), &mut Duration::default());
+        ObvhsAccel { bvh }
+    }
+}
+
+impl Accel for ObvhsAccel {
+    fn traverse(&self, origin: Vec3, dir: Vec3, tmax: f32, visit: &mut dyn FnMut(u32, &mut f32)) {
+        let ray = Ray::new(Vec3A::from(origin), Vec3A::from(dir), 0.0, tmax);
+        let mut hit = RayHit::none();
+        let mut cull = tmax;
+        let map = &self.bvh.primitive_indices;
+        self.bvh.ray_traverse(ray, &mut hit, |_, id| {
+            let before = cull;
+            visit(map[id], &mut cull);
+            if cull < before {
+                cull
+            } else {
+                f32::INFINITY
+            }
+        });
+    }
+}
