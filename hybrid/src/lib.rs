@@ -1,1 +1,14 @@
-//! splatbridge-hybrid: see ARCHITECTURE.md.
+//! splatbridge-hybrid: the native 3D Gaussian Splatting renderer on a CPU (the exact forward
+//! pass of the reference implementation, graphdeco-inria `diff-gaussian-rasterization`, see
+//! `../shared/reference/3dgs-conventions.md`) and, built on its projection and blending, the
+//! GES-style surfel-plus-Gaussian hybrid.
+//!
+//! Modules: [`project`] (per-Gaussian projection), [`bin`] (depth order and tile lists),
+//! [`raster`] (per-tile blending), [`native`] (the renderer API: options, statistics).
+
+pub mod bin;
+pub mod native;
+pub mod project;
+pub mod raster;
+
+pub use native::{render, Extent, PhaseTimes, RenderError, RenderOptions, RenderStats};

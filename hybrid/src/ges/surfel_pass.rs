@@ -1,0 +1,313 @@
+//! Pass 1 of the GES hybrid: opaque surfels through a z-buffer, no sorting.
+//!
+//! Per pixel sample the camera ray `d = ((x − c'x)/fx, (y − c'y)/fy, 1)` (pixel `i` sampled at
+//! `i`, as the native renderer) is intersected with each candidate surfel's plane: with the
+//! camera-relative centre `c`, normal `n` and scaled axes `a_u/s_u`, `a_v/s_v`, the hit is at view
+//! depth `t = (n·c)/(n·d)` and local coordinates `u = t·(a_u·d)/s_u − (a_u·c)/s_u` (likewise v).
+//! The sample is covered when `t > near`, t is finite and `u² + v² ≤ 2·ln 255` (GES's
+//! `−½|uv|² ≥ ln(1/255)`). The nearest covering surfel wins (strictly smaller t; equal depths
+//! keep the lower surfel index, so the image does not depend on threads). Exact depth and coverage
+//! per sample come for free from the intersection: no rasterised triangles, no depth bias.
+//!
+//! Each of `n·d`, `a_u·d`, `a_v·d` is linear in the pixel coordinates; the coefficients are formed
+//! in f64 from the camera-relative surfel (so scenes far from the origin keep their precision) and
+//! rounded to f32 once.
+//!
+//! Surfels are binned to tiles by the exact screen bounding box of their footprint ellipse (the
+//! extremes of `x/z` over the ellipse's rim solve `P·sin θ + Q·cos θ = K`, see [`screen_box`]), in
+//! index order, without sorting. A surfel whose footprint crosses the near plane gets the whole
+//! screen (per-sample `t > near` clips it exactly).
+//!
+//! **Supersampling** (`supersample = 4`): four samples per pixel at the standard rotated-grid
+//! offsets (±1/8, ±3/8). Per pixel: coverage `w_S = covered/4`, colour the mean over covered
+//! samples, output depth the mean over covered samples, and the pass-2 depth limit the largest
+//! `D_S + ε` over covered samples (a Gaussian counts if it lies in front of the limit of any
+//! covered part of the pixel). With one sample the sample sits at the pixel's integer coordinate.
+
+use rayon::prelude::*;
+use splatbridge_scene::surfels::{SurfelCloud, FOOTPRINT_SIGMAS};
+use splatbridge_scene::sh;
+
+use glam::DVec3;
+
+use crate::project::{ViewParams, TILE};
+
+use super::tiles::bin_rects;
+
+pub(crate) const T: usize = TILE as usize;
+pub(crate) const N: usize = T * T;
+
+/// Planes of the surfel buffer, per tile (tile-major, `N` values per plane).
+pub const P_R: usize = 0;
+pub const P_G: usize = 1;
+pub const P_B: usize = 2;
+/// Coverage `w_S` in [0, 1].
+pub const P_W: usize = 3;
+/// Output depth (mean over covered samples; 0 where uncovered).
+pub const P_DEPTH: usize = 4;
+/// Pass-2 depth limit `D_S + ε` (+inf where uncovered).
+pub const P_LIMIT: usize = 5;
+pub const SURFEL_PLANES: usize = 6;
+
+/// Sample offsets of the 4× pattern (the rotated grid of Direct3D's standard 4× MSAA).
+pub const OFFSETS_4: [[f32; 2]; 4] = [[-0.125, -0.375], [0.375, -0.125], [-0.375, 0.125], [0.125, 0.375]];
+
+/// `(2·ln 255)`: the squared footprint radius in standard deviations.
+pub fn footprint_r2() -> f32 {
+    FOOTPRINT_SIGMAS * FOOTPRINT_SIGMAS
+}
+
+/// A surfel in camera space, ready for the per-sample test.
+#[derive(Clone, Copy, Debug)]
+pub struct SurfelSplat {
+    /// `n·d = n[0]·x + n[1]·y + n[2]` at pixel coordinates (x, y); likewise u, v (scaled axes).
+    pub n: [f32; 3],
+    pub u: [f32; 3],
+    pub v: [f32; 3],
+    /// `n·c`, `(a_u·c)/s_u`, `(a_v·c)/s_v`.
+    pub nc: f32,
+    pub uc: f32,
+    pub vc: f32,
+    pub color: [f32; 3],
+    /// Depth tolerance ε in view-depth units (world units).
+    pub eps: f32,
+    /// Inclusive pixel box.
+    pub bbox: [i32; 4],
+    pub index: u32,
+}
+
+impl SurfelSplat {
+    /// View depth of the hit and whether the sample at (x, y) is covered.
+    #[inline(always)]
+    pub fn hit(&self, x: f32, y: f32, near: f32, r2: f32) -> (f32, bool) {
+        let den = self.n[0] * x + self.n[1] * y + self.n[2];
+        let t = self.nc / den;
+        let u = t * (self.u[0] * x + self.u[1] * y + self.u[2]) - self.uc;
+        let v = t * (self.v[0] * x + self.v[1] * y + self.v[2]) - self.vc;
+        let covered = t > near && t < f32::MAX && u * u + v * v <= r2;
+        (t, covered)
+    }
+}
+
+/// Screen bounding box (continuous pixel coordinates, pixel `i` at `i`) of the ellipse
+/// `c + cos θ·U + sin θ·W` (camera space, every rim point in front of the camera): the extremes
+/// of `X(θ)/Z(θ)` satisfy `(X'Z − XZ') = 0`, i.e. `P·sin θ + Q·cos θ = K` with
+/// `P = U.z·c.x − U.x·c.z`, `Q = W.x·c.z − W.z·c.x`, `K = U.x·W.z − W.x·U.z`.
+pub fn screen_box(view: &ViewParams, c: DVec3, u: DVec3, w: DVec3) -> [f64; 4] {
+    let along = |ci: f64, ui: f64, wi: f64, f: f64, p0: f64| -> (f64, f64) {
+        let p = u.z * ci - ui * c.z;
+        let q = wi * c.z - w.z * ci;
+        let k = ui * w.z - wi * u.z;
+        let rho = (p * p + q * q).sqrt();
+        let proj = |th: f64| {
+            let (s, co) = th.sin_cos();
+            f * (ci + co * ui + s * wi) / (c.z + co * u.z + s * w.z) + p0
+        };
+        if rho > 1e-300 && (k / rho).abs() <= 1.0 {
+            let phi = q.atan2(p);
+            let a = (k / rho).asin();
+            let (x0, x1) = (proj(a - phi), proj(std::f64::consts::PI - a - phi));
+            (x0.min(x1), x0.max(x1))
+        } else {
+            // Degenerate (the projection is constant along the rim): the centre and four rim
+            // points bound it.
+            let pts = [0.0, 0.5, 1.0, 1.5].map(|k: f64| proj(k * std::f64::consts::PI));
+            let lo = pts.iter().cloned().fold(f64::INFINITY, f64::min);
+            let hi = pts.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+            (lo, hi)
+        }
+    };
+    let (x0, x1) = along(c.x, u.x, w.x, view.fx, view.px0);
+    let (y0, y1) = along(c.y, u.y, w.y, view.fy, view.py0);
+    [x0, y0, x1, y1]
+}
+
+/// Project surfel `i` for this view; `None` when entirely behind the near plane, off-screen or
+/// degenerate.
+pub fn project_surfel(s: &SurfelCloud, i: usize, view: &ViewParams, eps_factor: f32, sh_degree: u8) -> Option<SurfelSplat> {
+    let w2c = view.world_to_cam;
+    let rel = s.means[i].as_dvec3() - view.centre;
+    let c = w2c * rel;
+    let au = w2c * s.axes_u[i].as_dvec3();
+    let av = w2c * s.axes_v[i].as_dvec3();
+    let [su, sv] = s.scales[i].map(|v| v as f64);
+    let n = au.cross(av);
+    if !(c.is_finite() && n.is_finite() && su > 0.0 && sv > 0.0 && su.is_finite() && sv.is_finite()) || n.length_squared() == 0.0 {
+        return None;
+    }
+    let r = FOOTPRINT_SIGMAS as f64;
+    let (uu, ww) = (au * (r * su), av * (r * sv));
+    let zr = (uu.z * uu.z + ww.z * ww.z).sqrt();
+    if c.z + zr <= view.near {
+        return None;
+    }
+    let (wpx, hpx) = (view.width as i64, view.height as i64);
+    let bbox = if c.z - zr > view.near {
+        let b = screen_box(view, c, uu, ww);
+        if !b.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        // One pixel of margin for the supersample offsets (≤ 3/8) and f32 evaluation.
+        let lo = |v: f64, m: i64| ((v - 1.0).floor().max(-1.0) as i64).min(m) as i32;
+        let hi = |v: f64, m: i64| ((v + 1.0).ceil().min(m as f64) as i64).max(-1) as i32;
+        [lo(b[0], wpx), lo(b[1], hpx), hi(b[2], wpx), hi(b[3], hpx)]
+    } else {
+        [0, 0, wpx as i32 - 1, hpx as i32 - 1]
+    };
+    let bbox = [bbox[0].max(0), bbox[1].max(0), bbox[2].min(wpx as i32 - 1), bbox[3].min(hpx as i32 - 1)];
+    if bbox[0] > bbox[2] || bbox[1] > bbox[3] {
+        return None;
+    }
+    // d(x, y) = ((x − px0)/fx, (y − py0)/fy, 1): a·d = (a.x/fx)·x + (a.y/fy)·y + (a.z − a.x·px0/fx − a.y·py0/fy).
+    let form = |a: DVec3| -> [f32; 3] {
+        [
+            (a.x / view.fx) as f32,
+            (a.y / view.fy) as f32,
+            (a.z - a.x * view.px0 / view.fx - a.y * view.py0 / view.fy) as f32,
+        ]
+    };
+    let (au_s, av_s) = (au / su, av / sv);
+    let color = sh::eval_color(sh_degree, s.sh_of(i), rel.normalize().as_vec3());
+    Some(SurfelSplat {
+        n: form(n),
+        u: form(au_s),
+        v: form(av_s),
+        nc: n.dot(c) as f32,
+        uc: au_s.dot(c) as f32,
+        vc: av_s.dot(c) as f32,
+        color: color.to_array(),
+        eps: eps_factor * s.mean_scales[i],
+        bbox,
+        index: i as u32,
+    })
+}
+
+/// Result of pass 1: tile-major planes (see `P_*`) and, per pixel (row-major), the index of
+/// the surfel that won the first sample (`u32::MAX` where none).
+pub struct SurfelBuffer {
+    pub planes: Vec<f32>,
+    pub ids: Vec<u32>,
+    /// Surfels that reached at least one tile.
+    pub drawn: usize,
+    /// Surfel–tile pairs.
+    pub pairs: usize,
+}
+
+/// Sample offsets for a supersampling factor (1 or 4).
+pub fn offsets(supersample: u32) -> &'static [[f32; 2]] {
+    if supersample == 4 {
+        &OFFSETS_4
+    } else {
+        &[[0.0, 0.0]]
+    }
+}
+
+/// Run pass 1 for `surfels` seen through `view`.
+pub fn surfel_pass(surfels: &SurfelCloud, view: &ViewParams, eps_factor: f32, sh_degree: u8, supersample: u32, max_pairs: usize) -> Result<SurfelBuffer, usize> {
+    let degree = surfels.sh_degree.min(sh_degree);
+    let proj: Vec<SurfelSplat> = (0..surfels.len())
+        .into_par_iter()
+        .filter_map(|i| project_surfel(surfels, i, view, eps_factor, degree))
+        .collect();
+    let t = TILE as i32;
+    let rects: Vec<[u32; 4]> = proj
+        .iter()
+        .map(|p| {
+            let b = p.bbox;
+            [(b[0] / t) as u32, (b[1] / t) as u32, (b[2] / t + 1) as u32, (b[3] / t + 1) as u32]
+        })
+        .collect();
+    let bins = bin_rects(&rects, view.grid, max_pairs, |_, _| true)?;
+    let (gx, gy) = (view.grid[0] as usize, view.grid[1] as usize);
+    let offs = offsets(supersample);
+    let near = view.near as f32;
+    let mut planes = vec![0f32; gx * gy * SURFEL_PLANES * N];
+    let mut tile_ids = vec![u32::MAX; gx * gy * N];
+    planes
+        .par_chunks_mut(SURFEL_PLANES * N)
+        .zip(tile_ids.par_chunks_mut(N))
+        .enumerate()
+        .with_max_len(1)
+        .for_each(|(tile, (out, ids))| {
+            let (px0, py0) = (((tile % gx) * T) as i32, ((tile / gx) * T) as i32);
+            raster_tile(&proj, bins.tile(tile), px0, py0, view, offs, near, out, ids);
+        });
+    // Frame-level ids of the first sample.
+    let (w, h) = (view.width as usize, view.height as usize);
+    let mut ids = vec![u32::MAX; w * h];
+    ids.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        for (x, v) in row.iter_mut().enumerate() {
+            let k = tile_ids[((y / T) * gx + x / T) * N + (y % T) * T + x % T];
+            *v = if k == u32::MAX { k } else { proj[k as usize].index };
+        }
+    });
+    Ok(SurfelBuffer {
+        planes,
+        ids,
+        drawn: rects.iter().filter(|r| r[2] > r[0] && r[3] > r[1]).count(),
+        pairs: bins.pairs(),
+    })
+}
+
+/// Z-buffer one tile. `ids` receives, per tile pixel, the index into `proj` that won sample 0.
+fn raster_tile(proj: &[SurfelSplat], list: &[u32], px0: i32, py0: i32, view: &ViewParams, offs: &[[f32; 2]], near: f32, out: &mut [f32], ids: &mut [u32]) {
+    let ns = offs.len();
+    let r2 = footprint_r2();
+    let mut zbuf = vec![f32::INFINITY; ns * N];
+    let mut win = vec![u32::MAX; ns * N];
+    let (tx1, ty1) = (px0 + T as i32 - 1, py0 + T as i32 - 1);
+    for &k in list {
+        let s = &proj[k as usize];
+        let (x0, x1) = (s.bbox[0].max(px0), s.bbox[2].min(tx1));
+        let (y0, y1) = (s.bbox[1].max(py0), s.bbox[3].min(ty1));
+        for y in y0..=y1 {
+            let ly = (y - py0) as usize;
+            for x in x0..=x1 {
+                let lp = ly * T + (x - px0) as usize;
+                for (si, o) in offs.iter().enumerate() {
+                    let (t, covered) = s.hit(x as f32 + o[0], y as f32 + o[1], near, r2);
+                    let slot = si * N + lp;
+                    if covered && t < zbuf[slot] {
+                        zbuf[slot] = t;
+                        win[slot] = k;
+                    }
+                }
+            }
+        }
+    }
+    let (w, h) = (view.width as i32, view.height as i32);
+    for lp in 0..N {
+        let (x, y) = (px0 + (lp % T) as i32, py0 + (lp / T) as i32);
+        ids[lp] = win[lp];
+        out[P_LIMIT * N + lp] = f32::INFINITY;
+        if x >= w || y >= h {
+            continue;
+        }
+        let mut k = 0u32;
+        let (mut r, mut g, mut b, mut d) = (0f32, 0f32, 0f32, 0f32);
+        let mut limit = f32::NEG_INFINITY;
+        for si in 0..ns {
+            let wk = win[si * N + lp];
+            if wk == u32::MAX {
+                continue;
+            }
+            let s = &proj[wk as usize];
+            let z = zbuf[si * N + lp];
+            k += 1;
+            r += s.color[0];
+            g += s.color[1];
+            b += s.color[2];
+            d += z;
+            limit = limit.max(z + s.eps);
+        }
+        if k > 0 {
+            let inv = 1.0 / k as f32;
+            out[P_R * N + lp] = r * inv;
+            out[P_G * N + lp] = g * inv;
+            out[P_B * N + lp] = b * inv;
+            out[P_W * N + lp] = k as f32 / ns as f32;
+            out[P_DEPTH * N + lp] = d * inv;
+            out[P_LIMIT * N + lp] = limit;
+        }
+    }
+}

@@ -1,1 +1,0 @@
-//! Deterministic synthetic scenes (street, large, hard). To be completed: see issue "Foundation".
