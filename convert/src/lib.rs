@@ -1,1 +1,296 @@
-//! splatbridge-convert: see ARCHITECTURE.md.
+//! splatbridge-convert: trained Gaussian splats to triangle meshes that viewers and Blender
+//! open correctly (glTF/GLB, OBJ + MTL, PLY), and to native glTF splats
+//! (`KHR_gaussian_splatting`), with a reader for the latter.
+//!
+//! Follows MeshSplats (arXiv 2502.07754: one triangle fan per Gaussian, vertex colour and
+//! alpha, three fans for volumetric Gaussians) and adds opacity-aware profiles (see
+//! [`profile`]), dynamic scenes as animated glTF nodes, and cameras.
+//!
+//! ## What the glTF output contains
+//! * One root node `splatbridge_root` whose rotation maps the input's up axis onto glTF's +Y
+//!   ([`options::UpAxis`]; default: input up is −Y as in COLMAP, a 180° turn about X).
+//!   Vertices stay in the input frame.
+//! * Under it: the static Gaussians as one mesh node; each object's Gaussians meshed once in
+//!   its local frame under a node whose translation and rotation are animated (LINEAR,
+//!   seconds, unit x,y,z,w quaternions); per-frame content as one node per frame, shown
+//!   only on its frame by a STEP scale animation; the scene's cameras as camera nodes.
+//! * Vertex attributes: POSITION, NORMAL (the Gaussian's shortest axis), COLOR_0 (RGBA,
+//!   normalized u16, linear by default: see [`options::ColorEncoding`]), `_GAUSSIAN_ID` and,
+//!   for the `texture` profile, TEXCOORD_0; u32 indexed TRIANGLES; one unlit, double-sided
+//!   BLEND material.
+//! * `_GAUSSIAN_ID` (FLOAT SCALAR, exact for ids below 2²⁴; glTF forbids unsigned-int vertex
+//!   attributes) is the Gaussian's index in [`DynamicScene::composite`] order: static
+//!   Gaussians first, then each object's in order, then per-frame content. Every
+//!   mesh's `extras.idOffset` says where its ids start.
+//! * `asset.extras.splatbridge`: the options and counts ([`options::ConvertReport::metadata`]).
+
+pub mod classify;
+pub mod gltf_writer;
+pub mod mesh;
+pub mod obj;
+pub mod options;
+pub mod ply_mesh;
+pub mod profile;
+pub mod splats_gltf;
+pub mod texture;
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use glam::{Quat, Vec3};
+use splatbridge_scene::dynamic::{DynamicScene, Pose};
+use splatbridge_scene::GaussianCloud;
+
+pub use mesh::{MeshSoup, Mesher};
+pub use options::{
+    ColorEncoding, ConvertOptions, ConvertReport, MeshCounts, Profile, UpAxis, VolumetricMode,
+};
+pub use profile::ProfileShape;
+
+/// Errors of conversion and writing.
+#[derive(Debug, thiserror::Error)]
+pub enum ConvertError {
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}: {what}")]
+    Format { path: PathBuf, what: String },
+    #[error("{0}")]
+    Invalid(String),
+    #[error(transparent)]
+    Scene(#[from] splatbridge_scene::SceneError),
+}
+
+pub type Result<T, E = ConvertError> = std::result::Result<T, E>;
+
+/// Content that changes per frame without a rigid track (e.g. weather particles): one cloud
+/// per frame time, in the scene's world frame.
+#[derive(Clone, Debug, Default)]
+pub struct FrameClouds {
+    /// Strictly increasing frame times in seconds.
+    pub times: Vec<f64>,
+    pub clouds: Vec<GaussianCloud>,
+}
+
+/// Which part of the scene a mesh stands for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Role {
+    Static,
+    Object(usize),
+    Frame(usize),
+}
+
+/// One classified cloud and its place in the scene.
+pub struct MeshEntry<'a> {
+    pub role: Role,
+    pub mesher: Mesher<'a>,
+}
+
+/// Classify every cloud of a scene (static, objects, per-frame content), apply the triangle
+/// budget, and fill the report's counts.
+pub fn prepare<'a>(
+    scene: &'a DynamicScene,
+    frames: Option<&'a FrameClouds>,
+    opts: &ConvertOptions,
+    shape: &'a ProfileShape,
+    report: &mut ConvertReport,
+) -> Result<Vec<MeshEntry<'a>>> {
+    opts.validate()?;
+    if let Some(fr) = frames {
+        if fr.times.len() != fr.clouds.len() {
+            return Err(ConvertError::Invalid(format!(
+                "per-frame content has {} times but {} clouds",
+                fr.times.len(),
+                fr.clouds.len()
+            )));
+        }
+        if fr.times.windows(2).any(|w| !(w[1] > w[0])) || fr.times.iter().any(|t| !t.is_finite()) {
+            return Err(ConvertError::Invalid(
+                "per-frame content times must be finite and strictly increasing".into(),
+            ));
+        }
+    }
+    let mut clouds: Vec<(Role, String, &GaussianCloud)> =
+        vec![(Role::Static, "static".into(), &scene.static_gaussians)];
+    for (k, o) in scene.objects.iter().enumerate() {
+        clouds.push((Role::Object(k), o.name.clone(), &o.gaussians));
+    }
+    if let Some(fr) = frames {
+        for (k, c) in fr.clouds.iter().enumerate() {
+            clouds.push((Role::Frame(k), format!("frame {k}"), c));
+        }
+    }
+    let mut offset = 0u64;
+    let mut entries = Vec::with_capacity(clouds.len());
+    for (role, name, cloud) in clouds {
+        cloud.check_shape()?;
+        entries.push(MeshEntry {
+            role,
+            mesher: Mesher::new(cloud, shape, opts, &name, offset),
+        });
+        offset += cloud.len() as u64;
+    }
+    if opts.gaussian_ids && offset > 1 << 24 {
+        return Err(ConvertError::Invalid(format!(
+            "{offset} Gaussians: _GAUSSIAN_ID is a float attribute, exact only below 2^24 = 16777216; convert without ids"
+        )));
+    }
+    if let Some(max) = opts.max_triangles {
+        let mut ms: Vec<&mut Mesher<'a>> = entries.iter_mut().map(|e| &mut e.mesher).collect();
+        mesh::apply_budget(&mut ms, max);
+    }
+    for e in &entries {
+        if e.mesher.counts.vertices >= u32::MAX as u64 {
+            return Err(ConvertError::Invalid(format!(
+                "{}: {} vertices do not fit u32 indices (4294967295 is reserved)",
+                e.mesher.counts.name, e.mesher.counts.vertices
+            )));
+        }
+        report.add(e.mesher.counts.clone());
+    }
+    Ok(entries)
+}
+
+/// The profile shape for the options.
+pub fn shape_for(opts: &ConvertOptions) -> ProfileShape {
+    ProfileShape::new(opts.profile, opts.segments(), opts.rings)
+}
+
+/// Mesh one cloud in memory (tests, in-memory consumers).
+pub fn mesh_cloud(cloud: &GaussianCloud, opts: &ConvertOptions) -> Result<(MeshSoup, MeshCounts)> {
+    opts.validate()?;
+    cloud.check_shape()?;
+    let shape = shape_for(opts);
+    let mut m = Mesher::new(cloud, &shape, opts, "cloud", 0);
+    if let Some(max) = opts.max_triangles {
+        mesh::apply_budget(&mut [&mut m], max);
+    }
+    Ok((m.build(), m.counts.clone()))
+}
+
+/// Output formats by file extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    Glb,
+    Gltf,
+    Obj,
+    Ply,
+}
+
+impl Format {
+    pub fn from_path(path: &Path) -> Result<Format> {
+        let ext = path
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase())
+            .unwrap_or_default();
+        match ext.as_str() {
+            "glb" => Ok(Format::Glb),
+            "gltf" => Ok(Format::Gltf),
+            "obj" => Ok(Format::Obj),
+            "ply" => Ok(Format::Ply),
+            _ => Err(ConvertError::Format {
+                path: path.into(),
+                what: format!(
+                    "unknown output extension '{ext}' (expected .glb, .gltf, .obj or .ply)"
+                ),
+            }),
+        }
+    }
+}
+
+/// Write a scene as a mesh GLB into any writer (in-memory conversion for the ray tracer).
+pub fn write_glb<W: Write>(
+    w: &mut W,
+    scene: &DynamicScene,
+    frames: Option<&FrameClouds>,
+    opts: &ConvertOptions,
+) -> Result<ConvertReport> {
+    let mut report = ConvertReport::new("glb", opts);
+    let shape = shape_for(opts);
+    let entries = prepare(scene, frames, opts, &shape, &mut report)?;
+    let bytes = gltf_writer::write_glb(w, &entries, scene, frames, opts, &report).map_err(|e| {
+        ConvertError::Io {
+            path: "<memory>".into(),
+            source: e,
+        }
+    })?;
+    report.bytes = bytes;
+    Ok(report)
+}
+
+/// A scene converted to GLB bytes in memory.
+pub fn glb_bytes(
+    scene: &DynamicScene,
+    frames: Option<&FrameClouds>,
+    opts: &ConvertOptions,
+) -> Result<(Vec<u8>, ConvertReport)> {
+    let mut v = Vec::new();
+    let r = write_glb(&mut v, scene, frames, opts)?;
+    Ok((v, r))
+}
+
+/// Convert a scene to a file; the format follows the extension. Writes are atomic. For OBJ,
+/// `obj_frames` writes one OBJ per frame (`OUT_0000.obj`, …) at the scene's frame rate.
+pub fn convert_to_file(
+    path: &Path,
+    scene: &DynamicScene,
+    frames: Option<&FrameClouds>,
+    opts: &ConvertOptions,
+    obj_frames: bool,
+) -> Result<ConvertReport> {
+    let t0 = std::time::Instant::now();
+    let format = Format::from_path(path)?;
+    let mut report = match format {
+        Format::Glb | Format::Gltf => {
+            gltf_writer::write_file(path, format == Format::Glb, scene, frames, opts)?
+        }
+        Format::Obj => obj::write_file(path, scene, frames, opts, obj_frames)?,
+        Format::Ply => ply_mesh::write_file(path, scene, frames, opts)?,
+    };
+    report.seconds = t0.elapsed().as_secs_f64();
+    Ok(report)
+}
+
+/// The pose of a track at time `t`: linear translation, shortest-path slerp, held outside
+/// the keyed range; identity without keys.
+pub fn sample_pose(keys: &[splatbridge_scene::dynamic::PoseKey], t: f64) -> Pose {
+    let identity = Pose {
+        translation: Vec3::ZERO,
+        rotation: Quat::IDENTITY,
+    };
+    let Some(first) = keys.first() else {
+        return identity;
+    };
+    if t <= first.t {
+        return first.pose;
+    }
+    let last = keys[keys.len() - 1];
+    if t >= last.t {
+        return last.pose;
+    }
+    let j = keys.partition_point(|k| k.t <= t);
+    let (a, b) = (keys[j - 1], keys[j]);
+    let u = ((t - a.t) / (b.t - a.t)) as f32;
+    let mut qb = b.pose.rotation;
+    if a.pose.rotation.dot(qb) < 0.0 {
+        qb = -qb;
+    }
+    Pose {
+        translation: a.pose.translation.lerp(b.pose.translation, u),
+        rotation: a.pose.rotation.slerp(qb, u).normalize(),
+    }
+}
+
+pub(crate) fn io_err(path: &Path) -> impl Fn(std::io::Error) -> ConvertError + '_ {
+    move |e| ConvertError::Io {
+        path: path.into(),
+        source: e,
+    }
+}
+
+pub(crate) fn scene_err(e: splatbridge_scene::SceneError) -> ConvertError {
+    ConvertError::Scene(e)
+}

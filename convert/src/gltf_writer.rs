@@ -1,0 +1,559 @@
+//! The glTF 2.0 mesh writer (GLB, or `.gltf` + `.bin`), streaming.
+//!
+//! Layout of the binary buffer: first the small data built in memory (animation keys, the
+//! falloff PNG), then per mesh one interleaved vertex view (POSITION f32×3, NORMAL f32×3,
+//! COLOR_0 normalized u16×4, `_GAUSSIAN_ID` f32, TEXCOORD_0 f32×2) and one u32 index view.
+//! Every offset and stride is a multiple of 4. Sizes are known from the classification, so
+//! the JSON (with exact POSITION min/max from a first generation pass) is written before the
+//! mesh data, which is generated again chunk by chunk and streamed: memory stays at a few
+//! chunks, not a copy of the mesh. The JSON goes through `gltf_json::Root`, so it is
+//! schema-typed before it is written.
+
+use std::io::{self, Write};
+use std::path::Path;
+
+use glam::{DMat3, DQuat, DVec3, Quat};
+use serde_json::{json, Value};
+use splatbridge_scene::dynamic::DynamicScene;
+use splatbridge_scene::Camera;
+
+use crate::options::{ConvertOptions, ConvertReport, Profile};
+use crate::{io_err, prepare, shape_for, FrameClouds, MeshEntry, Role};
+
+pub(crate) const ARRAY_BUFFER: u32 = 34962;
+pub(crate) const ELEMENT_ARRAY_BUFFER: u32 = 34963;
+pub(crate) const FLOAT: u32 = 5126;
+const UNSIGNED_SHORT: u32 = 5123;
+const UNSIGNED_INT: u32 = 5125;
+
+/// Byte layout of one interleaved vertex.
+#[derive(Clone, Copy, Debug)]
+pub struct VertexLayout {
+    pub ids: bool,
+    pub uv: bool,
+}
+
+impl VertexLayout {
+    pub fn stride(self) -> usize {
+        32 + if self.ids { 4 } else { 0 } + if self.uv { 8 } else { 0 }
+    }
+    fn id_offset(self) -> usize {
+        32
+    }
+    fn uv_offset(self) -> usize {
+        32 + if self.ids { 4 } else { 0 }
+    }
+}
+
+/// Encode a chunk's vertices interleaved.
+pub fn vertex_bytes(s: &crate::MeshSoup, l: VertexLayout) -> Vec<u8> {
+    let mut b = Vec::with_capacity(s.vertex_count() * l.stride());
+    for v in 0..s.vertex_count() {
+        for x in s.positions[v].iter().chain(&s.normals[v]) {
+            b.extend_from_slice(&x.to_le_bytes());
+        }
+        for c in s.colors[v] {
+            b.extend_from_slice(&((c.clamp(0.0, 1.0) * 65535.0).round() as u16).to_le_bytes());
+        }
+        if l.ids {
+            b.extend_from_slice(&(s.gaussian_ids[v] as f32).to_le_bytes());
+        }
+        if l.uv {
+            for x in s.uvs[v] {
+                b.extend_from_slice(&x.to_le_bytes());
+            }
+        }
+    }
+    b
+}
+
+pub(crate) fn index_bytes(idx: &[u32]) -> Vec<u8> {
+    let mut b = Vec::with_capacity(idx.len() * 4);
+    for i in idx {
+        b.extend_from_slice(&i.to_le_bytes());
+    }
+    b
+}
+
+/// Collects glTF JSON arrays and the in-memory part of the binary buffer.
+pub(crate) struct DocBuilder {
+    pub accessors: Vec<Value>,
+    pub views: Vec<Value>,
+    pub small: Vec<u8>,
+}
+
+impl DocBuilder {
+    pub fn new() -> Self {
+        DocBuilder {
+            accessors: Vec::new(),
+            views: Vec::new(),
+            small: Vec::new(),
+        }
+    }
+
+    /// Append bytes to the in-memory part (4-byte aligned) and return a view index.
+    pub fn small_view(&mut self, bytes: &[u8], target: Option<u32>) -> usize {
+        while self.small.len() % 4 != 0 {
+            self.small.push(0);
+        }
+        let off = self.small.len();
+        self.small.extend_from_slice(bytes);
+        let mut v = json!({"buffer": 0, "byteOffset": off, "byteLength": bytes.len()});
+        if let Some(t) = target {
+            v["target"] = json!(t);
+        }
+        self.views.push(v);
+        self.views.len() - 1
+    }
+
+    pub fn accessor(&mut self, a: Value) -> usize {
+        self.accessors.push(a);
+        self.accessors.len() - 1
+    }
+
+    /// A FLOAT accessor over f32 values in the small part, with min/max when asked.
+    pub fn floats(&mut self, data: &[f32], ty: &str, comps: usize, minmax: bool) -> usize {
+        let bytes: Vec<u8> = data.iter().flat_map(|x| x.to_le_bytes()).collect();
+        let view = self.small_view(&bytes, None);
+        let count = data.len() / comps;
+        let mut a = json!({"bufferView": view, "componentType": FLOAT, "count": count, "type": ty});
+        if minmax {
+            let mut lo = vec![f32::INFINITY; comps];
+            let mut hi = vec![f32::NEG_INFINITY; comps];
+            for (i, &x) in data.iter().enumerate() {
+                lo[i % comps] = lo[i % comps].min(x);
+                hi[i % comps] = hi[i % comps].max(x);
+            }
+            a["min"] = json!(lo);
+            a["max"] = json!(hi);
+        }
+        self.accessor(a)
+    }
+}
+
+/// glTF camera frame from an OpenCV camera: glTF cameras look down −Z with +Y up, OpenCV
+/// cameras down +Z with +Y down, so the camera-to-world rotation gains a 180° turn about
+/// the camera's x axis. Returns (translation, rotation x,y,z,w, camera JSON).
+pub fn camera_node(cam: &Camera) -> ([f32; 3], [f32; 4], Value) {
+    let c2w = cam.cam_to_world() * DMat3::from_diagonal(DVec3::new(1.0, -1.0, -1.0));
+    let q = DQuat::from_mat3(&c2w).normalize();
+    let yfov = 2.0 * (cam.height as f64 / (2.0 * cam.fy)).atan();
+    let json = json!({
+        "type": "perspective",
+        "name": cam.name,
+        "perspective": {"yfov": yfov, "aspectRatio": cam.width as f64 / cam.height as f64, "znear": 0.01},
+        "extras": {"opencv": {"width": cam.width, "height": cam.height, "fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy}}
+    });
+    (
+        cam.centre.as_vec3().to_array(),
+        q.as_quat().to_array(),
+        json,
+    )
+}
+
+/// Keys of an object's track in f32 seconds, extended to span the scene's time range, with
+/// sign-continuous unit quaternions and strictly increasing times.
+pub(crate) fn track_keys(
+    keys: &[splatbridge_scene::dynamic::PoseKey],
+    start: f64,
+    end: f64,
+) -> Vec<(f32, [f32; 3], [f32; 4])> {
+    let mut out: Vec<(f32, [f32; 3], [f32; 4])> = Vec::new();
+    let mut push = |t: f64, p: splatbridge_scene::dynamic::Pose| {
+        let t = t as f32;
+        if out.last().is_some_and(|l| !(t > l.0)) {
+            return;
+        }
+        let mut q = p.rotation.normalize();
+        if let Some(l) = out.last() {
+            if Quat::from_array(l.2).dot(q) < 0.0 {
+                q = -q;
+            }
+        }
+        out.push((t, p.translation.to_array(), q.to_array()));
+    };
+    let (Some(first), Some(last)) = (keys.first(), keys.last()) else {
+        return out;
+    };
+    if end > start && start < first.t {
+        push(start, first.pose);
+    }
+    for k in keys {
+        push(k.t, k.pose);
+    }
+    if end > start && end > last.t {
+        push(end, last.pose);
+    }
+    out
+}
+
+/// A mesh region streamed after the small data.
+struct Region {
+    vertex_offset: u64,
+    vertex_len: u64,
+    index_len: u64,
+}
+
+/// Everything decided before streaming.
+struct Plan {
+    json: Vec<u8>,
+    small: Vec<u8>,
+    regions: Vec<Option<Region>>,
+    bin_len: u64,
+    layout: VertexLayout,
+}
+
+fn plan(
+    entries: &[MeshEntry<'_>],
+    scene: &DynamicScene,
+    frames: Option<&FrameClouds>,
+    opts: &ConvertOptions,
+    report: &ConvertReport,
+    bin_uri: Option<String>,
+) -> io::Result<Plan> {
+    let mut d = DocBuilder::new();
+    let layout = VertexLayout {
+        ids: opts.gaussian_ids,
+        uv: opts.profile == Profile::Texture,
+    };
+    let mut nodes: Vec<Value> = Vec::new();
+    let mut root_children: Vec<usize> = Vec::new();
+    let mut animations: Vec<Value> = Vec::new();
+    nodes.push(json!({})); // the root, filled in below
+
+    // Small data first: animations and the texture.
+    let mut images = Vec::new();
+    if layout.uv {
+        let view = d.small_view(&crate::texture::png(), None);
+        images
+            .push(json!({"bufferView": view, "mimeType": "image/png", "name": "gaussian_falloff"}));
+    }
+    let mut object_anim: Vec<Option<(usize, usize, usize, [f32; 3], [f32; 4])>> =
+        vec![None; scene.objects.len()];
+    for (k, o) in scene.objects.iter().enumerate() {
+        let keys = track_keys(&o.track.keys, scene.time.start, scene.time.end);
+        if keys.is_empty() {
+            continue;
+        }
+        let times: Vec<f32> = keys.iter().map(|k| k.0).collect();
+        let tr: Vec<f32> = keys.iter().flat_map(|k| k.1).collect();
+        let rot: Vec<f32> = keys.iter().flat_map(|k| k.2).collect();
+        let input = d.floats(&times, "SCALAR", 1, true);
+        let t_acc = d.floats(&tr, "VEC3", 3, false);
+        let r_acc = d.floats(&rot, "VEC4", 4, false);
+        object_anim[k] = Some((input, t_acc, r_acc, keys[0].1, keys[0].2));
+    }
+    let mut frame_anim: Option<(usize, Vec<usize>)> = None;
+    if let Some(fr) = frames {
+        if !fr.times.is_empty() {
+            let times: Vec<f32> = fr.times.iter().map(|&t| t as f32).collect();
+            if times.windows(2).any(|w| !(w[1] > w[0])) {
+                return Err(io::Error::new(
+                    io::ErrorKind::InvalidInput,
+                    "frame times collapse in f32 seconds",
+                ));
+            }
+            let input = d.floats(&times, "SCALAR", 1, true);
+            let outs = (0..times.len())
+                .map(|i| {
+                    let s: Vec<f32> = (0..times.len())
+                        .flat_map(|j| [if i == j { 1.0 } else { 0.0 }; 3])
+                        .collect();
+                    d.floats(&s, "VEC3", 3, false)
+                })
+                .collect();
+            frame_anim = Some((input, outs));
+        }
+    }
+    while d.small.len() % 4 != 0 {
+        d.small.push(0);
+    }
+
+    // Mesh regions after the small data.
+    let mut offset = d.small.len() as u64;
+    let stride = layout.stride();
+    let mut regions = Vec::with_capacity(entries.len());
+    let mut meshes: Vec<Value> = Vec::new();
+    let mut frame_nodes: Vec<(usize, usize)> = Vec::new();
+    for e in entries {
+        let m = &e.mesher;
+        let Some((lo, hi)) = (if m.is_empty() { None } else { m.bounds() }) else {
+            regions.push(None);
+            continue;
+        };
+        let nv = m.counts.vertices;
+        let region = Region {
+            vertex_offset: offset,
+            vertex_len: nv * stride as u64,
+            index_len: m.counts.triangles * 12,
+        };
+        d.views.push(json!({"buffer": 0, "byteOffset": offset, "byteLength": region.vertex_len, "byteStride": stride, "target": ARRAY_BUFFER}));
+        let vv = d.views.len() - 1;
+        d.views.push(json!({"buffer": 0, "byteOffset": offset + region.vertex_len, "byteLength": region.index_len, "target": ELEMENT_ARRAY_BUFFER}));
+        let iv = d.views.len() - 1;
+        offset += region.vertex_len + region.index_len;
+        let pos = d.accessor(json!({"bufferView": vv, "byteOffset": 0, "componentType": FLOAT, "count": nv, "type": "VEC3", "min": lo, "max": hi}));
+        let nor = d.accessor(json!({"bufferView": vv, "byteOffset": 12, "componentType": FLOAT, "count": nv, "type": "VEC3"}));
+        let col = d.accessor(json!({"bufferView": vv, "byteOffset": 24, "componentType": UNSIGNED_SHORT, "normalized": true, "count": nv, "type": "VEC4"}));
+        let mut attrs = json!({"POSITION": pos, "NORMAL": nor, "COLOR_0": col});
+        if layout.ids {
+            attrs["_GAUSSIAN_ID"] = json!(d.accessor(json!({"bufferView": vv, "byteOffset": layout.id_offset(), "componentType": FLOAT, "count": nv, "type": "SCALAR"})));
+        }
+        if layout.uv {
+            attrs["TEXCOORD_0"] = json!(d.accessor(json!({"bufferView": vv, "byteOffset": layout.uv_offset(), "componentType": FLOAT, "count": nv, "type": "VEC2"})));
+        }
+        let ind = d.accessor(json!({"bufferView": iv, "componentType": UNSIGNED_INT, "count": m.counts.triangles * 3, "type": "SCALAR"}));
+        let (role, name) = match e.role {
+            Role::Static => ("static", "static".to_string()),
+            Role::Object(k) => ("object", scene.objects[k].name.clone()),
+            Role::Frame(k) => ("frame", format!("frame_{k:04}")),
+        };
+        meshes.push(json!({
+            "name": name,
+            "primitives": [{"attributes": attrs, "indices": ind, "material": 0, "mode": 4}],
+            "extras": {"role": role, "idOffset": m.counts.id_offset, "gaussians": m.counts.gaussians_in}
+        }));
+        let mesh = meshes.len() - 1;
+        let mut node = json!({"name": name, "mesh": mesh});
+        match e.role {
+            Role::Object(k) => {
+                if let Some((input, t_acc, r_acc, t0, r0)) = object_anim[k] {
+                    node["translation"] = json!(t0);
+                    node["rotation"] = json!(r0);
+                    let ni = nodes.len();
+                    animations.push(json!({
+                        "name": name,
+                        "samplers": [
+                            {"input": input, "output": t_acc, "interpolation": "LINEAR"},
+                            {"input": input, "output": r_acc, "interpolation": "LINEAR"}
+                        ],
+                        "channels": [
+                            {"sampler": 0, "target": {"node": ni, "path": "translation"}},
+                            {"sampler": 1, "target": {"node": ni, "path": "rotation"}}
+                        ]
+                    }));
+                }
+            }
+            Role::Frame(k) => {
+                if k != 0 {
+                    node["scale"] = json!([0.0, 0.0, 0.0]);
+                }
+                frame_nodes.push((nodes.len(), k));
+            }
+            Role::Static => {}
+        }
+        root_children.push(nodes.len());
+        nodes.push(node);
+        regions.push(Some(region));
+    }
+    if let Some((input, outs)) = &frame_anim {
+        let mut samplers = Vec::new();
+        let mut channels = Vec::new();
+        for &(ni, k) in &frame_nodes {
+            samplers.push(json!({"input": input, "output": outs[k], "interpolation": "STEP"}));
+            channels.push(
+                json!({"sampler": samplers.len() - 1, "target": {"node": ni, "path": "scale"}}),
+            );
+        }
+        if !channels.is_empty() {
+            animations.push(json!({"name": "frames", "samplers": samplers, "channels": channels}));
+        }
+    }
+    let mut cameras = Vec::new();
+    for cam in &scene.cameras {
+        let (t, r, c) = camera_node(cam);
+        cameras.push(c);
+        root_children.push(nodes.len());
+        nodes.push(
+            json!({"name": cam.name, "camera": cameras.len() - 1, "translation": t, "rotation": r}),
+        );
+    }
+    let rq = opts.up.root_rotation();
+    let mut root = json!({"name": "splatbridge_root", "children": root_children, "extras": {"inputUp": opts.up.name()}});
+    if rq != Quat::IDENTITY {
+        root["rotation"] = json!(rq.to_array());
+    }
+    nodes[0] = root;
+
+    let bin_len = offset;
+    let mut material = json!({
+        "name": "gaussian_splats",
+        "alphaMode": "BLEND",
+        "doubleSided": true,
+        "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
+        "extensions": {"KHR_materials_unlit": {}}
+    });
+    let mut doc = json!({
+        "asset": {"version": "2.0", "generator": concat!("splatbridge ", env!("CARGO_PKG_VERSION")), "extras": {"splatbridge": report.metadata(opts)}},
+        "extensionsUsed": ["KHR_materials_unlit"],
+        "scene": 0,
+        "scenes": [{"name": "scene", "nodes": [0]}],
+        "nodes": nodes,
+        "materials": [],
+        "buffers": [{"byteLength": bin_len}],
+        "bufferViews": d.views,
+        "accessors": d.accessors,
+    });
+    if layout.uv {
+        material["pbrMetallicRoughness"]["baseColorTexture"] = json!({"index": 0});
+        doc["images"] = json!(images);
+        doc["samplers"] =
+            json!([{"magFilter": 9729, "minFilter": 9729, "wrapS": 33071, "wrapT": 33071}]);
+        doc["textures"] = json!([{"sampler": 0, "source": 0}]);
+    }
+    doc["materials"] = json!([material]);
+    if !meshes.is_empty() {
+        doc["meshes"] = json!(meshes);
+    }
+    if !animations.is_empty() {
+        doc["animations"] = json!(animations);
+    }
+    if !cameras.is_empty() {
+        doc["cameras"] = json!(cameras);
+    }
+    if let Some(uri) = bin_uri {
+        doc["buffers"][0]["uri"] = json!(uri);
+    }
+    let json = typed_json(&doc)?;
+    Ok(Plan {
+        json,
+        small: d.small,
+        regions,
+        bin_len,
+        layout,
+    })
+}
+
+/// Pass a JSON document through `gltf_json::Root` (schema types and glTF validation) and
+/// serialise it.
+pub(crate) fn typed_json(doc: &Value) -> io::Result<Vec<u8>> {
+    let raw = serde_json::to_vec(doc).map_err(io::Error::other)?;
+    let root = gltf_json::Root::from_slice(&raw)
+        .map_err(|e| io::Error::other(format!("internal glTF document error: {e}")))?;
+    root.to_vec().map_err(io::Error::other)
+}
+
+fn stream_bin<W: Write>(w: &mut W, plan: &Plan, entries: &[MeshEntry<'_>]) -> io::Result<u64> {
+    w.write_all(&plan.small)?;
+    let mut written = plan.small.len() as u64;
+    for (e, r) in entries.iter().zip(&plan.regions) {
+        let Some(r) = r else { continue };
+        debug_assert_eq!(written, r.vertex_offset);
+        let layout = plan.layout;
+        let mut vb = 0u64;
+        e.mesher.map_chunks(
+            |c| vertex_bytes(&c, layout),
+            |b| {
+                vb += b.len() as u64;
+                w.write_all(&b)
+            },
+        )?;
+        let mut ib = 0u64;
+        e.mesher.map_index_chunks(0, index_bytes, |b| {
+            ib += b.len() as u64;
+            w.write_all(&b)
+        })?;
+        if vb != r.vertex_len || ib != r.index_len {
+            return Err(io::Error::other(format!(
+                "internal: mesh '{}' produced {vb}+{ib} bytes, planned {}+{}",
+                e.mesher.counts.name, r.vertex_len, r.index_len
+            )));
+        }
+        written += vb + ib;
+    }
+    Ok(written)
+}
+
+/// Write a GLB: header, JSON chunk (space-padded), BIN chunk (zero-padded). Returns bytes.
+pub fn write_glb<W: Write>(
+    w: &mut W,
+    entries: &[MeshEntry<'_>],
+    scene: &DynamicScene,
+    frames: Option<&FrameClouds>,
+    opts: &ConvertOptions,
+    report: &ConvertReport,
+) -> io::Result<u64> {
+    let plan = plan(entries, scene, frames, opts, report, None)?;
+    glb_container(w, &plan.json, plan.bin_len, |w| {
+        stream_bin(w, &plan, entries)
+    })
+}
+
+/// The GLB container around a JSON document and a streamed binary chunk of `bin_len` bytes.
+pub(crate) fn glb_container<W: Write>(
+    w: &mut W,
+    json: &[u8],
+    bin_len: u64,
+    body: impl FnOnce(&mut W) -> io::Result<u64>,
+) -> io::Result<u64> {
+    let json_pad = (4 - json.len() % 4) % 4;
+    let bin_pad = (4 - bin_len % 4) % 4;
+    let json_chunk = json.len() + json_pad;
+    let bin_chunk = bin_len + bin_pad;
+    let total = 12 + 8 + json_chunk as u64 + if bin_len > 0 { 8 + bin_chunk } else { 0 };
+    if total > u32::MAX as u64 {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!(
+                "GLB would be {total} bytes; the format's limit is 4 GiB (write .gltf instead)"
+            ),
+        ));
+    }
+    w.write_all(b"glTF")?;
+    w.write_all(&2u32.to_le_bytes())?;
+    w.write_all(&(total as u32).to_le_bytes())?;
+    w.write_all(&(json_chunk as u32).to_le_bytes())?;
+    w.write_all(b"JSON")?;
+    w.write_all(json)?;
+    w.write_all(&b"   "[..json_pad])?;
+    if bin_len > 0 {
+        w.write_all(&(bin_chunk as u32).to_le_bytes())?;
+        w.write_all(b"BIN\0")?;
+        let n = body(w)?;
+        if n != bin_len {
+            return Err(io::Error::other(format!(
+                "internal: binary chunk is {n} bytes, planned {bin_len}"
+            )));
+        }
+        w.write_all(&[0u8; 3][..bin_pad as usize])?;
+    }
+    Ok(total)
+}
+
+/// Convert a scene to a mesh `.glb` or `.gltf` (+ `.bin` next to it), atomically.
+pub fn write_file(
+    path: &Path,
+    glb: bool,
+    scene: &DynamicScene,
+    frames: Option<&FrameClouds>,
+    opts: &ConvertOptions,
+) -> crate::Result<ConvertReport> {
+    let mut report = ConvertReport::new(if glb { "glb" } else { "gltf" }, opts);
+    let shape = shape_for(opts);
+    let entries = prepare(scene, frames, opts, &shape, &mut report)?;
+    if glb {
+        let mut bytes = 0;
+        splatbridge_scene::image_io::with_atomic_writer(path, |w| {
+            bytes = write_glb(w, &entries, scene, frames, opts, &report)?;
+            Ok(())
+        })
+        .map_err(crate::scene_err)?;
+        report.bytes = bytes;
+    } else {
+        let bin_path = path.with_extension("bin");
+        let uri = bin_path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let plan = plan(&entries, scene, frames, opts, &report, Some(uri)).map_err(io_err(path))?;
+        let mut n = 0;
+        splatbridge_scene::image_io::with_atomic_writer(&bin_path, |w| {
+            n = stream_bin(w, &plan, &entries)?;
+            Ok(())
+        })
+        .map_err(crate::scene_err)?;
+        splatbridge_scene::image_io::write_atomic(path, &plan.json).map_err(crate::scene_err)?;
+        report.bytes = n + plan.json.len() as u64;
+    }
+    Ok(report)
+}

@@ -1,0 +1,463 @@
+//! The triangle-soup model and the mesher that produces it, chunk by chunk.
+//!
+//! A [`MeshSoup`] holds positions, unit normals, RGBA colours, optional texture coordinates,
+//! the id of the Gaussian each vertex came from, and u32 triangle indices. No vertex is
+//! shared between Gaussians (the three fans of one volumetric Gaussian share their centre
+//! and axis vertices, as in MeshSplats).
+//!
+//! [`Mesher`] classifies a cloud once and then generates the mesh in chunks of Gaussians in
+//! parallel, handing them to a writer in order: writers stream, and nothing holds a second
+//! full copy of the mesh. Generation is deterministic, so two passes (bounds, then data)
+//! produce bit-identical vertices.
+
+use std::ops::Range;
+
+use glam::{DVec3, Vec3};
+use rayon::prelude::*;
+use splatbridge_scene::{sh, GaussianCloud};
+
+use crate::classify::{classify, corrected_alpha, score, Frame, Kind};
+use crate::options::{ColorEncoding, ConvertOptions, MeshCounts, Profile, VolumetricMode};
+use crate::profile::{FanLayout, ProfileShape, VertexKey};
+
+/// Gaussians per generated chunk.
+const CHUNK: usize = 8192;
+
+/// A triangle soup (or one chunk of one); indices are relative to its first vertex.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MeshSoup {
+    pub positions: Vec<[f32; 3]>,
+    pub normals: Vec<[f32; 3]>,
+    /// RGBA in [0, 1], encoded as the options say (linear by default).
+    pub colors: Vec<[f32; 4]>,
+    /// Texture coordinates (profile `texture` only; empty otherwise).
+    pub uvs: Vec<[f32; 2]>,
+    pub gaussian_ids: Vec<u32>,
+    pub indices: Vec<u32>,
+}
+
+impl MeshSoup {
+    pub fn vertex_count(&self) -> usize {
+        self.positions.len()
+    }
+
+    pub fn triangle_count(&self) -> usize {
+        self.indices.len() / 3
+    }
+
+    /// Append `other`, offsetting its indices.
+    pub fn append(&mut self, other: &MeshSoup) {
+        let base = self.positions.len() as u32;
+        self.positions.extend_from_slice(&other.positions);
+        self.normals.extend_from_slice(&other.normals);
+        self.colors.extend_from_slice(&other.colors);
+        self.uvs.extend_from_slice(&other.uvs);
+        self.gaussian_ids.extend_from_slice(&other.gaussian_ids);
+        self.indices.extend(other.indices.iter().map(|i| i + base));
+    }
+}
+
+/// The sRGB decoding function (IEC 61966-2-1), display value → linear.
+#[inline]
+pub fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// The sRGB encoding function, linear → display value.
+#[inline]
+pub fn linear_to_srgb(c: f32) -> f32 {
+    if c <= 0.003_130_8 {
+        c * 12.92
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// Scratch space one worker reuses between Gaussians.
+#[derive(Default)]
+struct Scratch {
+    layout: FanLayout,
+    keymap: Vec<u32>,
+    map: Vec<u32>,
+}
+
+/// One cloud, classified and ready to be meshed.
+pub struct Mesher<'a> {
+    pub cloud: &'a GaussianCloud,
+    shape: &'a ProfileShape,
+    kinds: Vec<Kind>,
+    correct_three_fans: bool,
+    bake_centre: Option<DVec3>,
+    linear: bool,
+    /// Vertex count and index pattern of a flat and a volumetric Gaussian.
+    templates: [(u32, Vec<u32>); 2],
+    pub counts: MeshCounts,
+}
+
+impl<'a> Mesher<'a> {
+    /// Classify `cloud` (in parallel). `id_offset` is added to every `_GAUSSIAN_ID`.
+    pub fn new(
+        cloud: &'a GaussianCloud,
+        shape: &'a ProfileShape,
+        opts: &ConvertOptions,
+        name: &str,
+        id_offset: u64,
+    ) -> Self {
+        let three = opts.volumetric == VolumetricMode::ThreeFans;
+        let aware = shape.profile != Profile::MeshSplats;
+        let kinds: Vec<Kind> = (0..cloud.len())
+            .into_par_iter()
+            .map(|i| classify(cloud, i, opts.flat_ratio, three, aware))
+            .collect();
+        let mut m = Mesher {
+            cloud,
+            shape,
+            kinds,
+            correct_three_fans: aware,
+            bake_centre: opts.bake_view.as_ref().map(|c| c.centre),
+            linear: opts.color_encoding == ColorEncoding::Linear,
+            templates: [(0, Vec::new()), (0, Vec::new())],
+            counts: MeshCounts {
+                name: name.to_string(),
+                gaussians_in: cloud.len() as u64,
+                id_offset,
+                ..Default::default()
+            },
+        };
+        m.templates = [m.probe(false), m.probe(true)];
+        m.recount();
+        m
+    }
+
+    /// Vertex count and index pattern of one Gaussian of the given kind (opacity 1; the
+    /// topology of every profile is independent of opacity).
+    fn probe(&self, volumetric: bool) -> (u32, Vec<u32>) {
+        let f = Frame {
+            mean: Vec3::ZERO,
+            axes: [Vec3::X, Vec3::Y, Vec3::Z],
+            scales: [1.0; 3],
+            opacity: 1.0,
+        };
+        let mut out = MeshSoup::default();
+        let mut s = Scratch::default();
+        self.emit_frame(&f, Vec3::ONE, 0, volumetric, &mut out, &mut s);
+        (out.vertex_count() as u32, out.indices)
+    }
+
+    fn recount(&mut self) {
+        let c = &mut self.counts;
+        let (mut flat, mut vol, mut inv, mut tr, mut ov, mut bu) =
+            (0u64, 0u64, 0u64, 0u64, 0u64, 0u64);
+        for k in &self.kinds {
+            match k {
+                Kind::Flat => flat += 1,
+                Kind::Volumetric => vol += 1,
+                Kind::Invalid => inv += 1,
+                Kind::Transparent => tr += 1,
+                Kind::Overflow => ov += 1,
+                Kind::Budget => bu += 1,
+            }
+        }
+        c.flat = flat;
+        c.volumetric = vol;
+        c.dropped_invalid = inv;
+        c.dropped_transparent = tr;
+        c.dropped_overflow = ov;
+        c.dropped_budget = bu;
+        let [(fv, fi), (vv, vi)] = &self.templates;
+        c.vertices = flat * *fv as u64 + vol * *vv as u64;
+        c.triangles = flat * (fi.len() / 3) as u64 + vol * (vi.len() / 3) as u64;
+    }
+
+    pub fn kind(&self, i: usize) -> Kind {
+        self.kinds[i]
+    }
+
+    pub fn has_uv(&self) -> bool {
+        self.shape.has_uv()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.counts.triangles == 0
+    }
+
+    /// The display colour of Gaussian `i` in [0, 1] (DC term, or baked for the camera).
+    fn display_colour(&self, i: usize, mean: Vec3) -> Vec3 {
+        let coeffs = self.cloud.sh_of(i);
+        if let Some(c) = self.bake_centre {
+            let d = mean.as_dvec3() - c;
+            let l = d.length();
+            if l > 0.0 && l.is_finite() {
+                let dir = (d / l).as_vec3();
+                return sh::eval_color(self.cloud.sh_degree, coeffs, dir)
+                    .clamp(Vec3::ZERO, Vec3::ONE);
+            }
+        }
+        sh::dc_color(coeffs)
+    }
+
+    fn emit_frame(
+        &self,
+        f: &Frame,
+        rgb: Vec3,
+        id: u32,
+        volumetric: bool,
+        out: &mut MeshSoup,
+        s: &mut Scratch,
+    ) {
+        if !self.shape.layout(f.opacity, &mut s.layout) {
+            return;
+        }
+        let normal = f.normal().to_array();
+        let planes: &[(usize, usize)] = if volumetric {
+            &[(0, 1), (1, 2), (2, 0)]
+        } else {
+            &[(0, 1)]
+        };
+        s.keymap.clear();
+        s.keymap.resize(1 + 6 * self.shape.rings.max(1), u32::MAX);
+        let correct = volumetric && self.correct_three_fans;
+        let uv = self.shape.has_uv();
+        for &(a, b) in planes {
+            let ea = f.axes[a] * f.scales[a];
+            let eb = f.axes[b] * f.scales[b];
+            s.map.clear();
+            for v in &s.layout.verts {
+                let slot = match v.key {
+                    VertexKey::Centre => Some(0),
+                    VertexKey::Axis { ring, dir } => {
+                        let axis = if dir % 2 == 0 { a } else { b };
+                        Some(1 + ring as usize * 6 + axis * 2 + (dir >= 2) as usize)
+                    }
+                    VertexKey::Own => None,
+                };
+                if let Some(sl) = slot {
+                    if s.keymap[sl] != u32::MAX {
+                        s.map.push(s.keymap[sl]);
+                        continue;
+                    }
+                }
+                let idx = out.positions.len() as u32;
+                let p = f.mean + ea * v.x + eb * v.y;
+                let alpha = if correct {
+                    corrected_alpha(v.alpha)
+                } else {
+                    v.alpha
+                };
+                out.positions.push(p.to_array());
+                out.normals.push(normal);
+                out.colors
+                    .push([rgb.x, rgb.y, rgb.z, alpha.clamp(0.0, 1.0)]);
+                if uv {
+                    out.uvs.push(v.uv);
+                }
+                out.gaussian_ids.push(id);
+                if let Some(sl) = slot {
+                    s.keymap[sl] = idx;
+                }
+                s.map.push(idx);
+            }
+            for t in &s.layout.tris {
+                out.indices.extend(t.iter().map(|&k| s.map[k as usize]));
+            }
+        }
+    }
+
+    fn emit_range(&self, range: Range<usize>, out: &mut MeshSoup, s: &mut Scratch) {
+        for i in range {
+            let kind = self.kinds[i];
+            if !kind.kept() {
+                continue;
+            }
+            let f = Frame::of(self.cloud, i);
+            let mut rgb = self.display_colour(i, f.mean);
+            if self.linear {
+                rgb = Vec3::new(
+                    srgb_to_linear(rgb.x),
+                    srgb_to_linear(rgb.y),
+                    srgb_to_linear(rgb.z),
+                );
+            }
+            let id = (self.counts.id_offset + i as u64) as u32;
+            self.emit_frame(&f, rgb, id, kind == Kind::Volumetric, out, s);
+        }
+    }
+
+    fn chunk_count(&self) -> usize {
+        self.cloud.len().div_ceil(CHUNK)
+    }
+
+    fn chunk(&self, c: usize) -> MeshSoup {
+        let n = self.cloud.len();
+        let range = c * CHUNK..((c + 1) * CHUNK).min(n);
+        let mut out = MeshSoup::default();
+        let mut s = Scratch::default();
+        self.emit_range(range, &mut out, &mut s);
+        out
+    }
+
+    /// Generate the mesh in order, a few chunks at a time in parallel: `map` turns each chunk
+    /// (indices relative to the chunk) into whatever the writer needs, in parallel; `f`
+    /// consumes the results in order.
+    pub fn map_chunks<T: Send, E>(
+        &self,
+        map: impl Fn(MeshSoup) -> T + Sync + Send,
+        mut f: impl FnMut(T) -> Result<(), E>,
+    ) -> Result<(), E> {
+        let chunks = self.chunk_count();
+        let batch = (rayon::current_num_threads() * 2).max(1);
+        let mut c = 0;
+        while c < chunks {
+            let end = (c + batch).min(chunks);
+            let out: Vec<T> = (c..end)
+                .into_par_iter()
+                .map(|k| map(self.chunk(k)))
+                .collect();
+            for t in out {
+                f(t)?;
+            }
+            c = end;
+        }
+        Ok(())
+    }
+
+    /// Generate the index buffer in order without regenerating geometry: every kept
+    /// Gaussian repeats its kind's index pattern, offset by the vertices before it
+    /// (`base` is added to all). `map` gets each chunk's absolute indices.
+    pub fn map_index_chunks<T: Send, E>(
+        &self,
+        base: u32,
+        map: impl Fn(&[u32]) -> T + Sync + Send,
+        mut f: impl FnMut(T) -> Result<(), E>,
+    ) -> Result<(), E> {
+        let chunks = self.chunk_count();
+        let n = self.cloud.len();
+        // Vertex offset of every chunk (prefix sums of the per-kind counts).
+        let mut starts = Vec::with_capacity(chunks);
+        let mut acc = base as u64;
+        for c in 0..chunks {
+            starts.push(acc);
+            for i in c * CHUNK..((c + 1) * CHUNK).min(n) {
+                acc += self.vertices_of(i);
+            }
+        }
+        let batch = (rayon::current_num_threads() * 2).max(1);
+        let mut c = 0;
+        while c < chunks {
+            let end = (c + batch).min(chunks);
+            let out: Vec<T> = (c..end)
+                .into_par_iter()
+                .map(|k| {
+                    let mut idx = Vec::new();
+                    let mut v = starts[k] as u32;
+                    for i in k * CHUNK..((k + 1) * CHUNK).min(n) {
+                        let t = match self.kinds[i] {
+                            Kind::Flat => &self.templates[0],
+                            Kind::Volumetric => &self.templates[1],
+                            _ => continue,
+                        };
+                        idx.extend(t.1.iter().map(|&j| v + j));
+                        v += t.0;
+                    }
+                    map(&idx)
+                })
+                .collect();
+            for t in out {
+                f(t)?;
+            }
+            c = end;
+        }
+        Ok(())
+    }
+
+    fn vertices_of(&self, i: usize) -> u64 {
+        match self.kinds[i] {
+            Kind::Flat => self.templates[0].0 as u64,
+            Kind::Volumetric => self.templates[1].0 as u64,
+            _ => 0,
+        }
+    }
+
+    /// Exact per-axis min and max of the generated positions (`None` when empty).
+    pub fn bounds(&self) -> Option<([f32; 3], [f32; 3])> {
+        (0..self.chunk_count())
+            .into_par_iter()
+            .filter_map(|k| {
+                let s = self.chunk(k);
+                let mut it = s.positions.iter();
+                let first = *it.next()?;
+                Some(it.fold((first, first), |(mut lo, mut hi), p| {
+                    for a in 0..3 {
+                        lo[a] = lo[a].min(p[a]);
+                        hi[a] = hi[a].max(p[a]);
+                    }
+                    (lo, hi)
+                }))
+            })
+            .reduce_with(|(alo, ahi), (blo, bhi)| {
+                (
+                    [alo[0].min(blo[0]), alo[1].min(blo[1]), alo[2].min(blo[2])],
+                    [ahi[0].max(bhi[0]), ahi[1].max(bhi[1]), ahi[2].max(bhi[2])],
+                )
+            })
+    }
+
+    /// The whole mesh in memory (tests, small scenes, in-memory consumers).
+    pub fn build(&self) -> MeshSoup {
+        let mut all = MeshSoup::default();
+        let _ = self.map_chunks::<MeshSoup, ()>(
+            |c| c,
+            |c| {
+                all.append(&c);
+                Ok(())
+            },
+        );
+        all
+    }
+
+    /// Triangles of Gaussian `i` under its current classification.
+    fn triangles_of(&self, i: usize) -> u64 {
+        match self.kinds[i] {
+            Kind::Flat => (self.templates[0].1.len() / 3) as u64,
+            Kind::Volumetric => (self.templates[1].1.len() / 3) as u64,
+            _ => 0,
+        }
+    }
+}
+
+/// Keep the highest-scoring Gaussians of all `meshers` within `max_triangles`; the rest are
+/// marked [`Kind::Budget`]. Ties keep the earlier mesher and the lower index (deterministic).
+pub fn apply_budget(meshers: &mut [&mut Mesher<'_>], max_triangles: u64) {
+    let total: u64 = meshers.iter().map(|m| m.counts.triangles).sum();
+    if total <= max_triangles {
+        return;
+    }
+    let mut entries: Vec<(f32, u32, u32)> = Vec::new();
+    for (mi, m) in meshers.iter().enumerate() {
+        let e: Vec<(f32, u32, u32)> = (0..m.cloud.len())
+            .into_par_iter()
+            .filter(|&i| m.kinds[i].kept())
+            .map(|i| (score(m.cloud, i), mi as u32, i as u32))
+            .collect();
+        entries.extend(e);
+    }
+    entries
+        .par_sort_unstable_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+    let mut used = 0u64;
+    for &(_, mi, i) in &entries {
+        let m = &mut meshers[mi as usize];
+        let t = m.triangles_of(i as usize);
+        if used + t <= max_triangles {
+            used += t;
+        } else {
+            m.kinds[i as usize] = Kind::Budget;
+        }
+    }
+    for m in meshers.iter_mut() {
+        m.recount();
+    }
+}
