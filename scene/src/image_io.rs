@@ -1,7 +1,15 @@
-//! Image output (8-bit PNG, float OpenEXR with RGBA and depth) and atomic file writing.
+//! Image output (8-bit PNG, float OpenEXR with RGBA and depth), PNG input, and atomic file
+//! writing.
+//!
+//! PNG stores RGB only, 8 bits per channel, values clamped to [0, 1] (NaN as 0) and rounded to
+//! the nearest of 255 levels, with no gamma applied: the renderers' colours are already display
+//! values as 3DGS trains them. OpenEXR stores the frame losslessly as 32-bit float channels
+//! R, G, B, A (alpha = 1 − T) and Z (expected view-space depth, 0 where empty), in one
+//! unnamed layer, rows top first.
 
 use std::io::Write;
 use std::path::Path;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::error::{Result, SceneError};
 use crate::Frame;
@@ -11,6 +19,9 @@ use crate::Frame;
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     with_atomic_writer(path, |w| w.write_all(bytes))
 }
+
+/// Distinguishes temporary files of concurrent writers in one process.
+static TMP_SERIAL: AtomicU64 = AtomicU64::new(0);
 
 /// Stream into `path` atomically through a buffered writer; the target appears only if `f`
 /// and the final flush succeed.
@@ -22,8 +33,12 @@ where
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => std::path::PathBuf::from("."),
     };
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let serial = TMP_SERIAL.fetch_add(1, Ordering::Relaxed);
+    let tmp = dir.join(format!(".{name}.tmp{}.{serial}", std::process::id()));
     let result = (|| -> std::io::Result<()> {
         let file = std::fs::File::create(&tmp)?;
         let mut w = std::io::BufWriter::with_capacity(1 << 20, file);
@@ -39,10 +54,149 @@ where
     Ok(())
 }
 
-/// Save a frame by extension: `.png` (8-bit RGB, values clamped to [0,1], no gamma: the
-/// renderers' colours are already display values as 3DGS trains them) or `.exr` (float R, G,
-/// B, A and a `Z` depth channel).
+/// An 8-bit RGB image (heat-maps, thumbnails), rows top first.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Rgb8Image {
+    pub width: u32,
+    pub height: u32,
+    /// Interleaved RGB, `3·width·height` bytes.
+    pub data: Vec<u8>,
+}
+
+impl Rgb8Image {
+    /// Save as PNG (atomically).
+    pub fn save_png(&self, path: &Path) -> Result<()> {
+        save_rgb8_png(path, self.width, self.height, &self.data)
+    }
+}
+
+/// Quantise a display value to 8 bits: clamp to [0, 1] (NaN → 0), round to nearest.
+#[inline]
+pub fn to_u8(v: f32) -> u8 {
+    if v.is_nan() {
+        0
+    } else {
+        (v.clamp(0.0, 1.0) * 255.0).round() as u8
+    }
+}
+
+fn check_planes(path: &Path, frame: &Frame) -> Result<()> {
+    let n = frame.pixels();
+    if frame.rgb.len() != 3 * n || frame.alpha.len() != n || frame.depth.len() != n {
+        return Err(SceneError::format(
+            path,
+            format!(
+                "cannot write a {}×{} frame with {} RGB, {} alpha and {} depth values",
+                frame.width,
+                frame.height,
+                frame.rgb.len(),
+                frame.alpha.len(),
+                frame.depth.len()
+            ),
+        ));
+    }
+    if n == 0 {
+        return Err(SceneError::format(
+            path,
+            "cannot write an empty (0-pixel) image",
+        ));
+    }
+    Ok(())
+}
+
+/// Save a frame by extension (case-insensitive): `.png` (8-bit RGB) or `.exr` (float R, G, B,
+/// A and a `Z` depth channel); see the module docs. Written atomically.
 pub fn save_frame(path: &Path, frame: &Frame) -> Result<()> {
-    let _ = frame;
-    Err(SceneError::format(path, "image writing is not implemented yet"))
+    check_planes(path, frame)?;
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    match ext.as_str() {
+        "png" => {
+            let data: Vec<u8> = frame.rgb.iter().map(|&v| to_u8(v)).collect();
+            save_rgb8_png(path, frame.width, frame.height, &data)
+        }
+        "exr" => save_exr(path, frame),
+        _ => Err(SceneError::format(
+            path,
+            format!("unsupported image extension '{ext}' (use .png or .exr)"),
+        )),
+    }
+}
+
+/// Save interleaved 8-bit RGB as PNG (atomically).
+pub fn save_rgb8_png(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<()> {
+    use image::ImageEncoder;
+    if rgb.len() != 3 * width as usize * height as usize || rgb.is_empty() {
+        return Err(SceneError::format(
+            path,
+            format!(
+                "cannot write a {width}×{height} RGB image from {} bytes",
+                rgb.len()
+            ),
+        ));
+    }
+    let mut png = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut png)
+        .write_image(rgb, width, height, image::ExtendedColorType::Rgb8)
+        .map_err(|e| SceneError::format(path, format!("PNG encoding failed: {e}")))?;
+    write_atomic(path, &png)
+}
+
+fn save_exr(path: &Path, frame: &Frame) -> Result<()> {
+    use exr::prelude::*;
+    let n = frame.pixels();
+    let plane = |c: usize| -> Vec<f32> { (0..n).map(|i| frame.rgb[3 * i + c]).collect() };
+    let channels = AnyChannels::sort(SmallVec::from_vec(vec![
+        AnyChannel::new("R", FlatSamples::F32(plane(0))),
+        AnyChannel::new("G", FlatSamples::F32(plane(1))),
+        AnyChannel::new("B", FlatSamples::F32(plane(2))),
+        AnyChannel::new("A", FlatSamples::F32(frame.alpha.clone())),
+        AnyChannel::new("Z", FlatSamples::F32(frame.depth.clone())),
+    ]));
+    let layer = Layer::new(
+        (frame.width as usize, frame.height as usize),
+        LayerAttributes::default(),
+        Encoding::FAST_LOSSLESS,
+        channels,
+    );
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    Image::from_layer(layer)
+        .write()
+        .to_buffered(&mut bytes)
+        .map_err(|e| SceneError::format(path, format!("OpenEXR encoding failed: {e}")))?;
+    write_atomic(path, bytes.get_ref())
+}
+
+/// Load a PNG (8- or 16-bit, grey or RGB, with or without alpha) as a frame: RGB and alpha in
+/// [0, 1] (alpha 1 when the file has none), depth 0.
+pub fn load_png(path: &Path) -> Result<Frame> {
+    let bytes = std::fs::read(path).map_err(|e| SceneError::io(path, e))?;
+    let img = image::load_from_memory_with_format(&bytes, image::ImageFormat::Png)
+        .map_err(|e| SceneError::format(path, format!("not a readable PNG: {e}")))?;
+    let rgba = img.to_rgba32f();
+    let (w, h) = rgba.dimensions();
+    let mut frame = Frame::new(w, h);
+    for (i, p) in rgba.pixels().enumerate() {
+        frame.rgb[3 * i..3 * i + 3].copy_from_slice(&p.0[..3]);
+        frame.alpha[i] = p.0[3];
+    }
+    Ok(frame)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quantisation_clamps_rounds_and_maps_nan_to_zero() {
+        assert_eq!(to_u8(-0.5), 0);
+        assert_eq!(to_u8(f32::NAN), 0);
+        assert_eq!(to_u8(2.0), 255);
+        assert_eq!(to_u8(f32::INFINITY), 255);
+        // 0.5·255 = 127.5 rounds away from zero.
+        assert_eq!(to_u8(0.5), 128);
+        assert_eq!(to_u8(10.0 / 255.0), 10);
+    }
 }

@@ -17,9 +17,9 @@ const FORMATS: [PlyFormat; 3] = [
 const AWKWARD: [f32; 12] = [
     0.0,
     -0.0,
-    1e-45,          // smallest subnormal
-    1.17549435e-38, // smallest normal
-    -3.4028235e38,  // most negative finite
+    1e-45,             // smallest subnormal
+    f32::MIN_POSITIVE, // smallest normal
+    f32::MIN,          // most negative finite
     0.1,
     1.0 / 3.0,
     16777217.0, // rounds to 2^24
@@ -250,12 +250,12 @@ fn binary_big_endian_with_doubles_and_extra_properties_reads_the_same_values() {
     }
     header += "end_header\n";
     let mut bytes = header.into_bytes();
-    for g in 0..2 {
+    for g in 0..2i32 {
         for (j, n) in names.iter().enumerate() {
             let v = g as f64 * 100.0 + j as f64 + 0.5;
             match *n {
                 "x" => bytes.extend(v.to_be_bytes()),
-                "idx" => bytes.extend((g as i32).to_be_bytes()),
+                "idx" => bytes.extend(g.to_be_bytes()),
                 _ => bytes.extend((v as f32).to_be_bytes()),
             }
         }

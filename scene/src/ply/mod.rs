@@ -121,11 +121,7 @@ pub fn read_ply(path: &Path, opts: &ReadOptions) -> Result<(GaussianCloud, ReadR
         Encoding::Ascii => {
             // Each value takes at least one character and one separator (space or newline).
             let min_per_vertex = 2 * header.properties.len() as u64;
-            let capacity = if min_per_vertex == 0 {
-                0
-            } else {
-                (data_len + 1) / min_per_vertex
-            };
+            let capacity = (data_len + 1).checked_div(min_per_vertex).unwrap_or(0);
             if count > capacity {
                 return Err(SceneError::format(
                     path,
