@@ -35,8 +35,9 @@ pub struct Blas {
     /// Positions relative to `anchor`, f32.
     pub rel: Vec<Vec3>,
     pub group: Vec<u32>,
-    /// Plane of each group in relative coordinates: `n·x = w`.
-    pub planes: Vec<Vec4>,
+    /// Plane of each group in relative coordinates (f64): `n·x = w`, from the group's
+    /// largest triangle (the best conditioned normal).
+    pub planes: Vec<(DVec3, f64)>,
     pub lo: DVec3,
     pub hi: DVec3,
     pub accel: Box<dyn Accel>,
@@ -120,6 +121,26 @@ impl KBuffer {
     }
 }
 
+/// Barycentrics of the ray's crossing of the triangle's plane, in f64, clamped to the
+/// triangle (the watertight test already decided coverage) and renormalised.
+#[inline]
+fn refine_bary(a: DVec3, b: DVec3, c: DVec3, o: DVec3, d: DVec3) -> Option<[f32; 3]> {
+    let n = (b - a).cross(c - a);
+    let nn = n.length_squared();
+    let den = n.dot(d);
+    if !(nn > 0.0) || den == 0.0 {
+        return None;
+    }
+    let p = o + d * (n.dot(a - o) / den);
+    let l = [
+        (c - b).cross(p - b).dot(n).max(0.0),
+        (a - c).cross(p - c).dot(n).max(0.0),
+        (b - a).cross(p - a).dot(n).max(0.0),
+    ];
+    let s = l[0] + l[1] + l[2];
+    (s > 0.0 && s.is_finite()).then(|| [(l[0] / s) as f32, (l[1] / s) as f32, (l[2] / s) as f32])
+}
+
 /// An instance prepared for one time: mesh, inverse transform, world bounds.
 #[derive(Clone, Copy, Debug)]
 pub struct PreparedInstance {
@@ -157,7 +178,7 @@ impl MeshTracer {
             let rel: Vec<Vec3> = m.positions.iter().map(|p| (p.as_dvec3() - anchor).as_vec3()).collect();
             let (group, ngroups) = m.planar_groups();
             // Each group's plane from its largest triangle (best conditioned normal).
-            let mut best = vec![(0.0f64, Vec4::ZERO); ngroups as usize];
+            let mut best = vec![(0.0f64, (DVec3::ZERO, 0.0)); ngroups as usize];
             for (t, tri) in m.tris.iter().enumerate() {
                 let [a, b, c] = tri.map(|i| rel[i as usize].as_dvec3());
                 let n = (b - a).cross(c - a);
@@ -165,7 +186,7 @@ impl MeshTracer {
                 let g = group[t] as usize;
                 if area > best[g].0 {
                     let n = n / area;
-                    best[g] = (area, n.as_vec3().extend(n.dot(a) as f32));
+                    best[g] = (area, (n, n.dot(a)));
                 }
             }
             let planes = best.into_iter().map(|(_, p)| p).collect();
@@ -230,8 +251,9 @@ impl MeshTracer {
             }
             let blas = &self.blas[inst.mesh];
             let mesh = &self.scene.meshes[inst.mesh];
-            let lo = (inst.to_local.transform_point3(o) - blas.anchor).as_vec3();
-            let ld = inst.to_local.transform_vector3(d).as_vec3();
+            let lo64 = inst.to_local.transform_point3(o) - blas.anchor;
+            let ld64 = inst.to_local.transform_vector3(d);
+            let (lo, ld) = (lo64.as_vec3(), ld64.as_vec3());
             if !lo.is_finite() || !ld.is_finite() || ld == Vec3::ZERO {
                 continue;
             }
@@ -240,12 +262,13 @@ impl MeshTracer {
             blas.accel.traverse(lo, ld, cull0, &mut |prim, cull| {
                 let p = prim as usize;
                 let [a, b, c] = mesh.tris[p].map(|i| blas.rel[i as usize]);
+                // Coverage from the watertight f32 test; distance and barycentrics of accepted
+                // hits are refined in f64 (f32 loses ~ulp(|o − v|)/size on small far triangles).
                 let Some(h) = wray.intersect(a, b, c, f32::NEG_INFINITY, f32::INFINITY) else { return };
                 let g = blas.group[p];
-                let pl = blas.planes[g as usize];
-                let nd = pl.truncate().dot(ld);
-                let tp = (pl.w - pl.truncate().dot(lo)) / nd;
-                let t = if tp.is_finite() { tp } else { h.t };
+                let (pn, pw) = blas.planes[g as usize];
+                let tp = (pw - pn.dot(lo64)) / pn.dot(ld64);
+                let t = if tp.is_finite() { tp as f32 } else { h.t };
                 // +0.0 normalises −0.0 so the bit pattern orders like the value.
                 let t = t + 0.0;
                 if !(t >= tmin && t <= tmax) {
@@ -257,7 +280,7 @@ impl MeshTracer {
                     instance: ii as u32,
                     group: g,
                     tri: prim,
-                    bary: h.bary,
+                    bary: refine_bary(a.as_dvec3(), b.as_dvec3(), c.as_dvec3(), lo64, ld64).unwrap_or(h.bary),
                 };
                 if after.is_some_and(|a| hit.key() <= a) {
                     return;

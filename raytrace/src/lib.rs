@@ -12,13 +12,17 @@ pub mod composite;
 #[cfg(feature = "embree")]
 pub mod embree_backend;
 pub mod error;
+pub mod gaussian;
 pub mod model;
 pub mod obvhs_backend;
 pub mod render;
+pub mod scene_load;
+pub mod secondary;
 pub mod tri;
 
 pub use backend::{BackendKind, BuildPreset};
 pub use composite::MeshTracer;
 pub use error::{Result, TraceError};
-pub use model::TriScene;
+pub use gaussian::GaussianTracer;
+pub use model::{AlphaMode, TriScene};
 pub use render::{RenderOptions, Stats};

@@ -1,0 +1,470 @@
+//! Loading triangle scenes from what was exported: glTF 2.0 (GLB or .gltf, through the `gltf`
+//! crate) and OBJ/MTL (through `tobj`). The loader reads only the file, so a writer bug shows
+//! in renders.
+//!
+//! glTF: every mesh primitive of mode TRIANGLES (strips and fans are expanded), POSITION,
+//! COLOR_0 (any component type, RGB gets alpha 1), TEXCOORD_0, the custom `_GAUSSIAN_ID`
+//! vertex attribute (any scalar component type; a triangle takes its first vertex's id), the
+//! material's base colour factor and texture (decoded by the `gltf` importer, RGB sRGB-decoded)
+//! and alpha mode; nodes of the default scene with TRS or matrix, animation channels
+//! (translation/rotation/scale; morph weights are ignored) and perspective cameras.
+//! POINTS primitives (e.g. `KHR_gaussian_splatting`) carry no surface and are skipped.
+//!
+//! OBJ: positions, `v x y z r g b` vertex colours (OBJ has no per-vertex alpha: alpha is 1,
+//! times the MTL dissolve `d` when one is given), MTL diffuse colour when there are no vertex
+//! colours; one mesh per object, all under one identity node.
+
+use std::path::Path;
+
+use glam::{DAffine3, DMat4, DQuat, DVec3, Vec2, Vec3, Vec4};
+
+use crate::error::{Result, TraceError};
+use crate::model::{
+    srgb_to_linear, AlphaMode, Channel, ChannelPath, Interpolation, Material, Mesh, Node, Perspective, Texture, TriScene, Wrap,
+};
+
+/// Load a triangle scene by extension: `.glb`, `.gltf`, `.obj`.
+pub fn load_path(path: &Path) -> Result<TriScene> {
+    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    match ext.as_str() {
+        "glb" | "gltf" => {
+            let (doc, buffers, images) = gltf::import(path).map_err(|e| TraceError::format(path, format!("not a readable glTF: {e}")))?;
+            from_gltf(path, &doc, &buffers, &images)
+        }
+        "obj" => load_obj(path),
+        _ => Err(TraceError::format(path, "unknown triangle-scene extension (expected .glb, .gltf or .obj)")),
+    }
+}
+
+/// Load a GLB (or self-contained glTF JSON) from memory; `name` is used in error messages.
+pub fn load_glb_bytes(bytes: &[u8], name: &Path) -> Result<TriScene> {
+    let (doc, buffers, images) = gltf::import_slice(bytes).map_err(|e| TraceError::format(name, format!("not a readable glTF: {e}")))?;
+    from_gltf(name, &doc, &buffers, &images)
+}
+
+fn texture_from(path: &Path, tex: &gltf::Texture, images: &[gltf::image::Data]) -> Result<Texture> {
+    use gltf::image::Format as F;
+    let img = images
+        .get(tex.source().index())
+        .ok_or_else(|| TraceError::format(path, format!("texture {} names a missing image", tex.index())))?;
+    let n = img.width as usize * img.height as usize;
+    let (ch, bytes): (usize, usize) = match img.format {
+        F::R8 => (1, 1),
+        F::R8G8 => (2, 1),
+        F::R8G8B8 => (3, 1),
+        F::R8G8B8A8 => (4, 1),
+        F::R16 => (1, 2),
+        F::R16G16 => (2, 2),
+        F::R16G16B16 => (3, 2),
+        F::R16G16B16A16 => (4, 2),
+        F::R32G32B32FLOAT => (3, 4),
+        F::R32G32B32A32FLOAT => (4, 4),
+    };
+    if img.pixels.len() < n * ch * bytes {
+        return Err(TraceError::format(path, format!("image {} is shorter than its size", tex.source().index())));
+    }
+    let get = |i: usize| -> f32 {
+        match bytes {
+            1 => img.pixels[i] as f32 / 255.0,
+            2 => u16::from_ne_bytes([img.pixels[2 * i], img.pixels[2 * i + 1]]) as f32 / 65535.0,
+            _ => f32::from_ne_bytes([img.pixels[4 * i], img.pixels[4 * i + 1], img.pixels[4 * i + 2], img.pixels[4 * i + 3]]),
+        }
+    };
+    let texels = (0..n)
+        .map(|p| {
+            let c: Vec<f32> = (0..ch).map(|k| get(p * ch + k)).collect();
+            let (r, g, b, a) = match ch {
+                1 => (c[0], c[0], c[0], 1.0),
+                2 => (c[0], c[0], c[0], c[1]),
+                3 => (c[0], c[1], c[2], 1.0),
+                _ => (c[0], c[1], c[2], c[3]),
+            };
+            Vec4::new(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a)
+        })
+        .collect();
+    let s = tex.sampler();
+    let wrap = |w: gltf::texture::WrappingMode| match w {
+        gltf::texture::WrappingMode::ClampToEdge => Wrap::Clamp,
+        gltf::texture::WrappingMode::MirroredRepeat => Wrap::Mirror,
+        gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
+    };
+    Ok(Texture {
+        width: img.width,
+        height: img.height,
+        texels,
+        wrap: [wrap(s.wrap_s()), wrap(s.wrap_t())],
+        nearest: s.mag_filter() == Some(gltf::texture::MagFilter::Nearest),
+    })
+}
+
+fn read_scalar_u32(path: &Path, acc: &gltf::Accessor, buffers: &[gltf::buffer::Data], what: &str) -> Result<Vec<u32>> {
+    use gltf::accessor::{DataType, Dimensions, Iter};
+    if acc.dimensions() != Dimensions::Scalar {
+        return Err(TraceError::format(path, format!("{what}: accessor {} is not SCALAR", acc.index())));
+    }
+    let get = |b: gltf::Buffer| buffers.get(b.index()).map(|d| &d.0[..]);
+    let bad = || TraceError::format(path, format!("{what}: accessor {} cannot be read", acc.index()));
+    let v: Vec<u32> = match acc.data_type() {
+        DataType::F32 => {
+            let it = Iter::<f32>::new(acc.clone(), get).ok_or_else(bad)?;
+            let mut out = Vec::with_capacity(acc.count());
+            for (i, x) in it.enumerate() {
+                if !(x >= 0.0 && x <= u32::MAX as f32 && x.fract() == 0.0) {
+                    return Err(TraceError::format(path, format!("{what}: vertex {i} has id {x}, not a non-negative integer")));
+                }
+                out.push(x as u32);
+            }
+            out
+        }
+        DataType::U32 => Iter::<u32>::new(acc.clone(), get).ok_or_else(bad)?.collect(),
+        DataType::U16 => Iter::<u16>::new(acc.clone(), get).ok_or_else(bad)?.map(u32::from).collect(),
+        DataType::U8 => Iter::<u8>::new(acc.clone(), get).ok_or_else(bad)?.map(u32::from).collect(),
+        DataType::I16 => Iter::<i16>::new(acc.clone(), get).ok_or_else(bad)?.map(|x| x.max(0) as u32).collect(),
+        DataType::I8 => Iter::<i8>::new(acc.clone(), get).ok_or_else(bad)?.map(|x| x.max(0) as u32).collect(),
+    };
+    Ok(v)
+}
+
+fn from_gltf(path: &Path, doc: &gltf::Document, buffers: &[gltf::buffer::Data], images: &[gltf::image::Data]) -> Result<TriScene> {
+    let get = |b: gltf::Buffer| buffers.get(b.index()).map(|d| &d.0[..]);
+    let mut textures = Vec::new();
+    for t in doc.textures() {
+        textures.push(texture_from(path, &t, images)?);
+    }
+    let mut materials: Vec<Material> = doc
+        .materials()
+        .map(|m| {
+            let pbr = m.pbr_metallic_roughness();
+            Material {
+                base_color: Vec4::from_array(pbr.base_color_factor()),
+                texture: pbr.base_color_texture().map(|t| t.texture().index()),
+                alpha_mode: match m.alpha_mode() {
+                    gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
+                    gltf::material::AlphaMode::Mask => AlphaMode::Mask(m.alpha_cutoff().unwrap_or(0.5)),
+                    gltf::material::AlphaMode::Blend => AlphaMode::Blend,
+                },
+            }
+        })
+        .collect();
+    // Primitives without a material use glTF's default material, appended last.
+    let default_material = materials.len() as u32;
+    materials.push(Material::default());
+
+    let mut meshes = Vec::new();
+    for m in doc.meshes() {
+        let mut mesh = Mesh {
+            name: m.name().unwrap_or("").to_string(),
+            ..Mesh::default()
+        };
+        let mut any_uv = false;
+        let mut all_ids = true;
+        let mut uvs: Vec<Vec2> = Vec::new();
+        let mut ids: Vec<u32> = Vec::new();
+        let mut tri_ids: Vec<Option<u32>> = Vec::new();
+        for (pi, p) in m.primitives().enumerate() {
+            let what = format!("mesh {} primitive {pi}", m.index());
+            use gltf::mesh::Mode;
+            if !matches!(p.mode(), Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
+                continue;
+            }
+            let r = p.reader(get);
+            let pos: Vec<Vec3> = r
+                .read_positions()
+                .ok_or_else(|| TraceError::format(path, format!("{what}: no POSITION")))?
+                .map(Vec3::from_array)
+                .collect();
+            if let Some(i) = pos.iter().position(|v| !v.is_finite()) {
+                return Err(TraceError::format(path, format!("{what}: POSITION of vertex {i} is not finite")));
+            }
+            let n = pos.len();
+            let base = mesh.positions.len() as u32;
+            let cols: Vec<Vec4> = match r.read_colors(0) {
+                Some(c) => c.into_rgba_f32().map(Vec4::from_array).collect(),
+                None => vec![Vec4::ONE; n],
+            };
+            if cols.len() != n {
+                return Err(TraceError::format(path, format!("{what}: COLOR_0 has {} entries for {n} vertices", cols.len())));
+            }
+            let uv: Option<Vec<Vec2>> = r.read_tex_coords(0).map(|t| t.into_f32().map(Vec2::from_array).collect());
+            let gid = p
+                .attributes()
+                .find(|(s, _)| matches!(s, gltf::Semantic::Extras(name) if name == "GAUSSIAN_ID"))
+                .map(|(_, acc)| read_scalar_u32(path, &acc, buffers, &format!("{what}: _GAUSSIAN_ID")))
+                .transpose()?;
+            let idx: Vec<u32> = match r.read_indices() {
+                Some(i) => i.into_u32().collect(),
+                None => (0..n as u32).collect(),
+            };
+            if let Some(bad) = idx.iter().find(|&&i| i as usize >= n) {
+                return Err(TraceError::format(path, format!("{what}: index {bad} is out of range ({n} vertices)")));
+            }
+            let tris: Vec<[u32; 3]> = match p.mode() {
+                Mode::Triangles => idx.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+                Mode::TriangleStrip => (2..idx.len())
+                    .map(|i| if i % 2 == 0 { [idx[i - 2], idx[i - 1], idx[i]] } else { [idx[i - 1], idx[i - 2], idx[i]] })
+                    .collect(),
+                _ => (2..idx.len()).map(|i| [idx[0], idx[i - 1], idx[i]]).collect(),
+            };
+            let mat = p.material().index().map(|i| i as u32).unwrap_or(default_material);
+            if let Some(u) = &uv {
+                if u.len() != n {
+                    return Err(TraceError::format(path, format!("{what}: TEXCOORD_0 has {} entries for {n} vertices", u.len())));
+                }
+            }
+            any_uv |= uv.is_some();
+            uvs.extend(uv.unwrap_or_else(|| vec![Vec2::ZERO; n]));
+            match &gid {
+                Some(g) if g.len() == n => ids.extend_from_slice(g),
+                Some(g) => {
+                    return Err(TraceError::format(path, format!("{what}: _GAUSSIAN_ID has {} entries for {n} vertices", g.len())))
+                }
+                None => {
+                    all_ids = false;
+                    ids.extend(std::iter::repeat_n(0, n));
+                }
+            }
+            for t in tris {
+                tri_ids.push(gid.as_ref().map(|g| g[t[0] as usize]));
+                mesh.tris.push(t.map(|i| i + base));
+                mesh.tri_material.push(mat);
+            }
+            mesh.positions.extend(pos);
+            mesh.colors.extend(cols);
+        }
+        if any_uv {
+            mesh.uvs = Some(uvs);
+        }
+        if all_ids && !mesh.tris.is_empty() {
+            mesh.tri_gaussian = tri_ids.into_iter().map(|g| g.unwrap_or(0)).collect();
+            mesh.has_gaussian_ids = true;
+        } else {
+            mesh.assign_components();
+        }
+        meshes.push(mesh);
+    }
+
+    // Nodes: only those reachable from the default scene (or scene 0) are shown by viewers.
+    let mut nodes: Vec<Node> = doc
+        .nodes()
+        .map(|n| {
+            let mut node = Node {
+                name: n.name().unwrap_or("").to_string(),
+                ..Node::default()
+            };
+            match n.transform() {
+                gltf::scene::Transform::Matrix { matrix } => {
+                    let m = DMat4::from_cols_array_2d(&matrix.map(|c| c.map(|v| v as f64)));
+                    node.matrix = Some(DAffine3::from_mat4(m));
+                }
+                gltf::scene::Transform::Decomposed { translation, rotation, scale } => {
+                    node.translation = DVec3::from_array(translation.map(|v| v as f64));
+                    let q = DQuat::from_array(rotation.map(|v| v as f64));
+                    node.rotation = if q.length() > 0.0 { q.normalize() } else { DQuat::IDENTITY };
+                    node.scale = DVec3::from_array(scale.map(|v| v as f64));
+                }
+            }
+            node
+        })
+        .collect();
+    for n in doc.nodes() {
+        for c in n.children() {
+            if nodes[c.index()].parent.is_some() {
+                return Err(TraceError::format(path, format!("node {} has more than one parent", c.index())));
+            }
+            nodes[c.index()].parent = Some(n.index());
+        }
+    }
+    // Reject cycles: walk up from every node.
+    for i in 0..nodes.len() {
+        let (mut cur, mut steps) = (nodes[i].parent, 0);
+        while let Some(p) = cur {
+            steps += 1;
+            if steps > nodes.len() {
+                return Err(TraceError::format(path, format!("node {i} is part of a parent cycle")));
+            }
+            cur = nodes[p].parent;
+        }
+    }
+    let scene = doc.default_scene().or_else(|| doc.scenes().next());
+    let mut reachable = vec![scene.is_none(); nodes.len()];
+    if let Some(s) = scene {
+        let mut stack: Vec<gltf::Node> = s.nodes().collect();
+        while let Some(n) = stack.pop() {
+            if !reachable[n.index()] {
+                reachable[n.index()] = true;
+                stack.extend(n.children());
+            }
+        }
+    }
+    for n in doc.nodes() {
+        if !reachable[n.index()] {
+            continue;
+        }
+        let node = &mut nodes[n.index()];
+        node.mesh = n.mesh().map(|m| m.index());
+        if let Some(c) = n.camera() {
+            if let gltf::camera::Projection::Perspective(p) = c.projection() {
+                let yfov = p.yfov() as f64;
+                if !(yfov > 0.0 && yfov < std::f64::consts::PI) {
+                    return Err(TraceError::format(path, format!("camera {}: yfov {yfov} is outside (0, π)", c.index())));
+                }
+                node.camera = Some(Perspective {
+                    yfov,
+                    aspect: p.aspect_ratio().map(|a| a as f64),
+                });
+            }
+        }
+    }
+
+    let mut channels = Vec::new();
+    for a in doc.animations() {
+        for (ci, ch) in a.channels().enumerate() {
+            let what = format!("animation {} channel {ci}", a.index());
+            use gltf::animation::util::ReadOutputs;
+            use gltf::animation::Property;
+            let path_kind = match ch.target().property() {
+                Property::Translation => ChannelPath::Translation,
+                Property::Rotation => ChannelPath::Rotation,
+                Property::Scale => ChannelPath::Scale,
+                Property::MorphTargetWeights => continue,
+            };
+            let r = ch.reader(get);
+            let times: Vec<f64> = r
+                .read_inputs()
+                .ok_or_else(|| TraceError::format(path, format!("{what}: sampler input cannot be read")))?
+                .map(|t| t as f64)
+                .collect();
+            if times.windows(2).any(|w| !(w[1] > w[0])) || times.iter().any(|t| !t.is_finite()) {
+                return Err(TraceError::format(path, format!("{what}: key times are not finite and strictly increasing")));
+            }
+            let values: Vec<[f64; 4]> = match r
+                .read_outputs()
+                .ok_or_else(|| TraceError::format(path, format!("{what}: sampler output cannot be read")))?
+            {
+                ReadOutputs::Translations(it) | ReadOutputs::Scales(it) => it.map(|v| [v[0] as f64, v[1] as f64, v[2] as f64, 0.0]).collect(),
+                ReadOutputs::Rotations(it) => it.into_f32().map(|v| v.map(|x| x as f64)).collect(),
+                ReadOutputs::MorphTargetWeights(_) => continue,
+            };
+            let interpolation = match ch.sampler().interpolation() {
+                gltf::animation::Interpolation::Step => Interpolation::Step,
+                gltf::animation::Interpolation::Linear => Interpolation::Linear,
+                gltf::animation::Interpolation::CubicSpline => Interpolation::CubicSpline,
+            };
+            let per = if interpolation == Interpolation::CubicSpline { 3 } else { 1 };
+            if values.len() != per * times.len() {
+                return Err(TraceError::format(
+                    path,
+                    format!("{what}: {} output values for {} keys", values.len(), times.len()),
+                ));
+            }
+            if values.iter().any(|v| v.iter().any(|x| !x.is_finite())) {
+                return Err(TraceError::format(path, format!("{what}: output values are not finite")));
+            }
+            channels.push(Channel {
+                node: ch.target().node().index(),
+                path: path_kind,
+                interpolation,
+                times,
+                values,
+            });
+        }
+    }
+
+    Ok(TriScene {
+        meshes,
+        materials,
+        textures,
+        nodes,
+        channels,
+    })
+}
+
+fn obj_options() -> tobj::LoadOptions {
+    tobj::LoadOptions {
+        triangulate: true,
+        single_index: true,
+        ..Default::default()
+    }
+}
+
+/// Load an OBJ (and its MTL, when present) from a path.
+pub fn load_obj(path: &Path) -> Result<TriScene> {
+    let (models, mats) = tobj::load_obj(path, &obj_options()).map_err(|e| TraceError::format(path, format!("not a readable OBJ: {e}")))?;
+    // A missing or broken MTL leaves the geometry usable; vertex colours carry the colour.
+    let mats = mats.unwrap_or_default();
+    obj_scene(path, models, mats)
+}
+
+/// Load an OBJ from memory (materials are not resolved).
+pub fn load_obj_bytes(bytes: &[u8], name: &Path) -> Result<TriScene> {
+    let mut r = std::io::BufReader::new(bytes);
+    let (models, _) = tobj::load_obj_buf(&mut r, &obj_options(), |_| Err(tobj::LoadError::OpenFileFailed))
+        .map_err(|e| TraceError::format(name, format!("not a readable OBJ: {e}")))?;
+    obj_scene(name, models, Vec::new())
+}
+
+fn obj_scene(path: &Path, models: Vec<tobj::Model>, mats: Vec<tobj::Material>) -> Result<TriScene> {
+    let mut materials: Vec<Material> = mats
+        .iter()
+        .map(|m| {
+            let d = m.dissolve.unwrap_or(1.0).clamp(0.0, 1.0);
+            let kd = m.diffuse.unwrap_or([1.0; 3]);
+            Material {
+                base_color: Vec4::new(kd[0], kd[1], kd[2], d),
+                texture: None,
+                alpha_mode: if d < 1.0 { AlphaMode::Blend } else { AlphaMode::Opaque },
+            }
+        })
+        .collect();
+    let default_material = materials.len() as u32;
+    materials.push(Material::default());
+    let mut scene = TriScene {
+        materials,
+        ..TriScene::default()
+    };
+    for (mi, model) in models.into_iter().enumerate() {
+        let m = model.mesh;
+        let n = m.positions.len() / 3;
+        let positions: Vec<Vec3> = m.positions.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect();
+        if let Some(i) = positions.iter().position(|v| !v.is_finite()) {
+            return Err(TraceError::format(path, format!("object {mi} ('{}'): vertex {i} is not finite", model.name)));
+        }
+        let mut mat = m.material_id.map(|i| i as u32).unwrap_or(default_material);
+        if mat as usize >= scene.materials.len() {
+            mat = default_material;
+        }
+        let colors: Vec<Vec4> = if m.vertex_color.len() == 3 * n {
+            // Vertex colours replace the MTL diffuse colour (as Blender shows them), alpha stays.
+            if let Some(mm) = scene.materials.get_mut(mat as usize) {
+                if mat != default_material {
+                    mm.base_color = Vec4::new(1.0, 1.0, 1.0, mm.base_color.w);
+                }
+            }
+            m.vertex_color.chunks_exact(3).map(|c| Vec4::new(c[0], c[1], c[2], 1.0)).collect()
+        } else {
+            vec![Vec4::ONE; n]
+        };
+        if let Some(bad) = m.indices.iter().find(|&&i| i as usize >= n) {
+            return Err(TraceError::format(path, format!("object {mi} ('{}'): index {bad} out of range", model.name)));
+        }
+        let tris: Vec<[u32; 3]> = m.indices.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+        let mut mesh = Mesh {
+            name: model.name.clone(),
+            positions,
+            colors,
+            uvs: None,
+            tri_material: vec![mat; tris.len()],
+            tris,
+            tri_gaussian: Vec::new(),
+            has_gaussian_ids: false,
+        };
+        mesh.assign_components();
+        scene.nodes.push(Node {
+            mesh: Some(scene.meshes.len()),
+            name: model.name,
+            ..Node::default()
+        });
+        scene.meshes.push(mesh);
+    }
+    Ok(scene)
+}

@@ -1,0 +1,133 @@
+//! Secondary rays for effects (shadows, reflections, fog): transmittance along a segment and
+//! the closest hit whose opacity reaches a threshold, for both modes, with the same hit order
+//! and de-duplication as primary rays (no near cull).
+
+use glam::{DVec3, Vec3};
+
+use crate::composite::{Hit, KBuffer, MeshTracer, PreparedInstance};
+use crate::gaussian::GaussianTracer;
+
+/// A closest opaque hit: world distance along the unit direction and the hit's colour.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OpaqueHit {
+    pub t: f64,
+    pub rgb: Vec3,
+    pub alpha: f32,
+}
+
+/// Queries any tracer answers.
+pub trait SecondaryRays {
+    /// Product of (1 − α) over the hits strictly between `from` and `to`, skipping the first
+    /// `offset` units (to leave the surface a ray starts on). 0 once below 1e-4.
+    fn transmittance(&self, from: DVec3, to: DVec3, offset: f64) -> f32;
+    /// The nearest hit with α ≥ `threshold` along `o + t·d` (d unit length), `offset ≤ t ≤ tmax`.
+    fn closest_opaque(&self, o: DVec3, d: DVec3, offset: f64, tmax: f64, threshold: f32) -> Option<OpaqueHit>;
+}
+
+/// A mesh scene frozen at one time, for secondary queries.
+pub struct MeshAt<'a> {
+    pub tracer: &'a MeshTracer,
+    pub insts: Vec<PreparedInstance>,
+    pub k: usize,
+}
+
+impl MeshTracer {
+    /// Freeze the scene at `time` for secondary rays.
+    pub fn at(&self, time: f64) -> MeshAt<'_> {
+        MeshAt {
+            tracer: self,
+            insts: self.prepare(time),
+            k: 16,
+        }
+    }
+}
+
+fn segment(from: DVec3, to: DVec3) -> Option<(DVec3, f64)> {
+    let v = to - from;
+    let len = v.length();
+    (len > 0.0 && len.is_finite()).then(|| (v / len, len))
+}
+
+impl SecondaryRays for MeshAt<'_> {
+    fn transmittance(&self, from: DVec3, to: DVec3, offset: f64) -> f32 {
+        let Some((d, len)) = segment(from, to) else { return 1.0 };
+        let mut buf = KBuffer::new(self.k);
+        let mut tr = 1.0f32;
+        let mut after = None;
+        loop {
+            self.tracer.collect(&self.insts, from, d, offset as f32, len as f32, after, &mut buf);
+            for h in &buf.hits {
+                // Strictly before the end point: a surface at `to` does not shadow itself.
+                if h.t as f64 >= len {
+                    return tr;
+                }
+                tr *= 1.0 - self.tracer.shade(&self.insts, h).w;
+                if tr < 1e-4 {
+                    return 0.0;
+                }
+            }
+            if !buf.is_full() {
+                return tr;
+            }
+            after = buf.hits.last().map(Hit::key);
+        }
+    }
+
+    fn closest_opaque(&self, o: DVec3, d: DVec3, offset: f64, tmax: f64, threshold: f32) -> Option<OpaqueHit> {
+        let mut buf = KBuffer::new(self.k);
+        let mut after = None;
+        loop {
+            self.tracer.collect(&self.insts, o, d, offset as f32, tmax as f32, after, &mut buf);
+            for h in &buf.hits {
+                let c = self.tracer.shade(&self.insts, h);
+                if c.w >= threshold {
+                    return Some(OpaqueHit {
+                        t: h.t as f64,
+                        rgb: c.truncate(),
+                        alpha: c.w,
+                    });
+                }
+            }
+            if !buf.is_full() {
+                return None;
+            }
+            after = buf.hits.last().map(Hit::key);
+        }
+    }
+}
+
+impl SecondaryRays for GaussianTracer {
+    fn transmittance(&self, from: DVec3, to: DVec3, offset: f64) -> f32 {
+        let Some((d, len)) = segment(from, to) else { return 1.0 };
+        let mut tr = 1.0f32;
+        for h in self.all_hits(from, d, 16) {
+            let t = h.t as f64;
+            if t < offset {
+                continue;
+            }
+            if t >= len {
+                break;
+            }
+            tr *= 1.0 - h.bary[0];
+            if tr < 1e-4 {
+                return 0.0;
+            }
+        }
+        tr
+    }
+
+    fn closest_opaque(&self, o: DVec3, d: DVec3, offset: f64, tmax: f64, threshold: f32) -> Option<OpaqueHit> {
+        self.all_hits(o, d, 16)
+            .into_iter()
+            .filter(|h| (h.t as f64) >= offset && (h.t as f64) <= tmax)
+            .find(|h| h.bary[0] >= threshold)
+            .map(|h| {
+                let g = h.gaussian as usize;
+                OpaqueHit {
+                    t: h.t as f64,
+                    rgb: splatbridge_scene::sh::eval_color(self.cloud.sh_degree, self.cloud.sh_of(g), d.as_vec3()),
+                    alpha: h.bary[0],
+                }
+            })
+    }
+}
