@@ -20,6 +20,7 @@ pub mod ply;
 pub mod rng;
 pub mod sh;
 pub mod sh_rotate;
+pub mod surfels;
 pub mod trajectory;
 pub mod weather;
 

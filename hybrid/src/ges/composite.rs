@@ -50,7 +50,13 @@ pub struct GaussAcc {
 
 /// Composite one pixel (see the module docs): returns (rgb, alpha, depth).
 #[inline]
-pub fn composite_pixel(cs: [f32; 3], ws: f32, ds: f32, g: &GaussAcc, bg: [f32; 3]) -> ([f32; 3], f32, f32) {
+pub fn composite_pixel(
+    cs: [f32; 3],
+    ws: f32,
+    ds: f32,
+    g: &GaussAcc,
+    bg: [f32; 3],
+) -> ([f32; 3], f32, f32) {
     let mut rgb = [0f32; 3];
     let inv_w = if g.w > 0.0 { 1.0 / g.w } else { 0.0 };
     let cov = 1.0 - g.t;
@@ -63,7 +69,11 @@ pub fn composite_pixel(cs: [f32; 3], ws: f32, ds: f32, g: &GaussAcc, bg: [f32; 3
     }
     for j in 0..3 {
         let free = g.c[j] * inv_w * cov + bg[j] * g.t;
-        rgb[j] = if ws > 0.0 { ws * (cs[j] + g.c[j]) / (1.0 + g.w) + (1.0 - ws) * free } else { free };
+        rgb[j] = if ws > 0.0 {
+            ws * (cs[j] + g.c[j]) / (1.0 + g.w) + (1.0 - ws) * free
+        } else {
+            free
+        };
     }
     let alpha = ws + (1.0 - ws) * cov;
     let depth = if ws > 0.0 { ds } else { g.dz * inv_w };
@@ -73,7 +83,9 @@ pub fn composite_pixel(cs: [f32; 3], ws: f32, ds: f32, g: &GaussAcc, bg: [f32; 3
 /// Blur the surfel colour planes of a tile-major surfel buffer in place (see the module docs).
 pub fn blur_surfels(planes: &mut [f32], width: u32, height: u32, grid: [u32; 2]) {
     let (w, h, gx) = (width as usize, height as usize, grid[0] as usize);
-    let at = |x: usize, y: usize, p: usize| ((y / T) * gx + x / T) * SURFEL_PLANES * N + p * N + (y % T) * T + x % T;
+    let at = |x: usize, y: usize, p: usize| {
+        ((y / T) * gx + x / T) * SURFEL_PLANES * N + p * N + (y % T) * T + x % T
+    };
     let src: &[f32] = planes;
     // Row-major blurred colours, then written back.
     let blurred: Vec<[f32; 3]> = (0..w * h)

@@ -25,8 +25,8 @@
 //! covered part of the pixel). With one sample the sample sits at the pixel's integer coordinate.
 
 use rayon::prelude::*;
-use splatbridge_scene::surfels::{SurfelCloud, FOOTPRINT_SIGMAS};
 use splatbridge_scene::sh;
+use splatbridge_scene::surfels::{SurfelCloud, FOOTPRINT_SIGMAS};
 
 use glam::DVec3;
 
@@ -50,7 +50,12 @@ pub const P_LIMIT: usize = 5;
 pub const SURFEL_PLANES: usize = 6;
 
 /// Sample offsets of the 4× pattern (the rotated grid of Direct3D's standard 4× MSAA).
-pub const OFFSETS_4: [[f32; 2]; 4] = [[-0.125, -0.375], [0.375, -0.125], [-0.375, 0.125], [0.125, 0.375]];
+pub const OFFSETS_4: [[f32; 2]; 4] = [
+    [-0.125, -0.375],
+    [0.375, -0.125],
+    [-0.375, 0.125],
+    [0.125, 0.375],
+];
 
 /// `(2·ln 255)`: the squared footprint radius in standard deviations.
 pub fn footprint_r2() -> f32 {
@@ -124,7 +129,13 @@ pub fn screen_box(view: &ViewParams, c: DVec3, u: DVec3, w: DVec3) -> [f64; 4] {
 
 /// Project surfel `i` for this view; `None` when entirely behind the near plane, off-screen or
 /// degenerate.
-pub fn project_surfel(s: &SurfelCloud, i: usize, view: &ViewParams, eps_factor: f32, sh_degree: u8) -> Option<SurfelSplat> {
+pub fn project_surfel(
+    s: &SurfelCloud,
+    i: usize,
+    view: &ViewParams,
+    eps_factor: f32,
+    sh_degree: u8,
+) -> Option<SurfelSplat> {
     let w2c = view.world_to_cam;
     let rel = s.means[i].as_dvec3() - view.centre;
     let c = w2c * rel;
@@ -132,7 +143,9 @@ pub fn project_surfel(s: &SurfelCloud, i: usize, view: &ViewParams, eps_factor: 
     let av = w2c * s.axes_v[i].as_dvec3();
     let [su, sv] = s.scales[i].map(|v| v as f64);
     let n = au.cross(av);
-    if !(c.is_finite() && n.is_finite() && su > 0.0 && sv > 0.0 && su.is_finite() && sv.is_finite()) || n.length_squared() == 0.0 {
+    if !(c.is_finite() && n.is_finite() && su > 0.0 && sv > 0.0 && su.is_finite() && sv.is_finite())
+        || n.length_squared() == 0.0
+    {
         return None;
     }
     let r = FOOTPRINT_SIGMAS as f64;
@@ -154,7 +167,12 @@ pub fn project_surfel(s: &SurfelCloud, i: usize, view: &ViewParams, eps_factor: 
     } else {
         [0, 0, wpx as i32 - 1, hpx as i32 - 1]
     };
-    let bbox = [bbox[0].max(0), bbox[1].max(0), bbox[2].min(wpx as i32 - 1), bbox[3].min(hpx as i32 - 1)];
+    let bbox = [
+        bbox[0].max(0),
+        bbox[1].max(0),
+        bbox[2].min(wpx as i32 - 1),
+        bbox[3].min(hpx as i32 - 1),
+    ];
     if bbox[0] > bbox[2] || bbox[1] > bbox[3] {
         return None;
     }
@@ -203,7 +221,14 @@ pub fn offsets(supersample: u32) -> &'static [[f32; 2]] {
 }
 
 /// Run pass 1 for `surfels` seen through `view`.
-pub fn surfel_pass(surfels: &SurfelCloud, view: &ViewParams, eps_factor: f32, sh_degree: u8, supersample: u32, max_pairs: usize) -> Result<SurfelBuffer, usize> {
+pub fn surfel_pass(
+    surfels: &SurfelCloud,
+    view: &ViewParams,
+    eps_factor: f32,
+    sh_degree: u8,
+    supersample: u32,
+    max_pairs: usize,
+) -> Result<SurfelBuffer, usize> {
     let degree = surfels.sh_degree.min(sh_degree);
     let proj: Vec<SurfelSplat> = (0..surfels.len())
         .into_par_iter()
@@ -214,7 +239,12 @@ pub fn surfel_pass(surfels: &SurfelCloud, view: &ViewParams, eps_factor: f32, sh
         .iter()
         .map(|p| {
             let b = p.bbox;
-            [(b[0] / t) as u32, (b[1] / t) as u32, (b[2] / t + 1) as u32, (b[3] / t + 1) as u32]
+            [
+                (b[0] / t) as u32,
+                (b[1] / t) as u32,
+                (b[2] / t + 1) as u32,
+                (b[3] / t + 1) as u32,
+            ]
         })
         .collect();
     let bins = bin_rects(&rects, view.grid, max_pairs, |_, _| true)?;
@@ -238,7 +268,11 @@ pub fn surfel_pass(surfels: &SurfelCloud, view: &ViewParams, eps_factor: f32, sh
     ids.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
         for (x, v) in row.iter_mut().enumerate() {
             let k = tile_ids[((y / T) * gx + x / T) * N + (y % T) * T + x % T];
-            *v = if k == u32::MAX { k } else { proj[k as usize].index };
+            *v = if k == u32::MAX {
+                k
+            } else {
+                proj[k as usize].index
+            };
         }
     });
     Ok(SurfelBuffer {
@@ -250,7 +284,17 @@ pub fn surfel_pass(surfels: &SurfelCloud, view: &ViewParams, eps_factor: f32, sh
 }
 
 /// Z-buffer one tile. `ids` receives, per tile pixel, the index into `proj` that won sample 0.
-fn raster_tile(proj: &[SurfelSplat], list: &[u32], px0: i32, py0: i32, view: &ViewParams, offs: &[[f32; 2]], near: f32, out: &mut [f32], ids: &mut [u32]) {
+fn raster_tile(
+    proj: &[SurfelSplat],
+    list: &[u32],
+    px0: i32,
+    py0: i32,
+    view: &ViewParams,
+    offs: &[[f32; 2]],
+    near: f32,
+    out: &mut [f32],
+    ids: &mut [u32],
+) {
     let ns = offs.len();
     let r2 = footprint_r2();
     let mut zbuf = vec![f32::INFINITY; ns * N];

@@ -12,7 +12,12 @@ use crate::bin::Bins;
 
 /// Tile lists of `rects` (`[x0, y0, x1, y1)` in tiles) on a `grid[0] × grid[1]` grid; item `k`
 /// enters tile `t` only if `keep(k, t)`. Fails (returns the pair count) above `max_pairs`.
-pub fn bin_rects<F>(rects: &[[u32; 4]], grid: [u32; 2], max_pairs: usize, keep: F) -> Result<Bins, usize>
+pub fn bin_rects<F>(
+    rects: &[[u32; 4]],
+    grid: [u32; 2],
+    max_pairs: usize,
+    keep: F,
+) -> Result<Bins, usize>
 where
     F: Fn(usize, usize) -> bool + Sync,
 {

@@ -1,0 +1,120 @@
+//! Pass 2 of the GES hybrid: the residual Gaussians, unsorted, additively accumulated.
+//!
+//! Per pixel, Gaussian i (projected by the native renderer's [`crate::project::project_one`])
+//! counts when its view depth `zᵢ ≤ D_S + ε` (the pass-1 limit, +inf where no surfel covers the
+//! pixel), `power ≤ 0` and `αᵢ = opacityᵢ·exp(power) ≥ 1/255`: no 0.99 clamp, no transmittance
+//! order, no early stop (GES's Gaussian pass). It adds `αᵢ·cᵢ` to `C_G`, `αᵢ` to `W_G`, `αᵢ·zᵢ` to
+//! the depth sum and multiplies `T` by `1 − αᵢ` (see [`super::composite`] for what T is for).
+//!
+//! Gaussians are visited per tile in input order, each pixel by one task, so the sums are formed
+//! in a fixed order and the image is the same for any thread count. The tile lists themselves
+//! already omit Gaussians behind every surfel of the tile (see [`super::tiles`]); inside a tile,
+//! a Gaussian skips each 8-pixel row group whose largest limit it lies behind. The loop is the
+//! native renderer's 8-lane branch-free form, with its vectorisable `exp`.
+
+use crate::project::Splat;
+use crate::raster::exp_nonpos;
+
+use super::composite::{composite_pixel, GaussAcc};
+use super::surfel_pass::{N, P_B, P_DEPTH, P_G, P_LIMIT, P_R, P_W, T};
+
+/// Output planes per tile: r, g, b, alpha, depth.
+pub const OUT_PLANES: usize = 5;
+
+struct Acc {
+    r: [f32; N],
+    g: [f32; N],
+    b: [f32; N],
+    w: [f32; N],
+    t: [f32; N],
+    dz: [f32; N],
+}
+
+/// Accumulate and composite one tile whose top-left pixel is `(px0, py0)`. `surf` is the tile's
+/// surfel planes, `out` receives r, g, b, alpha, depth (`N` each). Returns the blend count.
+pub fn gauss_tile(
+    splats: &[Splat],
+    list: &[u32],
+    px0: i32,
+    py0: i32,
+    surf: &[f32],
+    bg: [f32; 3],
+    out: &mut [f32],
+) -> u64 {
+    let mut acc = Acc {
+        r: [0.0; N],
+        g: [0.0; N],
+        b: [0.0; N],
+        w: [0.0; N],
+        t: [1.0; N],
+        dz: [0.0; N],
+    };
+    let limit: &[f32; N] = surf[P_LIMIT * N..(P_LIMIT + 1) * N].try_into().unwrap();
+    // Largest limit of each 8-pixel half row.
+    let mut group_max = [f32::NEG_INFINITY; N / 8];
+    for (gi, m) in group_max.iter_mut().enumerate() {
+        *m = limit[gi * 8..gi * 8 + 8]
+            .iter()
+            .cloned()
+            .fold(f32::NEG_INFINITY, f32::max);
+    }
+    let (tx1, ty1) = (px0 + T as i32 - 1, py0 + T as i32 - 1);
+    let mut blends = 0u64;
+    for &k in list {
+        let s = &splats[k as usize];
+        let [bx0, by0, bx1, by1] = s.bbox;
+        let (x0, x1) = (bx0.max(px0), bx1.min(tx1));
+        let (y0, y1) = (by0.max(py0), by1.min(ty1));
+        if x0 > x1 || y0 > y1 {
+            continue;
+        }
+        let (h0, h1) = (((x0 - px0) / 8) as usize, ((x1 - px0) / 8) as usize);
+        let [c0, c1, c2] = s.conic;
+        let [cr, cg, cb] = s.color;
+        for y in y0..=y1 {
+            let ly = (y - py0) as usize;
+            let dy = s.y - y as f32;
+            for h in h0..=h1 {
+                let base = ly * T + h * 8;
+                if s.depth > group_max[base / 8] {
+                    continue;
+                }
+                let xb = (px0 + 8 * h as i32) as f32;
+                let mut n = 0u32;
+                for l in 0..8 {
+                    let i = base + l;
+                    let dx = s.x - (xb + l as f32);
+                    let power = -0.5 * (c0 * dx * dx + c2 * dy * dy) - c1 * dx * dy;
+                    let a = s.opacity * exp_nonpos(power);
+                    let add = (power <= 0.0) & (a >= 1.0 / 255.0) & (s.depth <= limit[i]);
+                    let a = if add { a } else { 0.0 };
+                    acc.r[i] += cr * a;
+                    acc.g[i] += cg * a;
+                    acc.b[i] += cb * a;
+                    acc.w[i] += a;
+                    acc.dz[i] += s.depth * a;
+                    acc.t[i] *= 1.0 - a;
+                    n += add as u32;
+                }
+                blends += n as u64;
+            }
+        }
+    }
+    for i in 0..N {
+        let g = GaussAcc {
+            c: [acc.r[i], acc.g[i], acc.b[i]],
+            w: acc.w[i],
+            t: acc.t[i],
+            dz: acc.dz[i],
+        };
+        let cs = [surf[P_R * N + i], surf[P_G * N + i], surf[P_B * N + i]];
+        let (rgb, alpha, depth) =
+            composite_pixel(cs, surf[P_W * N + i], surf[P_DEPTH * N + i], &g, bg);
+        out[i] = rgb[0];
+        out[N + i] = rgb[1];
+        out[2 * N + i] = rgb[2];
+        out[3 * N + i] = alpha;
+        out[4 * N + i] = depth;
+    }
+    blends
+}
