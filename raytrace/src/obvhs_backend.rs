@@ -28,6 +28,24 @@ fn params(p: BuildPreset) -> BvhBuildParams {
     b
 }
 
+/// The traversal ray. Two departures from `Ray::new`: −0.0 direction components become +0.0
+/// (the node test takes the octant from the sign of the direction but slab order from the sign
+/// of its inverse, and `safe_inverse(−0.0)` is negative while `−0.0 < 0.0` is false, so every
+/// node was missed), and the inverse is exact down to |d| = 1e-18 (clamped to ±1e18 below, which
+/// keeps node arithmetic finite) instead of being clamped at f32::EPSILON, which turned nearly
+/// grazing rays into steeper ones and could miss flat boxes.
+fn make_ray(origin: Vec3, dir: Vec3, tmax: f32) -> Ray {
+    let dir = dir + Vec3::ZERO;
+    let inv = |x: f32| if x.abs() < 1e-18 { 1e18f32.copysign(x) } else { 1.0 / x };
+    Ray {
+        origin: Vec3A::from(origin),
+        direction: Vec3A::from(dir),
+        inv_direction: Vec3A::new(inv(dir.x), inv(dir.y), inv(dir.z)),
+        tmin: 0.0,
+        tmax,
+    }
+}
+
 /// A CWBVH plus the map from its leaf order to the caller's primitive indices.
 pub struct ObvhsAccel {
     bvh: CwBvh,
@@ -56,7 +74,7 @@ impl ObvhsAccel {
 
 impl Accel for ObvhsAccel {
     fn traverse(&self, origin: Vec3, dir: Vec3, tmax: f32, visit: &mut dyn FnMut(u32, &mut f32)) {
-        let ray = Ray::new(Vec3A::from(origin), Vec3A::from(dir), 0.0, tmax);
+        let ray = make_ray(origin, dir, tmax);
         let mut hit = RayHit::none();
         let mut cull = tmax;
         let map = &self.bvh.primitive_indices;
