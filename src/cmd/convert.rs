@@ -1,13 +1,246 @@
-//! `splatbridge convert`: Convert Gaussians to triangle meshes (GLB/glTF/OBJ/PLY) or native glTF splats.
+//! `splatbridge convert`: Gaussians to triangle meshes (GLB/glTF/OBJ/PLY) or native glTF
+//! splats (`KHR_gaussian_splatting`). The work is done by `splatbridge-convert`; this module
+//! parses the command line, loads the scene, shows progress and prints the summary.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{bail, Context};
+use clap::ValueEnum;
+use splatbridge_convert::{
+    ColorEncoding, ConvertOptions, ConvertReport, Profile, UpAxis, VolumetricMode,
+};
+
+use crate::cmd::common::{self, CameraArgs};
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum ProfileArg {
+    /// MeshSplats baseline: 8-vertex rim at 2.7σ, rim alpha 0.2·opacity.
+    Meshsplats,
+    /// Concentric rings following opacity·exp(−r²/2) out to the 1/255 footprint.
+    Rings,
+    /// One textured quad per fan; a shared radial falloff texture carries the profile.
+    Texture,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum VolumetricArg {
+    /// Three orthogonal fans with an optical-depth correction.
+    ThreeFans,
+    /// One fan in the plane of the two largest axes.
+    Flat,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum UpArg {
+    /// Input is Y-up already.
+    Y,
+    /// Input is Z-up.
+    Z,
+    /// Input up is −Y (COLMAP / 3DGS captures).
+    #[value(name = "-y")]
+    NegY,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum ColorArg {
+    /// glTF's linear COLOR_0 (display colours sRGB-decoded).
+    Linear,
+    /// 3DGS display values written as they are.
+    Display,
+}
 
 #[derive(clap::Args)]
+#[command(
+    after_long_help = "Formats follow the extension of -o: .glb, .gltf (+ .bin), .obj (+ .mtl), .ply.\n\
+OBJ cannot carry per-vertex alpha: every OBJ triangle is opaque, so soft splat edges and\n\
+translucent Gaussians are lost. OBJ and PLY have no node hierarchy: the up rotation and the\n\
+objects' poses (at the scene's start, or per frame with --frames) are baked into vertices.\n\
+glTF COLOR_0 is linear: display colours are sRGB-decoded unless --color-encoding display."
+)]
 pub struct Args {
-    /// Arguments of this command (not wired yet).
-    #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
-    pub rest: Vec<String>,
+    /// Input scene: a 3DGS PLY, a splatbridge-scene/1 manifest, or a KHR_gaussian_splatting glTF.
+    pub scene: PathBuf,
+    /// Output file: .glb, .gltf, .obj or .ply.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Meshing profile.
+    #[arg(long, value_enum, default_value = "rings")]
+    pub profile: ProfileArg,
+    /// Segments per fan (default 8; 4 for texture).
+    #[arg(long)]
+    pub segments: Option<usize>,
+    /// Rings per fan (profile rings).
+    #[arg(long, default_value_t = 3)]
+    pub rings: usize,
+    /// Non-flat Gaussians: three orthogonal fans, or one flat fan.
+    #[arg(long, value_enum, default_value = "three-fans")]
+    pub volumetric: VolumetricArg,
+    /// Smallest/middle scale ratio at or above which a Gaussian is volumetric.
+    #[arg(long, default_value_t = splatbridge_convert::options::DEFAULT_FLAT_RATIO)]
+    pub flat_ratio: f32,
+    /// The input's up axis; a root node rotates it onto glTF's +Y (vertices untouched).
+    #[arg(long, value_enum, default_value = "-y", allow_hyphen_values = true)]
+    pub up: UpArg,
+    /// OBJ only: write one OBJ per frame of a dynamic scene (OUT_0000.obj, …).
+    #[arg(long)]
+    pub frames: bool,
+    /// Write native splats (KHR_gaussian_splatting, .glb/.gltf) instead of a mesh.
+    #[arg(long)]
+    pub splats: bool,
+    /// Keep the Gaussians with the largest opacity·s_max·s_mid within this many triangles.
+    #[arg(long)]
+    pub max_triangles: Option<u64>,
+    /// Bake view-dependent colour for this camera (orbit:N:I, scene:I, PATH.json:I).
+    #[arg(long, value_name = "CAMERA")]
+    pub bake_view: Option<String>,
+    /// Vertex colour encoding of glTF outputs.
+    #[arg(long, value_enum, default_value = "linear")]
+    pub color_encoding: ColorArg,
+    /// Do not write the _GAUSSIAN_ID attribute.
+    #[arg(long)]
+    pub no_ids: bool,
+    /// Drop invalid Gaussians (NaN, zero quaternions) while loading instead of failing.
+    #[arg(long)]
+    pub drop_invalid: bool,
+    /// Print the report as JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn is_gltf(p: &std::path::Path) -> bool {
+    p.extension()
+        .map(|e| {
+            let e = e.to_string_lossy().to_ascii_lowercase();
+            e == "glb" || e == "gltf"
+        })
+        .unwrap_or(false)
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let _ = args;
-    anyhow::bail!("convert is not implemented yet")
+    let t0 = Instant::now();
+    let pb = common::progress(3, "loading");
+    let scene = if is_gltf(&args.scene) {
+        splatbridge_convert::splats_gltf::read_file(&args.scene)?
+    } else {
+        common::load(&args.scene, args.drop_invalid)?
+    };
+    pb.inc(1);
+    let mut opts = ConvertOptions {
+        profile: match args.profile {
+            ProfileArg::Meshsplats => Profile::MeshSplats,
+            ProfileArg::Rings => Profile::Rings,
+            ProfileArg::Texture => Profile::Texture,
+        },
+        segments: args.segments,
+        rings: args.rings,
+        volumetric: match args.volumetric {
+            VolumetricArg::ThreeFans => VolumetricMode::ThreeFans,
+            VolumetricArg::Flat => VolumetricMode::Flat,
+        },
+        flat_ratio: args.flat_ratio,
+        up: match args.up {
+            UpArg::Y => UpAxis::Y,
+            UpArg::Z => UpAxis::Z,
+            UpArg::NegY => UpAxis::NegY,
+        },
+        max_triangles: args.max_triangles,
+        color_encoding: match args.color_encoding {
+            ColorArg::Linear => ColorEncoding::Linear,
+            ColorArg::Display => ColorEncoding::Display,
+        },
+        gaussian_ids: !args.no_ids,
+        ..Default::default()
+    };
+    if let Some(spec) = &args.bake_view {
+        let cam_args = CameraArgs {
+            camera: Some(spec.clone()),
+            up: glam::DVec3::NEG_Y,
+            fov: 50.0,
+            ..Default::default()
+        };
+        let composite = scene.composite(scene.time.start);
+        let cam = cam_args
+            .resolve(&composite, &scene.cameras)
+            .with_context(|| format!("--bake-view {spec}"))?;
+        opts.bake_view_name = Some(format!("{spec} ({})", cam.name));
+        opts.bake_view = Some(cam);
+    }
+    if args.frames
+        && !args
+            .output
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("obj"))
+    {
+        bail!(
+            "{}: --frames writes one OBJ per frame; use an .obj output",
+            args.output.display()
+        );
+    }
+    pb.set_message("converting");
+    pb.inc(1);
+    let mut report: ConvertReport = if args.splats {
+        if !is_gltf(&args.output) {
+            bail!(
+                "{}: --splats writes glTF; use .glb or .gltf",
+                args.output.display()
+            );
+        }
+        splatbridge_convert::splats_gltf::write_file(&args.output, &scene, &opts)?
+    } else {
+        splatbridge_convert::convert_to_file(&args.output, &scene, None, &opts, args.frames)?
+    };
+    pb.inc(1);
+    pb.finish_and_clear();
+    report.seconds = t0.elapsed().as_secs_f64();
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print_summary(&args, &report);
+    }
+    Ok(())
+}
+
+fn print_summary(args: &Args, r: &ConvertReport) {
+    eprintln!(
+        "{} → {} ({}, profile {}, {} segments, {} rings)",
+        args.scene.display(),
+        args.output.display(),
+        r.format,
+        r.profile,
+        r.segments,
+        r.rings
+    );
+    let kept: u64 = r.meshes.iter().map(|m| m.flat + m.volumetric).sum();
+    let flat: u64 = r.meshes.iter().map(|m| m.flat).sum();
+    eprintln!("  Gaussians in   {:>12}", r.gaussians_in);
+    eprintln!(
+        "  kept           {:>12}  ({} flat, {} volumetric)",
+        kept,
+        flat,
+        kept - flat
+    );
+    for (what, n) in [
+        ("invalid", r.dropped_invalid),
+        ("below 1/255 opacity", r.dropped_transparent),
+        ("scale overflow", r.dropped_overflow),
+        ("triangle budget", r.dropped_budget),
+    ] {
+        if n > 0 {
+            eprintln!("  dropped        {n:>12}  ({what})");
+        }
+    }
+    if r.triangles > 0 {
+        eprintln!("  vertices       {:>12}", r.vertices);
+        eprintln!("  triangles      {:>12}", r.triangles);
+    }
+    eprintln!(
+        "  bytes          {:>12}  ({:.1} MB)",
+        r.bytes,
+        r.bytes as f64 / 1e6
+    );
+    eprintln!("  time           {:>12.3} s", r.seconds);
+    for w in &r.warnings {
+        eprintln!("warning: {w}");
+    }
 }
