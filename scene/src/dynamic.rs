@@ -424,20 +424,28 @@ impl DynamicScene {
     /// bands 1–3 rotated by `R`. The SH degree is [`DynamicScene::sh_degree`] (lower-degree clouds
     /// are zero-filled). Object ids: 0 for static Gaussians, k+1 for object k.
     pub fn composite(&self, t: f64) -> GaussianCloud {
-        let degree = self.sh_degree();
-        let n = self.gaussian_count();
-        let mut out = GaussianCloud::with_capacity(degree, n);
-        out.object_ids = Some(Vec::with_capacity(n));
-        append(&mut out, &self.static_gaussians, None, 0);
-        for (k, o) in self.objects.iter().enumerate() {
-            append(
-                &mut out,
-                &o.gaussians,
-                Some(o.track.sample(t)),
-                k as u32 + 1,
-            );
-        }
+        let mut out = GaussianCloud::with_capacity(self.sh_degree(), self.gaussian_count());
+        self.composite_into(t, &mut out);
         out
+    }
+
+    /// [`DynamicScene::composite`] into an existing cloud, reusing its allocations (per-frame
+    /// loops over large scenes avoid re-faulting hundreds of megabytes each frame).
+    pub fn composite_into(&self, t: f64, out: &mut GaussianCloud) {
+        let n = self.gaussian_count();
+        out.means.clear();
+        out.log_scales.clear();
+        out.rotations.clear();
+        out.opacity_logits.clear();
+        out.sh.clear();
+        out.sh_degree = self.sh_degree();
+        let ids = out.object_ids.get_or_insert_with(Vec::new);
+        ids.clear();
+        ids.reserve(n);
+        append(out, &self.static_gaussians, None, 0);
+        for (k, o) in self.objects.iter().enumerate() {
+            append(out, &o.gaussians, Some(o.track.sample(t)), k as u32 + 1);
+        }
     }
 }
 
@@ -446,24 +454,26 @@ fn append(out: &mut GaussianCloud, src: &GaussianCloud, pose: Option<Pose>, id: 
     let n = src.len();
     let k_out = out.coeffs();
     let k_src = src.coeffs().min(k_out);
-    let ks = src.coeffs();
     let sh_start = out.sh.len();
-    out.sh.resize(sh_start + n * k_out, Vec3::ZERO);
+    if src.coeffs() == k_out {
+        out.sh.extend_from_slice(&src.sh);
+    } else {
+        out.sh.reserve(n * k_out);
+        for c in src.sh.chunks(src.coeffs().max(1)) {
+            out.sh.extend_from_slice(&c[..k_src]);
+            out.sh
+                .extend(std::iter::repeat_n(Vec3::ZERO, k_out - k_src));
+        }
+    }
     out.object_ids
         .get_or_insert_with(Vec::new)
         .extend(std::iter::repeat_n(id, n));
     out.log_scales.extend_from_slice(&src.log_scales);
     out.opacity_logits.extend_from_slice(&src.opacity_logits);
-    let sh_dst = &mut out.sh[sh_start..];
-    let degree = src.sh_degree.min(out.sh_degree);
     match pose {
         None => {
             out.means.extend_from_slice(&src.means);
             out.rotations.extend_from_slice(&src.rotations);
-            sh_dst
-                .par_chunks_mut(k_out.max(1))
-                .zip(src.sh.par_chunks(ks.max(1)))
-                .for_each(|(d, s)| d[..k_src].copy_from_slice(&s[..k_src]));
         }
         Some(pose) => {
             let r = pose.rotation;
@@ -476,13 +486,13 @@ fn append(out: &mut GaussianCloud, src: &GaussianCloud, pose: Option<Pose>, id: 
                     .map(|&q| normalize_or_identity(r * normalize_or_identity(q))),
             );
             let shr = ShRotation::from_quat(r);
-            sh_dst
-                .par_chunks_mut(k_out.max(1))
-                .zip(src.sh.par_chunks(ks.max(1)))
-                .for_each(|(d, s)| {
-                    d[..k_src].copy_from_slice(&s[..k_src]);
-                    shr.apply(degree, &mut d[..k_src]);
-                });
+            let degree = src.sh_degree.min(out.sh_degree);
+            if !shr.identity && degree > 0 {
+                out.sh[sh_start..]
+                    .par_chunks_mut(k_out.max(1))
+                    .with_min_len(1024)
+                    .for_each(|d| shr.apply(degree, &mut d[..k_src]));
+            }
         }
     }
 }

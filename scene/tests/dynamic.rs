@@ -411,3 +411,16 @@ fn composite_far_from_origin_and_far_in_time_is_finite() {
         assert!(c.sh.iter().all(|s| s.is_finite()), "t = {t}");
     }
 }
+
+#[test]
+fn composite_into_reuses_a_cloud_and_matches_composite() {
+    let scene = one_object_scene();
+    // Start from an unrelated cloud of another degree with ids: everything must be replaced.
+    let mut out = GaussianCloud::new(1);
+    out.object_ids = Some(vec![]);
+    out.push_activated(Vec3::ONE, Vec3::ONE, Quat::IDENTITY, 0.5, Vec3::ONE);
+    for t in [0.3, 1.7, 0.3] {
+        scene.composite_into(t, &mut out);
+        assert_eq!(out, scene.composite(t));
+    }
+}
