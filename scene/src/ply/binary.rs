@@ -9,9 +9,13 @@ use super::push_slots;
 use crate::error::{Result, SceneError};
 use crate::GaussianCloud;
 
-/// Bytes read per chunk: large enough that the per-read cost vanishes, small next to any cloud
-/// worth measuring (the reader's peak memory is the cloud plus this buffer).
-const CHUNK_BYTES: usize = 4 << 20;
+/// Largest chunk read at once: big enough that the per-read cost vanishes.
+const MAX_CHUNK_BYTES: usize = 4 << 20;
+/// Smallest chunk, so tiny files are not read a few bytes at a time.
+const MIN_CHUNK_BYTES: usize = 64 << 10;
+/// The chunk is at most this fraction of the data, so the buffer stays small next to the
+/// cloud (peak memory = cloud + one chunk) for small files too.
+const CHUNKS_PER_FILE: usize = 16;
 
 /// Decode `n` records (the size check against the file has been done by the caller).
 pub(crate) fn read_binary(
@@ -23,7 +27,9 @@ pub(crate) fn read_binary(
 ) -> Result<GaussianCloud> {
     let stride = header.stride;
     let mut cloud = GaussianCloud::with_capacity(layout.sh_degree, n);
-    let per_chunk = (CHUNK_BYTES / stride).max(1).min(n.max(1));
+    let chunk_bytes =
+        (n.saturating_mul(stride) / CHUNKS_PER_FILE).clamp(MIN_CHUNK_BYTES, MAX_CHUNK_BYTES);
+    let per_chunk = (chunk_bytes / stride).max(1).min(n.max(1));
     let mut buf = vec![0u8; per_chunk * stride];
     let slots: Vec<(usize, ScalarType)> =
         layout.slots.iter().map(|&(off, _, ty)| (off, ty)).collect();

@@ -25,8 +25,9 @@
 //!   invalid Gaussians are dropped, counted by reason in [`ReadReport::dropped`] with a warning.
 //! - Before anything is allocated the header's vertex count is checked against the file size
 //!   (binary: count × record size must fit; ASCII: every value needs at least two bytes), so a
-//!   count of 2⁴⁰ is a clean error. Binary data is read in 4 MB chunks of whole records straight
-//!   into the cloud's arrays (sized exactly once), so the peak memory is the cloud plus one chunk.
+//!   count of 2⁴⁰ is a clean error. Binary data is read in chunks of whole records (1/16 of the
+//!   data, between 64 KiB and 4 MiB) straight into the cloud's arrays (sized exactly once), so
+//!   the peak memory is the cloud plus one chunk. Measured with `splatbridge bench ply`.
 //!
 //! # Writing
 //! [`write_ply`] writes the standard layout atomically; see the `write` module for details.
