@@ -177,6 +177,36 @@ impl TriScene {
         }
     }
 
+    /// Undo the axis-convention root of a splatbridge export: files written by the converter
+    /// put everything under a root node `splatbridge_root` whose rotation maps the capture's
+    /// up axis onto glTF's +Y. Making that node the identity puts geometry and camera nodes
+    /// back in the capture's frame, where `cameras.json`, orbit rigs and native renders live.
+    /// Returns whether such a root was found.
+    pub fn to_capture_frame(&mut self) -> bool {
+        let Some(i) = self.nodes.iter().position(|n| n.parent.is_none() && n.name == "splatbridge_root") else {
+            return false;
+        };
+        let n = &mut self.nodes[i];
+        n.translation = DVec3::ZERO;
+        n.rotation = DQuat::IDENTITY;
+        n.scale = DVec3::ONE;
+        n.matrix = None;
+        self.channels.retain(|c| c.node != i);
+        true
+    }
+
+    /// World-space vertex positions of the instances at `t` (every `stride`-th vertex), e.g.
+    /// to frame an orbit camera around the scene.
+    pub fn sample_points(&self, t: f64, stride: usize) -> Vec<DVec3> {
+        let mut out = Vec::new();
+        for inst in self.instances(t) {
+            for p in self.meshes[inst.mesh].positions.iter().step_by(stride.max(1)) {
+                out.push(inst.to_world.transform_point3(p.as_dvec3()));
+            }
+        }
+        out
+    }
+
     /// Total triangle count over meshes (not instances).
     pub fn triangle_count(&self) -> usize {
         self.meshes.iter().map(|m| m.tris.len()).sum()

@@ -12,14 +12,6 @@ use splatbridge_raytrace::model::{Mesh, TriScene};
 use splatbridge_raytrace::{BackendKind, BuildPreset, MeshTracer, RenderOptions};
 use splatbridge_scene::Camera;
 
-fn backends() -> Vec<BackendKind> {
-    let mut v = vec![BackendKind::Obvhs];
-    if splatbridge_raytrace::backend::EMBREE_AVAILABLE {
-        v.push(BackendKind::Embree);
-    }
-    v
-}
-
 fn scene_of(mesh: Mesh) -> TriScene {
     TriScene::single(mesh, blend_materials(), vec![])
 }
