@@ -1,13 +1,216 @@
-//! `splatbridge hybrid`: Render with the GES-style hybrid: opaque surfels, then unsorted Gaussians.
+//! `splatbridge hybrid`: render with the GES-style hybrid (opaque surfels through a z-buffer,
+//! then the residual Gaussians unsorted; `splatbridge_hybrid::ges`). Surfels come from a split
+//! of the trained cloud by opacity and flatness, or from a GES PLY's own flags.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{bail, Context};
+use splatbridge_hybrid::ges::{render_ges, GesOptions, GesStats};
+use splatbridge_scene::image_io::save_frame;
+use splatbridge_scene::surfels::{
+    looks_like_ges, split, split_ges, SplitParams, SurfelCloud, DEFAULT_MAX_FLATNESS,
+    DEFAULT_MIN_OPACITY, GES_EPSILON_FACTOR,
+};
+use splatbridge_scene::{Camera, GaussianCloud};
+
+use crate::cmd::common::{load, parse_rgb, CameraArgs};
+
+/// `on` or `off`.
+pub fn parse_on_off(s: &str) -> Result<bool, String> {
+    match s.trim() {
+        "on" => Ok(true),
+        "off" => Ok(false),
+        _ => Err(format!("'{s}': expected on or off")),
+    }
+}
+
+/// `1` or `4`.
+pub fn parse_supersample(s: &str) -> Result<u32, String> {
+    match s.trim() {
+        "1" => Ok(1),
+        "4" => Ok(4),
+        _ => Err(format!("'{s}': supersampling is 1 or 4")),
+    }
+}
+
+/// The hybrid's knobs, shared by `hybrid` and `bench hybrid`.
+#[derive(clap::Args, Clone, Debug)]
+pub struct HybridKnobs {
+    /// A Gaussian becomes a surfel when its opacity is at least A (above 1: no surfels) …
+    #[arg(long, default_value_t = DEFAULT_MIN_OPACITY)]
+    pub surfel_opacity: f32,
+    /// … and its flatness (smallest / middle scale) is at most R.
+    #[arg(long, default_value_t = DEFAULT_MAX_FLATNESS)]
+    pub surfel_flatness: f32,
+    /// Depth tolerance factor F: a Gaussian counts at a surfel pixel if its depth is within
+    /// F·mean(surfel scales) of the surfel (GES: 5).
+    #[arg(long, default_value_t = GES_EPSILON_FACTOR)]
+    pub epsilon: f32,
+    /// Surfel samples per pixel: 1 or 4.
+    #[arg(long, default_value_t = 1, value_parser = parse_supersample)]
+    pub supersample: u32,
+    /// GES's 3×3 surfel colour blur: on or off.
+    #[arg(long, value_parser = parse_on_off, default_value = "off")]
+    pub blur: bool,
+    /// Treat the input as a GES PLY (stored opacity above 1000 marks a surfel). Detected
+    /// automatically when any stored opacity exceeds 1000.
+    #[arg(long)]
+    pub ges_ply: bool,
+    /// Background colour R,G,B in [0, 1].
+    #[arg(long, value_parser = parse_rgb, default_value = "0,0,0")]
+    pub background: glam::Vec3,
+    /// Near plane (view-space z), as the native renderer (reference 0.2).
+    #[arg(long, default_value_t = 0.2)]
+    pub near: f32,
+    /// Highest SH degree evaluated (0–3).
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(0..=3))]
+    pub sh_degree: u8,
+}
+
+impl HybridKnobs {
+    pub fn options(&self) -> GesOptions {
+        GesOptions {
+            epsilon_factor: self.epsilon,
+            supersample: self.supersample,
+            blur: self.blur,
+            background: self.background.to_array(),
+            near: self.near,
+            sh_degree_cap: self.sh_degree,
+            ..Default::default()
+        }
+    }
+
+    pub fn split_params(&self) -> anyhow::Result<SplitParams> {
+        if !(self.surfel_opacity >= 0.0 && self.surfel_opacity.is_finite()) {
+            bail!(
+                "--surfel-opacity {} must be finite and ≥ 0 (above 1: no surfels)",
+                self.surfel_opacity
+            );
+        }
+        if !(self.surfel_flatness >= 0.0 && self.surfel_flatness.is_finite()) {
+            bail!(
+                "--surfel-flatness {} must be finite and ≥ 0",
+                self.surfel_flatness
+            );
+        }
+        Ok(SplitParams {
+            min_opacity: self.surfel_opacity,
+            max_flatness: self.surfel_flatness,
+        })
+    }
+
+    /// Split `cloud` into surfels and residual Gaussians; the text says how.
+    pub fn split(
+        &self,
+        cloud: &GaussianCloud,
+    ) -> anyhow::Result<(SurfelCloud, GaussianCloud, String)> {
+        if self.ges_ply || looks_like_ges(cloud) {
+            let (s, g, rep) = split_ges(cloud);
+            let mut how = format!(
+                "GES PLY flags{}",
+                if self.ges_ply { "" } else { " (detected)" }
+            );
+            if rep.clamped_opacity > 0 {
+                how += &format!(
+                    ", {} Gaussian opacities above 1 clamped",
+                    rep.clamped_opacity
+                );
+            }
+            return Ok((s, g, how));
+        }
+        let p = self.split_params()?;
+        let (s, g) = split(cloud, &p);
+        Ok((
+            s,
+            g,
+            format!("opacity ≥ {}, flatness ≤ {}", p.min_opacity, p.max_flatness),
+        ))
+    }
+
+    pub fn describe(&self) -> String {
+        format!(
+            "ε factor {}, supersample {}, blur {}, near {}, SH degree cap {}",
+            self.epsilon,
+            self.supersample,
+            if self.blur { "on" } else { "off" },
+            self.near,
+            self.sh_degree
+        )
+    }
+}
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Arguments of this command (not wired yet).
-    #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
-    pub rest: Vec<String>,
+    /// A 3DGS PLY (or a GES PLY), or a splatbridge-scene/1 manifest (composite at --time).
+    pub scene: PathBuf,
+    #[command(flatten)]
+    pub camera: CameraArgs,
+    /// Scene time in seconds (default: the start of the scene's time range).
+    #[arg(long)]
+    pub time: Option<f64>,
+    #[command(flatten)]
+    pub knobs: HybridKnobs,
+    /// Drop invalid Gaussians (NaN, zero quaternion) with a counted warning instead of failing.
+    #[arg(long)]
+    pub drop_invalid: bool,
+    /// Output image: .png (8-bit RGB) or .exr (float RGBA and Z depth).
+    #[arg(short, long)]
+    pub out: PathBuf,
+}
+
+/// Print what a hybrid render did.
+pub fn print_summary(cam: &Camera, stats: &GesStats, split_ms: f64) {
+    let t = &stats.times;
+    let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
+    println!(
+        "  camera '{}' {}×{}; {} surfels ({} drawn, {} surfel–tile pairs), {} Gaussians ({} projected)",
+        cam.name, cam.width, cam.height, stats.surfels, stats.surfels_drawn, stats.surfel_pairs, stats.gaussians, stats.projected
+    );
+    println!(
+        "  {} tile–Gaussian pairs kept, {} culled behind surfels, {} pixel–Gaussian blends",
+        stats.tile_pairs, stats.culled_pairs, stats.blends
+    );
+    println!(
+        "  {:.1} ms (split {:.1}; surfels {:.1}, projection {:.1}, binning {:.1}, blending {:.1})",
+        split_ms + ms(t.total()),
+        split_ms,
+        ms(t.surfels),
+        ms(t.projection),
+        ms(t.binning),
+        ms(t.blending)
+    );
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let _ = args;
-    anyhow::bail!("hybrid is not implemented yet")
+    let ext = args
+        .out
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    if ext != "png" && ext != "exr" {
+        bail!("{}: output must end in .png or .exr", args.out.display());
+    }
+    let scene = load(&args.scene, args.drop_invalid)?;
+    let cloud = scene.composite(args.time.unwrap_or(scene.time.start));
+    let cam = args
+        .camera
+        .resolve(&cloud, &scene.cameras)
+        .with_context(|| args.scene.display().to_string())?;
+    let opts = args.knobs.options();
+    opts.validate()?;
+    let t0 = Instant::now();
+    let (surfels, rest, how) = args.knobs.split(&cloud)?;
+    let split_ms = t0.elapsed().as_secs_f64() * 1e3;
+    println!(
+        "hybrid {}: surfels by {how}; {}",
+        args.scene.display(),
+        args.knobs.describe()
+    );
+    let (frame, stats) = render_ges(&surfels, &rest, &cam, &opts)
+        .with_context(|| args.scene.display().to_string())?;
+    save_frame(&args.out, &frame)?;
+    println!("{}", args.out.display());
+    print_summary(&cam, &stats, split_ms);
+    Ok(())
 }

@@ -12,8 +12,8 @@
 //! a Gaussian skips each 8-pixel row group whose largest limit it lies behind. The loop is the
 //! native renderer's 8-lane branch-free form, with its vectorisable `exp`.
 
+use crate::kernel::exp_nonpos;
 use crate::project::Splat;
-use crate::raster::exp_nonpos;
 
 use super::composite::{composite_pixel, GaussAcc};
 use super::surfel_pass::{N, P_B, P_DEPTH, P_G, P_LIMIT, P_R, P_W, T};
