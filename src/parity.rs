@@ -1,0 +1,291 @@
+//! The parity pipeline: render native splatting (the reference), the GES hybrid, the ray-traced
+//! Gaussians, and the ray-traced mesh of each converter profile *read back from the exported
+//! file*, at the same cameras and times, and measure each against the reference.
+//!
+//! Stages never see each other: this module (in the CLI crate) converts with `convert`, writes
+//! the file, loads it with `raytrace`, and compares frames with `scene::metrics`.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::Context;
+use splatbridge_convert::{ConvertOptions, Profile};
+use splatbridge_hybrid::ges::{self, GesOptions, SplitMode};
+use splatbridge_hybrid::native::{self, RenderOptions as NativeOptions};
+use splatbridge_raytrace::{BackendKind, BuildPreset, GaussianTracer, MeshTracer, RenderOptions as TraceOptions};
+use splatbridge_scene::dynamic::DynamicScene;
+use splatbridge_scene::surfels::SplitParams;
+use splatbridge_scene::{metrics, Camera, Frame, GaussianCloud};
+
+use crate::report::Record;
+
+/// Which renderers and profiles a comparison runs, and how.
+#[derive(Clone, Debug)]
+pub struct CompareConfig {
+    pub profiles: Vec<Profile>,
+    /// Also trace each profile's OBJ export (no alpha) to show what losing alpha costs.
+    pub obj: bool,
+    pub hybrid: bool,
+    pub gaussian_trace: bool,
+    pub backend: BackendKind,
+    pub preset: BuildPreset,
+    pub k: usize,
+    pub native: NativeOptions,
+    pub ges: GesOptions,
+    pub split: SplitParams,
+}
+
+impl Default for CompareConfig {
+    fn default() -> Self {
+        CompareConfig {
+            profiles: vec![Profile::MeshSplats, Profile::Rings, Profile::Texture],
+            obj: true,
+            hybrid: true,
+            gaussian_trace: true,
+            backend: BackendKind::Obvhs,
+            preset: BuildPreset::default(),
+            k: 16,
+            native: NativeOptions::default(),
+            ges: GesOptions::default(),
+            split: SplitParams::default(),
+        }
+    }
+}
+
+/// A rendered image with what it cost.
+pub struct Rendered {
+    pub frame: Frame,
+    pub ms: f64,
+}
+
+/// Native splatting of `cloud` (the reference when `opts` is the default).
+pub fn render_native(cloud: &GaussianCloud, cam: &Camera, opts: &NativeOptions) -> anyhow::Result<Rendered> {
+    let t0 = Instant::now();
+    let (frame, _) = native::render(cloud, cam, opts)?;
+    Ok(Rendered {
+        frame,
+        ms: t0.elapsed().as_secs_f64() * 1e3,
+    })
+}
+
+/// The GES hybrid with a threshold split.
+pub fn render_hybrid(cloud: &GaussianCloud, cam: &Camera, split: SplitParams, opts: &GesOptions) -> anyhow::Result<Rendered> {
+    let t0 = Instant::now();
+    let (frame, _, _) = ges::render_cloud(cloud, SplitMode::Thresholds(split), cam, opts)?;
+    Ok(Rendered {
+        frame,
+        ms: t0.elapsed().as_secs_f64() * 1e3,
+    })
+}
+
+/// A converted file loaded back for tracing.
+pub struct TracedMesh {
+    pub tracer: MeshTracer,
+    pub path: PathBuf,
+    pub triangles: u64,
+    pub bytes: u64,
+    pub build_ms: f64,
+    pub convert_ms: f64,
+}
+
+/// Convert `scene` to `path` (GLB/glTF/OBJ by extension) and load the file back into a tracer.
+/// OBJ cannot animate: callers pass a static scene (one frame's composite) for OBJ.
+pub fn export_and_load(
+    scene: &DynamicScene,
+    opts: &ConvertOptions,
+    path: &Path,
+    backend: BackendKind,
+    preset: BuildPreset,
+) -> anyhow::Result<TracedMesh> {
+    let t0 = Instant::now();
+    let report = splatbridge_convert::convert_to_file(path, scene, None, opts, false)?;
+    let convert_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let load = path.to_path_buf();
+    let mut tri = splatbridge_raytrace::scene_load::load_path(&load)?;
+    tri.to_capture_frame();
+    let bytes = std::fs::metadata(&load).map(|m| m.len()).unwrap_or(report.bytes);
+    let triangles = tri.triangle_count() as u64;
+    let t1 = Instant::now();
+    let tracer = MeshTracer::new(tri, backend, preset)?;
+    Ok(TracedMesh {
+        tracer,
+        path: load,
+        triangles,
+        bytes,
+        build_ms: t1.elapsed().as_secs_f64() * 1e3,
+        convert_ms,
+    })
+}
+
+/// Trace a loaded mesh at (camera, time).
+pub fn render_mesh(m: &TracedMesh, cam: &Camera, time: f64, k: usize) -> anyhow::Result<Rendered> {
+    let opts = TraceOptions {
+        k,
+        ..TraceOptions::default()
+    };
+    let t0 = Instant::now();
+    let (frame, _) = m.tracer.render(cam, time, &opts)?;
+    Ok(Rendered {
+        frame,
+        ms: t0.elapsed().as_secs_f64() * 1e3,
+    })
+}
+
+/// Ray-trace the Gaussians themselves (3DGRT-style); returns the frame and the build time.
+pub fn render_gaussians(cloud: &GaussianCloud, cam: &Camera, cfg: &CompareConfig) -> anyhow::Result<(Rendered, f64)> {
+    let t0 = Instant::now();
+    let tracer = GaussianTracer::new(cloud.clone(), cfg.backend, cfg.preset)?;
+    let build_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let opts = TraceOptions {
+        k: cfg.k,
+        ..TraceOptions::default()
+    };
+    let t1 = Instant::now();
+    let (frame, _) = tracer.render(cam, &opts)?;
+    Ok((
+        Rendered {
+            frame,
+            ms: t1.elapsed().as_secs_f64() * 1e3,
+        },
+        build_ms,
+    ))
+}
+
+/// Fill the metric fields of `r` from `img` against `reference`.
+pub fn measure(reference: &Frame, img: &Frame, mut r: Record) -> anyhow::Result<Record> {
+    r.psnr = metrics::psnr(reference, img)?;
+    r.ssim = metrics::ssim(reference, img)?;
+    r.tile_ssim = metrics::tile_ssim(reference, img, 16)?;
+    r.max_error = metrics::max_abs_error(reference, img)? as f64;
+    Ok(r)
+}
+
+/// Save `img` and its heat-map against `reference` under `dir`, recording relative paths.
+fn save_pair(dir: &Path, name: &str, reference: &Frame, img: &Frame, r: &mut Record) -> anyhow::Result<()> {
+    let image = format!("{name}.png");
+    splatbridge_scene::image_io::save_frame(&dir.join(&image), img)?;
+    let heat = format!("{name}_diff.png");
+    metrics::heatmap(reference, img)?.save_png(&dir.join(&heat))?;
+    r.image = image;
+    r.heatmap = heat;
+    Ok(())
+}
+
+/// Run the comparison over every camera × time; images and heat-maps go to `dir`.
+pub fn compare(scene: &DynamicScene, cams: &[Camera], times: &[f64], dir: &Path, cfg: &CompareConfig, progress: &dyn Fn(&str)) -> anyhow::Result<Vec<Record>> {
+    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create the output folder", dir.display()))?;
+    let mut records = Vec::new();
+    let dynamic = !scene.objects.is_empty();
+    // Export every profile once; the files are what gets traced.
+    let mut meshes: Vec<(String, String, TracedMesh)> = Vec::new();
+    let mut obj_profiles: Vec<Profile> = Vec::new();
+    for &p in &cfg.profiles {
+        progress(&format!("export {}", p.name()));
+        let opts = ConvertOptions {
+            profile: p,
+            ..ConvertOptions::default()
+        };
+        let glb = dir.join(format!("mesh_{}.glb", p.name()));
+        meshes.push((p.name().into(), "glb".into(), export_and_load(scene, &opts, &glb, cfg.backend, cfg.preset)?));
+        if cfg.obj && !dynamic {
+            let obj = dir.join(format!("mesh_{}.obj", p.name()));
+            meshes.push((p.name().into(), "obj".into(), export_and_load(scene, &opts, &obj, cfg.backend, cfg.preset)?));
+        } else if cfg.obj {
+            obj_profiles.push(p);
+        }
+    }
+    for &t in times {
+        let cloud = scene.composite(t);
+        for (ci, cam) in cams.iter().enumerate() {
+            let tag = format!("c{ci}_t{t:.2}");
+            let base = Record {
+                camera: cam.name.clone(),
+                time: t,
+                ..Record::default()
+            };
+            progress(&format!("native {tag}"));
+            let reference = render_native(&cloud, cam, &cfg.native)?;
+            let mut r = Record {
+                renderer: "native".into(),
+                milliseconds: reference.ms,
+                ..base.clone()
+            };
+            r = measure(&reference.frame, &reference.frame, r)?;
+            save_pair(dir, &format!("native_{tag}"), &reference.frame, &reference.frame, &mut r)?;
+            records.push(r);
+            if cfg.hybrid {
+                progress(&format!("hybrid {tag}"));
+                let h = render_hybrid(&cloud, cam, cfg.split, &cfg.ges)?;
+                let mut r = Record {
+                    renderer: "hybrid".into(),
+                    milliseconds: h.ms,
+                    ..base.clone()
+                };
+                r = measure(&reference.frame, &h.frame, r)?;
+                save_pair(dir, &format!("hybrid_{tag}"), &reference.frame, &h.frame, &mut r)?;
+                records.push(r);
+            }
+            if cfg.gaussian_trace {
+                progress(&format!("trace gaussians {tag}"));
+                let (g, _) = render_gaussians(&cloud, cam, cfg)?;
+                let mut r = Record {
+                    renderer: "trace-gaussian".into(),
+                    milliseconds: g.ms,
+                    ..base.clone()
+                };
+                r = measure(&reference.frame, &g.frame, r)?;
+                save_pair(dir, &format!("tracegauss_{tag}"), &reference.frame, &g.frame, &mut r)?;
+                records.push(r);
+            }
+            for (profile, format, m) in &meshes {
+                progress(&format!("trace {profile}.{format} {tag}"));
+                let img = render_mesh(m, cam, t, cfg.k)?;
+                let mut r = Record {
+                    renderer: "trace-mesh".into(),
+                    profile: profile.clone(),
+                    format: format.clone(),
+                    milliseconds: img.ms,
+                    triangles: m.triangles,
+                    bytes: m.bytes,
+                    ..base.clone()
+                };
+                r = measure(&reference.frame, &img.frame, r)?;
+                save_pair(dir, &format!("mesh_{profile}_{format}_{tag}"), &reference.frame, &img.frame, &mut r)?;
+                records.push(r);
+            }
+            // Dynamic scenes: OBJ has no animation, so the frame's own OBJ is exported and traced.
+            for &p in &obj_profiles {
+                let opts = ConvertOptions {
+                    profile: p,
+                    ..ConvertOptions::default()
+                };
+                let frame_scene = DynamicScene::from_static(cloud.clone());
+                let obj = dir.join(format!("mesh_{}_{tag}.obj", p.name()));
+                let m = export_and_load(&frame_scene, &opts, &obj, cfg.backend, cfg.preset)?;
+                let img = render_mesh(&m, cam, 0.0, cfg.k)?;
+                let mut r = Record {
+                    renderer: "trace-mesh".into(),
+                    profile: p.name().into(),
+                    format: "obj".into(),
+                    milliseconds: img.ms,
+                    triangles: m.triangles,
+                    bytes: m.bytes,
+                    ..base.clone()
+                };
+                r = measure(&reference.frame, &img.frame, r)?;
+                save_pair(dir, &format!("mesh_{}_obj_{tag}", p.name()), &reference.frame, &img.frame, &mut r)?;
+                records.push(r);
+            }
+        }
+    }
+    Ok(records)
+}
+
+/// Write `report.json` and `report.md` for `records` into `dir`.
+pub fn write_reports(dir: &Path, title: &str, preamble: &str, records: &[Record]) -> anyhow::Result<()> {
+    let json = serde_json::to_string_pretty(records)?;
+    splatbridge_scene::image_io::write_atomic(&dir.join("report.json"), json.as_bytes())?;
+    let md = format!("# {title}\n\n{preamble}\n\n{}", crate::report::markdown_table(records, true));
+    splatbridge_scene::image_io::write_atomic(&dir.join("report.md"), md.as_bytes())?;
+    Ok(())
+}

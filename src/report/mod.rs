@@ -1,0 +1,87 @@
+//! Parity and accuracy reports: one record per renderer × profile × camera × time (or per knob
+//! setting), written as `report.json` and as a markdown table with thumbnails, plus plots.
+
+pub mod plot;
+
+use std::fmt::Write as _;
+
+use serde::Serialize;
+
+/// One measured image against the native-splatting reference.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Record {
+    /// native, hybrid, trace-gaussian, trace-mesh.
+    pub renderer: String,
+    /// Converter profile for mesh traces (meshsplats, rings, texture), else empty.
+    pub profile: String,
+    /// File the mesh was read back from (glb, obj), else empty.
+    pub format: String,
+    /// For accuracy sweeps: the knob and its value.
+    pub knob: String,
+    pub value: String,
+    pub camera: String,
+    pub time: f64,
+    /// dB; +inf for an image identical to the reference (JSON: null).
+    pub psnr: f64,
+    pub ssim: f64,
+    pub tile_ssim: f64,
+    pub max_error: f64,
+    pub milliseconds: f64,
+    pub triangles: u64,
+    pub bytes: u64,
+    /// Image and heat-map paths relative to the report.
+    pub image: String,
+    pub heatmap: String,
+}
+
+fn fmt_psnr(p: f64) -> String {
+    if p.is_infinite() {
+        "∞".into()
+    } else {
+        format!("{p:.2}")
+    }
+}
+
+/// A markdown table of records; `thumbs` adds image and heat-map columns.
+pub fn markdown_table(records: &[Record], thumbs: bool) -> String {
+    let mut s = String::new();
+    let _ = write!(
+        s,
+        "| renderer | profile | file | knob | camera | t | PSNR dB | SSIM | tile-SSIM | max err | ms | triangles | bytes |"
+    );
+    if thumbs {
+        s.push_str(" image | difference |");
+    }
+    s.push('\n');
+    s.push_str("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    if thumbs {
+        s.push_str("---|---|");
+    }
+    s.push('\n');
+    for r in records {
+        let knob = if r.knob.is_empty() { String::new() } else { format!("{}={}", r.knob, r.value) };
+        let _ = write!(
+            s,
+            "| {} | {} | {} | {} | {} | {:.2} | {} | {:.4} | {:.4} | {:.3} | {:.1} | {} | {} |",
+            r.renderer,
+            r.profile,
+            r.format,
+            knob,
+            r.camera,
+            r.time,
+            fmt_psnr(r.psnr),
+            r.ssim,
+            r.tile_ssim,
+            r.max_error,
+            r.milliseconds,
+            r.triangles,
+            r.bytes
+        );
+        if thumbs {
+            let img = |p: &str| if p.is_empty() { String::new() } else { format!("<img src=\"{p}\" width=\"160\">") };
+            let _ = write!(s, " {} | {} |", img(&r.image), img(&r.heatmap));
+        }
+        s.push('\n');
+    }
+    s
+}
