@@ -14,7 +14,7 @@
 //! ordered by (t*, Gaussian index). Colour is the full SH evaluated in the ray direction.
 //! Compositing follows native splatting: front to back, and a Gaussian that would take T below
 //! 1e-4 stops the ray without being added. As in the rasterizer, a Gaussian whose mean is at
-//! view depth ≤ 0.2 is culled (primary rays only).
+//! view depth ≤ `RenderOptions::near` (0.2) is culled (primary rays only).
 
 use std::time::Instant;
 
@@ -26,7 +26,8 @@ use crate::composite::{Hit, KBuffer};
 use crate::error::Result;
 use crate::render::{render_frame, PixelOut, RenderOptions, Stats};
 
-/// The rasterizer's near cull: view-space depth of the mean must exceed this.
+/// The rasterizer's near cull (default of `RenderOptions::near`): view-space depth of the
+/// mean must exceed this.
 pub const NEAR_CULL: f32 = 0.2;
 
 /// Gaussians prepared for ray tracing.
@@ -51,6 +52,7 @@ pub struct GaussianTracer {
 struct Near {
     origin: Vec3,
     forward: Vec3,
+    near: f32,
 }
 
 impl GaussianTracer {
@@ -140,7 +142,7 @@ impl GaussianTracer {
         self.accel.traverse(o, d, tmax, &mut |p, cull| {
             let p = p as usize;
             if let Some(n) = near {
-                if (self.mean[p] - n.origin).dot(n.forward) <= NEAR_CULL {
+                if (self.mean[p] - n.origin).dot(n.forward) <= n.near {
                     return;
                 }
             }
@@ -187,6 +189,7 @@ impl GaussianTracer {
         let near = forward.map(|f| Near {
             origin: ro,
             forward: f.as_vec3(),
+            near: opts.near,
         });
         let mut out = PixelOut::default();
         let mut tr = 1.0f32;

@@ -21,6 +21,9 @@ pub struct RenderOptions {
     pub background: Vec3,
     /// Compositing stops once transmittance falls below this (native splatting's 1e-4).
     pub min_transmittance: f32,
+    /// Mode `gaussian`: Gaussians whose mean is at view depth ≤ `near` are culled, as the
+    /// rasterizer does (reference 0.2).
+    pub near: f32,
 }
 
 impl Default for RenderOptions {
@@ -29,6 +32,7 @@ impl Default for RenderOptions {
             k: 16,
             background: Vec3::ZERO,
             min_transmittance: 1e-4,
+            near: crate::gaussian::NEAR_CULL,
         }
     }
 }
@@ -38,7 +42,7 @@ impl RenderOptions {
         if self.k == 0 || self.k > 4096 {
             return Err(TraceError::Invalid(format!("k = {} is outside 1..=4096", self.k)));
         }
-        if !(self.min_transmittance > 0.0 && self.min_transmittance < 1.0) || !self.background.is_finite() {
+        if !(self.min_transmittance > 0.0 && self.min_transmittance < 1.0) || !self.background.is_finite() || !self.near.is_finite() {
             return Err(TraceError::Invalid("min transmittance must be in (0, 1) and the background finite".into()));
         }
         Ok(())

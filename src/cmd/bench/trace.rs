@@ -1,13 +1,68 @@
-//! `splatbridge bench trace`.
+//! `splatbridge bench trace`: for every compiled-in backend (obvhs, and Embree with
+//! `--features embree`), BVH build time, primary-ray throughput with full compositing
+//! (median over repeats) and mean hits per ray, on one input and camera; and the largest
+//! pixel difference between the backends' images.
+
+use anyhow::Context;
+use splatbridge_raytrace::backend::EMBREE_AVAILABLE;
+use splatbridge_raytrace::BackendKind;
+
+use crate::cmd::trace::{TraceInput, Tracer};
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Arguments of this benchmark (not wired yet).
-    #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
-    pub rest: Vec<String>,
+    #[command(flatten)]
+    pub input: TraceInput,
+    /// Timed renders per backend (the median is reported).
+    #[arg(long, default_value_t = 3)]
+    pub repeats: usize,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let _ = args;
-    anyhow::bail!("bench trace is not implemented yet")
+    let p = args.input.prepare()?;
+    println!("{}", p.what);
+    println!(
+        "camera '{}' {}×{}, k = {}, preset {:?}, {} rayon threads",
+        p.camera.name,
+        p.camera.width,
+        p.camera.height,
+        p.options.k,
+        args.input.preset,
+        rayon::current_num_threads()
+    );
+    let mut backends = vec![BackendKind::Obvhs];
+    if EMBREE_AVAILABLE {
+        backends.push(BackendKind::Embree);
+    } else {
+        println!("embree: not compiled in (build with --features embree after scripts/get-embree.sh)");
+    }
+    let mut frames = Vec::new();
+    println!("{:<8} {:>10} {:>12} {:>10} {:>10} {:>14}", "backend", "build s", "trace s", "Mrays/s", "hits/ray", "traversals/ray");
+    for b in backends {
+        let tracer = Tracer::build(&p, b, args.input.preset.into()).with_context(|| format!("backend {b}"))?;
+        let mut times = Vec::new();
+        let mut last = None;
+        for _ in 0..args.repeats.max(1) {
+            let (f, s) = tracer.render(&p)?;
+            times.push(s.seconds);
+            last = Some((f, s));
+        }
+        times.sort_by(f64::total_cmp);
+        let med = times[times.len() / 2];
+        let (f, s) = last.expect("at least one repeat");
+        println!(
+            "{:<8} {:>10.3} {:>12.3} {:>10.3} {:>10.2} {:>14.2}",
+            b.to_string(),
+            tracer.build_seconds(),
+            med,
+            s.rays as f64 / med / 1e6,
+            s.hits_per_ray(),
+            s.traversals as f64 / s.rays.max(1) as f64
+        );
+        frames.push((b, f));
+    }
+    if frames.len() == 2 {
+        println!("max |obvhs − embree| per channel: {:.3e}", frames[0].1.max_rgb_diff(&frames[1].1));
+    }
+    Ok(())
 }
