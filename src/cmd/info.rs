@@ -1,6 +1,17 @@
-//! `splatbridge info`: describe a PLY or manifest.
+//! `splatbridge info`: describe a PLY or manifest: counts, SH degree, bounds (full and robust),
+//! distributions of activated opacities and scales, counts of the unusual values real files
+//! hold, and for a manifest its objects, track spans and frames.
+//!
+//! Statistics are taken over the composite at the scene's start time (every Gaussian, objects
+//! placed by their first pose). Percentiles are nearest-rank on the sorted values.
 
 use std::path::PathBuf;
+
+use serde_json::{json, Value};
+use splatbridge_scene::gaussians::sigmoid;
+use splatbridge_scene::GaussianCloud;
+
+use crate::cmd::common::load;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -14,6 +25,212 @@ pub struct Args {
     pub drop_invalid: bool,
 }
 
+/// Fraction cut from each end for the robust bounds (orbit rigs use the same idea).
+const ROBUST_P: f32 = 0.02;
+/// Quaternions whose norm differs from 1 by more than this count as unnormalised (f32 rounding
+/// of a normalised quaternion stays within a few 1e-7).
+const QUAT_NORM_TOL: f32 = 1e-3;
+/// Log-scales below this (scale < 1.1e-7) count as tiny: far below a pixel at any sane camera,
+/// the −23 of `tile_lod1.ply` being the real example.
+const TINY_LOG_SCALE: f32 = -16.0;
+/// The rasterizer skips α < 1/255; a Gaussian whose opacity is below it never contributes.
+const ALPHA_MIN: f32 = 1.0 / 255.0;
+
+const QUANTILES: [(&str, f64); 9] = [
+    ("min", 0.0),
+    ("p01", 0.01),
+    ("p05", 0.05),
+    ("p25", 0.25),
+    ("p50", 0.5),
+    ("p75", 0.75),
+    ("p95", 0.95),
+    ("p99", 0.99),
+    ("max", 1.0),
+];
+
+/// Nearest-rank quantiles of `v` (sorted here), as a JSON object; null when empty.
+fn distribution(mut v: Vec<f32>) -> Value {
+    if v.is_empty() {
+        return Value::Null;
+    }
+    v.sort_by(f32::total_cmp);
+    let mut m = serde_json::Map::new();
+    for (name, q) in QUANTILES {
+        let i = (q * (v.len() - 1) as f64).round() as usize;
+        m.insert(name.into(), json!(v[i]));
+    }
+    m.insert(
+        "mean".into(),
+        json!(v.iter().map(|&x| x as f64).sum::<f64>() / v.len() as f64),
+    );
+    Value::Object(m)
+}
+
+fn vec3(v: glam::Vec3) -> Value {
+    json!([v.x, v.y, v.z])
+}
+
+/// Everything `info` says about one cloud.
+fn cloud_stats(c: &GaussianCloud) -> Value {
+    let bounds = c
+        .bounds()
+        .map(|(lo, hi)| json!({"min": vec3(lo), "max": vec3(hi), "size": vec3(hi - lo)}));
+    let robust = c.robust_bounds(ROBUST_P).map(
+        |(lo, hi)| json!({"p": ROBUST_P, "min": vec3(lo), "max": vec3(hi), "size": vec3(hi - lo)}),
+    );
+    let opacity: Vec<f32> = c.opacity_logits.iter().map(|&l| sigmoid(l)).collect();
+    let below_alpha = opacity.iter().filter(|&&o| o < ALPHA_MIN).count();
+    let max_axis: Vec<f32> = c.log_scales.iter().map(|s| s.max_element().exp()).collect();
+    let min_axis: Vec<f32> = c.log_scales.iter().map(|s| s.min_element().exp()).collect();
+    let count = |f: &dyn Fn(usize) -> bool| (0..c.len()).filter(|&i| f(i)).count();
+    json!({
+        "gaussians": c.len(),
+        "sh_degree": c.sh_degree,
+        "bounds": bounds,
+        "robust_bounds": robust,
+        "opacity": distribution(opacity),
+        "scale_max_axis": distribution(max_axis),
+        "scale_min_axis": distribution(min_axis),
+        "unusual": {
+            "opacity_logit_pos_inf": count(&|i| c.opacity_logits[i] == f32::INFINITY),
+            "opacity_logit_neg_inf": count(&|i| c.opacity_logits[i] == f32::NEG_INFINITY),
+            "opacity_below_1_255": below_alpha,
+            "unnormalised_quaternions": count(&|i| (c.rotations[i].length() - 1.0).abs() > QUAT_NORM_TOL),
+            "tiny_log_scales": count(&|i| c.log_scales[i].min_element() < TINY_LOG_SCALE),
+            "invalid": count(&|i| c.invalid_reason(i).is_some()),
+        },
+    })
+}
+
 pub fn run(args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("{}: info is not implemented yet", args.file.display())
+    let scene = load(&args.file, args.drop_invalid)?;
+    let is_manifest = args
+        .file
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    let composite = scene.composite(scene.time.start);
+    let mut out = cloud_stats(&composite);
+    let obj = out.as_object_mut().expect("stats are an object");
+    obj.insert("file".into(), json!(args.file.display().to_string()));
+    obj.insert(
+        "kind".into(),
+        json!(if is_manifest { "manifest" } else { "ply" }),
+    );
+    if is_manifest {
+        let objects: Vec<Value> = scene
+            .objects
+            .iter()
+            .map(|o| {
+                let span = match (o.track.keys.first(), o.track.keys.last()) {
+                    (Some(a), Some(b)) => json!([a.t, b.t]),
+                    _ => Value::Null,
+                };
+                json!({
+                    "name": o.name,
+                    "gaussians": o.gaussians.len(),
+                    "sh_degree": o.gaussians.sh_degree,
+                    "keys": o.track.keys.len(),
+                    "track_span": span,
+                })
+            })
+            .collect();
+        obj.insert(
+            "static_gaussians".into(),
+            json!(scene.static_gaussians.len()),
+        );
+        obj.insert("objects".into(), json!(objects));
+        obj.insert(
+            "time".into(),
+            json!({"start": scene.time.start, "end": scene.time.end, "fps": scene.time.fps,
+                   "frames": scene.time.frame_count()}),
+        );
+        obj.insert("cameras".into(), json!(scene.cameras.len()));
+        obj.insert(
+            "effects".into(),
+            json!(scene.effects.keys().collect::<Vec<_>>()),
+        );
+    }
+    if args.json {
+        println!("{out}");
+    } else {
+        print_text(&out);
+    }
+    Ok(())
+}
+
+fn fmt3(v: &Value) -> String {
+    match v.as_array() {
+        Some(a) => {
+            let s: Vec<String> = a
+                .iter()
+                .map(|x| format!("{:.6}", x.as_f64().unwrap_or(f64::NAN)))
+                .collect();
+            format!("({})", s.join(", "))
+        }
+        None => "-".into(),
+    }
+}
+
+fn fmt_dist(v: &Value) -> String {
+    if v.is_null() {
+        return "-".into();
+    }
+    QUANTILES
+        .iter()
+        .map(|(name, _)| format!("{name} {:.4e}", v[*name].as_f64().unwrap_or(f64::NAN)))
+        .collect::<Vec<_>>()
+        .join("  ")
+}
+
+fn print_text(v: &Value) {
+    println!(
+        "file        {} ({})",
+        v["file"].as_str().unwrap_or("?"),
+        v["kind"].as_str().unwrap_or("?")
+    );
+    println!("gaussians   {}", v["gaussians"]);
+    println!("SH degree   {}", v["sh_degree"]);
+    println!(
+        "bounds      min {}  max {}",
+        fmt3(&v["bounds"]["min"]),
+        fmt3(&v["bounds"]["max"])
+    );
+    println!(
+        "robust      min {}  max {}  ({}–{} percentiles per axis)",
+        fmt3(&v["robust_bounds"]["min"]),
+        fmt3(&v["robust_bounds"]["max"]),
+        ROBUST_P * 100.0,
+        100.0 - ROBUST_P * 100.0
+    );
+    println!("opacity     {}", fmt_dist(&v["opacity"]));
+    println!("scale max   {}", fmt_dist(&v["scale_max_axis"]));
+    println!("scale min   {}", fmt_dist(&v["scale_min_axis"]));
+    let u = &v["unusual"];
+    println!(
+        "unusual     {} +inf and {} −inf opacity logits, {} with opacity < 1/255, {} unnormalised quaternions, {} log-scales < {TINY_LOG_SCALE}, {} invalid",
+        u["opacity_logit_pos_inf"],
+        u["opacity_logit_neg_inf"],
+        u["opacity_below_1_255"],
+        u["unnormalised_quaternions"],
+        u["tiny_log_scales"],
+        u["invalid"]
+    );
+    if v["kind"] == "manifest" {
+        let t = &v["time"];
+        println!(
+            "time        {} s to {} s at {} fps: {} frames; {} cameras; effects {}",
+            t["start"], t["end"], t["fps"], t["frames"], v["cameras"], v["effects"]
+        );
+        println!("static      {} Gaussians", v["static_gaussians"]);
+        for o in v["objects"].as_array().into_iter().flatten() {
+            println!(
+                "object      {}: {} Gaussians (SH {}), {} keys spanning {}",
+                o["name"].as_str().unwrap_or("?"),
+                o["gaussians"],
+                o["sh_degree"],
+                o["keys"],
+                o["track_span"]
+            );
+        }
+    }
 }
