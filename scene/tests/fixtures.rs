@@ -182,7 +182,10 @@ fn large_has_trained_distributions() {
     // Means sit on surfaces; the ground plane holds about a third of them (1 cm jitter, so 5 cm
     // is 5σ), less the 3 % floaters.
     let on_ground = c.means.iter().filter(|m| m.y.abs() < 0.05).count() as f32 / n as f32;
-    assert!((0.28..0.36).contains(&on_ground), "{on_ground} on the ground");
+    assert!(
+        (0.28..0.36).contains(&on_ground),
+        "{on_ground} on the ground"
+    );
 }
 
 #[test]
