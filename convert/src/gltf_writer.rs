@@ -218,7 +218,10 @@ fn plan(
     };
     let mut nodes: Vec<Value> = Vec::new();
     let mut root_children: Vec<usize> = Vec::new();
-    let mut animations: Vec<Value> = Vec::new();
+    // One glTF animation for the whole scene: viewers play one clip at a time, and Blender
+    // makes one action per animated object from it.
+    let mut samplers: Vec<Value> = Vec::new();
+    let mut channels: Vec<Value> = Vec::new();
     nodes.push(json!({})); // the root, filled in below
 
     // Small data first: animations and the texture.
@@ -321,17 +324,12 @@ fn plan(
                     node["translation"] = json!(t0);
                     node["rotation"] = json!(r0);
                     let ni = nodes.len();
-                    animations.push(json!({
-                        "name": name,
-                        "samplers": [
-                            {"input": input, "output": t_acc, "interpolation": "LINEAR"},
-                            {"input": input, "output": r_acc, "interpolation": "LINEAR"}
-                        ],
-                        "channels": [
-                            {"sampler": 0, "target": {"node": ni, "path": "translation"}},
-                            {"sampler": 1, "target": {"node": ni, "path": "rotation"}}
-                        ]
-                    }));
+                    for (out, path) in [(t_acc, "translation"), (r_acc, "rotation")] {
+                        samplers.push(
+                            json!({"input": input, "output": out, "interpolation": "LINEAR"}),
+                        );
+                        channels.push(json!({"sampler": samplers.len() - 1, "target": {"node": ni, "path": path}}));
+                    }
                 }
             }
             Role::Frame(k) => {
@@ -347,16 +345,11 @@ fn plan(
         regions.push(Some(region));
     }
     if let Some((input, outs)) = &frame_anim {
-        let mut samplers = Vec::new();
-        let mut channels = Vec::new();
         for &(ni, k) in &frame_nodes {
             samplers.push(json!({"input": input, "output": outs[k], "interpolation": "STEP"}));
             channels.push(
                 json!({"sampler": samplers.len() - 1, "target": {"node": ni, "path": "scale"}}),
             );
-        }
-        if !channels.is_empty() {
-            animations.push(json!({"name": "frames", "samplers": samplers, "channels": channels}));
         }
     }
     let mut cameras = Vec::new();
@@ -405,8 +398,8 @@ fn plan(
     if !meshes.is_empty() {
         doc["meshes"] = json!(meshes);
     }
-    if !animations.is_empty() {
-        doc["animations"] = json!(animations);
+    if !channels.is_empty() {
+        doc["animations"] = json!([{"name": "scene", "samplers": samplers, "channels": channels}]);
     }
     if !cameras.is_empty() {
         doc["cameras"] = json!(cameras);

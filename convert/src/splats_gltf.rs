@@ -210,7 +210,8 @@ fn plan<'a>(
     let mut meshes = Vec::new();
     let mut nodes = vec![json!({})];
     let mut children = Vec::new();
-    let mut animations = Vec::new();
+    let mut samplers: Vec<Value> = Vec::new();
+    let mut channels: Vec<Value> = Vec::new();
     let mut id_offset = 0u64;
     for (name, cloud, obj) in clouds {
         cloud.check_shape()?;
@@ -288,11 +289,10 @@ fn plan<'a>(
         if let Some(Some((input, ta, ra, t0, r0))) = obj.map(|k| anim[k]) {
             node["translation"] = json!(t0);
             node["rotation"] = json!(r0);
-            animations.push(json!({
-                "name": name,
-                "samplers": [{"input": input, "output": ta, "interpolation": "LINEAR"}, {"input": input, "output": ra, "interpolation": "LINEAR"}],
-                "channels": [{"sampler": 0, "target": {"node": nodes.len(), "path": "translation"}}, {"sampler": 1, "target": {"node": nodes.len(), "path": "rotation"}}]
-            }));
+            for (out, path) in [(ta, "translation"), (ra, "rotation")] {
+                samplers.push(json!({"input": input, "output": out, "interpolation": "LINEAR"}));
+                channels.push(json!({"sampler": samplers.len() - 1, "target": {"node": nodes.len(), "path": path}}));
+            }
         }
         children.push(nodes.len());
         nodes.push(node);
@@ -329,8 +329,8 @@ fn plan<'a>(
         "bufferViews": d.views,
         "accessors": d.accessors,
     });
-    if !animations.is_empty() {
-        doc["animations"] = json!(animations);
+    if !channels.is_empty() {
+        doc["animations"] = json!([{"name": "scene", "samplers": samplers, "channels": channels}]);
     }
     if !cameras.is_empty() {
         doc["cameras"] = json!(cameras);

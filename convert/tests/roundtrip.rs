@@ -68,8 +68,10 @@ fn glb_reads_back_with_the_same_mesh_nodes_animation_and_cameras() {
         assert!(prim
             .attributes()
             .any(|(s, _)| s == gltf::Semantic::Extras("GAUSSIAN_ID".into())));
-        // One animation per moving object, spanning the scene's time range.
-        assert_eq!(doc.animations().count(), 2);
+        // One scene animation with a translation and a rotation channel per moving object,
+        // spanning the scene's time range.
+        assert_eq!(doc.animations().count(), 1);
+        assert_eq!(doc.animations().next().unwrap().channels().count(), 4);
         for a in doc.animations() {
             for ch in a.channels() {
                 let r = ch.reader(|b| Some(&buffers[b.index()]));
@@ -120,7 +122,7 @@ fn per_frame_content_is_visible_only_on_its_frame() {
     let (doc, buffers, _) = gltf::import_slice(&bytes).unwrap();
     let anim = doc
         .animations()
-        .find(|a| a.name() == Some("frames"))
+        .find(|a| a.name() == Some("scene"))
         .unwrap();
     assert_eq!(anim.channels().count(), 3);
     for (k, ch) in anim.channels().enumerate() {

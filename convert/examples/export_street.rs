@@ -1,0 +1,35 @@
+//! Export the `street` fixture (static Gaussians, two animated cars, four cameras) as a mesh
+//! GLB, for the Blender and validator scripts: `export_street OUT.glb [PROFILE]`.
+
+use splatbridge_convert::{convert_to_file, ConvertOptions, Profile};
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let Some(out) = args.get(1) else {
+        eprintln!(
+            "usage: export_street OUT.glb|OUT.gltf|OUT.obj|OUT.ply [meshsplats|rings|texture]"
+        );
+        std::process::exit(2);
+    };
+    let profile = match args.get(2).map(String::as_str) {
+        None | Some("rings") => Profile::Rings,
+        Some("meshsplats") => Profile::MeshSplats,
+        Some("texture") => Profile::Texture,
+        Some(p) => {
+            eprintln!("error: unknown profile '{p}'");
+            std::process::exit(2);
+        }
+    };
+    let scene = splatbridge_scene::fixtures::street(1);
+    let opts = ConvertOptions {
+        profile,
+        ..Default::default()
+    };
+    match convert_to_file(std::path::Path::new(out), &scene, None, &opts, false) {
+        Ok(r) => println!("{}", serde_json::to_string(&r).unwrap_or_default()),
+        Err(e) => {
+            eprintln!("error: {e}");
+            std::process::exit(2);
+        }
+    }
+}
