@@ -384,9 +384,14 @@ pub fn manifest_for(
 /// Write `scene` into `dir` (created if needed): `static.ply` (when there are static
 /// Gaussians), one `NAME.ply` per object (binary little-endian), `cameras.json` (when the
 /// scene has cameras) and the manifest `scene.json`, each atomically. Tracks are written as
-/// explicit keys. The scene is validated first.
+/// explicit keys. The scene (effects included) is validated first; nothing is written when it
+/// is invalid.
 pub fn save_manifest(dir: &Path, scene: &DynamicScene) -> Result<SavedScene> {
     scene.validate()?;
+    // The same effect checks as loading, so a written scene always loads back.
+    let target = dir.join("scene.json");
+    check_effect_names(&target, &scene.effects)?;
+    crate::effects::Effects::from_json(&scene.effects).map_err(|e| bad(&target, e))?;
     std::fs::create_dir_all(dir).map_err(|e| SceneError::io(dir, e))?;
     let mut files = Vec::new();
     let static_file = if scene.static_gaussians.is_empty() {

@@ -79,9 +79,7 @@ fn small_scene() -> DynamicScene {
 #[test]
 fn save_then_load_round_trips() {
     let dir = tempfile::tempdir().unwrap();
-    let mut scene = small_scene();
-    // Shadows' parameter names belong to the effects module; keep the round trip independent.
-    scene.effects.clear();
+    let scene = small_scene();
     let saved = save_manifest(dir.path(), &scene).unwrap();
     assert_eq!(saved.manifest, dir.path().join("scene.json"));
     for f in [
@@ -96,6 +94,7 @@ fn save_then_load_round_trips() {
     let (back, warnings) = load_scene(&saved.manifest, &ReadOptions::default()).unwrap();
     assert!(warnings.is_empty(), "{warnings:?}");
     assert_eq!(back.time, scene.time);
+    assert_eq!(back.effects, scene.effects, "declared effects kept as written");
     assert_eq!(back.static_gaussians, scene.static_gaussians);
     assert_eq!(back.objects.len(), 2);
     for (a, b) in back.objects.iter().zip(&scene.objects) {
@@ -379,4 +378,15 @@ fn save_rejects_invalid_scenes() {
         "{e}"
     );
     assert!(!dir.path().join("scene.json").exists());
+}
+
+#[test]
+fn save_rejects_unknown_effects() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut scene = small_scene();
+    scene.effects.clear();
+    scene.effects.insert("fog".into(), serde_json::json!({}));
+    let e = save_manifest(dir.path(), &scene).unwrap_err().to_string();
+    assert!(e.contains("unknown effect \"fog\""), "{e}");
+    assert!(!dir.path().join("static.ply").exists(), "nothing written");
 }
