@@ -12,7 +12,9 @@ use anyhow::Context;
 use splatbridge_convert::{ConvertOptions, Profile};
 use splatbridge_hybrid::ges::{self, GesOptions, SplitMode};
 use splatbridge_hybrid::native::{self, RenderOptions as NativeOptions};
-use splatbridge_raytrace::{BackendKind, BuildPreset, GaussianTracer, MeshTracer, RenderOptions as TraceOptions};
+use splatbridge_raytrace::{
+    BackendKind, BuildPreset, GaussianTracer, MeshTracer, RenderOptions as TraceOptions,
+};
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::surfels::SplitParams;
 use splatbridge_scene::{metrics, Camera, Frame, GaussianCloud};
@@ -59,7 +61,11 @@ pub struct Rendered {
 }
 
 /// Native splatting of `cloud` (the reference when `opts` is the default).
-pub fn render_native(cloud: &GaussianCloud, cam: &Camera, opts: &NativeOptions) -> anyhow::Result<Rendered> {
+pub fn render_native(
+    cloud: &GaussianCloud,
+    cam: &Camera,
+    opts: &NativeOptions,
+) -> anyhow::Result<Rendered> {
     let t0 = Instant::now();
     let (frame, _) = native::render(cloud, cam, opts)?;
     Ok(Rendered {
@@ -69,7 +75,12 @@ pub fn render_native(cloud: &GaussianCloud, cam: &Camera, opts: &NativeOptions) 
 }
 
 /// The GES hybrid with a threshold split.
-pub fn render_hybrid(cloud: &GaussianCloud, cam: &Camera, split: SplitParams, opts: &GesOptions) -> anyhow::Result<Rendered> {
+pub fn render_hybrid(
+    cloud: &GaussianCloud,
+    cam: &Camera,
+    split: SplitParams,
+    opts: &GesOptions,
+) -> anyhow::Result<Rendered> {
     let t0 = Instant::now();
     let (frame, _, _) = ges::render_cloud(cloud, SplitMode::Thresholds(split), cam, opts)?;
     Ok(Rendered {
@@ -103,7 +114,9 @@ pub fn export_and_load(
     let load = path.to_path_buf();
     let mut tri = splatbridge_raytrace::scene_load::load_path(&load)?;
     tri.to_capture_frame();
-    let bytes = std::fs::metadata(&load).map(|m| m.len()).unwrap_or(report.bytes);
+    let bytes = std::fs::metadata(&load)
+        .map(|m| m.len())
+        .unwrap_or(report.bytes);
     let triangles = tri.triangle_count() as u64;
     let t1 = Instant::now();
     let tracer = MeshTracer::new(tri, backend, preset)?;
@@ -132,7 +145,11 @@ pub fn render_mesh(m: &TracedMesh, cam: &Camera, time: f64, k: usize) -> anyhow:
 }
 
 /// Ray-trace the Gaussians themselves (3DGRT-style); returns the frame and the build time.
-pub fn render_gaussians(cloud: &GaussianCloud, cam: &Camera, cfg: &CompareConfig) -> anyhow::Result<(Rendered, f64)> {
+pub fn render_gaussians(
+    cloud: &GaussianCloud,
+    cam: &Camera,
+    cfg: &CompareConfig,
+) -> anyhow::Result<(Rendered, f64)> {
     let t0 = Instant::now();
     let tracer = GaussianTracer::new(cloud.clone(), cfg.backend, cfg.preset)?;
     let build_ms = t0.elapsed().as_secs_f64() * 1e3;
@@ -161,7 +178,13 @@ pub fn measure(reference: &Frame, img: &Frame, mut r: Record) -> anyhow::Result<
 }
 
 /// Save `img` and its heat-map against `reference` under `dir`, recording relative paths.
-fn save_pair(dir: &Path, name: &str, reference: &Frame, img: &Frame, r: &mut Record) -> anyhow::Result<()> {
+fn save_pair(
+    dir: &Path,
+    name: &str,
+    reference: &Frame,
+    img: &Frame,
+    r: &mut Record,
+) -> anyhow::Result<()> {
     let image = format!("{name}.png");
     splatbridge_scene::image_io::save_frame(&dir.join(&image), img)?;
     let heat = format!("{name}_diff.png");
@@ -172,8 +195,16 @@ fn save_pair(dir: &Path, name: &str, reference: &Frame, img: &Frame, r: &mut Rec
 }
 
 /// Run the comparison over every camera × time; images and heat-maps go to `dir`.
-pub fn compare(scene: &DynamicScene, cams: &[Camera], times: &[f64], dir: &Path, cfg: &CompareConfig, progress: &dyn Fn(&str)) -> anyhow::Result<Vec<Record>> {
-    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create the output folder", dir.display()))?;
+pub fn compare(
+    scene: &DynamicScene,
+    cams: &[Camera],
+    times: &[f64],
+    dir: &Path,
+    cfg: &CompareConfig,
+    progress: &dyn Fn(&str),
+) -> anyhow::Result<Vec<Record>> {
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("{}: cannot create the output folder", dir.display()))?;
     let mut records = Vec::new();
     let dynamic = !scene.objects.is_empty();
     // Export every profile once; the files are what gets traced.
@@ -186,10 +217,18 @@ pub fn compare(scene: &DynamicScene, cams: &[Camera], times: &[f64], dir: &Path,
             ..ConvertOptions::default()
         };
         let glb = dir.join(format!("mesh_{}.glb", p.name()));
-        meshes.push((p.name().into(), "glb".into(), export_and_load(scene, &opts, &glb, cfg.backend, cfg.preset)?));
+        meshes.push((
+            p.name().into(),
+            "glb".into(),
+            export_and_load(scene, &opts, &glb, cfg.backend, cfg.preset)?,
+        ));
         if cfg.obj && !dynamic {
             let obj = dir.join(format!("mesh_{}.obj", p.name()));
-            meshes.push((p.name().into(), "obj".into(), export_and_load(scene, &opts, &obj, cfg.backend, cfg.preset)?));
+            meshes.push((
+                p.name().into(),
+                "obj".into(),
+                export_and_load(scene, &opts, &obj, cfg.backend, cfg.preset)?,
+            ));
         } else if cfg.obj {
             obj_profiles.push(p);
         }
@@ -211,7 +250,13 @@ pub fn compare(scene: &DynamicScene, cams: &[Camera], times: &[f64], dir: &Path,
                 ..base.clone()
             };
             r = measure(&reference.frame, &reference.frame, r)?;
-            save_pair(dir, &format!("native_{tag}"), &reference.frame, &reference.frame, &mut r)?;
+            save_pair(
+                dir,
+                &format!("native_{tag}"),
+                &reference.frame,
+                &reference.frame,
+                &mut r,
+            )?;
             records.push(r);
             if cfg.hybrid {
                 progress(&format!("hybrid {tag}"));
@@ -222,7 +267,13 @@ pub fn compare(scene: &DynamicScene, cams: &[Camera], times: &[f64], dir: &Path,
                     ..base.clone()
                 };
                 r = measure(&reference.frame, &h.frame, r)?;
-                save_pair(dir, &format!("hybrid_{tag}"), &reference.frame, &h.frame, &mut r)?;
+                save_pair(
+                    dir,
+                    &format!("hybrid_{tag}"),
+                    &reference.frame,
+                    &h.frame,
+                    &mut r,
+                )?;
                 records.push(r);
             }
             if cfg.gaussian_trace {
@@ -234,7 +285,13 @@ pub fn compare(scene: &DynamicScene, cams: &[Camera], times: &[f64], dir: &Path,
                     ..base.clone()
                 };
                 r = measure(&reference.frame, &g.frame, r)?;
-                save_pair(dir, &format!("tracegauss_{tag}"), &reference.frame, &g.frame, &mut r)?;
+                save_pair(
+                    dir,
+                    &format!("tracegauss_{tag}"),
+                    &reference.frame,
+                    &g.frame,
+                    &mut r,
+                )?;
                 records.push(r);
             }
             for (profile, format, m) in &meshes {
@@ -250,7 +307,13 @@ pub fn compare(scene: &DynamicScene, cams: &[Camera], times: &[f64], dir: &Path,
                     ..base.clone()
                 };
                 r = measure(&reference.frame, &img.frame, r)?;
-                save_pair(dir, &format!("mesh_{profile}_{format}_{tag}"), &reference.frame, &img.frame, &mut r)?;
+                save_pair(
+                    dir,
+                    &format!("mesh_{profile}_{format}_{tag}"),
+                    &reference.frame,
+                    &img.frame,
+                    &mut r,
+                )?;
                 records.push(r);
             }
             // Dynamic scenes: OBJ has no animation, so the frame's own OBJ is exported and traced.
@@ -273,7 +336,13 @@ pub fn compare(scene: &DynamicScene, cams: &[Camera], times: &[f64], dir: &Path,
                     ..base.clone()
                 };
                 r = measure(&reference.frame, &img.frame, r)?;
-                save_pair(dir, &format!("mesh_{}_obj_{tag}", p.name()), &reference.frame, &img.frame, &mut r)?;
+                save_pair(
+                    dir,
+                    &format!("mesh_{}_obj_{tag}", p.name()),
+                    &reference.frame,
+                    &img.frame,
+                    &mut r,
+                )?;
                 records.push(r);
             }
         }
@@ -282,10 +351,18 @@ pub fn compare(scene: &DynamicScene, cams: &[Camera], times: &[f64], dir: &Path,
 }
 
 /// Write `report.json` and `report.md` for `records` into `dir`.
-pub fn write_reports(dir: &Path, title: &str, preamble: &str, records: &[Record]) -> anyhow::Result<()> {
+pub fn write_reports(
+    dir: &Path,
+    title: &str,
+    preamble: &str,
+    records: &[Record],
+) -> anyhow::Result<()> {
     let json = serde_json::to_string_pretty(records)?;
     splatbridge_scene::image_io::write_atomic(&dir.join("report.json"), json.as_bytes())?;
-    let md = format!("# {title}\n\n{preamble}\n\n{}", crate::report::markdown_table(records, true));
+    let md = format!(
+        "# {title}\n\n{preamble}\n\n{}",
+        crate::report::markdown_table(records, true)
+    );
     splatbridge_scene::image_io::write_atomic(&dir.join("report.md"), md.as_bytes())?;
     Ok(())
 }

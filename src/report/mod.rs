@@ -59,7 +59,11 @@ pub fn markdown_table(records: &[Record], thumbs: bool) -> String {
     }
     s.push('\n');
     for r in records {
-        let knob = if r.knob.is_empty() { String::new() } else { format!("{}={}", r.knob, r.value) };
+        let knob = if r.knob.is_empty() {
+            String::new()
+        } else {
+            format!("{}={}", r.knob, r.value)
+        };
         let _ = write!(
             s,
             "| {} | {} | {} | {} | {} | {:.2} | {} | {:.4} | {:.4} | {:.3} | {:.1} | {} | {} |",
@@ -78,7 +82,13 @@ pub fn markdown_table(records: &[Record], thumbs: bool) -> String {
             r.bytes
         );
         if thumbs {
-            let img = |p: &str| if p.is_empty() { String::new() } else { format!("<img src=\"{p}\" width=\"160\">") };
+            let img = |p: &str| {
+                if p.is_empty() {
+                    String::new()
+                } else {
+                    format!("<img src=\"{p}\" width=\"160\">")
+                }
+            };
             let _ = write!(s, " {} | {} |", img(&r.image), img(&r.heatmap));
         }
         s.push('\n');

@@ -27,8 +27,15 @@ pub struct Point {
 /// Points of `pts` on the Pareto front: no other point has lower-or-equal cost and
 /// higher-or-equal PSNR with one of them strict. Returned as indices sorted by cost.
 pub fn pareto_front(pts: &[Point]) -> Vec<usize> {
-    let mut idx: Vec<usize> = (0..pts.len()).filter(|&i| pts[i].cost.is_finite() && pts[i].psnr.is_finite()).collect();
-    idx.sort_by(|&a, &b| pts[a].cost.total_cmp(&pts[b].cost).then(pts[b].psnr.total_cmp(&pts[a].psnr)));
+    let mut idx: Vec<usize> = (0..pts.len())
+        .filter(|&i| pts[i].cost.is_finite() && pts[i].psnr.is_finite())
+        .collect();
+    idx.sort_by(|&a, &b| {
+        pts[a]
+            .cost
+            .total_cmp(&pts[b].cost)
+            .then(pts[b].psnr.total_cmp(&pts[a].psnr))
+    });
     let mut front = Vec::new();
     let mut best = f64::NEG_INFINITY;
     for i in idx {
@@ -45,7 +52,11 @@ static FONT: Once = Once::new();
 fn register_font() {
     FONT.call_once(|| {
         // The Ubuntu font is a valid OpenType file; a failure here would only lose the labels.
-        let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, epaint_default_fonts::UBUNTU_LIGHT);
+        let _ = plotters::style::register_font(
+            "sans-serif",
+            FontStyle::Normal,
+            epaint_default_fonts::UBUNTU_LIGHT,
+        );
     });
 }
 
@@ -60,29 +71,45 @@ pub fn plot(pts: &[Point], x_label: &str, title: &str, stem: &Path) -> anyhow::R
     let svg = stem.with_extension("svg");
     {
         let root = BitMapBackend::new(&png, (960, 640)).into_drawing_area();
-        draw(&root, pts, x_label, title).with_context(|| format!("{}: drawing the plot", png.display()))?;
-        root.present().with_context(|| format!("{}: writing", png.display()))?;
+        draw(&root, pts, x_label, title)
+            .with_context(|| format!("{}: drawing the plot", png.display()))?;
+        root.present()
+            .with_context(|| format!("{}: writing", png.display()))?;
     }
     {
         let root = SVGBackend::new(&svg, (960, 640)).into_drawing_area();
-        draw(&root, pts, x_label, title).with_context(|| format!("{}: drawing the plot", svg.display()))?;
-        root.present().with_context(|| format!("{}: writing", svg.display()))?;
+        draw(&root, pts, x_label, title)
+            .with_context(|| format!("{}: drawing the plot", svg.display()))?;
+        root.present()
+            .with_context(|| format!("{}: writing", svg.display()))?;
     }
     Ok(())
 }
 
-fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, plotters::coord::Shift>, pts: &[Point], x_label: &str, title: &str) -> anyhow::Result<()>
+fn draw<DB: DrawingBackend>(
+    root: &DrawingArea<DB, plotters::coord::Shift>,
+    pts: &[Point],
+    x_label: &str,
+    title: &str,
+) -> anyhow::Result<()>
 where
     DB::ErrorType: 'static,
 {
     root.fill(&WHITE).map_err(|e| anyhow::anyhow!("{e:?}"))?;
-    let finite: Vec<&Point> = pts.iter().filter(|p| p.cost.is_finite() && p.cost > 0.0).collect();
+    let finite: Vec<&Point> = pts
+        .iter()
+        .filter(|p| p.cost.is_finite() && p.cost > 0.0)
+        .collect();
     if finite.is_empty() {
         return Ok(());
     }
     let y = |p: &Point| p.psnr.min(PSNR_CAP);
-    let (mut x0, mut x1) = finite.iter().fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p.cost), b.max(p.cost)));
-    let (mut y0, mut y1) = finite.iter().fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(y(p)), b.max(y(p))));
+    let (mut x0, mut x1) = finite.iter().fold((f64::MAX, f64::MIN), |(a, b), p| {
+        (a.min(p.cost), b.max(p.cost))
+    });
+    let (mut y0, mut y1) = finite
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(y(p)), b.max(y(p))));
     if x1 <= x0 {
         x1 = x0 * 2.0;
     }
@@ -110,15 +137,27 @@ where
     series.dedup();
     for (si, s) in series.iter().enumerate() {
         let colour = Palette99::pick(si).to_rgba();
-        let members: Vec<&Point> = finite.iter().copied().filter(|p| p.series == *s && !p.baseline).collect();
+        let members: Vec<&Point> = finite
+            .iter()
+            .copied()
+            .filter(|p| p.series == *s && !p.baseline)
+            .collect();
         chart
-            .draw_series(members.iter().map(|p| Circle::new((p.cost, y(p)), 5, colour.filled())))
+            .draw_series(
+                members
+                    .iter()
+                    .map(|p| Circle::new((p.cost, y(p)), 5, colour.filled())),
+            )
             .map_err(|e| anyhow::anyhow!("{e:?}"))?
             .label(*s)
             .legend(move |(x, yy)| Circle::new((x, yy), 5, colour.filled()));
         chart
             .draw_series(members.iter().map(|p| {
-                Text::new(p.label.clone(), (p.cost, y(p)), ("sans-serif", 12).into_font().color(&BLACK))
+                Text::new(
+                    p.label.clone(),
+                    (p.cost, y(p)),
+                    ("sans-serif", 12).into_font().color(&BLACK),
+                )
             }))
             .map_err(|e| anyhow::anyhow!("{e:?}"))?;
     }
@@ -134,7 +173,11 @@ where
         .legend(|(x, yy)| PathElement::new(vec![(x, yy), (x + 16, yy)], BLACK.stroke_width(2)));
     for p in finite.iter().filter(|p| p.baseline) {
         chart
-            .draw_series(std::iter::once(TriangleMarker::new((p.cost, y(p)), 9, RED.filled())))
+            .draw_series(std::iter::once(TriangleMarker::new(
+                (p.cost, y(p)),
+                9,
+                RED.filled(),
+            )))
             .map_err(|e| anyhow::anyhow!("{e:?}"))?;
         chart
             .draw_series(std::iter::once(Text::new(
@@ -170,7 +213,14 @@ mod tests {
 
     #[test]
     fn pareto_front_keeps_only_undominated_points() {
-        let pts = vec![p(1.0, 20.0), p(2.0, 19.0), p(2.0, 25.0), p(3.0, 24.0), p(4.0, 30.0), p(0.5, f64::NAN)];
+        let pts = vec![
+            p(1.0, 20.0),
+            p(2.0, 19.0),
+            p(2.0, 25.0),
+            p(3.0, 24.0),
+            p(4.0, 30.0),
+            p(0.5, f64::NAN),
+        ];
         assert_eq!(pareto_front(&pts), vec![0, 2, 4]);
     }
 
