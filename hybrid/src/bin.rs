@@ -18,7 +18,8 @@ use splatbridge_scene::GaussianCloud;
 
 use crate::project::Projected;
 
-/// Per-tile lists of Gaussians (indices into the projected array), front to back.
+/// Per-tile lists of Gaussians, front to back, as ranks in the depth order (indices into the
+/// depth-sorted splat array, so a tile reads its splats in increasing memory order).
 #[derive(Clone, Debug, Default)]
 pub struct Bins {
     /// `offsets[t]..offsets[t + 1]` is tile `t`'s range in `list` (tiles row-major).
@@ -153,14 +154,14 @@ pub fn bin_tiles(
     bands.into_par_iter().for_each(|(r0, r1, out)| {
         let base = offsets[r0 * gx];
         let mut cursor: Vec<usize> = offsets[r0 * gx..r1 * gx].iter().map(|o| o - base).collect();
-        for (&k, r) in order.iter().zip(&rects) {
+        for (rank, r) in rects.iter().enumerate() {
             let y0 = (r[1] as usize).max(r0);
             let y1 = (r[3] as usize).min(r1);
             for ty in y0..y1 {
                 let row = (ty - r0) * gx;
                 for tx in r[0] as usize..r[2] as usize {
                     let c = &mut cursor[row + tx];
-                    out[*c] = k;
+                    out[*c] = rank as u32;
                     *c += 1;
                 }
             }

@@ -7,6 +7,7 @@
 //! [`raster`] (per-tile blending), [`native`] (the renderer API: options, statistics).
 
 pub mod bin;
+pub mod kernel;
 pub mod ges;
 pub mod native;
 pub mod project;

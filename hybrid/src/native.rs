@@ -199,7 +199,7 @@ pub fn render(
     let t2 = Instant::now();
     let bins = bin_tiles(&proj, &order, view.grid, MAX_PAIRS).map_err(RenderError::TooManyPairs)?;
     stats.tile_pairs = bins.pairs() as u64;
-    let splats: Vec<_> = proj.par_iter().map(|p| p.splat).collect();
+    let splats: Vec<_> = order.par_iter().map(|&k| proj[k as usize].splat).collect();
     drop(proj);
     let t3 = Instant::now();
     let params = BlendParams {

@@ -6,14 +6,14 @@
 //! `C += colour·α·T`, `T ·= 1 − α`. Output `C + T·background`, alpha `1 − T` and the blended
 //! expected depth `Σ wᵢ·zᵢ / Σ wᵢ` (wᵢ = αᵢ·Tᵢ, 0 where nothing was added).
 //!
-//! The loop runs Gaussian by Gaussian over a tile held in registers-sized planes, eight pixels of
-//! a row at a time (branch-free, so the compiler vectorises it); a pixel that stopped is masked,
-//! which gives exactly the per-pixel loop's result. Each Gaussian visits only the rows and
-//! 8-pixel halves its footprint box can reach ([`crate::project::footprint_box`]): outside it
-//! `α < 1/255` for certain, so skipping is exact. A tile ends as soon as all its pixels stopped.
+//! The loop runs Gaussian by Gaussian over a tile held in small planes, four pixels of a row at
+//! a time ([`crate::kernel`], SIMD); a pixel that stopped is masked, which gives exactly the
+//! per-pixel loop's result. Each Gaussian visits only the rows and 4-pixel groups its footprint
+//! box can reach ([`crate::project::footprint_box`]): outside it `α < 1/255` for certain, so
+//! skipping is exact. A tile ends as soon as all its pixels stopped.
 //!
-//! `exp` is a Cephes-style polynomial (below 2 ulp relative error, see the tests) so the loop
-//! vectorises; the reference uses the GPU's `expf`.
+//! `exp` is a Cephes-style polynomial (below 2 ulp relative error, see the kernel tests) so the
+//! loop vectorises; the reference uses the GPU's `expf`.
 
 use std::cmp::Reverse;
 
@@ -21,12 +21,8 @@ use rayon::prelude::*;
 use splatbridge_scene::Frame;
 
 use crate::bin::Bins;
+use crate::kernel::{blend4, SplatRow, TileState, T};
 use crate::project::{Splat, TILE};
-
-const T: usize = TILE as usize;
-const N: usize = T * T;
-/// Output planes per tile: r, g, b, alpha, depth.
-const PLANES: usize = 5;
 
 /// Blending knobs.
 #[derive(Clone, Copy, Debug)]
@@ -38,116 +34,41 @@ pub struct BlendParams {
     pub exhaustive: bool,
 }
 
-/// `exp(x)` for `x ≤ 0` (larger inputs are treated as 0, smaller than −87 as −87, where the
-/// result is below any α threshold). Cephes `expf`: range reduction by ln 2 split in two
-/// constants, degree-5 polynomial, exponent assembled from bits.
+/// How many list entries ahead [`blend_tile`] prefetches.
+const PREFETCH: usize = 8;
+
 #[inline(always)]
-pub fn exp_nonpos(x: f32) -> f32 {
-    const LOG2E: f32 = std::f32::consts::LOG2_E;
-    const C1: f32 = 0.693_359_4;
-    const C2: f32 = -2.121_944_4e-4;
-    const ROUND: f32 = 12_582_912.0; // 1.5·2²³: adding and subtracting rounds to an integer
-    let x = x.max(-87.0).min(0.0);
-    let n = (x * LOG2E + ROUND) - ROUND;
-    let r = x - n * C1 - n * C2;
-    let mut p = 1.987_569_1e-4f32;
-    p = p * r + 1.398_199_9e-3;
-    p = p * r + 8.333_452e-3;
-    p = p * r + 4.166_579_6e-2;
-    p = p * r + 1.666_666_5e-1;
-    p = p * r + 5.000_000_1e-1;
-    let y = p * r * r + r + 1.0;
-    y * f32::from_bits(((n as i32 + 127) as u32) << 23)
-}
-
-/// Per-pixel accumulators of one tile.
-struct TileState {
-    t: [f32; N],
-    r: [f32; N],
-    g: [f32; N],
-    b: [f32; N],
-    dz: [f32; N],
-    w: [f32; N],
-    done: [u32; N],
-}
-
-impl TileState {
-    fn new(cols: usize, rows: usize) -> Self {
-        let mut done = [1u32; N];
-        for y in 0..rows {
-            done[y * T..y * T + cols].fill(0);
-        }
-        TileState {
-            t: [1.0; N],
-            r: [0.0; N],
-            g: [0.0; N],
-            b: [0.0; N],
-            dz: [0.0; N],
-            w: [0.0; N],
-            done,
-        }
+fn prefetch(s: &Splat) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: a prefetch is a hint without architectural effect; the address is a valid reference.
+    unsafe {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        _mm_prefetch::<_MM_HINT_T0>((s as *const Splat).cast::<i8>());
     }
-
-    /// Blend splat `s` into the eight pixels starting at `base` (pixel x coordinate `x0`,
-    /// `dy = s.y − pixel y`). Returns (blends, pixels that stopped).
-    #[inline(always)]
-    fn blend8(&mut self, base: usize, x0: f32, dy: f32, s: &Splat, clamp: f32) -> (u32, u32) {
-        let t: &mut [f32; 8] = (&mut self.t[base..base + 8]).try_into().unwrap();
-        let r: &mut [f32; 8] = (&mut self.r[base..base + 8]).try_into().unwrap();
-        let g: &mut [f32; 8] = (&mut self.g[base..base + 8]).try_into().unwrap();
-        let b: &mut [f32; 8] = (&mut self.b[base..base + 8]).try_into().unwrap();
-        let dz: &mut [f32; 8] = (&mut self.dz[base..base + 8]).try_into().unwrap();
-        let w: &mut [f32; 8] = (&mut self.w[base..base + 8]).try_into().unwrap();
-        let done: &mut [u32; 8] = (&mut self.done[base..base + 8]).try_into().unwrap();
-        let [c0, c1, c2] = s.conic;
-        let [cr, cg, cb] = s.color;
-        let mut blends = 0u32;
-        let mut stops = 0u32;
-        for l in 0..8 {
-            let dx = s.x - (x0 + l as f32);
-            let power = -0.5 * (c0 * dx * dx + c2 * dy * dy) - c1 * dx * dy;
-            let a = (s.opacity * exp_nonpos(power)).min(clamp);
-            let tl = t[l];
-            let test_t = tl * (1.0 - a);
-            let live = (done[l] == 0) & (power <= 0.0) & (a >= 1.0 / 255.0);
-            let stop = live & (test_t < 1e-4);
-            let add = live & !stop;
-            let wl = a * tl;
-            r[l] = if add { r[l] + cr * wl } else { r[l] };
-            g[l] = if add { g[l] + cg * wl } else { g[l] };
-            b[l] = if add { b[l] + cb * wl } else { b[l] };
-            dz[l] = if add { dz[l] + s.depth * wl } else { dz[l] };
-            w[l] = if add { w[l] + wl } else { w[l] };
-            t[l] = if add { test_t } else { tl };
-            done[l] |= stop as u32;
-            blends += add as u32;
-            stops += stop as u32;
-        }
-        (blends, stops)
-    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = s;
 }
 
-/// Blend one tile whose top-left pixel is `(px0, py0)` and of which `cols × rows` pixels lie
-/// inside the image; writes the planes r, g, b, alpha, depth (each `N`, row-major in the tile)
-/// to `out`. Returns the number of pixel–Gaussian blends.
+/// Blend the Gaussians `list` (front to back) into the tile whose top-left pixel is
+/// `(px0, py0)`; `st` holds the tile's accumulators ([`TileState::new`] marks the pixels outside
+/// the image). Returns the number of pixel–Gaussian blends.
 pub fn blend_tile(
     splats: &[Splat],
     list: &[u32],
     px0: i32,
     py0: i32,
-    cols: usize,
-    rows: usize,
     params: &BlendParams,
-    out: &mut [f32],
+    st: &mut TileState,
 ) -> u64 {
-    let mut st = TileState::new(cols, rows);
-    let active = (cols * rows) as u32;
+    let active = st.done.iter().filter(|&&d| d == 0).count() as u32;
     let mut finished = 0u32;
     let mut blends = 0u64;
     let (tx1, ty1) = (px0 + T as i32 - 1, py0 + T as i32 - 1);
-    for &k in list {
-        if finished == active {
-            break;
+    for (i, &k) in list.iter().enumerate() {
+        // Tile lists are sparse in the splat array: fetch a few entries ahead so the loads
+        // overlap instead of each costing a full memory round trip.
+        if let Some(&ahead) = list.get(i + PREFETCH) {
+            prefetch(&splats[ahead as usize]);
         }
         let s = &splats[k as usize];
         let [bx0, by0, bx1, by1] = if params.exhaustive {
@@ -160,45 +81,93 @@ pub fn blend_tile(
         if x0 > x1 || y0 > y1 {
             continue;
         }
-        let (h0, h1) = (((x0 - px0) / 8) as usize, ((x1 - px0) / 8) as usize);
+        let (q0, q1) = (((x0 - px0) / 4) as usize, ((x1 - px0) / 4) as usize);
+        let [c0, c1, c2] = s.conic;
         for y in y0..=y1 {
             let ly = (y - py0) as usize;
             let dy = s.y - y as f32;
-            for h in h0..=h1 {
-                let (nb, ns) = st.blend8(
-                    ly * T + h * 8,
-                    (px0 + 8 * h as i32) as f32,
-                    dy,
-                    s,
-                    params.alpha_clamp,
-                );
+            let k = SplatRow {
+                sx: s.x,
+                c0,
+                c1dy: c1 * dy,
+                c2dy2: c2 * dy * dy,
+                opacity: s.opacity,
+                clamp: params.alpha_clamp,
+                color: s.color,
+                depth: s.depth,
+            };
+            for q in q0..=q1 {
+                let (nb, ns) = blend4(st, ly * T + q * 4, (px0 + 4 * q as i32) as f32, &k);
                 blends += nb as u64;
                 finished += ns;
             }
         }
-    }
-    let [br, bg, bb] = params.background;
-    let (o_r, rest) = out.split_at_mut(N);
-    let (o_g, rest) = rest.split_at_mut(N);
-    let (o_b, rest) = rest.split_at_mut(N);
-    let (o_a, o_d) = rest.split_at_mut(N);
-    for i in 0..N {
-        let t = st.t[i];
-        o_r[i] = st.r[i] + t * br;
-        o_g[i] = st.g[i] + t * bg;
-        o_b[i] = st.b[i] + t * bb;
-        o_a[i] = 1.0 - t;
-        o_d[i] = if st.w[i] > 0.0 {
-            st.dz[i] / st.w[i]
-        } else {
-            0.0
-        };
+        if finished == active {
+            break;
+        }
     }
     blends
 }
 
+/// Final values of tile pixel `i`: (rgb `C + T·background`, alpha `1 − T`, depth `Σw·z / Σw`).
+#[inline]
+pub fn resolve(st: &TileState, i: usize, background: [f32; 3]) -> ([f32; 3], f32, f32) {
+    let t = st.t[i];
+    let rgb = [
+        st.r[i] + t * background[0],
+        st.g[i] + t * background[1],
+        st.b[i] + t * background[2],
+    ];
+    let depth = if st.w[i] > 0.0 {
+        st.dz[i] / st.w[i]
+    } else {
+        0.0
+    };
+    (rgb, 1.0 - t, depth)
+}
+
+/// The frame's planes as raw pointers, so tiles running in parallel can each write their own
+/// pixels without a tile-major intermediate copy.
+struct FramePlanes {
+    rgb: *mut f32,
+    alpha: *mut f32,
+    depth: *mut f32,
+    width: usize,
+    height: usize,
+}
+
+// SAFETY: the pointers are only written through `write_tile`, whose callers write disjoint
+// pixel sets (each tile its own 16×16 block) while the frame is borrowed mutably by `rasterize`.
+unsafe impl Sync for FramePlanes {}
+
+impl FramePlanes {
+    /// Write tile `st` whose top-left pixel is `(px0, py0)`, clipped to the image.
+    ///
+    /// # Safety
+    /// No other thread may write the same pixels concurrently, and the frame the pointers
+    /// come from must outlive the call.
+    unsafe fn write_tile(&self, px0: usize, py0: usize, st: &TileState, background: [f32; 3]) {
+        let cols = (self.width - px0).min(T);
+        let rows = (self.height - py0).min(T);
+        for y in 0..rows {
+            for x in 0..cols {
+                let (rgb, a, d) = resolve(st, y * T + x, background);
+                let p = (py0 + y) * self.width + px0 + x;
+                // SAFETY: p < width·height (x < cols, y < rows), planes hold 3·, 1·, 1·that.
+                unsafe {
+                    self.rgb.add(3 * p).write(rgb[0]);
+                    self.rgb.add(3 * p + 1).write(rgb[1]);
+                    self.rgb.add(3 * p + 2).write(rgb[2]);
+                    self.alpha.add(p).write(a);
+                    self.depth.add(p).write(d);
+                }
+            }
+        }
+    }
+}
+
 /// Blend every tile (in parallel, largest lists first, one tile per task so heavy tiles never
-/// serialise the frame) and assemble the frame. Returns the frame and the blend count.
+/// serialise the frame) straight into the frame. Returns the frame and the blend count.
 pub fn rasterize(
     splats: &[Splat],
     bins: &Bins,
@@ -208,71 +177,38 @@ pub fn rasterize(
 ) -> (Frame, u64) {
     let gx = width.div_ceil(TILE) as usize;
     let gy = height.div_ceil(TILE) as usize;
-    let mut buf = vec![0f32; gx * gy * PLANES * N];
-    let mut jobs: Vec<(usize, &mut [f32])> = buf.chunks_mut(PLANES * N).enumerate().collect();
-    jobs.sort_by_key(|(t, _)| Reverse(bins.tile(*t).len()));
-    let blends: u64 = jobs
+    let mut order: Vec<usize> = (0..gx * gy).collect();
+    order.sort_by_key(|&t| Reverse(bins.tile(t).len()));
+    let mut frame = Frame::new(width, height);
+    let planes = FramePlanes {
+        rgb: frame.rgb.as_mut_ptr(),
+        alpha: frame.alpha.as_mut_ptr(),
+        depth: frame.depth.as_mut_ptr(),
+        width: width as usize,
+        height: height as usize,
+    };
+    let blends: u64 = order
         .into_par_iter()
         .with_max_len(1)
-        .map(|(t, out)| {
-            let (tx, ty) = (t % gx, t / gx);
-            let (px0, py0) = (tx * T, ty * T);
-            let cols = (width as usize - px0).min(T);
-            let rows = (height as usize - py0).min(T);
-            blend_tile(
+        .map(|t| {
+            let (px0, py0) = ((t % gx) * T, (t / gx) * T);
+            let mut st = TileState::new(
+                (width as usize - px0).min(T),
+                (height as usize - py0).min(T),
+            );
+            let n = blend_tile(
                 splats,
                 bins.tile(t),
                 px0 as i32,
                 py0 as i32,
-                cols,
-                rows,
                 params,
-                out,
-            )
+                &mut st,
+            );
+            // SAFETY: each tile index appears once in `order`, so each pixel is written once;
+            // `frame` lives until after the parallel loop.
+            unsafe { planes.write_tile(px0, py0, &st, params.background) };
+            n
         })
         .sum();
-
-    let mut frame = Frame::new(width, height);
-    let w = width as usize;
-    frame
-        .rgb
-        .par_chunks_mut(3 * w)
-        .zip(frame.alpha.par_chunks_mut(w))
-        .zip(frame.depth.par_chunks_mut(w))
-        .enumerate()
-        .for_each(|(y, ((rgb, alpha), depth))| {
-            let (ty, ly) = (y / T, y % T);
-            for x in 0..w {
-                let tile = &buf[(ty * gx + x / T) * PLANES * N..][..PLANES * N];
-                let i = ly * T + x % T;
-                rgb[3 * x] = tile[i];
-                rgb[3 * x + 1] = tile[N + i];
-                rgb[3 * x + 2] = tile[2 * N + i];
-                alpha[x] = tile[3 * N + i];
-                depth[x] = tile[4 * N + i];
-            }
-        });
     (frame, blends)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn polynomial_exp_matches_f64_exp() {
-        // Cephes quotes ≤ 2 ulp for its expf on this range; allow 3 ulp-ish relative (3.6e-7).
-        let mut worst = 0.0f64;
-        let mut x = 0.0f32;
-        while x > -87.0 {
-            let e = exp_nonpos(x) as f64;
-            let r = (x as f64).exp();
-            worst = worst.max(((e - r) / r).abs());
-            x -= 0.000_731;
-        }
-        assert!(worst < 3.6e-7, "worst relative error {worst}");
-        assert_eq!(exp_nonpos(0.0), 1.0);
-        assert_eq!(exp_nonpos(5.0), 1.0);
-        assert!(exp_nonpos(-1e30) >= 0.0 && exp_nonpos(-1e30) < 1e-37);
-    }
 }

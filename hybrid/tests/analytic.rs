@@ -116,7 +116,8 @@ fn invisible_gaussians_change_nothing() {
     let cam = front_camera(80, 60);
     let base = base_scene();
     let (want, _) = render(&base, &cam, &RenderOptions::default()).unwrap();
-    let extras: Vec<(&str, Box<dyn Fn(&mut GaussianCloud)>)> = vec![
+    type Extra = Box<dyn Fn(&mut GaussianCloud)>;
+    let extras: Vec<(&str, Extra)> = vec![
         (
             "opacity 0",
             Box::new(|c: &mut GaussianCloud| {
