@@ -10,14 +10,15 @@ use super::push_slots;
 use crate::error::{Result, SceneError};
 use crate::GaussianCloud;
 
-/// Decode `n` vertex lines (the caller has bounded `n` by the data size).
+/// Decode `n` vertex lines (the caller has bounded `n` by the data size). The flag is true
+/// when some record may be invalid (see `push_slots`).
 pub(crate) fn read_ascii(
     r: &mut impl BufRead,
     path: &Path,
     header: &Header,
     layout: &Layout,
     n: usize,
-) -> Result<GaussianCloud> {
+) -> Result<(GaussianCloud, bool)> {
     let err = |what: String| SceneError::format(path, what);
     let nprops = header.properties.len();
     // Per property: the canonical slot it fills, if used.
@@ -29,6 +30,7 @@ pub(crate) fn read_ascii(
     let mut cloud = GaussianCloud::with_capacity(layout.sh_degree, n);
     let mut v = [0f32; MAX_SLOTS];
     let mut line = Vec::new();
+    let mut suspect = false;
     for i in 0..n {
         let lineno = header.lines + i + 1;
         line.clear();
@@ -69,7 +71,7 @@ pub(crate) fn read_ascii(
                 "line {lineno} (vertex {i}): expected {nprops} values, found {count}"
             )));
         }
-        push_slots(&mut cloud, &v, n_rest);
+        suspect |= push_slots(&mut cloud, &v, n_rest);
     }
-    Ok(cloud)
+    Ok((cloud, suspect))
 }

@@ -17,14 +17,15 @@ const MIN_CHUNK_BYTES: usize = 64 << 10;
 /// cloud (peak memory = cloud + one chunk) for small files too.
 const CHUNKS_PER_FILE: usize = 16;
 
-/// Decode `n` records (the size check against the file has been done by the caller).
+/// Decode `n` records (the size check against the file has been done by the caller). The flag
+/// is true when some record may be invalid (see `push_slots`).
 pub(crate) fn read_binary(
     r: &mut impl Read,
     path: &Path,
     header: &Header,
     layout: &Layout,
     n: usize,
-) -> Result<GaussianCloud> {
+) -> Result<(GaussianCloud, bool)> {
     let stride = header.stride;
     let mut cloud = GaussianCloud::with_capacity(layout.sh_degree, n);
     let chunk_bytes =
@@ -36,6 +37,7 @@ pub(crate) fn read_binary(
     let all_f32 = slots.iter().all(|&(_, ty)| ty == ScalarType::F32);
     let n_rest = slots.len() - super::header::SLOT_REST;
     let mut done = 0;
+    let mut suspect = false;
     while done < n {
         let m = per_chunk.min(n - done);
         let bytes = &mut buf[..m * stride];
@@ -49,7 +51,7 @@ pub(crate) fn read_binary(
                 SceneError::io(path, e)
             }
         })?;
-        match (header.encoding, all_f32) {
+        suspect |= match (header.encoding, all_f32) {
             (Encoding::BinaryLe, true) => {
                 decode::<true, true>(bytes, stride, &slots, n_rest, &mut cloud)
             }
@@ -63,10 +65,10 @@ pub(crate) fn read_binary(
                 decode::<false, false>(bytes, stride, &slots, n_rest, &mut cloud)
             }
             (Encoding::Ascii, _) => unreachable!("ASCII data is read by the ascii module"),
-        }
+        };
         done += m;
     }
-    Ok(cloud)
+    Ok((cloud, suspect))
 }
 
 #[inline(always)]
@@ -97,7 +99,8 @@ fn decode<const LE: bool, const ALL_F32: bool>(
     slots: &[(usize, ScalarType)],
     n_rest: usize,
     cloud: &mut GaussianCloud,
-) {
+) -> bool {
+    let mut suspect = false;
     let mut v = [0f32; MAX_SLOTS];
     for rec in bytes.chunks_exact(stride) {
         for (dst, &(off, ty)) in v.iter_mut().zip(slots) {
@@ -108,6 +111,7 @@ fn decode<const LE: bool, const ALL_F32: bool>(
                 load_f64::<LE>(rec, off) as f32
             };
         }
-        push_slots(cloud, &v, n_rest);
+        suspect |= push_slots(cloud, &v, n_rest);
     }
+    suspect
 }

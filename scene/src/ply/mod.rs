@@ -136,7 +136,7 @@ pub fn read_ply(path: &Path, opts: &ReadOptions) -> Result<(GaussianCloud, ReadR
         }
     };
 
-    let mut cloud = match header.encoding {
+    let (mut cloud, suspect) = match header.encoding {
         Encoding::Ascii => ascii::read_ascii(&mut r, path, &header, &layout, n)?,
         _ => binary::read_binary(&mut r, path, &header, &layout, n)?,
     };
@@ -161,18 +161,28 @@ pub fn read_ply(path: &Path, opts: &ReadOptions) -> Result<(GaussianCloud, ReadR
         ));
     }
 
-    validate(&mut cloud, path, opts, &mut report)?;
+    validate(&mut cloud, suspect, path, opts, &mut report)?;
     debug_assert!(cloud.check_shape().is_ok());
     Ok((cloud, report))
 }
 
-/// Apply the invalid-Gaussian policy.
+/// Apply the invalid-Gaussian policy. `suspect` is the decoder's conservative flag: when it is
+/// false no Gaussian can be invalid and the per-Gaussian pass is skipped (debug builds run it
+/// anyway and check that nothing was missed).
 fn validate(
     cloud: &mut GaussianCloud,
+    suspect: bool,
     path: &Path,
     opts: &ReadOptions,
     report: &mut ReadReport,
 ) -> Result<()> {
+    if !suspect {
+        debug_assert!(
+            (0..cloud.len()).all(|i| cloud.invalid_reason(i).is_none()),
+            "the decoder's validity screen missed an invalid Gaussian"
+        );
+        return Ok(());
+    }
     let mut bad: Vec<(usize, &'static str)> = Vec::new();
     for i in 0..cloud.len() {
         if let Some(reason) = cloud.invalid_reason(i) {
@@ -254,9 +264,29 @@ fn describe_invalid(cloud: &GaussianCloud, i: usize, reason: &str) -> String {
 }
 
 /// Append one decoded record (values in canonical slot order, see `header`) to the cloud,
-/// reordering channel-major `f_rest` to coefficient-major.
+/// reordering channel-major `f_rest` to coefficient-major. Returns true when the record may be
+/// invalid: a conservative test (any non-finite value other than the opacity, a NaN opacity, or
+/// a quaternion whose squared length is 0) done while the values are in cache, so the full
+/// [`GaussianCloud::invalid_reason`] pass only runs on files that need it.
 #[inline(always)]
-fn push_slots(cloud: &mut GaussianCloud, v: &[f32; header::MAX_SLOTS], n_rest: usize) {
+fn push_slots(cloud: &mut GaussianCloud, v: &[f32; header::MAX_SLOTS], n_rest: usize) -> bool {
+    // x − x is NaN exactly when x is ±inf or NaN. The opacity is left out of the sum (its ±inf
+    // is valid) and tested for NaN on its own.
+    let mut acc = 0.0f32;
+    for &x in v[..SLOT_OPACITY]
+        .iter()
+        .chain(&v[SLOT_OPACITY + 1..SLOT_REST + n_rest])
+    {
+        acc += x - x;
+    }
+    let opacity = v[SLOT_OPACITY];
+    // rot_0 is w.
+    let q = Quat::from_xyzw(
+        v[SLOT_ROT + 1],
+        v[SLOT_ROT + 2],
+        v[SLOT_ROT + 3],
+        v[SLOT_ROT],
+    );
     cloud
         .means
         .push(Vec3::new(v[SLOT_X], v[SLOT_X + 1], v[SLOT_X + 2]));
@@ -265,14 +295,8 @@ fn push_slots(cloud: &mut GaussianCloud, v: &[f32; header::MAX_SLOTS], n_rest: u
         v[SLOT_SCALE + 1],
         v[SLOT_SCALE + 2],
     ));
-    // rot_0 is w.
-    cloud.rotations.push(Quat::from_xyzw(
-        v[SLOT_ROT + 1],
-        v[SLOT_ROT + 2],
-        v[SLOT_ROT + 3],
-        v[SLOT_ROT],
-    ));
-    cloud.opacity_logits.push(v[SLOT_OPACITY]);
+    cloud.rotations.push(q);
+    cloud.opacity_logits.push(opacity);
     cloud
         .sh
         .push(Vec3::new(v[SLOT_DC], v[SLOT_DC + 1], v[SLOT_DC + 2]));
@@ -283,6 +307,7 @@ fn push_slots(cloud: &mut GaussianCloud, v: &[f32; header::MAX_SLOTS], n_rest: u
             .sh
             .push(Vec3::new(rest[c], rest[kr + c], rest[2 * kr + c]));
     }
+    acc.is_nan() || opacity.is_nan() || q.length_squared() == 0.0
 }
 
 /// Write a 3DGS PLY file (atomically: a temporary file renamed on success) in the standard
