@@ -80,41 +80,43 @@ pub fn composite_pixel(
     (rgb, alpha, depth)
 }
 
-/// Blur the surfel colour planes of a tile-major surfel buffer in place (see the module docs).
-pub fn blur_surfels(planes: &mut [f32], width: u32, height: u32, grid: [u32; 2]) {
+/// Blur the surfel colour planes of a surfel buffer in place (see the module docs). `slot` maps
+/// tiles to their planes (`u32::MAX`: no surfel, nothing covered).
+pub fn blur_surfels(slot: &[u32], planes: &mut [f32], width: u32, height: u32, grid: [u32; 2]) {
     let (w, h, gx) = (width as usize, height as usize, grid[0] as usize);
-    let at = |x: usize, y: usize, p: usize| {
-        ((y / T) * gx + x / T) * SURFEL_PLANES * N + p * N + (y % T) * T + x % T
+    let base = |x: usize, y: usize| -> Option<usize> {
+        let s = slot[(y / T) * gx + x / T];
+        (s != u32::MAX).then(|| s as usize * SURFEL_PLANES * N + (y % T) * T + x % T)
     };
     let src: &[f32] = planes;
-    // Row-major blurred colours, then written back.
-    let blurred: Vec<[f32; 3]> = (0..w * h)
+    let blurred: Vec<(usize, [f32; 3])> = (0..w * h)
         .into_par_iter()
-        .map(|i| {
+        .filter_map(|i| {
             let (x, y) = (i % w, i / w);
-            if src[at(x, y, P_W)] <= 0.0 {
-                return [src[at(x, y, P_R)], src[at(x, y, P_G)], src[at(x, y, P_B)]];
+            let b = base(x, y)?;
+            if src[b + P_W * N] <= 0.0 {
+                return None;
             }
             let mut acc = [0f32; 3];
             let mut wsum = 0f32;
             for ny in y.saturating_sub(1)..=(y + 1).min(h - 1) {
                 for nx in x.saturating_sub(1)..=(x + 1).min(w - 1) {
-                    let wq = src[at(nx, ny, P_W)];
+                    let Some(q) = base(nx, ny) else { continue };
+                    let wq = src[q + P_W * N];
                     if wq > 0.0 {
-                        acc[0] += wq * src[at(nx, ny, P_R)];
-                        acc[1] += wq * src[at(nx, ny, P_G)];
-                        acc[2] += wq * src[at(nx, ny, P_B)];
+                        acc[0] += wq * src[q + P_R * N];
+                        acc[1] += wq * src[q + P_G * N];
+                        acc[2] += wq * src[q + P_B * N];
                         wsum += wq;
                     }
                 }
             }
-            acc.map(|v| v / wsum)
+            Some((b, acc.map(|v| v / wsum)))
         })
         .collect();
-    for (i, c) in blurred.iter().enumerate() {
-        let (x, y) = (i % w, i / w);
-        planes[at(x, y, P_R)] = c[0];
-        planes[at(x, y, P_G)] = c[1];
-        planes[at(x, y, P_B)] = c[2];
+    for (b, c) in blurred {
+        planes[b + P_R * N] = c[0];
+        planes[b + P_G * N] = c[1];
+        planes[b + P_B * N] = c[2];
     }
 }

@@ -30,14 +30,53 @@ struct Acc {
     dz: [f32; N],
 }
 
-/// Accumulate and composite one tile whose top-left pixel is `(px0, py0)`. `surf` is the tile's
+/// Eight pixels of a row: branch-free on fixed-size arrays so that the compiler vectorises it.
+#[inline(always)]
+fn lanes8(
+    acc: &mut Acc,
+    base: usize,
+    limit: &[f32],
+    xb: f32,
+    dy: f32,
+    s: &Splat,
+    q: [f32; 3],
+    c: [f32; 3],
+) -> u32 {
+    let r: &mut [f32; 8] = (&mut acc.r[base..base + 8]).try_into().unwrap();
+    let g: &mut [f32; 8] = (&mut acc.g[base..base + 8]).try_into().unwrap();
+    let b: &mut [f32; 8] = (&mut acc.b[base..base + 8]).try_into().unwrap();
+    let w: &mut [f32; 8] = (&mut acc.w[base..base + 8]).try_into().unwrap();
+    let t: &mut [f32; 8] = (&mut acc.t[base..base + 8]).try_into().unwrap();
+    let dz: &mut [f32; 8] = (&mut acc.dz[base..base + 8]).try_into().unwrap();
+    let limit: &[f32; 8] = limit.try_into().unwrap();
+    // power = −½·c0·dx² − c1·dy·dx − ½·c2·dy², with the row terms formed once.
+    let (k1, k0) = (-q[1] * dy, -0.5 * q[2] * dy * dy);
+    let mut n = 0u32;
+    for l in 0..8 {
+        let dx = s.x - (xb + l as f32);
+        let power = -0.5 * q[0] * dx * dx + k1 * dx + k0;
+        let a = s.opacity * exp_nonpos(power);
+        let add = (power <= 0.0) & (a >= 1.0 / 255.0) & (s.depth <= limit[l]);
+        let a = if add { a } else { 0.0 };
+        r[l] += c[0] * a;
+        g[l] += c[1] * a;
+        b[l] += c[2] * a;
+        w[l] += a;
+        dz[l] += s.depth * a;
+        t[l] *= 1.0 - a;
+        n += add as u32;
+    }
+    n
+}
+
+/// Accumulate and composite one tile whose top-left pixel is `(px0, py0)`. `surf` is the tile's (None: no surfel touches the tile)
 /// surfel planes, `out` receives r, g, b, alpha, depth (`N` each). Returns the blend count.
 pub fn gauss_tile(
     splats: &[Splat],
     list: &[u32],
     px0: i32,
     py0: i32,
-    surf: &[f32],
+    surf: Option<&[f32]>,
     bg: [f32; 3],
     out: &mut [f32],
 ) -> u64 {
@@ -49,7 +88,11 @@ pub fn gauss_tile(
         t: [1.0; N],
         dz: [0.0; N],
     };
-    let limit: &[f32; N] = surf[P_LIMIT * N..(P_LIMIT + 1) * N].try_into().unwrap();
+    const INF: [f32; N] = [f32::INFINITY; N];
+    let limit: &[f32; N] = match surf {
+        Some(p) => p[P_LIMIT * N..(P_LIMIT + 1) * N].try_into().unwrap(),
+        None => &INF,
+    };
     // Largest limit of each 8-pixel half row.
     let mut group_max = [f32::NEG_INFINITY; N / 8];
     for (gi, m) in group_max.iter_mut().enumerate() {
@@ -80,23 +123,16 @@ pub fn gauss_tile(
                     continue;
                 }
                 let xb = (px0 + 8 * h as i32) as f32;
-                let mut n = 0u32;
-                for l in 0..8 {
-                    let i = base + l;
-                    let dx = s.x - (xb + l as f32);
-                    let power = -0.5 * (c0 * dx * dx + c2 * dy * dy) - c1 * dx * dy;
-                    let a = s.opacity * exp_nonpos(power);
-                    let add = (power <= 0.0) & (a >= 1.0 / 255.0) & (s.depth <= limit[i]);
-                    let a = if add { a } else { 0.0 };
-                    acc.r[i] += cr * a;
-                    acc.g[i] += cg * a;
-                    acc.b[i] += cb * a;
-                    acc.w[i] += a;
-                    acc.dz[i] += s.depth * a;
-                    acc.t[i] *= 1.0 - a;
-                    n += add as u32;
-                }
-                blends += n as u64;
+                blends += lanes8(
+                    &mut acc,
+                    base,
+                    &limit[base..base + 8],
+                    xb,
+                    dy,
+                    s,
+                    [c0, c1, c2],
+                    [cr, cg, cb],
+                ) as u64;
             }
         }
     }
@@ -107,9 +143,15 @@ pub fn gauss_tile(
             t: acc.t[i],
             dz: acc.dz[i],
         };
-        let cs = [surf[P_R * N + i], surf[P_G * N + i], surf[P_B * N + i]];
-        let (rgb, alpha, depth) =
-            composite_pixel(cs, surf[P_W * N + i], surf[P_DEPTH * N + i], &g, bg);
+        let (cs, ws, ds) = match surf {
+            Some(p) => (
+                [p[P_R * N + i], p[P_G * N + i], p[P_B * N + i]],
+                p[P_W * N + i],
+                p[P_DEPTH * N + i],
+            ),
+            None => ([0.0; 3], 0.0, 0.0),
+        };
+        let (rgb, alpha, depth) = composite_pixel(cs, ws, ds, &g, bg);
         out[i] = rgb[0];
         out[N + i] = rgb[1];
         out[2 * N + i] = rgb[2];

@@ -34,7 +34,7 @@ use crate::native::{
 use crate::project::{Extent, ViewParams};
 
 use gauss_pass::{gauss_tile, OUT_PLANES};
-use surfel_pass::{N, P_LIMIT, SURFEL_PLANES, T};
+use surfel_pass::{N, P_LIMIT, T};
 
 /// Knobs of the hybrid renderer.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -180,7 +180,13 @@ pub fn render_ges_with_ids(
     )
     .map_err(RenderError::TooManyPairs)?;
     if opts.blur {
-        composite::blur_surfels(&mut sb.planes, camera.width, camera.height, view.grid);
+        composite::blur_surfels(
+            &sb.slot,
+            &mut sb.planes,
+            camera.width,
+            camera.height,
+            view.grid,
+        );
     }
     stats.surfels_drawn = sb.drawn;
     stats.surfel_pairs = sb.pairs;
@@ -199,14 +205,14 @@ pub fn render_ges_with_ids(
     let t2 = Instant::now();
 
     let (gx, gy) = (view.grid[0] as usize, view.grid[1] as usize);
-    let tile_max: Vec<f32> = sb
-        .planes
-        .par_chunks(SURFEL_PLANES * N)
-        .map(|p| {
-            p[P_LIMIT * N..(P_LIMIT + 1) * N]
+    let tile_max: Vec<f32> = (0..gx * gy)
+        .into_par_iter()
+        .map(|t| match sb.tile(t) {
+            Some(p) => p[P_LIMIT * N..(P_LIMIT + 1) * N]
                 .iter()
                 .cloned()
-                .fold(f32::NEG_INFINITY, f32::max)
+                .fold(f32::NEG_INFINITY, f32::max),
+            None => f32::INFINITY,
         })
         .collect();
     let rects: Vec<[u32; 4]> = proj.iter().map(|p| p.rect).collect();
@@ -233,8 +239,7 @@ pub fn render_ges_with_ids(
         .with_max_len(1)
         .map(|(t, out)| {
             let (px0, py0) = (((t % gx) * T) as i32, ((t / gx) * T) as i32);
-            let surf = &sb.planes[t * SURFEL_PLANES * N..(t + 1) * SURFEL_PLANES * N];
-            gauss_tile(&splats, bins.tile(t), px0, py0, surf, bg, out)
+            gauss_tile(&splats, bins.tile(t), px0, py0, sb.tile(t), bg, out)
         })
         .sum();
     let frame = assemble(&buf, camera.width, camera.height, gx);

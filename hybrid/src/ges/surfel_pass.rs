@@ -200,15 +200,28 @@ pub fn project_surfel(
     })
 }
 
-/// Result of pass 1: tile-major planes (see `P_*`) and, per pixel (row-major), the index of
-/// the surfel that won the first sample (`u32::MAX` where none).
+/// Result of pass 1. Only tiles that some surfel touches hold planes (see `P_*`, `N` values
+/// each): `slot[t]` is tile t's index into `planes` in units of `SURFEL_PLANES·N`, `u32::MAX`
+/// for a tile without surfels (nothing covered, limit +inf). `ids` holds, per pixel (row-major),
+/// the index of the surfel that won the pixel's first sample (`u32::MAX` where none).
 pub struct SurfelBuffer {
+    pub slot: Vec<u32>,
     pub planes: Vec<f32>,
     pub ids: Vec<u32>,
     /// Surfels that reached at least one tile.
     pub drawn: usize,
     /// Surfel–tile pairs.
     pub pairs: usize,
+}
+
+impl SurfelBuffer {
+    /// Tile t's planes, if any surfel touches it.
+    pub fn tile(&self, t: usize) -> Option<&[f32]> {
+        let s = self.slot[t];
+        (s != u32::MAX).then(|| {
+            &self.planes[s as usize * SURFEL_PLANES * N..(s as usize + 1) * SURFEL_PLANES * N]
+        })
+    }
 }
 
 /// Sample offsets for a supersampling factor (1 or 4).
@@ -251,14 +264,22 @@ pub fn surfel_pass(
     let (gx, gy) = (view.grid[0] as usize, view.grid[1] as usize);
     let offs = offsets(supersample);
     let near = view.near as f32;
-    let mut planes = vec![0f32; gx * gy * SURFEL_PLANES * N];
-    let mut tile_ids = vec![u32::MAX; gx * gy * N];
+    let mut slot = vec![u32::MAX; gx * gy];
+    let mut tiles_used = Vec::new();
+    for (t, sl) in slot.iter_mut().enumerate() {
+        if !bins.tile(t).is_empty() {
+            *sl = tiles_used.len() as u32;
+            tiles_used.push(t);
+        }
+    }
+    let mut planes = vec![0f32; tiles_used.len() * SURFEL_PLANES * N];
+    let mut tile_ids = vec![u32::MAX; tiles_used.len() * N];
     planes
         .par_chunks_mut(SURFEL_PLANES * N)
         .zip(tile_ids.par_chunks_mut(N))
-        .enumerate()
+        .zip(tiles_used.par_iter())
         .with_max_len(1)
-        .for_each(|(tile, (out, ids))| {
+        .for_each(|((out, ids), &tile)| {
             let (px0, py0) = (((tile % gx) * T) as i32, ((tile / gx) * T) as i32);
             raster_tile(&proj, bins.tile(tile), px0, py0, view, offs, near, out, ids);
         });
@@ -267,15 +288,18 @@ pub fn surfel_pass(
     let mut ids = vec![u32::MAX; w * h];
     ids.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
         for (x, v) in row.iter_mut().enumerate() {
-            let k = tile_ids[((y / T) * gx + x / T) * N + (y % T) * T + x % T];
-            *v = if k == u32::MAX {
-                k
-            } else {
-                proj[k as usize].index
-            };
+            let sl = slot[(y / T) * gx + x / T];
+            if sl != u32::MAX {
+                let k = tile_ids[sl as usize * N + (y % T) * T + x % T];
+                if k != u32::MAX {
+                    *v = proj[k as usize].index;
+                }
+            }
         }
     });
+    let _ = gy;
     Ok(SurfelBuffer {
+        slot,
         planes,
         ids,
         drawn: rects.iter().filter(|r| r[2] > r[0] && r[3] > r[1]).count(),
@@ -297,8 +321,8 @@ fn raster_tile(
 ) {
     let ns = offs.len();
     let r2 = footprint_r2();
-    let mut zbuf = vec![f32::INFINITY; ns * N];
-    let mut win = vec![u32::MAX; ns * N];
+    let mut zbuf = [f32::INFINITY; 4 * N];
+    let mut win = [u32::MAX; 4 * N];
     let (tx1, ty1) = (px0 + T as i32 - 1, py0 + T as i32 - 1);
     for &k in list {
         let s = &proj[k as usize];
