@@ -94,7 +94,10 @@ fn save_then_load_round_trips() {
     let (back, warnings) = load_scene(&saved.manifest, &ReadOptions::default()).unwrap();
     assert!(warnings.is_empty(), "{warnings:?}");
     assert_eq!(back.time, scene.time);
-    assert_eq!(back.effects, scene.effects, "declared effects kept as written");
+    assert_eq!(
+        back.effects, scene.effects,
+        "declared effects kept as written"
+    );
     assert_eq!(back.static_gaussians, scene.static_gaussians);
     assert_eq!(back.objects.len(), 2);
     for (a, b) in back.objects.iter().zip(&scene.objects) {
