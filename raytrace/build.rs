@@ -13,8 +13,14 @@ fn main() {
     let dir = match std::env::var_os("SPLATBRIDGE_EMBREE_DIR") {
         Some(d) => PathBuf::from(d),
         None => {
-            let manifest = PathBuf::from(std::env::var_os("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR"));
-            manifest.join("..").join(".tools").join("embree").join("lib")
+            let manifest = PathBuf::from(
+                std::env::var_os("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR"),
+            );
+            manifest
+                .join("..")
+                .join(".tools")
+                .join("embree")
+                .join("lib")
         }
     };
     let dir = dir.canonicalize().unwrap_or(dir);

@@ -14,6 +14,11 @@
 //! viewer draws an opaque triangle; the rasterizer's "stop without adding" rule would drop it),
 //! and no 0.99 clamp or 1/255 cut is applied: those belong to the Gaussians, not to the mesh.
 //!
+//! Colour: glTF vertex colours are linear; by default each hit's colour is sRGB-encoded
+//! before blending, so the image is in display values and composited like native splatting
+//! (`Compositing::Display`); `Compositing::Viewer` blends in linear light and encodes the
+//! result, as Blender or three.js show the file. Colours are clamped to [0, 1] (glTF's range).
+//!
 //! Geometry: one BVH per mesh in the mesh's local frame, relative to an anchor (the centre of
 //! its bounds) so f32 keeps precision far from the origin; at time t each visible node is an
 //! instance and the ray is carried into its frame in f64 (instancing, no per-frame rebuild).
@@ -24,8 +29,8 @@ use glam::{DAffine3, DVec3, Vec3, Vec4};
 
 use crate::backend::{build_triangles, Accel, BackendKind, BuildPreset};
 use crate::error::Result;
-use crate::model::TriScene;
-use crate::render::{ray_box, render_frame, PixelOut, RenderOptions, Stats};
+use crate::model::{linear_to_srgb, srgb_to_linear, TriScene};
+use crate::render::{ray_box, render_frame, Compositing, PixelOut, RenderOptions, Stats};
 use crate::tri::WRay;
 use splatbridge_scene::{Camera, Frame};
 
@@ -318,6 +323,11 @@ impl MeshTracer {
         let mut tr = 1.0f32;
         let (mut c, mut dsum, mut wsum) = (Vec3::ZERO, 0.0f32, 0.0f32);
         let mut after = None;
+        let lin = self.scene.colors_linear;
+        let (to_display, to_linear) = match opts.compositing {
+            Compositing::Display => (lin, false),
+            Compositing::Viewer => (false, !lin),
+        };
         'rounds: loop {
             self.collect(insts, o, d, 0.0, f32::INFINITY, after, buf);
             out.traversals += 1;
@@ -327,7 +337,13 @@ impl MeshTracer {
                 let a = rgba.w;
                 if a > 0.0 {
                     let w = a * tr;
-                    c += rgba.truncate() * w;
+                    let mut rgb = rgba.truncate().clamp(Vec3::ZERO, Vec3::ONE);
+                    if to_display {
+                        rgb = Vec3::new(linear_to_srgb(rgb.x), linear_to_srgb(rgb.y), linear_to_srgb(rgb.z));
+                    } else if to_linear {
+                        rgb = Vec3::new(srgb_to_linear(rgb.x), srgb_to_linear(rgb.y), srgb_to_linear(rgb.z));
+                    }
+                    c += rgb * w;
                     dsum += w * h.t;
                     wsum += w;
                     tr *= 1.0 - a;
@@ -342,6 +358,13 @@ impl MeshTracer {
             after = buf.hits.last().map(Hit::key);
         }
         out.rgb = c + opts.background * tr;
+        if opts.compositing == Compositing::Viewer {
+            // The background is a display colour; blend it in linear light, then encode.
+            let bg = opts.background;
+            let lin = c + Vec3::new(srgb_to_linear(bg.x), srgb_to_linear(bg.y), srgb_to_linear(bg.z)) * tr;
+            let l = lin.clamp(Vec3::ZERO, Vec3::ONE);
+            out.rgb = Vec3::new(linear_to_srgb(l.x), linear_to_srgb(l.y), linear_to_srgb(l.z));
+        }
         out.alpha = 1.0 - tr;
         out.depth = if wsum > 0.0 { dsum / wsum } else { 0.0 };
         out

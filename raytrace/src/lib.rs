@@ -25,4 +25,4 @@ pub use composite::MeshTracer;
 pub use error::{Result, TraceError};
 pub use gaussian::GaussianTracer;
 pub use model::{AlphaMode, TriScene};
-pub use render::{RenderOptions, Stats};
+pub use render::{Compositing, RenderOptions, Stats};

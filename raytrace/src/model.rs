@@ -77,11 +77,24 @@ pub struct Mesh {
     pub has_gaussian_ids: bool,
 }
 
-/// glTF perspective camera parameters.
+/// glTF perspective camera parameters, plus the exact OpenCV intrinsics when the file keeps
+/// them (`extras.opencv` on the camera, as `splatbridge convert` writes).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Perspective {
     pub yfov: f64,
     pub aspect: Option<f64>,
+    pub opencv: Option<Intrinsics>,
+}
+
+/// Pixel size and intrinsics of a camera.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Intrinsics {
+    pub width: u32,
+    pub height: u32,
+    pub fx: f64,
+    pub fy: f64,
+    pub cx: f64,
+    pub cy: f64,
 }
 
 /// Which property an animation channel drives.
@@ -156,6 +169,9 @@ pub struct TriScene {
     pub textures: Vec<Texture>,
     pub nodes: Vec<Node>,
     pub channels: Vec<Channel>,
+    /// Vertex colours are linear (glTF's rule; splatbridge writes sRGB-decoded 3DGS colours)
+    /// rather than display values (OBJ, or a glTF whose splatbridge metadata says `display`).
+    pub colors_linear: bool,
 }
 
 /// Default image height for glTF cameras, which carry no pixel size (the width follows the
@@ -174,6 +190,7 @@ impl TriScene {
                 ..Node::default()
             }],
             channels: Vec::new(),
+            colors_linear: false,
         }
     }
 
@@ -312,17 +329,27 @@ impl TriScene {
             }
             let za = xa.cross(ya);
             let c2w = DMat3::from_cols(xa, -ya, -za);
-            let h = GLTF_CAMERA_HEIGHT;
-            let aspect = p.aspect.filter(|a| *a > 0.0 && a.is_finite()).unwrap_or(4.0 / 3.0);
-            let wpx = ((h as f64 * aspect).round() as u32).max(1);
-            let f = 0.5 * h as f64 / (0.5 * p.yfov).tan();
+            let k = p.opencv.unwrap_or_else(|| {
+                let h = GLTF_CAMERA_HEIGHT;
+                let aspect = p.aspect.filter(|a| *a > 0.0 && a.is_finite()).unwrap_or(4.0 / 3.0);
+                let wpx = ((h as f64 * aspect).round() as u32).max(1);
+                let f = 0.5 * h as f64 / (0.5 * p.yfov).tan();
+                Intrinsics {
+                    width: wpx,
+                    height: h,
+                    fx: f,
+                    fy: f,
+                    cx: 0.5 * wpx as f64,
+                    cy: 0.5 * h as f64,
+                }
+            });
             out.push(Camera {
-                width: wpx,
-                height: h,
-                fx: f,
-                fy: f,
-                cx: 0.5 * wpx as f64,
-                cy: 0.5 * h as f64,
+                width: k.width,
+                height: k.height,
+                fx: k.fx,
+                fy: k.fy,
+                cx: k.cx,
+                cy: k.cy,
                 centre: w.translation,
                 world_to_cam: c2w.transpose(),
                 name: if n.name.is_empty() { format!("node {i}") } else { n.name.clone() },
@@ -426,6 +453,16 @@ impl Texture {
         let a = self.texel(x0, y0).lerp(self.texel(x0 + 1, y0), fx);
         let b = self.texel(x0, y0 + 1).lerp(self.texel(x0 + 1, y0 + 1), fx);
         a.lerp(b, fy)
+    }
+}
+
+/// sRGB transfer function encode (linear → display value), for colours clamped to [0, 1].
+#[inline]
+pub fn linear_to_srgb(c: f32) -> f32 {
+    if c <= 0.003_130_8 {
+        c * 12.92
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
     }
 }
 

@@ -12,6 +12,18 @@ use splatbridge_scene::{Camera, Frame};
 
 use crate::error::{Result, TraceError};
 
+/// How mode `mesh` turns vertex colours into the image.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Compositing {
+    /// Blend display values, as native splatting does: linear file colours (glTF) are
+    /// sRGB-encoded per hit before blending. The image compares directly with native renders.
+    #[default]
+    Display,
+    /// Blend in linear light and encode the result to sRGB, as a viewer (Blender, three.js)
+    /// shows the file.
+    Viewer,
+}
+
 /// Options shared by the modes.
 #[derive(Clone, Debug)]
 pub struct RenderOptions {
@@ -24,6 +36,8 @@ pub struct RenderOptions {
     /// Mode `gaussian`: Gaussians whose mean is at view depth ≤ `near` are culled, as the
     /// rasterizer does (reference 0.2).
     pub near: f32,
+    /// Mode `mesh`: colour handling (see [`Compositing`]).
+    pub compositing: Compositing,
 }
 
 impl Default for RenderOptions {
@@ -33,6 +47,7 @@ impl Default for RenderOptions {
             background: Vec3::ZERO,
             min_transmittance: 1e-4,
             near: crate::gaussian::NEAR_CULL,
+            compositing: Compositing::Display,
         }
     }
 }

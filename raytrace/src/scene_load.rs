@@ -20,7 +20,7 @@ use glam::{DAffine3, DMat4, DQuat, DVec3, Vec2, Vec3, Vec4};
 
 use crate::error::{Result, TraceError};
 use crate::model::{
-    srgb_to_linear, AlphaMode, Channel, ChannelPath, Interpolation, Material, Mesh, Node, Perspective, Texture, TriScene, Wrap,
+    srgb_to_linear, AlphaMode, Channel, ChannelPath, Interpolation, Intrinsics, Material, Mesh, Node, Perspective, Texture, TriScene, Wrap,
 };
 
 /// Load a triangle scene by extension: `.glb`, `.gltf`, `.obj`.
@@ -311,6 +311,7 @@ fn from_gltf(path: &Path, doc: &gltf::Document, buffers: &[gltf::buffer::Data], 
                 node.camera = Some(Perspective {
                     yfov,
                     aspect: p.aspect_ratio().map(|a| a as f64),
+                    opencv: opencv_extras(c.extras()),
                 });
             }
         }
@@ -370,13 +371,37 @@ fn from_gltf(path: &Path, doc: &gltf::Document, buffers: &[gltf::buffer::Data], 
         }
     }
 
+    // glTF's COLOR_0 is linear unless splatbridge metadata says the file keeps display values.
+    let encoding = extras_value(&doc.as_json().asset.extras)
+        .and_then(|v| v.pointer("/splatbridge/colorEncoding").and_then(|e| e.as_str().map(str::to_owned)));
     Ok(TriScene {
         meshes,
         materials,
         textures,
         nodes,
         channels,
+        colors_linear: encoding.as_deref() != Some("display"),
     })
+}
+
+fn extras_value(e: &gltf::json::Extras) -> Option<serde_json::Value> {
+    e.as_ref().and_then(|raw| serde_json::from_str(raw.get()).ok())
+}
+
+/// `extras.opencv` = {width, height, fx, fy, cx, cy} on a camera, when complete and valid.
+fn opencv_extras(e: &gltf::json::Extras) -> Option<Intrinsics> {
+    let v = extras_value(e)?;
+    let o = v.get("opencv")?;
+    let f = |k: &str| o.get(k).and_then(|x| x.as_f64()).filter(|x| x.is_finite());
+    let k = Intrinsics {
+        width: o.get("width")?.as_u64()?.try_into().ok()?,
+        height: o.get("height")?.as_u64()?.try_into().ok()?,
+        fx: f("fx")?,
+        fy: f("fy")?,
+        cx: f("cx")?,
+        cy: f("cy")?,
+    };
+    (k.width > 0 && k.height > 0 && k.fx > 0.0 && k.fy > 0.0).then_some(k)
 }
 
 fn obj_options() -> tobj::LoadOptions {
@@ -418,8 +443,10 @@ fn obj_scene(path: &Path, models: Vec<tobj::Model>, mats: Vec<tobj::Material>) -
         .collect();
     let default_material = materials.len() as u32;
     materials.push(Material::default());
+    // OBJ has no colour-space rule; splatbridge writes 3DGS display values there.
     let mut scene = TriScene {
         materials,
+        colors_linear: false,
         ..TriScene::default()
     };
     for (mi, model) in models.into_iter().enumerate() {

@@ -21,10 +21,26 @@ fn random_cloud(seed: u64, n: usize, offset: Vec3) -> GaussianCloud {
     for _ in 0..n {
         let m = offset + Vec3::new(r.range(-1.0, 1.0), r.range(-1.0, 1.0), r.range(-1.0, 1.0));
         let s = Vec3::new(r.range(0.02, 0.2), r.range(0.02, 0.2), r.range(0.005, 0.2));
-        let q = Quat::from_xyzw(r.range(-1.0, 1.0), r.range(-1.0, 1.0), r.range(-1.0, 1.0), r.range(-1.0, 1.0));
-        let sh: Vec<Vec3> = (0..9).map(|k| Vec3::new(r.range(-1.0, 1.0), r.range(-1.0, 1.0), r.range(-1.0, 1.0)) * if k == 0 { 1.5 } else { 0.3 }).collect();
+        let q = Quat::from_xyzw(
+            r.range(-1.0, 1.0),
+            r.range(-1.0, 1.0),
+            r.range(-1.0, 1.0),
+            r.range(-1.0, 1.0),
+        );
+        let sh: Vec<Vec3> = (0..9)
+            .map(|k| {
+                Vec3::new(r.range(-1.0, 1.0), r.range(-1.0, 1.0), r.range(-1.0, 1.0))
+                    * if k == 0 { 1.5 } else { 0.3 }
+            })
+            .collect();
         let o = r.range(0.0, 1.0);
-        c.push(m, Vec3::new(s.x.ln(), s.y.ln(), s.z.ln()), q, splatbridge_scene::gaussians::logit(o), &sh);
+        c.push(
+            m,
+            Vec3::new(s.x.ln(), s.y.ln(), s.z.ln()),
+            q,
+            splatbridge_scene::gaussians::logit(o),
+            &sh,
+        );
     }
     c
 }
@@ -67,7 +83,11 @@ fn reference(c: &GaussianCloud, o: DVec3, d: DVec3, fwd: Option<DVec3>) -> (Vec<
         if alpha < 1.0 / 255.0 {
             continue;
         }
-        hits.push(RefG { t: t.max(0.0), i, alpha });
+        hits.push(RefG {
+            t: t.max(0.0),
+            i,
+            alpha,
+        });
     }
     hits.sort_by(|x, y| x.t.total_cmp(&y.t).then(x.i.cmp(&y.i)));
     for w in hits.windows(2) {
@@ -122,18 +142,34 @@ fn check(cloud: &GaussianCloud, cam: &Camera, b: BackendKind) {
             let px = frame.rgb_at(i, j);
             // f32 response and SH against f64: ~1e-6 per Gaussian, bound 1e-5 as in the issue.
             for ch in 0..3 {
-                assert!((px[ch] as f64 - rgb[ch]).abs() <= 1e-5, "{b}: ({i}, {j}) {ch}: {} vs {}", px[ch], rgb[ch]);
+                assert!(
+                    (px[ch] as f64 - rgb[ch]).abs() <= 1e-5,
+                    "{b}: ({i}, {j}) {ch}: {} vs {}",
+                    px[ch],
+                    rgb[ch]
+                );
             }
             assert!((frame.alpha[(j * cam.width + i) as usize] as f64 - alpha).abs() <= 1e-5);
         }
     }
-    assert!(skipped * 50 <= (cam.width * cam.height) as usize, "{skipped} ambiguous pixels");
+    assert!(
+        skipped * 50 <= (cam.width * cam.height) as usize,
+        "{skipped} ambiguous pixels"
+    );
 }
 
 #[test]
 fn random_gaussians_match_reference() {
     let cloud = random_cloud(7, 400, Vec3::ZERO);
-    let cam = Camera::look_at(DVec3::new(0.2, -0.3, -3.5), DVec3::ZERO, DVec3::NEG_Y, 55.0, 40, 30).unwrap();
+    let cam = Camera::look_at(
+        DVec3::new(0.2, -0.3, -3.5),
+        DVec3::ZERO,
+        DVec3::NEG_Y,
+        55.0,
+        40,
+        30,
+    )
+    .unwrap();
     for b in backends() {
         check(&cloud, &cam, b);
     }
@@ -144,7 +180,15 @@ fn far_from_origin_gaussians_match_reference() {
     let off = Vec3::new(-1e5, 1e5, 1e5);
     let cloud = random_cloud(8, 200, off);
     let c = off.as_dvec3();
-    let cam = Camera::look_at(c + DVec3::new(0.2, -0.3, -3.5), c, DVec3::NEG_Y, 55.0, 32, 24).unwrap();
+    let cam = Camera::look_at(
+        c + DVec3::new(0.2, -0.3, -3.5),
+        c,
+        DVec3::NEG_Y,
+        55.0,
+        32,
+        24,
+    )
+    .unwrap();
     for b in backends() {
         check(&cloud, &cam, b);
     }
@@ -153,14 +197,46 @@ fn far_from_origin_gaussians_match_reference() {
 #[test]
 fn single_gaussian_head_on_and_degenerate_values() {
     let mut c = GaussianCloud::new(0);
-    c.push_activated(Vec3::ZERO, Vec3::splat(0.5), Quat::IDENTITY, 0.7, Vec3::new(0.2, 0.4, 0.6));
+    c.push_activated(
+        Vec3::ZERO,
+        Vec3::splat(0.5),
+        Quat::IDENTITY,
+        0.7,
+        Vec3::new(0.2, 0.4, 0.6),
+    );
     // Degenerate: a needle (scale 1e-10), +inf opacity logit, zero quaternion, opacity below 1/255.
-    c.push(Vec3::new(0.3, 0.0, 0.0), Vec3::new(-23.0, 0.0, 0.0), Quat::IDENTITY, f32::INFINITY, &[Vec3::ZERO]);
-    c.push(Vec3::new(-0.3, 0.0, 0.0), Vec3::ZERO, Quat::from_xyzw(0.0, 0.0, 0.0, 0.0), 0.0, &[Vec3::ZERO]);
-    c.push_activated(Vec3::new(0.0, 0.3, 0.0), Vec3::ONE, Quat::IDENTITY, 0.003, Vec3::ONE);
+    c.push(
+        Vec3::new(0.3, 0.0, 0.0),
+        Vec3::new(-23.0, 0.0, 0.0),
+        Quat::IDENTITY,
+        f32::INFINITY,
+        &[Vec3::ZERO],
+    );
+    c.push(
+        Vec3::new(-0.3, 0.0, 0.0),
+        Vec3::ZERO,
+        Quat::from_xyzw(0.0, 0.0, 0.0, 0.0),
+        0.0,
+        &[Vec3::ZERO],
+    );
+    c.push_activated(
+        Vec3::new(0.0, 0.3, 0.0),
+        Vec3::ONE,
+        Quat::IDENTITY,
+        0.003,
+        Vec3::ONE,
+    );
     for b in backends() {
         let t = GaussianTracer::new(c.clone(), b, BuildPreset::Medium).unwrap();
-        let cam = Camera::look_at(DVec3::new(0.0, 0.0, -4.0), DVec3::ZERO, DVec3::NEG_Y, 40.0, 17, 17).unwrap();
+        let cam = Camera::look_at(
+            DVec3::new(0.0, 0.0, -4.0),
+            DVec3::ZERO,
+            DVec3::NEG_Y,
+            40.0,
+            17,
+            17,
+        )
+        .unwrap();
         let (f, _) = t.render(&cam, &RenderOptions::default()).unwrap();
         assert!(f.is_finite());
         // The centre ray meets the first Gaussian's peak: α = 0.7, colour as pushed.
@@ -168,6 +244,9 @@ fn single_gaussian_head_on_and_degenerate_values() {
         assert_eq!(hits[0].gaussian, 0);
         assert!((hits[0].bary[0] - 0.7).abs() < 1e-6);
         assert!((hits[0].t - 4.0).abs() < 1e-5);
-        assert!(hits.iter().all(|h| h.gaussian != 3), "opacity below 1/255 never contributes");
+        assert!(
+            hits.iter().all(|h| h.gaussian != 3),
+            "opacity below 1/255 never contributes"
+        );
     }
 }

@@ -20,11 +20,20 @@ struct Bin {
 }
 
 impl Bin {
-    fn push(&mut self, bytes: &[u8], comp: u32, count: usize, ty: &str, normalized: bool, minmax: Option<(Vec<f32>, Vec<f32>)>) -> usize {
+    fn push(
+        &mut self,
+        bytes: &[u8],
+        comp: u32,
+        count: usize,
+        ty: &str,
+        normalized: bool,
+        minmax: Option<(Vec<f32>, Vec<f32>)>,
+    ) -> usize {
         while self.data.len() % 4 != 0 {
             self.data.push(0);
         }
-        self.views.push(json!({"buffer": 0, "byteOffset": self.data.len(), "byteLength": bytes.len()}));
+        self.views
+            .push(json!({"buffer": 0, "byteOffset": self.data.len(), "byteLength": bytes.len()}));
         self.data.extend_from_slice(bytes);
         let mut a = json!({"bufferView": self.views.len() - 1, "componentType": comp, "count": count, "type": ty});
         if normalized {
@@ -45,7 +54,14 @@ impl Bin {
 
 fn png_bytes() -> Vec<u8> {
     // 4×1 texture: white RGB, alpha falling 1, 0.75, 0.5, 0.25 left to right.
-    let img = image::RgbaImage::from_raw(4, 1, vec![255, 255, 255, 255, 255, 255, 255, 191, 255, 255, 255, 128, 255, 255, 255, 64]).unwrap();
+    let img = image::RgbaImage::from_raw(
+        4,
+        1,
+        vec![
+            255, 255, 255, 255, 255, 255, 255, 191, 255, 255, 255, 128, 255, 255, 255, 64,
+        ],
+    )
+    .unwrap();
     let mut out = std::io::Cursor::new(Vec::new());
     img.write_to(&mut out, image::ImageFormat::Png).unwrap();
     out.into_inner()
@@ -55,40 +71,117 @@ fn png_bytes() -> Vec<u8> {
 /// an animated node; root rotated 180° about X; a camera at (0, 0, 5) under the root.
 fn build_glb() -> (Vec<u8>, Vec<Vec3>, Vec<Vec4>) {
     let mut mesh = splatbridge_raytrace::model::Mesh::default();
-    push_fan(&mut mesh, 10, Vec3::new(-0.6, 0.0, 0.0), Vec3::X * 0.5, Vec3::Y * 0.5, 8, Vec3::new(1.0, 0.2, 0.1), 0.9);
-    push_fan(&mut mesh, 11, Vec3::new(0.6, 0.1, 0.3), Vec3::X * 0.4, Vec3::new(0.0, 0.6, 0.6), 8, Vec3::new(0.1, 0.8, 0.3), 0.6);
+    push_fan(
+        &mut mesh,
+        10,
+        Vec3::new(-0.6, 0.0, 0.0),
+        Vec3::X * 0.5,
+        Vec3::Y * 0.5,
+        8,
+        Vec3::new(1.0, 0.2, 0.1),
+        0.9,
+    );
+    push_fan(
+        &mut mesh,
+        11,
+        Vec3::new(0.6, 0.1, 0.3),
+        Vec3::X * 0.4,
+        Vec3::new(0.0, 0.6, 0.6),
+        8,
+        Vec3::new(0.1, 0.8, 0.3),
+        0.6,
+    );
     let n = mesh.positions.len();
-    let uvs: Vec<Vec2> = (0..n).map(|i| Vec2::new((i % 9) as f32 / 9.0, 0.5)).collect();
+    let uvs: Vec<Vec2> = (0..n)
+        .map(|i| Vec2::new((i % 9) as f32 / 9.0, 0.5))
+        .collect();
     let mut bin = Bin {
         data: Vec::new(),
         views: Vec::new(),
         accessors: Vec::new(),
     };
     let pos: Vec<f32> = mesh.positions.iter().flat_map(|p| p.to_array()).collect();
-    let lo = mesh.positions.iter().fold(Vec3::splat(f32::MAX), |a, p| a.min(*p));
-    let hi = mesh.positions.iter().fold(Vec3::splat(f32::MIN), |a, p| a.max(*p));
+    let lo = mesh
+        .positions
+        .iter()
+        .fold(Vec3::splat(f32::MAX), |a, p| a.min(*p));
+    let hi = mesh
+        .positions
+        .iter()
+        .fold(Vec3::splat(f32::MIN), |a, p| a.max(*p));
     let pb: Vec<u8> = pos.iter().flat_map(|x| x.to_le_bytes()).collect();
-    let a_pos = bin.push(&pb, 5126, n, "VEC3", false, Some((lo.to_array().to_vec(), hi.to_array().to_vec())));
-    let cb: Vec<u8> = mesh.colors.iter().flat_map(|c| c.to_array().map(|v| ((v * 65535.0).round() as u16).to_le_bytes())).flatten().collect();
+    let a_pos = bin.push(
+        &pb,
+        5126,
+        n,
+        "VEC3",
+        false,
+        Some((lo.to_array().to_vec(), hi.to_array().to_vec())),
+    );
+    let cb: Vec<u8> = mesh
+        .colors
+        .iter()
+        .flat_map(|c| {
+            c.to_array()
+                .map(|v| ((v * 65535.0).round() as u16).to_le_bytes())
+        })
+        .flatten()
+        .collect();
     let a_col = bin.push(&cb, 5123, n, "VEC4", true, None);
     let ids: Vec<f32> = (0..n).map(|i| if i < 9 { 10.0 } else { 11.0 }).collect();
     let a_id = bin.f32s(&ids, n, "SCALAR");
     let uvf: Vec<f32> = uvs.iter().flat_map(|u| u.to_array()).collect();
     let a_uv = bin.f32s(&uvf, n, "VEC2");
-    let ib: Vec<u8> = mesh.tris.iter().flatten().flat_map(|i| i.to_le_bytes()).collect();
+    let ib: Vec<u8> = mesh
+        .tris
+        .iter()
+        .flatten()
+        .flat_map(|i| i.to_le_bytes())
+        .collect();
     let a_idx = bin.push(&ib, 5125, mesh.tris.len() * 3, "SCALAR", false, None);
     // Mesh 1: one fan, id 12, no texture coordinates.
     let mut m1 = splatbridge_raytrace::model::Mesh::default();
-    push_fan(&mut m1, 12, Vec3::ZERO, Vec3::X * 0.3, Vec3::Y * 0.3, 6, Vec3::new(0.2, 0.3, 1.0), 0.8);
+    push_fan(
+        &mut m1,
+        12,
+        Vec3::ZERO,
+        Vec3::X * 0.3,
+        Vec3::Y * 0.3,
+        6,
+        Vec3::new(0.2, 0.3, 1.0),
+        0.8,
+    );
     let p1: Vec<f32> = m1.positions.iter().flat_map(|p| p.to_array()).collect();
-    let lo1 = m1.positions.iter().fold(Vec3::splat(f32::MAX), |a, p| a.min(*p));
-    let hi1 = m1.positions.iter().fold(Vec3::splat(f32::MIN), |a, p| a.max(*p));
+    let lo1 = m1
+        .positions
+        .iter()
+        .fold(Vec3::splat(f32::MAX), |a, p| a.min(*p));
+    let hi1 = m1
+        .positions
+        .iter()
+        .fold(Vec3::splat(f32::MIN), |a, p| a.max(*p));
     let p1b: Vec<u8> = p1.iter().flat_map(|x| x.to_le_bytes()).collect();
-    let b_pos = bin.push(&p1b, 5126, m1.positions.len(), "VEC3", false, Some((lo1.to_array().to_vec(), hi1.to_array().to_vec())));
+    let b_pos = bin.push(
+        &p1b,
+        5126,
+        m1.positions.len(),
+        "VEC3",
+        false,
+        Some((lo1.to_array().to_vec(), hi1.to_array().to_vec())),
+    );
     let c1: Vec<f32> = m1.colors.iter().flat_map(|c| c.to_array()).collect();
     let b_col = bin.f32s(&c1, m1.positions.len(), "VEC4");
-    let b_id = bin.f32s(&vec![12.0; m1.positions.len()], m1.positions.len(), "SCALAR");
-    let i1: Vec<u8> = m1.tris.iter().flatten().flat_map(|i| i.to_le_bytes()).collect();
+    let b_id = bin.f32s(
+        &vec![12.0; m1.positions.len()],
+        m1.positions.len(),
+        "SCALAR",
+    );
+    let i1: Vec<u8> = m1
+        .tris
+        .iter()
+        .flatten()
+        .flat_map(|i| i.to_le_bytes())
+        .collect();
     let b_idx = bin.push(&i1, 5125, m1.tris.len() * 3, "SCALAR", false, None);
     // Animation: node 2 moves from x = −1 to x = 1 over 2 s; hidden (scale 0) from 0.5 s to 1 s.
     let times = bin.f32s(&[0.0, 2.0], 2, "SCALAR");
@@ -103,7 +196,8 @@ fn build_glb() -> (Vec<u8>, Vec<Vec3>, Vec<Vec4>) {
     while bin.data.len() % 4 != 0 {
         bin.data.push(0);
     }
-    bin.views.push(json!({"buffer": 0, "byteOffset": bin.data.len(), "byteLength": png.len()}));
+    bin.views
+        .push(json!({"buffer": 0, "byteOffset": bin.data.len(), "byteLength": png.len()}));
     bin.data.extend_from_slice(&png);
     let img_view = bin.views.len() - 1;
     while bin.data.len() % 4 != 0 {
@@ -201,21 +295,33 @@ fn attributes_read_back() {
 fn animation_visibility_and_cameras() {
     let mut s = load();
     // Root rotation 180° about X: y and z flip.
-    let at = |s: &TriScene, t: f64| s.instances(t).into_iter().find(|i| i.mesh == 1).map(|i| i.to_world.translation);
+    let at = |s: &TriScene, t: f64| {
+        s.instances(t)
+            .into_iter()
+            .find(|i| i.mesh == 1)
+            .map(|i| i.to_world.translation)
+    };
     let p = at(&s, 1.5).unwrap();
     assert!((p - DVec3::new(0.5, 0.0, 0.5)).length() < 1e-6, "{p}");
-    assert!(at(&s, 0.75).is_none(), "STEP scale 0 hides the node on [0.5, 1)");
+    assert!(
+        at(&s, 0.75).is_none(),
+        "STEP scale 0 hides the node on [0.5, 1)"
+    );
     assert!(at(&s, 1.0).is_some());
     let cams = s.cameras(0.0);
     assert_eq!(cams.len(), 1);
     let c = &cams[0];
+    // No extras.opencv in this file: 480 rows, columns from the aspect ratio.
     assert_eq!((c.width, c.height), (720, 480));
     // yfov is an f32 in the file: 0.8 is stored as 0.800000011920929.
     assert!((c.fov().1 - 0.8).abs() < 2e-8);
     // glTF camera at (0,0,5) looking down −Z, under a 180° X turn: at (0,0,−5), OpenCV axes
     // equal the world axes (forward +Z, y down).
     assert!((c.centre - DVec3::new(0.0, 0.0, -5.0)).length() < 1e-6);
-    assert!((c.world_to_cam - glam::DMat3::IDENTITY).to_cols_array().iter().all(|v| v.abs() < 1e-6));
+    assert!((c.world_to_cam - glam::DMat3::IDENTITY)
+        .to_cols_array()
+        .iter()
+        .all(|v| v.abs() < 1e-6));
     // In the capture frame (root undone) the camera is at (0,0,5) looking down −Z.
     assert!(s.to_capture_frame());
     let c = &s.cameras(0.0)[0];
@@ -242,41 +348,72 @@ fn texture_alpha_multiplies_vertex_alpha() {
 fn glb_renders_like_the_reference() {
     let s = load();
     let cam = s.cameras(0.0)[0].resized(60, 40);
+    assert!(s.colors_linear, "glTF COLOR_0 is linear");
     for b in backends() {
         for t in [0.0, 0.75, 1.5] {
             compare(&s, t, &cam, b, &RenderOptions::default());
         }
+        let viewer = RenderOptions {
+            compositing: splatbridge_raytrace::Compositing::Viewer,
+            background: Vec3::new(0.1, 0.2, 0.3),
+            ..Default::default()
+        };
+        compare(&s, 0.0, &cam, b, &viewer);
     }
 }
 
 #[test]
 fn obj_vertex_colours_are_opaque() {
     let obj = "o a\nv 0 0 0 1 0 0\nv 1 0 0 1 0 0\nv 0 1 0 1 0 0\nf 1 2 3\no b\nv 0 0 1 0 1 0\nv 1 0 1 0 1 0\nv 0 1 1 0 1 0\nf 1 2 3\n";
-    let obj = obj.replace("o b\nv 0 0 1 0 1 0\nv 1 0 1 0 1 0\nv 0 1 1 0 1 0\nf 1 2 3", "o b\nv 0 0 1 0 1 0\nv 1 0 1 0 1 0\nv 0 1 1 0 1 0\nf 4 5 6");
+    let obj = obj.replace(
+        "o b\nv 0 0 1 0 1 0\nv 1 0 1 0 1 0\nv 0 1 1 0 1 0\nf 1 2 3",
+        "o b\nv 0 0 1 0 1 0\nv 1 0 1 0 1 0\nv 0 1 1 0 1 0\nf 4 5 6",
+    );
     let s = load_obj_bytes(obj.as_bytes(), std::path::Path::new("t.obj")).unwrap();
     assert_eq!(s.meshes.len(), 2);
-    let tr = splatbridge_raytrace::MeshTracer::new(s, Default::default(), Default::default()).unwrap();
+    let tr =
+        splatbridge_raytrace::MeshTracer::new(s, Default::default(), Default::default()).unwrap();
     let insts = tr.prepare(0.0);
     let mut buf = splatbridge_raytrace::composite::KBuffer::new(16);
     // Seen from −z: the red triangle at z = 0 is in front and opaque.
-    let px = tr.trace(&insts, DVec3::new(0.2, 0.2, -1.0), DVec3::Z, &RenderOptions::default(), &mut buf);
+    let px = tr.trace(
+        &insts,
+        DVec3::new(0.2, 0.2, -1.0),
+        DVec3::Z,
+        &RenderOptions::default(),
+        &mut buf,
+    );
     assert_eq!(px.rgb, Vec3::new(1.0, 0.0, 0.0));
     assert_eq!(px.alpha, 1.0);
     assert_eq!(px.hits, 1, "an opaque hit ends the ray");
-    let cam = Camera::look_at(DVec3::new(0.3, 0.3, 3.0), DVec3::new(0.3, 0.3, 0.0), DVec3::NEG_Y, 40.0, 20, 20).unwrap();
+    let cam = Camera::look_at(
+        DVec3::new(0.3, 0.3, 3.0),
+        DVec3::new(0.3, 0.3, 0.0),
+        DVec3::NEG_Y,
+        40.0,
+        20,
+        20,
+    )
+    .unwrap();
     let (f, _) = tr.render(&cam, 0.0, &RenderOptions::default()).unwrap();
     assert_eq!(f.rgb_at(10, 10), [0.0, 1.0, 0.0]);
 }
 
 #[test]
 fn malformed_files_name_the_fault() {
-    let e = load_glb_bytes(b"not a glb", std::path::Path::new("bad.glb")).unwrap_err().to_string();
+    let e = load_glb_bytes(b"not a glb", std::path::Path::new("bad.glb"))
+        .unwrap_err()
+        .to_string();
     assert!(e.starts_with("bad.glb: "), "{e}");
     let (mut glb, _, _) = build_glb();
     // Truncate the binary chunk.
     glb.truncate(glb.len() - 200);
-    let e = load_glb_bytes(&glb, std::path::Path::new("cut.glb")).unwrap_err().to_string();
+    let e = load_glb_bytes(&glb, std::path::Path::new("cut.glb"))
+        .unwrap_err()
+        .to_string();
     assert!(e.starts_with("cut.glb: "), "{e}");
-    let e = load_path(std::path::Path::new("/nonexistent/x.obj")).unwrap_err().to_string();
+    let e = load_path(std::path::Path::new("/nonexistent/x.obj"))
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("x.obj"), "{e}");
 }

@@ -28,7 +28,16 @@ fn rays_through_centres_and_interior_edges_count_once() {
     let mut m = ids();
     // Axis-aligned fans in z = 0 with exactly representable vertices (n = 4: rim on the axes).
     push_fan(&mut m, 5, Vec3::ZERO, Vec3::X, Vec3::Y, 4, Vec3::ONE, 0.5);
-    push_fan(&mut m, 6, Vec3::new(3.0, 0.0, 0.0), Vec3::X, Vec3::Y, 8, Vec3::ONE, 0.5);
+    push_fan(
+        &mut m,
+        6,
+        Vec3::new(3.0, 0.0, 0.0),
+        Vec3::X,
+        Vec3::Y,
+        8,
+        Vec3::ONE,
+        0.5,
+    );
     let scene = scene_of(m);
     let reference = Reference::new(&scene, 0.0);
     for b in backends() {
@@ -37,7 +46,10 @@ fn rays_through_centres_and_interior_edges_count_once() {
         let rays = [
             // Centre of fan 5 (a vertex of all four triangles), head-on and oblique.
             (DVec3::new(0.0, 0.0, -2.0), DVec3::Z),
-            (DVec3::new(-1.0, -0.5, -2.0), DVec3::new(1.0, 0.5, 2.0).normalize()),
+            (
+                DVec3::new(-1.0, -0.5, -2.0),
+                DVec3::new(1.0, 0.5, 2.0).normalize(),
+            ),
             // A spoke (interior edge shared by two triangles).
             (DVec3::new(0.5, 0.0, -2.0), DVec3::Z),
             (DVec3::new(0.0, 0.25, 2.0), -DVec3::Z),
@@ -47,7 +59,11 @@ fn rays_through_centres_and_interior_edges_count_once() {
         for (o, d) in rays {
             let hits = tr.all_hits(&insts, o, d, 16);
             let want = reference.trace(o, d);
-            assert_eq!(hits.len(), 1, "{b}: ray {o} {d} must hit exactly one fan once, got {hits:?}");
+            assert_eq!(
+                hits.len(),
+                1,
+                "{b}: ray {o} {d} must hit exactly one fan once, got {hits:?}"
+            );
             assert_eq!(want.hits.len(), 1);
             assert_eq!(hits[0].gaussian, want.hits[0].gaussian);
         }
@@ -83,7 +99,16 @@ fn more_than_k_hits_at_one_distance_keep_id_order() {
     }
     for (i, &g) in gids.iter().enumerate() {
         let rgb = Vec3::new(i as f32 / 40.0, 1.0 - i as f32 / 40.0, 0.5);
-        push_fan(&mut m, g, Vec3::ZERO, Vec3::X * (1.0 + i as f32 * 0.01), Vec3::Y, 8, rgb, 0.3);
+        push_fan(
+            &mut m,
+            g,
+            Vec3::ZERO,
+            Vec3::X * (1.0 + i as f32 * 0.01),
+            Vec3::Y,
+            8,
+            rgb,
+            0.3,
+        );
     }
     let scene = scene_of(m);
     let reference = Reference::new(&scene, 0.0);
@@ -104,7 +129,11 @@ fn more_than_k_hits_at_one_distance_keep_id_order() {
         let mut buf = KBuffer::new(16);
         let px = tr.trace(&insts, o, d, &opts, &mut buf);
         let (rgb, alpha) = reference.composite(&reference.trace(o, d), &opts);
-        assert!((px.rgb.as_dvec3() - rgb).abs().max_element() <= 1e-5, "{b}: {} vs {rgb}", px.rgb);
+        assert!(
+            (px.rgb.as_dvec3() - rgb).abs().max_element() <= 1e-5,
+            "{b}: {} vs {rgb}",
+            px.rgb
+        );
         assert!((px.alpha as f64 - alpha).abs() <= 1e-5);
         assert_eq!(px.traversals, 3, "40 hits with k = 16 take three rounds");
     }
@@ -115,7 +144,16 @@ fn ten_thousand_layers_stop_finite() {
     for (alpha, expect_stop) in [(1e-3f32, true), (0.9, true), (1e-5, false)] {
         let mut m = ids();
         for i in 0..10_000u32 {
-            push_fan(&mut m, i, Vec3::new(0.0, 0.0, i as f32 * 1e-3), Vec3::X, Vec3::Y, 4, Vec3::new(0.2, 0.5, 0.9), alpha / 0.2 * 0.2);
+            push_fan(
+                &mut m,
+                i,
+                Vec3::new(0.0, 0.0, i as f32 * 1e-3),
+                Vec3::X,
+                Vec3::Y,
+                4,
+                Vec3::new(0.2, 0.5, 0.9),
+                alpha / 0.2 * 0.2,
+            );
         }
         // Uniform alpha over the fan: rim alpha = centre alpha.
         for c in m.colors.iter_mut() {
@@ -132,13 +170,20 @@ fn ten_thousand_layers_stop_finite() {
         assert!(px.rgb.is_finite() && px.alpha.is_finite() && px.depth.is_finite());
         let (rgb, a) = reference.composite(&reference.trace(o, d), &opts);
         // 10,000 f32 products of (1 − α): relative error ~1e4 · 6e-8 ≈ 6e-4 of T at worst.
-        assert!((px.rgb.as_dvec3() - rgb).abs().max_element() <= 1e-3, "α {alpha}: {} vs {rgb}", px.rgb);
+        assert!(
+            (px.rgb.as_dvec3() - rgb).abs().max_element() <= 1e-3,
+            "α {alpha}: {} vs {rgb}",
+            px.rgb
+        );
         assert!((px.alpha as f64 - a).abs() <= 1e-3);
         if expect_stop {
             assert!(1.0 - px.alpha < 1e-4, "α {alpha}: stops once T < 1e-4");
             assert!((px.hits as usize) < 10_000);
         } else {
-            assert_eq!(px.hits, 10_000, "α {alpha}: T never reaches 1e-4, every layer is composited");
+            assert_eq!(
+                px.hits, 10_000,
+                "α {alpha}: T never reaches 1e-4, every layer is composited"
+            );
         }
     }
 }
@@ -147,7 +192,16 @@ fn ten_thousand_layers_stop_finite() {
 fn grazing_rays_and_camera_in_a_fan_plane_are_finite_and_match() {
     let mut m = ids();
     push_fan(&mut m, 1, Vec3::ZERO, Vec3::X, Vec3::Y, 8, Vec3::ONE, 0.8);
-    push_fan(&mut m, 2, Vec3::new(0.0, 0.0, 0.5), Vec3::X, Vec3::Z, 8, Vec3::new(1.0, 0.0, 0.0), 0.6);
+    push_fan(
+        &mut m,
+        2,
+        Vec3::new(0.0, 0.0, 0.5),
+        Vec3::X,
+        Vec3::Z,
+        8,
+        Vec3::new(1.0, 0.0, 0.0),
+        0.6,
+    );
     let scene = scene_of(m);
     let reference = Reference::new(&scene, 0.0);
     for b in backends() {
@@ -161,9 +215,20 @@ fn grazing_rays_and_camera_in_a_fan_plane_are_finite_and_match() {
         let o = DVec3::new(-1000.0 * d.x, 0.1, -1000.0 * d.z + 1e-9);
         let got = tr.all_hits(&insts, o, d, 16);
         let want = reference.trace(o, d);
-        assert_eq!(got.iter().map(|h| h.gaussian).collect::<Vec<_>>(), want.hits.iter().map(|h| h.gaussian).collect::<Vec<_>>());
+        assert_eq!(
+            got.iter().map(|h| h.gaussian).collect::<Vec<_>>(),
+            want.hits.iter().map(|h| h.gaussian).collect::<Vec<_>>()
+        );
         // A camera in fan 1's plane looking along it: every pixel finite and like the reference.
-        let cam = Camera::look_at(DVec3::new(-3.0, 0.0, 0.0), DVec3::ZERO, DVec3::NEG_Y, 60.0, 33, 25).unwrap();
+        let cam = Camera::look_at(
+            DVec3::new(-3.0, 0.0, 0.0),
+            DVec3::ZERO,
+            DVec3::NEG_Y,
+            60.0,
+            33,
+            25,
+        )
+        .unwrap();
         let (f, _) = tr.render(&cam, 0.0, &RenderOptions::default()).unwrap();
         assert!(f.is_finite());
         for j in 0..cam.height {
@@ -194,7 +259,15 @@ fn empty_scene_and_degenerate_triangles_render_background() {
     m.tri_gaussian = vec![0, 1];
     for scene in [scene_of(m), TriScene::default()] {
         let tr = MeshTracer::new(scene, BackendKind::Obvhs, BuildPreset::Medium).unwrap();
-        let cam = Camera::look_at(DVec3::new(0.0, 0.0, -3.0), DVec3::ZERO, DVec3::NEG_Y, 60.0, 16, 12).unwrap();
+        let cam = Camera::look_at(
+            DVec3::new(0.0, 0.0, -3.0),
+            DVec3::ZERO,
+            DVec3::NEG_Y,
+            60.0,
+            16,
+            12,
+        )
+        .unwrap();
         let opts = RenderOptions {
             background: Vec3::new(0.25, 0.5, 0.75),
             ..Default::default()
@@ -215,7 +288,11 @@ fn axis_aligned_rays_with_negative_zero_components_hit() {
     for b in backends() {
         let tr = MeshTracer::new(scene_of(m.clone()), b, BuildPreset::Medium).unwrap();
         let insts = tr.prepare(0.0);
-        for d in [DVec3::new(-0.0, -0.0, -1.0), DVec3::new(0.0, 0.0, -1.0), DVec3::new(1e-12, -1e-12, -1.0).normalize()] {
+        for d in [
+            DVec3::new(-0.0, -0.0, -1.0),
+            DVec3::new(0.0, 0.0, -1.0),
+            DVec3::new(1e-12, -1e-12, -1.0).normalize(),
+        ] {
             for o in [DVec3::new(0.1, 0.2, 2.0), DVec3::new(-0.3, 0.0, 2.0)] {
                 assert_eq!(tr.all_hits(&insts, o, d, 16).len(), 1, "{b}: {o} {d}");
             }
@@ -226,6 +303,10 @@ fn axis_aligned_rays_with_negative_zero_components_hit() {
         let o = DVec3::new(-0.5 - 1e-6 / 1e-9 * d.x, 0.1, -1e-6);
         let reference = Reference::new(&scene_of(m.clone()), 0.0);
         let want = reference.trace(o, d).hits.len();
-        assert_eq!(tr.all_hits(&insts, o, d, 16).len(), want, "{b}: nearly grazing");
+        assert_eq!(
+            tr.all_hits(&insts, o, d, 16).len(),
+            want,
+            "{b}: nearly grazing"
+        );
     }
 }

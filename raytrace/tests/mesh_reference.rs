@@ -20,8 +20,17 @@ fn random_fans_match_reference() {
     let scene = TriScene::single(mesh, blend_materials(), vec![]);
     for b in backends() {
         for k in [1, 4, 16] {
-            let opts = RenderOptions { k, ..Default::default() };
-            compare(&scene, 0.0, &look(DVec3::new(0.3, -0.5, -4.0), DVec3::ZERO, 48, 36), b, &opts);
+            let opts = RenderOptions {
+                k,
+                ..Default::default()
+            };
+            compare(
+                &scene,
+                0.0,
+                &look(DVec3::new(0.3, -0.5, -4.0), DVec3::ZERO, 48, 36),
+                b,
+                &opts,
+            );
         }
     }
 }
@@ -34,7 +43,13 @@ fn far_from_origin_matches_reference() {
     let scene = TriScene::single(mesh, blend_materials(), vec![]);
     let c = off.as_dvec3();
     for b in backends() {
-        compare(&scene, 0.0, &look(c + DVec3::new(0.2, -0.4, -4.0), c, 40, 30), b, &RenderOptions::default());
+        compare(
+            &scene,
+            0.0,
+            &look(c + DVec3::new(0.2, -0.4, -4.0), c, 40, 30),
+            b,
+            &RenderOptions::default(),
+        );
     }
 }
 
@@ -83,7 +98,13 @@ fn animated_instances_match_reference() {
     ];
     for b in backends() {
         for t in [0.0, 0.37, 1.5] {
-            compare(&scene, t, &look(DVec3::new(0.5, -0.8, -4.0), DVec3::ZERO, 40, 30), b, &RenderOptions::default());
+            compare(
+                &scene,
+                t,
+                &look(DVec3::new(0.5, -0.8, -4.0), DVec3::ZERO, 40, 30),
+                b,
+                &RenderOptions::default(),
+            );
         }
     }
 }

@@ -12,7 +12,9 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context};
 use glam::{Quat, Vec3};
 use splatbridge_raytrace::scene_load::load_path;
-use splatbridge_raytrace::{BackendKind, BuildPreset, GaussianTracer, MeshTracer, RenderOptions, Stats, TriScene};
+use splatbridge_raytrace::{
+    BackendKind, BuildPreset, GaussianTracer, MeshTracer, RenderOptions, Stats, TriScene,
+};
 use splatbridge_scene::image_io::save_frame;
 use splatbridge_scene::{Camera, Frame, GaussianCloud};
 
@@ -61,6 +63,14 @@ impl From<PresetArg> for BuildPreset {
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CompositingArg {
+    /// Blend display values like native splatting (glTF's linear colours encoded per hit).
+    Display,
+    /// Blend in linear light and encode the result, as viewers show the file.
+    Viewer,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ProfileArg {
     Meshsplats,
     Rings,
@@ -92,6 +102,9 @@ pub struct TraceInput {
     /// Mode gaussian: cull Gaussians whose mean is at view depth ≤ NEAR (reference 0.2).
     #[arg(long, default_value_t = 0.2)]
     pub near: f32,
+    /// Mode mesh: display (compare with native splatting) or viewer (as Blender shows it).
+    #[arg(long, value_enum, default_value_t = CompositingArg::Display)]
+    pub compositing: CompositingArg,
     /// Keep the glTF world frame of a splatbridge export (default: the capture's frame).
     #[arg(long)]
     pub gltf_frame: bool,
@@ -131,7 +144,10 @@ pub struct Prepared {
 }
 
 fn is_mesh_file(p: &Path) -> bool {
-    let ext = p.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    let ext = p
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
     matches!(ext.as_str(), "glb" | "gltf" | "obj")
 }
 
@@ -154,6 +170,10 @@ impl TraceInput {
             background: self.background,
             min_transmittance: 1e-4,
             near: self.near,
+            compositing: match self.compositing {
+                CompositingArg::Display => Compositing::Display,
+                CompositingArg::Viewer => Compositing::Viewer,
+            },
         };
         options.validate().with_context(|| name.clone())?;
         if is_mesh_file(&self.input) {
@@ -165,9 +185,16 @@ impl TraceInput {
                 scene.to_capture_frame();
             }
             let own = scene.cameras(self.time);
-            let camera = self.camera.resolve(&frame_cloud(&scene, self.time), &own).with_context(|| name.clone())?;
+            let camera = self
+                .camera
+                .resolve(&frame_cloud(&scene, self.time), &own)
+                .with_context(|| name.clone())?;
             return Ok(Prepared {
-                what: format!("{name}: {} triangles in {} meshes", scene.triangle_count(), scene.meshes.len()),
+                what: format!(
+                    "{name}: {} triangles in {} meshes",
+                    scene.triangle_count(),
+                    scene.meshes.len()
+                ),
                 loaded: Loaded::Mesh(scene),
                 camera,
                 options,
@@ -176,7 +203,10 @@ impl TraceInput {
         }
         let scene = load(&self.input, self.drop_invalid)?;
         let cloud = scene.composite(self.time);
-        let camera = self.camera.resolve(&cloud, &scene.cameras).with_context(|| name.clone())?;
+        let camera = self
+            .camera
+            .resolve(&cloud, &scene.cameras)
+            .with_context(|| name.clone())?;
         let loaded = match self.mode {
             Mode::Gaussian => Loaded::Gaussians(cloud),
             Mode::Mesh => {
@@ -188,14 +218,19 @@ impl TraceInput {
                         ProfileArg::Texture => splatbridge_convert::Profile::Texture,
                     };
                 }
-                let (bytes, _) = splatbridge_convert::glb_bytes(&scene, None, &opts).with_context(|| name.clone())?;
-                let mut tri = splatbridge_raytrace::scene_load::load_glb_bytes(&bytes, &self.input)?;
+                let (bytes, _) = splatbridge_convert::glb_bytes(&scene, None, &opts)
+                    .with_context(|| name.clone())?;
+                let mut tri =
+                    splatbridge_raytrace::scene_load::load_glb_bytes(&bytes, &self.input)?;
                 tri.to_capture_frame();
                 Loaded::Mesh(tri)
             }
         };
         let what = match &loaded {
-            Loaded::Mesh(s) => format!("{name}: converted in memory, {} triangles", s.triangle_count()),
+            Loaded::Mesh(s) => format!(
+                "{name}: converted in memory, {} triangles",
+                s.triangle_count()
+            ),
             Loaded::Gaussians(c) => format!("{name}: {} Gaussians at t = {}", c.len(), self.time),
         };
         Ok(Prepared {
@@ -215,10 +250,16 @@ pub enum Tracer {
 }
 
 impl Tracer {
-    pub fn build(p: &Prepared, backend: BackendKind, preset: BuildPreset) -> anyhow::Result<Tracer> {
+    pub fn build(
+        p: &Prepared,
+        backend: BackendKind,
+        preset: BuildPreset,
+    ) -> anyhow::Result<Tracer> {
         Ok(match &p.loaded {
             Loaded::Mesh(s) => Tracer::Mesh(MeshTracer::new(s.clone(), backend, preset)?),
-            Loaded::Gaussians(c) => Tracer::Gaussians(GaussianTracer::new(c.clone(), backend, preset)?),
+            Loaded::Gaussians(c) => {
+                Tracer::Gaussians(GaussianTracer::new(c.clone(), backend, preset)?)
+            }
         })
     }
 
@@ -238,13 +279,18 @@ impl Tracer {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let ext = args.output.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    let ext = args
+        .output
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
     if ext != "png" && ext != "exr" {
         bail!("{}: output must end in .png or .exr", args.output.display());
     }
     let p = args.input.prepare()?;
     let backend: BackendKind = args.backend.into();
-    let tracer = Tracer::build(&p, backend, args.input.preset.into()).with_context(|| args.input.input.display().to_string())?;
+    let tracer = Tracer::build(&p, backend, args.input.preset.into())
+        .with_context(|| args.input.input.display().to_string())?;
     let (frame, stats) = tracer.render(&p)?;
     save_frame(&args.output, &frame)?;
     println!("{}", p.what);

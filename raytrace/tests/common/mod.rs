@@ -11,7 +11,7 @@ use std::collections::{HashMap, HashSet};
 
 use glam::{DVec3, Quat, Vec3, Vec4};
 use splatbridge_raytrace::model::{Material, Mesh, TriScene};
-use splatbridge_raytrace::{AlphaMode, BackendKind, BuildPreset, MeshTracer, RenderOptions};
+use splatbridge_raytrace::{AlphaMode, BackendKind, BuildPreset, Compositing, MeshTracer, RenderOptions};
 use splatbridge_scene::Camera;
 
 /// Small deterministic generator (SplitMix64).
@@ -34,7 +34,16 @@ impl Rng {
 
 /// Append a MeshSplats-style fan: centre alpha `o`, rim alpha 0.2·o, `n` rim vertices at
 /// `centre + cos θ·a0 + sin θ·a1`.
-pub fn push_fan(mesh: &mut Mesh, gid: u32, centre: Vec3, a0: Vec3, a1: Vec3, n: usize, rgb: Vec3, o: f32) {
+pub fn push_fan(
+    mesh: &mut Mesh,
+    gid: u32,
+    centre: Vec3,
+    a0: Vec3,
+    a1: Vec3,
+    n: usize,
+    rgb: Vec3,
+    o: f32,
+) {
     let base = mesh.positions.len() as u32;
     mesh.positions.push(centre);
     mesh.colors.push(rgb.extend(o));
@@ -44,7 +53,8 @@ pub fn push_fan(mesh: &mut Mesh, gid: u32, centre: Vec3, a0: Vec3, a1: Vec3, n: 
         mesh.colors.push(rgb.extend(0.2 * o));
     }
     for k in 0..n as u32 {
-        mesh.tris.push([base, base + 1 + k, base + 1 + (k + 1) % n as u32]);
+        mesh.tris
+            .push([base, base + 1 + k, base + 1 + (k + 1) % n as u32]);
         mesh.tri_material.push(0);
         mesh.tri_gaussian.push(gid);
     }
@@ -67,9 +77,21 @@ pub fn random_fans(seed: u64, n: usize, extent: f32, offset: Vec3) -> Mesh {
         ..Mesh::default()
     };
     for g in 0..n {
-        let c = offset + Vec3::new(r.range(-extent, extent), r.range(-extent, extent), r.range(-extent, extent));
-        let q = Quat::from_xyzw(r.range(-1.0, 1.0), r.range(-1.0, 1.0), r.range(-1.0, 1.0), r.range(-1.0, 1.0)).normalize();
-        let s = Vec3::new(r.range(0.05, 0.4), r.range(0.05, 0.4), r.range(0.05, 0.4)) * extent * 0.5;
+        let c = offset
+            + Vec3::new(
+                r.range(-extent, extent),
+                r.range(-extent, extent),
+                r.range(-extent, extent),
+            );
+        let q = Quat::from_xyzw(
+            r.range(-1.0, 1.0),
+            r.range(-1.0, 1.0),
+            r.range(-1.0, 1.0),
+            r.range(-1.0, 1.0),
+        )
+        .normalize();
+        let s =
+            Vec3::new(r.range(0.05, 0.4), r.range(0.05, 0.4), r.range(0.05, 0.4)) * extent * 0.5;
         let (ax, ay, az) = (q * Vec3::X, q * Vec3::Y, q * Vec3::Z);
         let rgb = Vec3::new(r.f(), r.f(), r.f());
         let o = r.range(0.05, 0.95);
@@ -145,7 +167,13 @@ impl Reference {
                     *count.entry((g[t], a.min(b), a.max(b))).or_default() += 1;
                 }
             }
-            boundary.push(count.into_iter().filter(|(_, c)| *c == 1).map(|((_, a, b), _)| (a, b)).collect());
+            boundary.push(
+                count
+                    .into_iter()
+                    .filter(|(_, c)| *c == 1)
+                    .map(|((_, a, b), _)| (a, b))
+                    .collect(),
+            );
             groups.push(g);
         }
         Reference {
@@ -164,7 +192,8 @@ impl Reference {
         for (ii, (mi, xf)) in self.insts.iter().enumerate() {
             let m = &self.scene.meshes[*mi];
             for (t, tri) in m.tris.iter().enumerate() {
-                let [a, b, c] = tri.map(|i| xf.transform_point3(m.positions[i as usize].as_dvec3()));
+                let [a, b, c] =
+                    tri.map(|i| xf.transform_point3(m.positions[i as usize].as_dvec3()));
                 let n = (b - a).cross(c - a);
                 let nn = n.length_squared();
                 let den = n.dot(d);
@@ -198,7 +227,8 @@ impl Reference {
                 // A planar group's distance is its plane's (its largest triangle's): fans
                 // quantised to f32 far from the origin are planar only to ~ulp(coordinate).
                 let pt = self.planes[*mi][key.1 as usize];
-                let [pa, pb, pc] = m.tris[pt].map(|i| xf.transform_point3(m.positions[i as usize].as_dvec3()));
+                let [pa, pb, pc] =
+                    m.tris[pt].map(|i| xf.transform_point3(m.positions[i as usize].as_dvec3()));
                 let pn = (pb - pa).cross(pc - pa);
                 let tg = pn.dot(pa - o) / pn.dot(d);
                 let h = RefHit {
@@ -224,7 +254,10 @@ impl Reference {
                 .then(x.instance.cmp(&y.instance))
                 .then(x.group.cmp(&y.group))
         });
-        RefRay { hits, ambiguous: amb }
+        RefRay {
+            hits,
+            ambiguous: amb,
+        }
     }
 
     /// Composite like the mesh mode: (rgb, alpha).
@@ -233,15 +266,35 @@ impl Reference {
         let mut c = DVec3::ZERO;
         for h in &r.hits {
             let m = &self.scene.meshes[self.insts[h.instance as usize].0];
-            let rgba = m.shade(h.tri, h.bary.map(|v| v as f32), &self.scene.materials, &self.scene.textures);
+            let rgba = m.shade(
+                h.tri,
+                h.bary.map(|v| v as f32),
+                &self.scene.materials,
+                &self.scene.textures,
+            );
             let a = rgba.w as f64;
             if a > 0.0 {
-                c += rgba.truncate().as_dvec3() * a * tr;
+                let mut rgb = rgba.truncate().as_dvec3().clamp(DVec3::ZERO, DVec3::ONE);
+                let enc = |x: f64| if x <= 0.0031308 { 12.92 * x } else { 1.055 * x.powf(1.0 / 2.4) - 0.055 };
+                let dec = |x: f64| if x <= 0.04045 { x / 12.92 } else { ((x + 0.055) / 1.055).powf(2.4) };
+                match (opts.compositing, self.scene.colors_linear) {
+                    (Compositing::Display, true) => rgb = DVec3::new(enc(rgb.x), enc(rgb.y), enc(rgb.z)),
+                    (Compositing::Viewer, false) => rgb = DVec3::new(dec(rgb.x), dec(rgb.y), dec(rgb.z)),
+                    _ => {}
+                }
+                c += rgb * a * tr;
                 tr *= 1.0 - a;
                 if tr < opts.min_transmittance as f64 {
                     break;
                 }
             }
+        }
+        if opts.compositing == Compositing::Viewer {
+            let enc = |x: f64| if x <= 0.0031308 { 12.92 * x } else { 1.055 * x.powf(1.0 / 2.4) - 0.055 };
+            let dec = |x: f64| if x <= 0.04045 { x / 12.92 } else { ((x + 0.055) / 1.055).powf(2.4) };
+            let bg = opts.background.as_dvec3();
+            let l = (c + DVec3::new(dec(bg.x), dec(bg.y), dec(bg.z)) * tr).clamp(DVec3::ZERO, DVec3::ONE);
+            return (DVec3::new(enc(l.x), enc(l.y), enc(l.z)), 1.0 - tr);
         }
         (c + opts.background.as_dvec3() * tr, 1.0 - tr)
     }
@@ -261,7 +314,13 @@ pub const IMAGE_TOL: f64 = 1e-5;
 
 /// Compare tracer and reference on every pixel of `cam`; returns the number of pixels skipped
 /// as ambiguous (a group boundary within 1e-5 of the ray).
-pub fn compare(scene: &TriScene, time: f64, cam: &Camera, backend: BackendKind, opts: &RenderOptions) -> usize {
+pub fn compare(
+    scene: &TriScene,
+    time: f64,
+    cam: &Camera,
+    backend: BackendKind,
+    opts: &RenderOptions,
+) -> usize {
     let tracer = MeshTracer::new(scene.clone(), backend, BuildPreset::Medium).unwrap();
     let reference = Reference::new(scene, time);
     let insts = tracer.prepare(time);
@@ -277,20 +336,39 @@ pub fn compare(scene: &TriScene, time: f64, cam: &Camera, backend: BackendKind, 
             let want = reference.trace(o, d);
             total_hits += want.hits.len();
             let key = |g: u32, inst: u32, grp: u32| (g, inst, grp);
-            let a: Vec<_> = got.iter().map(|h| key(h.gaussian, h.instance, h.group)).collect();
-            let b: Vec<_> = want.hits.iter().map(|h| key(h.gaussian, h.instance, h.group)).collect();
+            let a: Vec<_> = got
+                .iter()
+                .map(|h| key(h.gaussian, h.instance, h.group))
+                .collect();
+            let b: Vec<_> = want
+                .hits
+                .iter()
+                .map(|h| key(h.gaussian, h.instance, h.group))
+                .collect();
             if a != b {
                 // Only boundary-ambiguous groups may differ.
                 let strip = |v: &[(u32, u32, u32)]| -> Vec<(u32, u32, u32)> {
-                    v.iter().copied().filter(|k| !want.ambiguous.contains(&(k.1, k.2))).collect()
+                    v.iter()
+                        .copied()
+                        .filter(|k| !want.ambiguous.contains(&(k.1, k.2)))
+                        .collect()
                 };
-                assert_eq!(strip(&a), strip(&b), "{backend}: hit sets differ at pixel ({i}, {j})");
+                assert_eq!(
+                    strip(&a),
+                    strip(&b),
+                    "{backend}: hit sets differ at pixel ({i}, {j})"
+                );
                 skipped += 1;
                 continue;
             }
             for (g, w) in got.iter().zip(&want.hits) {
                 // f32 distance from a camera-relative origin: relative error ~1e-6.
-                assert!((g.t as f64 - w.t).abs() <= 1e-5 * w.t.max(1.0), "{backend}: t {} vs {} at ({i}, {j})", g.t, w.t);
+                assert!(
+                    (g.t as f64 - w.t).abs() <= 1e-5 * w.t.max(1.0),
+                    "{backend}: t {} vs {} at ({i}, {j})",
+                    g.t,
+                    w.t
+                );
             }
             let (rgb, alpha) = reference.composite(&want, opts);
             let px = frame.rgb_at(i, j);
@@ -308,7 +386,9 @@ pub fn compare(scene: &TriScene, time: f64, cam: &Camera, backend: BackendKind, 
     }
     assert!(total_hits > 0, "the scene must be visible");
     // Ambiguity is a measure-zero event for random scenes: allow at most 0.5 % of pixels.
-    assert!(skipped * 200 <= (cam.width * cam.height) as usize, "{skipped} ambiguous pixels");
+    assert!(
+        skipped * 200 <= (cam.width * cam.height) as usize,
+        "{skipped} ambiguous pixels"
+    );
     skipped
 }
-

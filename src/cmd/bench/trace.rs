@@ -34,12 +34,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if EMBREE_AVAILABLE {
         backends.push(BackendKind::Embree);
     } else {
-        println!("embree: not compiled in (build with --features embree after scripts/get-embree.sh)");
+        println!(
+            "embree: not compiled in (build with --features embree after scripts/get-embree.sh)"
+        );
     }
     let mut frames = Vec::new();
-    println!("{:<8} {:>10} {:>12} {:>10} {:>10} {:>14}", "backend", "build s", "trace s", "Mrays/s", "hits/ray", "traversals/ray");
+    println!(
+        "{:<8} {:>10} {:>12} {:>10} {:>10} {:>14}",
+        "backend", "build s", "trace s", "Mrays/s", "hits/ray", "traversals/ray"
+    );
     for b in backends {
-        let tracer = Tracer::build(&p, b, args.input.preset.into()).with_context(|| format!("backend {b}"))?;
+        let tracer = Tracer::build(&p, b, args.input.preset.into())
+            .with_context(|| format!("backend {b}"))?;
         let mut times = Vec::new();
         let mut last = None;
         for _ in 0..args.repeats.max(1) {
@@ -62,7 +68,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         frames.push((b, f));
     }
     if frames.len() == 2 {
-        println!("max |obvhs − embree| per channel: {:.3e}", frames[0].1.max_rgb_diff(&frames[1].1));
+        println!(
+            "max |obvhs − embree| per channel: {:.3e}",
+            frames[0].1.max_rgb_diff(&frames[1].1)
+        );
     }
     Ok(())
 }
