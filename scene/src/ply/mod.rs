@@ -270,14 +270,14 @@ fn describe_invalid(cloud: &GaussianCloud, i: usize, reason: &str) -> String {
 /// [`GaussianCloud::invalid_reason`] pass only runs on files that need it.
 #[inline(always)]
 fn push_slots(cloud: &mut GaussianCloud, v: &[f32; header::MAX_SLOTS], n_rest: usize) -> bool {
-    // x − x is NaN exactly when x is ±inf or NaN. The opacity is left out of the sum (its ±inf
+    // x·0 is NaN exactly when x is ±inf or NaN (±0 otherwise). The opacity is left out of the sum (its ±inf
     // is valid) and tested for NaN on its own.
     let mut acc = 0.0f32;
     for &x in v[..SLOT_OPACITY]
         .iter()
         .chain(&v[SLOT_OPACITY + 1..SLOT_REST + n_rest])
     {
-        acc += x - x;
+        acc += x * 0.0;
     }
     let opacity = v[SLOT_OPACITY];
     // rot_0 is w.
