@@ -270,8 +270,8 @@ fn describe_invalid(cloud: &GaussianCloud, i: usize, reason: &str) -> String {
 /// [`GaussianCloud::invalid_reason`] pass only runs on files that need it.
 #[inline(always)]
 fn push_slots(cloud: &mut GaussianCloud, v: &[f32; header::MAX_SLOTS], n_rest: usize) -> bool {
-    // x·0 is NaN exactly when x is ±inf or NaN (±0 otherwise). The opacity is left out of the sum (its ±inf
-    // is valid) and tested for NaN on its own.
+    // x·0 is NaN exactly when x is ±inf or NaN (±0 otherwise). The opacity is left out of
+    // the sum (its ±inf is valid) and tested for NaN on its own.
     let mut acc = 0.0f32;
     for &x in v[..SLOT_OPACITY]
         .iter()
