@@ -27,7 +27,9 @@ impl std::str::FromStr for BackendKind {
         match s {
             "obvhs" => Ok(BackendKind::Obvhs),
             "embree" => Ok(BackendKind::Embree),
-            _ => Err(TraceError::Invalid(format!("backend '{s}' is not obvhs or embree"))),
+            _ => Err(TraceError::Invalid(format!(
+                "backend '{s}' is not obvhs or embree"
+            ))),
         }
     }
 }
@@ -85,35 +87,56 @@ impl Accel for EmptyAccel {
 }
 
 /// Build a structure over triangles (`tris` index `verts`).
-pub fn build_triangles(kind: BackendKind, preset: BuildPreset, verts: &[Vec3], tris: &[[u32; 3]]) -> Result<Box<dyn Accel>> {
+pub fn build_triangles(
+    kind: BackendKind,
+    preset: BuildPreset,
+    verts: &[Vec3],
+    tris: &[[u32; 3]],
+) -> Result<Box<dyn Accel>> {
     if tris.is_empty() {
         return Ok(Box::new(EmptyAccel));
     }
     match kind {
-        BackendKind::Obvhs => Ok(Box::new(crate::obvhs_backend::ObvhsAccel::triangles(preset, verts, tris))),
+        BackendKind::Obvhs => Ok(Box::new(crate::obvhs_backend::ObvhsAccel::triangles(
+            preset, verts, tris,
+        ))),
         BackendKind::Embree => embree_triangles(preset, verts, tris),
     }
 }
 
 /// Build a structure over axis-aligned boxes (custom primitives).
-pub fn build_boxes(kind: BackendKind, preset: BuildPreset, boxes: &[(Vec3, Vec3)]) -> Result<Box<dyn Accel>> {
+pub fn build_boxes(
+    kind: BackendKind,
+    preset: BuildPreset,
+    boxes: &[(Vec3, Vec3)],
+) -> Result<Box<dyn Accel>> {
     if boxes.is_empty() {
         return Ok(Box::new(EmptyAccel));
     }
     match kind {
-        BackendKind::Obvhs => Ok(Box::new(crate::obvhs_backend::ObvhsAccel::boxes(preset, boxes))),
+        BackendKind::Obvhs => Ok(Box::new(crate::obvhs_backend::ObvhsAccel::boxes(
+            preset, boxes,
+        ))),
         BackendKind::Embree => embree_boxes(preset, boxes),
     }
 }
 
 #[cfg(feature = "embree")]
-fn embree_triangles(preset: BuildPreset, verts: &[Vec3], tris: &[[u32; 3]]) -> Result<Box<dyn Accel>> {
-    Ok(Box::new(crate::embree_backend::EmbreeAccel::triangles(preset, verts, tris)?))
+fn embree_triangles(
+    preset: BuildPreset,
+    verts: &[Vec3],
+    tris: &[[u32; 3]],
+) -> Result<Box<dyn Accel>> {
+    Ok(Box::new(crate::embree_backend::EmbreeAccel::triangles(
+        preset, verts, tris,
+    )?))
 }
 
 #[cfg(feature = "embree")]
 fn embree_boxes(preset: BuildPreset, boxes: &[(Vec3, Vec3)]) -> Result<Box<dyn Accel>> {
-    Ok(Box::new(crate::embree_backend::EmbreeAccel::boxes(preset, boxes)?))
+    Ok(Box::new(crate::embree_backend::EmbreeAccel::boxes(
+        preset, boxes,
+    )?))
 }
 
 #[cfg(not(feature = "embree"))]

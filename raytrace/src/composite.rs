@@ -180,7 +180,11 @@ impl MeshTracer {
             }
             // An f32-representable anchor keeps `p − anchor` as exact as f32 allows.
             let anchor = (0.5 * (lo + hi)).as_vec3().as_dvec3();
-            let rel: Vec<Vec3> = m.positions.iter().map(|p| (p.as_dvec3() - anchor).as_vec3()).collect();
+            let rel: Vec<Vec3> = m
+                .positions
+                .iter()
+                .map(|p| (p.as_dvec3() - anchor).as_vec3())
+                .collect();
             let (group, ngroups) = m.planar_groups();
             // Each group's plane from its largest triangle (best conditioned normal).
             let mut best = vec![(0.0f64, (DVec3::ZERO, 0.0)); ngroups as usize];
@@ -222,7 +226,8 @@ impl MeshTracer {
             .filter(|i| !self.scene.meshes[i.mesh].tris.is_empty())
             .map(|i| {
                 let b = &self.blas[i.mesh];
-                let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+                let (mut lo, mut hi) =
+                    (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
                 for c in 0..8 {
                     let p = DVec3::new(
                         if c & 1 == 0 { b.lo.x } else { b.hi.x },
@@ -234,7 +239,8 @@ impl MeshTracer {
                     hi = hi.max(w);
                 }
                 // Pad by a relative 1e-6 so rounding in the f64 transform cannot clip a hit.
-                let pad = (hi - lo).max_element() * 1e-6 + 1e-9 * hi.abs().max(lo.abs()).max_element();
+                let pad =
+                    (hi - lo).max_element() * 1e-6 + 1e-9 * hi.abs().max(lo.abs()).max_element();
                 PreparedInstance {
                     mesh: i.mesh,
                     to_local: i.to_world.inverse(),
@@ -247,10 +253,21 @@ impl MeshTracer {
 
     /// Fill `buf` with the k smallest-key hits with key > `after` and `tmin ≤ t ≤ tmax` along
     /// the world ray `o + t·d` (`d` unit length).
-    pub fn collect(&self, insts: &[PreparedInstance], o: DVec3, d: DVec3, tmin: f32, tmax: f32, after: Option<Key>, buf: &mut KBuffer) {
+    pub fn collect(
+        &self,
+        insts: &[PreparedInstance],
+        o: DVec3,
+        d: DVec3,
+        tmin: f32,
+        tmax: f32,
+        after: Option<Key>,
+        buf: &mut KBuffer,
+    ) {
         buf.clear();
         for (ii, inst) in insts.iter().enumerate() {
-            let Some((b0, b1)) = ray_box(o, d, inst.lo, inst.hi) else { continue };
+            let Some((b0, b1)) = ray_box(o, d, inst.lo, inst.hi) else {
+                continue;
+            };
             if b1 < tmin as f64 || b0 > buf.cull(tmax) as f64 {
                 continue;
             }
@@ -269,7 +286,9 @@ impl MeshTracer {
                 let [a, b, c] = mesh.tris[p].map(|i| blas.rel[i as usize]);
                 // Coverage from the watertight f32 test; distance and barycentrics of accepted
                 // hits are refined in f64 (f32 loses ~ulp(|o − v|)/size on small far triangles).
-                let Some(h) = wray.intersect(a, b, c, f32::NEG_INFINITY, f32::INFINITY) else { return };
+                let Some(h) = wray.intersect(a, b, c, f32::NEG_INFINITY, f32::INFINITY) else {
+                    return;
+                };
                 let g = blas.group[p];
                 let (pn, pw) = blas.planes[g as usize];
                 let tp = (pw - pn.dot(lo64)) / pn.dot(ld64);
@@ -285,7 +304,8 @@ impl MeshTracer {
                     instance: ii as u32,
                     group: g,
                     tri: prim,
-                    bary: refine_bary(a.as_dvec3(), b.as_dvec3(), c.as_dvec3(), lo64, ld64).unwrap_or(h.bary),
+                    bary: refine_bary(a.as_dvec3(), b.as_dvec3(), c.as_dvec3(), lo64, ld64)
+                        .unwrap_or(h.bary),
                 };
                 if after.is_some_and(|a| hit.key() <= a) {
                     return;
@@ -298,7 +318,12 @@ impl MeshTracer {
     /// Shade a hit: RGBA as the viewer computes it.
     pub fn shade(&self, insts: &[PreparedInstance], h: &Hit) -> Vec4 {
         let mesh = &self.scene.meshes[insts[h.instance as usize].mesh];
-        mesh.shade(h.tri as usize, h.bary, &self.scene.materials, &self.scene.textures)
+        mesh.shade(
+            h.tri as usize,
+            h.bary,
+            &self.scene.materials,
+            &self.scene.textures,
+        )
     }
 
     /// Every hit along a world ray in key order (no compositing), for tests and tools.
@@ -318,7 +343,14 @@ impl MeshTracer {
 
     /// Composite one ray (world origin `o`, unit direction `d`). `depth` in the result is the
     /// weighted mean ray parameter.
-    pub fn trace(&self, insts: &[PreparedInstance], o: DVec3, d: DVec3, opts: &RenderOptions, buf: &mut KBuffer) -> PixelOut {
+    pub fn trace(
+        &self,
+        insts: &[PreparedInstance],
+        o: DVec3,
+        d: DVec3,
+        opts: &RenderOptions,
+        buf: &mut KBuffer,
+    ) -> PixelOut {
         let mut out = PixelOut::default();
         let mut tr = 1.0f32;
         let (mut c, mut dsum, mut wsum) = (Vec3::ZERO, 0.0f32, 0.0f32);
@@ -339,9 +371,17 @@ impl MeshTracer {
                     let w = a * tr;
                     let mut rgb = rgba.truncate().clamp(Vec3::ZERO, Vec3::ONE);
                     if to_display {
-                        rgb = Vec3::new(linear_to_srgb(rgb.x), linear_to_srgb(rgb.y), linear_to_srgb(rgb.z));
+                        rgb = Vec3::new(
+                            linear_to_srgb(rgb.x),
+                            linear_to_srgb(rgb.y),
+                            linear_to_srgb(rgb.z),
+                        );
                     } else if to_linear {
-                        rgb = Vec3::new(srgb_to_linear(rgb.x), srgb_to_linear(rgb.y), srgb_to_linear(rgb.z));
+                        rgb = Vec3::new(
+                            srgb_to_linear(rgb.x),
+                            srgb_to_linear(rgb.y),
+                            srgb_to_linear(rgb.z),
+                        );
                     }
                     c += rgb * w;
                     dsum += w * h.t;
@@ -361,9 +401,17 @@ impl MeshTracer {
         if opts.compositing == Compositing::Viewer {
             // The background is a display colour; blend it in linear light, then encode.
             let bg = opts.background;
-            let lin = c + Vec3::new(srgb_to_linear(bg.x), srgb_to_linear(bg.y), srgb_to_linear(bg.z)) * tr;
+            let lin = c + Vec3::new(
+                srgb_to_linear(bg.x),
+                srgb_to_linear(bg.y),
+                srgb_to_linear(bg.z),
+            ) * tr;
             let l = lin.clamp(Vec3::ZERO, Vec3::ONE);
-            out.rgb = Vec3::new(linear_to_srgb(l.x), linear_to_srgb(l.y), linear_to_srgb(l.z));
+            out.rgb = Vec3::new(
+                linear_to_srgb(l.x),
+                linear_to_srgb(l.y),
+                linear_to_srgb(l.z),
+            );
         }
         out.alpha = 1.0 - tr;
         out.depth = if wsum > 0.0 { dsum / wsum } else { 0.0 };

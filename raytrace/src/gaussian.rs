@@ -137,7 +137,15 @@ impl GaussianTracer {
         t.is_finite().then_some((t, alpha))
     }
 
-    fn collect(&self, o: Vec3, d: Vec3, near: Option<Near>, tmax: f32, after: Option<(u32, u32, u32, u32)>, buf: &mut KBuffer) {
+    fn collect(
+        &self,
+        o: Vec3,
+        d: Vec3,
+        near: Option<Near>,
+        tmax: f32,
+        after: Option<(u32, u32, u32, u32)>,
+        buf: &mut KBuffer,
+    ) {
         buf.clear();
         self.accel.traverse(o, d, tmax, &mut |p, cull| {
             let p = p as usize;
@@ -146,7 +154,9 @@ impl GaussianTracer {
                     return;
                 }
             }
-            let Some((t, alpha)) = self.response(p, o, d) else { return };
+            let Some((t, alpha)) = self.response(p, o, d) else {
+                return;
+            };
             if t > tmax {
                 return;
             }
@@ -183,7 +193,14 @@ impl GaussianTracer {
     }
 
     /// Composite one ray. `forward` enables the near cull (primary rays).
-    pub fn trace(&self, o: DVec3, d: DVec3, forward: Option<DVec3>, opts: &RenderOptions, buf: &mut KBuffer) -> PixelOut {
+    pub fn trace(
+        &self,
+        o: DVec3,
+        d: DVec3,
+        forward: Option<DVec3>,
+        opts: &RenderOptions,
+        buf: &mut KBuffer,
+    ) -> PixelOut {
         let ro = (o - self.anchor).as_vec3();
         let rd = d.as_vec3();
         let near = forward.map(|f| Near {

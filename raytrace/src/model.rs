@@ -200,7 +200,11 @@ impl TriScene {
     /// back in the capture's frame, where `cameras.json`, orbit rigs and native renders live.
     /// Returns whether such a root was found.
     pub fn to_capture_frame(&mut self) -> bool {
-        let Some(i) = self.nodes.iter().position(|n| n.parent.is_none() && n.name == "splatbridge_root") else {
+        let Some(i) = self
+            .nodes
+            .iter()
+            .position(|n| n.parent.is_none() && n.name == "splatbridge_root")
+        else {
             return false;
         };
         let n = &mut self.nodes[i];
@@ -217,7 +221,11 @@ impl TriScene {
     pub fn sample_points(&self, t: f64, stride: usize) -> Vec<DVec3> {
         let mut out = Vec::new();
         for inst in self.instances(t) {
-            for p in self.meshes[inst.mesh].positions.iter().step_by(stride.max(1)) {
+            for p in self.meshes[inst.mesh]
+                .positions
+                .iter()
+                .step_by(stride.max(1))
+            {
                 out.push(inst.to_world.transform_point3(p.as_dvec3()));
             }
         }
@@ -261,7 +269,11 @@ impl TriScene {
                 ChannelPath::Rotation => {
                     let q = DQuat::from_xyzw(v[0], v[1], v[2], v[3]);
                     let l = q.length();
-                    rot = if l > 0.0 && l.is_finite() { q / l } else { DQuat::IDENTITY };
+                    rot = if l > 0.0 && l.is_finite() {
+                        q / l
+                    } else {
+                        DQuat::IDENTITY
+                    };
                 }
             }
         }
@@ -270,15 +282,25 @@ impl TriScene {
 
     /// World transforms of all nodes at time `t` (parents before children is not assumed).
     pub fn world_transforms(&self, t: f64) -> Vec<DAffine3> {
-        let local: Vec<DAffine3> = (0..self.nodes.len()).map(|i| self.local_transform(i, t)).collect();
+        let local: Vec<DAffine3> = (0..self.nodes.len())
+            .map(|i| self.local_transform(i, t))
+            .collect();
         let mut world: Vec<Option<DAffine3>> = vec![None; self.nodes.len()];
-        fn resolve(i: usize, nodes: &[Node], local: &[DAffine3], world: &mut [Option<DAffine3>], depth: usize) -> DAffine3 {
+        fn resolve(
+            i: usize,
+            nodes: &[Node],
+            local: &[DAffine3],
+            world: &mut [Option<DAffine3>],
+            depth: usize,
+        ) -> DAffine3 {
             if let Some(w) = world[i] {
                 return w;
             }
             // Loaders reject cycles; the depth cap keeps a malformed model finite regardless.
             let w = match nodes[i].parent {
-                Some(p) if depth < nodes.len() => resolve(p, nodes, local, world, depth + 1) * local[i],
+                Some(p) if depth < nodes.len() => {
+                    resolve(p, nodes, local, world, depth + 1) * local[i]
+                }
                 _ => local[i],
             };
             world[i] = Some(w);
@@ -300,11 +322,13 @@ impl TriScene {
                 let mesh = n.mesh?;
                 let w = world[i];
                 let det = w.matrix3.determinant();
-                (det.is_finite() && det.abs() > 1e-18 && w.translation.is_finite()).then_some(Instance {
-                    node: i,
-                    mesh,
-                    to_world: w,
-                })
+                (det.is_finite() && det.abs() > 1e-18 && w.translation.is_finite()).then_some(
+                    Instance {
+                        node: i,
+                        mesh,
+                        to_world: w,
+                    },
+                )
             })
             .collect()
     }
@@ -331,7 +355,10 @@ impl TriScene {
             let c2w = DMat3::from_cols(xa, -ya, -za);
             let k = p.opencv.unwrap_or_else(|| {
                 let h = GLTF_CAMERA_HEIGHT;
-                let aspect = p.aspect.filter(|a| *a > 0.0 && a.is_finite()).unwrap_or(4.0 / 3.0);
+                let aspect = p
+                    .aspect
+                    .filter(|a| *a > 0.0 && a.is_finite())
+                    .unwrap_or(4.0 / 3.0);
                 let wpx = ((h as f64 * aspect).round() as u32).max(1);
                 let f = 0.5 * h as f64 / (0.5 * p.yfov).tan();
                 Intrinsics {
@@ -352,7 +379,11 @@ impl TriScene {
                 cy: k.cy,
                 centre: w.translation,
                 world_to_cam: c2w.transpose(),
-                name: if n.name.is_empty() { format!("node {i}") } else { n.name.clone() },
+                name: if n.name.is_empty() {
+                    format!("node {i}")
+                } else {
+                    n.name.clone()
+                },
             });
         }
         out
@@ -363,7 +394,13 @@ impl TriScene {
 pub fn sample_channel(c: &Channel, t: f64) -> [f64; 4] {
     let n = c.times.len();
     let cubic = c.interpolation == Interpolation::CubicSpline;
-    let value = |k: usize| if cubic { c.values[3 * k + 1] } else { c.values[k] };
+    let value = |k: usize| {
+        if cubic {
+            c.values[3 * k + 1]
+        } else {
+            c.values[k]
+        }
+    };
     if n == 0 {
         return [0.0, 0.0, 0.0, 1.0];
     }
@@ -402,7 +439,9 @@ pub fn sample_channel(c: &Channel, t: f64) -> [f64; 4] {
             let h10 = s3 - 2.0 * s2 + s;
             let h01 = -2.0 * s3 + 3.0 * s2;
             let h11 = s3 - s2;
-            let mut v: [f64; 4] = std::array::from_fn(|j| h00 * a[j] + h10 * dt * out_a[j] + h01 * b[j] + h11 * dt * in_b[j]);
+            let mut v: [f64; 4] = std::array::from_fn(|j| {
+                h00 * a[j] + h10 * dt * out_a[j] + h01 * b[j] + h11 * dt * in_b[j]
+            });
             if c.path == ChannelPath::Rotation {
                 let q = DQuat::from_array(v);
                 let l = q.length();
@@ -478,11 +517,20 @@ pub fn srgb_to_linear(c: f32) -> f32 {
 impl Mesh {
     /// RGBA at barycentric position `bary` of triangle `tri`, as an unlit BLEND viewer shades it:
     /// vertex colour × base colour factor × texture, then the material's alpha mode.
-    pub fn shade(&self, tri: usize, bary: [f32; 3], materials: &[Material], textures: &[Texture]) -> Vec4 {
+    pub fn shade(
+        &self,
+        tri: usize,
+        bary: [f32; 3],
+        materials: &[Material],
+        textures: &[Texture],
+    ) -> Vec4 {
         let [i0, i1, i2] = self.tris[tri].map(|i| i as usize);
-        let mut c = self.colors[i0] * bary[0] + self.colors[i1] * bary[1] + self.colors[i2] * bary[2];
+        let mut c =
+            self.colors[i0] * bary[0] + self.colors[i1] * bary[1] + self.colors[i2] * bary[2];
         let default = Material::default();
-        let m = materials.get(self.tri_material[tri] as usize).unwrap_or(&default);
+        let m = materials
+            .get(self.tri_material[tri] as usize)
+            .unwrap_or(&default);
         c *= m.base_color;
         if let (Some(tex), Some(uvs)) = (m.texture.and_then(|t| textures.get(t)), &self.uvs) {
             let uv = uvs[i0] * bary[0] + uvs[i1] * bary[1] + uvs[i2] * bary[2];
@@ -573,7 +621,10 @@ impl Mesh {
             } else {
                 reps.iter().find(|(rn, rp, tol, _)| {
                     rn.dot(nn).abs() > 0.99
-                        && [a, b, c].iter().all(|p| rn.dot(*p - *rp).abs() <= tol.max(1e-3 * ext) + 1e-6 * p.abs().max_element())
+                        && [a, b, c].iter().all(|p| {
+                            rn.dot(*p - *rp).abs()
+                                <= tol.max(1e-3 * ext) + 1e-6 * p.abs().max_element()
+                        })
                 })
             };
             group[t] = match found {

@@ -36,7 +36,13 @@ fn params(p: BuildPreset) -> BvhBuildParams {
 /// grazing rays into steeper ones and could miss flat boxes.
 fn make_ray(origin: Vec3, dir: Vec3, tmax: f32) -> Ray {
     let dir = dir + Vec3::ZERO;
-    let inv = |x: f32| if x.abs() < 1e-18 { 1e18f32.copysign(x) } else { 1.0 / x };
+    let inv = |x: f32| {
+        if x.abs() < 1e-18 {
+            1e18f32.copysign(x)
+        } else {
+            1.0 / x
+        }
+    };
     Ray {
         origin: Vec3A::from(origin),
         direction: Vec3A::from(dir),
@@ -66,7 +72,10 @@ impl ObvhsAccel {
     }
 
     pub fn boxes(preset: BuildPreset, boxes: &[(Vec3, Vec3)]) -> Self {
-        let b: Vec<Aabb> = boxes.iter().map(|(lo, hi)| Aabb::new(Vec3A::from(*lo), Vec3A::from(*hi))).collect();
+        let b: Vec<Aabb> = boxes
+            .iter()
+            .map(|(lo, hi)| Aabb::new(Vec3A::from(*lo), Vec3A::from(*hi)))
+            .collect();
         let bvh = build_cwbvh(&b, params(preset), &mut Duration::default());
         ObvhsAccel { bvh }
     }

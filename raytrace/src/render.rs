@@ -55,10 +55,18 @@ impl Default for RenderOptions {
 impl RenderOptions {
     pub fn validate(&self) -> Result<()> {
         if self.k == 0 || self.k > 4096 {
-            return Err(TraceError::Invalid(format!("k = {} is outside 1..=4096", self.k)));
+            return Err(TraceError::Invalid(format!(
+                "k = {} is outside 1..=4096",
+                self.k
+            )));
         }
-        if !(self.min_transmittance > 0.0 && self.min_transmittance < 1.0) || !self.background.is_finite() || !self.near.is_finite() {
-            return Err(TraceError::Invalid("min transmittance must be in (0, 1) and the background finite".into()));
+        if !(self.min_transmittance > 0.0 && self.min_transmittance < 1.0)
+            || !self.background.is_finite()
+            || !self.near.is_finite()
+        {
+            return Err(TraceError::Invalid(
+                "min transmittance must be in (0, 1) and the background finite".into(),
+            ));
         }
         Ok(())
     }

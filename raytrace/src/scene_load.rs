@@ -20,33 +20,45 @@ use glam::{DAffine3, DMat4, DQuat, DVec3, Vec2, Vec3, Vec4};
 
 use crate::error::{Result, TraceError};
 use crate::model::{
-    srgb_to_linear, AlphaMode, Channel, ChannelPath, Interpolation, Intrinsics, Material, Mesh, Node, Perspective, Texture, TriScene, Wrap,
+    srgb_to_linear, AlphaMode, Channel, ChannelPath, Interpolation, Intrinsics, Material, Mesh,
+    Node, Perspective, Texture, TriScene, Wrap,
 };
 
 /// Load a triangle scene by extension: `.glb`, `.gltf`, `.obj`.
 pub fn load_path(path: &Path) -> Result<TriScene> {
-    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
     match ext.as_str() {
         "glb" | "gltf" => {
-            let (doc, buffers, images) = gltf::import(path).map_err(|e| TraceError::format(path, format!("not a readable glTF: {e}")))?;
+            let (doc, buffers, images) = gltf::import(path)
+                .map_err(|e| TraceError::format(path, format!("not a readable glTF: {e}")))?;
             from_gltf(path, &doc, &buffers, &images)
         }
         "obj" => load_obj(path),
-        _ => Err(TraceError::format(path, "unknown triangle-scene extension (expected .glb, .gltf or .obj)")),
+        _ => Err(TraceError::format(
+            path,
+            "unknown triangle-scene extension (expected .glb, .gltf or .obj)",
+        )),
     }
 }
 
 /// Load a GLB (or self-contained glTF JSON) from memory; `name` is used in error messages.
 pub fn load_glb_bytes(bytes: &[u8], name: &Path) -> Result<TriScene> {
-    let (doc, buffers, images) = gltf::import_slice(bytes).map_err(|e| TraceError::format(name, format!("not a readable glTF: {e}")))?;
+    let (doc, buffers, images) = gltf::import_slice(bytes)
+        .map_err(|e| TraceError::format(name, format!("not a readable glTF: {e}")))?;
     from_gltf(name, &doc, &buffers, &images)
 }
 
 fn texture_from(path: &Path, tex: &gltf::Texture, images: &[gltf::image::Data]) -> Result<Texture> {
     use gltf::image::Format as F;
-    let img = images
-        .get(tex.source().index())
-        .ok_or_else(|| TraceError::format(path, format!("texture {} names a missing image", tex.index())))?;
+    let img = images.get(tex.source().index()).ok_or_else(|| {
+        TraceError::format(
+            path,
+            format!("texture {} names a missing image", tex.index()),
+        )
+    })?;
     let n = img.width as usize * img.height as usize;
     let (ch, bytes): (usize, usize) = match img.format {
         F::R8 => (1, 1),
@@ -61,13 +73,21 @@ fn texture_from(path: &Path, tex: &gltf::Texture, images: &[gltf::image::Data]) 
         F::R32G32B32A32FLOAT => (4, 4),
     };
     if img.pixels.len() < n * ch * bytes {
-        return Err(TraceError::format(path, format!("image {} is shorter than its size", tex.source().index())));
+        return Err(TraceError::format(
+            path,
+            format!("image {} is shorter than its size", tex.source().index()),
+        ));
     }
     let get = |i: usize| -> f32 {
         match bytes {
             1 => img.pixels[i] as f32 / 255.0,
             2 => u16::from_ne_bytes([img.pixels[2 * i], img.pixels[2 * i + 1]]) as f32 / 65535.0,
-            _ => f32::from_ne_bytes([img.pixels[4 * i], img.pixels[4 * i + 1], img.pixels[4 * i + 2], img.pixels[4 * i + 3]]),
+            _ => f32::from_ne_bytes([
+                img.pixels[4 * i],
+                img.pixels[4 * i + 1],
+                img.pixels[4 * i + 2],
+                img.pixels[4 * i + 3],
+            ]),
         }
     };
     let texels = (0..n)
@@ -97,35 +117,70 @@ fn texture_from(path: &Path, tex: &gltf::Texture, images: &[gltf::image::Data]) 
     })
 }
 
-fn read_scalar_u32(path: &Path, acc: &gltf::Accessor, buffers: &[gltf::buffer::Data], what: &str) -> Result<Vec<u32>> {
+fn read_scalar_u32(
+    path: &Path,
+    acc: &gltf::Accessor,
+    buffers: &[gltf::buffer::Data],
+    what: &str,
+) -> Result<Vec<u32>> {
     use gltf::accessor::{DataType, Dimensions, Iter};
     if acc.dimensions() != Dimensions::Scalar {
-        return Err(TraceError::format(path, format!("{what}: accessor {} is not SCALAR", acc.index())));
+        return Err(TraceError::format(
+            path,
+            format!("{what}: accessor {} is not SCALAR", acc.index()),
+        ));
     }
     let get = |b: gltf::Buffer| buffers.get(b.index()).map(|d| &d.0[..]);
-    let bad = || TraceError::format(path, format!("{what}: accessor {} cannot be read", acc.index()));
+    let bad = || {
+        TraceError::format(
+            path,
+            format!("{what}: accessor {} cannot be read", acc.index()),
+        )
+    };
     let v: Vec<u32> = match acc.data_type() {
         DataType::F32 => {
             let it = Iter::<f32>::new(acc.clone(), get).ok_or_else(bad)?;
             let mut out = Vec::with_capacity(acc.count());
             for (i, x) in it.enumerate() {
                 if !(x >= 0.0 && x <= u32::MAX as f32 && x.fract() == 0.0) {
-                    return Err(TraceError::format(path, format!("{what}: vertex {i} has id {x}, not a non-negative integer")));
+                    return Err(TraceError::format(
+                        path,
+                        format!("{what}: vertex {i} has id {x}, not a non-negative integer"),
+                    ));
                 }
                 out.push(x as u32);
             }
             out
         }
-        DataType::U32 => Iter::<u32>::new(acc.clone(), get).ok_or_else(bad)?.collect(),
-        DataType::U16 => Iter::<u16>::new(acc.clone(), get).ok_or_else(bad)?.map(u32::from).collect(),
-        DataType::U8 => Iter::<u8>::new(acc.clone(), get).ok_or_else(bad)?.map(u32::from).collect(),
-        DataType::I16 => Iter::<i16>::new(acc.clone(), get).ok_or_else(bad)?.map(|x| x.max(0) as u32).collect(),
-        DataType::I8 => Iter::<i8>::new(acc.clone(), get).ok_or_else(bad)?.map(|x| x.max(0) as u32).collect(),
+        DataType::U32 => Iter::<u32>::new(acc.clone(), get)
+            .ok_or_else(bad)?
+            .collect(),
+        DataType::U16 => Iter::<u16>::new(acc.clone(), get)
+            .ok_or_else(bad)?
+            .map(u32::from)
+            .collect(),
+        DataType::U8 => Iter::<u8>::new(acc.clone(), get)
+            .ok_or_else(bad)?
+            .map(u32::from)
+            .collect(),
+        DataType::I16 => Iter::<i16>::new(acc.clone(), get)
+            .ok_or_else(bad)?
+            .map(|x| x.max(0) as u32)
+            .collect(),
+        DataType::I8 => Iter::<i8>::new(acc.clone(), get)
+            .ok_or_else(bad)?
+            .map(|x| x.max(0) as u32)
+            .collect(),
     };
     Ok(v)
 }
 
-fn from_gltf(path: &Path, doc: &gltf::Document, buffers: &[gltf::buffer::Data], images: &[gltf::image::Data]) -> Result<TriScene> {
+fn from_gltf(
+    path: &Path,
+    doc: &gltf::Document,
+    buffers: &[gltf::buffer::Data],
+    images: &[gltf::image::Data],
+) -> Result<TriScene> {
     let get = |b: gltf::Buffer| buffers.get(b.index()).map(|d| &d.0[..]);
     let mut textures = Vec::new();
     for t in doc.textures() {
@@ -140,7 +195,9 @@ fn from_gltf(path: &Path, doc: &gltf::Document, buffers: &[gltf::buffer::Data], 
                 texture: pbr.base_color_texture().map(|t| t.texture().index()),
                 alpha_mode: match m.alpha_mode() {
                     gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
-                    gltf::material::AlphaMode::Mask => AlphaMode::Mask(m.alpha_cutoff().unwrap_or(0.5)),
+                    gltf::material::AlphaMode::Mask => {
+                        AlphaMode::Mask(m.alpha_cutoff().unwrap_or(0.5))
+                    }
                     gltf::material::AlphaMode::Blend => AlphaMode::Blend,
                 },
             }
@@ -164,7 +221,10 @@ fn from_gltf(path: &Path, doc: &gltf::Document, buffers: &[gltf::buffer::Data], 
         for (pi, p) in m.primitives().enumerate() {
             let what = format!("mesh {} primitive {pi}", m.index());
             use gltf::mesh::Mode;
-            if !matches!(p.mode(), Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
+            if !matches!(
+                p.mode(),
+                Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+            ) {
                 continue;
             }
             let r = p.reader(get);
@@ -174,7 +234,10 @@ fn from_gltf(path: &Path, doc: &gltf::Document, buffers: &[gltf::buffer::Data], 
                 .map(Vec3::from_array)
                 .collect();
             if let Some(i) = pos.iter().position(|v| !v.is_finite()) {
-                return Err(TraceError::format(path, format!("{what}: POSITION of vertex {i} is not finite")));
+                return Err(TraceError::format(
+                    path,
+                    format!("{what}: POSITION of vertex {i} is not finite"),
+                ));
             }
             let n = pos.len();
             let base = mesh.positions.len() as u32;
@@ -183,32 +246,63 @@ fn from_gltf(path: &Path, doc: &gltf::Document, buffers: &[gltf::buffer::Data], 
                 None => vec![Vec4::ONE; n],
             };
             if cols.len() != n {
-                return Err(TraceError::format(path, format!("{what}: COLOR_0 has {} entries for {n} vertices", cols.len())));
+                return Err(TraceError::format(
+                    path,
+                    format!(
+                        "{what}: COLOR_0 has {} entries for {n} vertices",
+                        cols.len()
+                    ),
+                ));
             }
-            let uv: Option<Vec<Vec2>> = r.read_tex_coords(0).map(|t| t.into_f32().map(Vec2::from_array).collect());
+            let uv: Option<Vec<Vec2>> = r
+                .read_tex_coords(0)
+                .map(|t| t.into_f32().map(Vec2::from_array).collect());
             let gid = p
                 .attributes()
                 .find(|(s, _)| matches!(s, gltf::Semantic::Extras(name) if name == "GAUSSIAN_ID"))
-                .map(|(_, acc)| read_scalar_u32(path, &acc, buffers, &format!("{what}: _GAUSSIAN_ID")))
+                .map(|(_, acc)| {
+                    read_scalar_u32(path, &acc, buffers, &format!("{what}: _GAUSSIAN_ID"))
+                })
                 .transpose()?;
             let idx: Vec<u32> = match r.read_indices() {
                 Some(i) => i.into_u32().collect(),
                 None => (0..n as u32).collect(),
             };
             if let Some(bad) = idx.iter().find(|&&i| i as usize >= n) {
-                return Err(TraceError::format(path, format!("{what}: index {bad} is out of range ({n} vertices)")));
+                return Err(TraceError::format(
+                    path,
+                    format!("{what}: index {bad} is out of range ({n} vertices)"),
+                ));
             }
             let tris: Vec<[u32; 3]> = match p.mode() {
                 Mode::Triangles => idx.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
                 Mode::TriangleStrip => (2..idx.len())
-                    .map(|i| if i % 2 == 0 { [idx[i - 2], idx[i - 1], idx[i]] } else { [idx[i - 1], idx[i - 2], idx[i]] })
+                    .map(|i| {
+                        if i % 2 == 0 {
+                            [idx[i - 2], idx[i - 1], idx[i]]
+                        } else {
+                            [idx[i - 1], idx[i - 2], idx[i]]
+                        }
+                    })
                     .collect(),
-                _ => (2..idx.len()).map(|i| [idx[0], idx[i - 1], idx[i]]).collect(),
+                _ => (2..idx.len())
+                    .map(|i| [idx[0], idx[i - 1], idx[i]])
+                    .collect(),
             };
-            let mat = p.material().index().map(|i| i as u32).unwrap_or(default_material);
+            let mat = p
+                .material()
+                .index()
+                .map(|i| i as u32)
+                .unwrap_or(default_material);
             if let Some(u) = &uv {
                 if u.len() != n {
-                    return Err(TraceError::format(path, format!("{what}: TEXCOORD_0 has {} entries for {n} vertices", u.len())));
+                    return Err(TraceError::format(
+                        path,
+                        format!(
+                            "{what}: TEXCOORD_0 has {} entries for {n} vertices",
+                            u.len()
+                        ),
+                    ));
                 }
             }
             any_uv |= uv.is_some();
@@ -216,7 +310,13 @@ fn from_gltf(path: &Path, doc: &gltf::Document, buffers: &[gltf::buffer::Data], 
             match &gid {
                 Some(g) if g.len() == n => ids.extend_from_slice(g),
                 Some(g) => {
-                    return Err(TraceError::format(path, format!("{what}: _GAUSSIAN_ID has {} entries for {n} vertices", g.len())))
+                    return Err(TraceError::format(
+                        path,
+                        format!(
+                            "{what}: _GAUSSIAN_ID has {} entries for {n} vertices",
+                            g.len()
+                        ),
+                    ))
                 }
                 None => {
                     all_ids = false;
@@ -256,10 +356,18 @@ fn from_gltf(path: &Path, doc: &gltf::Document, buffers: &[gltf::buffer::Data], 
                     let m = DMat4::from_cols_array_2d(&matrix.map(|c| c.map(|v| v as f64)));
                     node.matrix = Some(DAffine3::from_mat4(m));
                 }
-                gltf::scene::Transform::Decomposed { translation, rotation, scale } => {
+                gltf::scene::Transform::Decomposed {
+                    translation,
+                    rotation,
+                    scale,
+                } => {
                     node.translation = DVec3::from_array(translation.map(|v| v as f64));
                     let q = DQuat::from_array(rotation.map(|v| v as f64));
-                    node.rotation = if q.length() > 0.0 { q.normalize() } else { DQuat::IDENTITY };
+                    node.rotation = if q.length() > 0.0 {
+                        q.normalize()
+                    } else {
+                        DQuat::IDENTITY
+                    };
                     node.scale = DVec3::from_array(scale.map(|v| v as f64));
                 }
             }
@@ -269,7 +377,10 @@ fn from_gltf(path: &Path, doc: &gltf::Document, buffers: &[gltf::buffer::Data], 
     for n in doc.nodes() {
         for c in n.children() {
             if nodes[c.index()].parent.is_some() {
-                return Err(TraceError::format(path, format!("node {} has more than one parent", c.index())));
+                return Err(TraceError::format(
+                    path,
+                    format!("node {} has more than one parent", c.index()),
+                ));
             }
             nodes[c.index()].parent = Some(n.index());
         }
@@ -280,7 +391,10 @@ fn from_gltf(path: &Path, doc: &gltf::Document, buffers: &[gltf::buffer::Data], 
         while let Some(p) = cur {
             steps += 1;
             if steps > nodes.len() {
-                return Err(TraceError::format(path, format!("node {i} is part of a parent cycle")));
+                return Err(TraceError::format(
+                    path,
+                    format!("node {i} is part of a parent cycle"),
+                ));
             }
             cur = nodes[p].parent;
         }
@@ -306,7 +420,10 @@ fn from_gltf(path: &Path, doc: &gltf::Document, buffers: &[gltf::buffer::Data], 
             if let gltf::camera::Projection::Perspective(p) = c.projection() {
                 let yfov = p.yfov() as f64;
                 if !(yfov > 0.0 && yfov < std::f64::consts::PI) {
-                    return Err(TraceError::format(path, format!("camera {}: yfov {yfov} is outside (0, π)", c.index())));
+                    return Err(TraceError::format(
+                        path,
+                        format!("camera {}: yfov {yfov} is outside (0, π)", c.index()),
+                    ));
                 }
                 node.camera = Some(Perspective {
                     yfov,
@@ -332,17 +449,23 @@ fn from_gltf(path: &Path, doc: &gltf::Document, buffers: &[gltf::buffer::Data], 
             let r = ch.reader(get);
             let times: Vec<f64> = r
                 .read_inputs()
-                .ok_or_else(|| TraceError::format(path, format!("{what}: sampler input cannot be read")))?
+                .ok_or_else(|| {
+                    TraceError::format(path, format!("{what}: sampler input cannot be read"))
+                })?
                 .map(|t| t as f64)
                 .collect();
             if times.windows(2).any(|w| !(w[1] > w[0])) || times.iter().any(|t| !t.is_finite()) {
-                return Err(TraceError::format(path, format!("{what}: key times are not finite and strictly increasing")));
+                return Err(TraceError::format(
+                    path,
+                    format!("{what}: key times are not finite and strictly increasing"),
+                ));
             }
-            let values: Vec<[f64; 4]> = match r
-                .read_outputs()
-                .ok_or_else(|| TraceError::format(path, format!("{what}: sampler output cannot be read")))?
-            {
-                ReadOutputs::Translations(it) | ReadOutputs::Scales(it) => it.map(|v| [v[0] as f64, v[1] as f64, v[2] as f64, 0.0]).collect(),
+            let values: Vec<[f64; 4]> = match r.read_outputs().ok_or_else(|| {
+                TraceError::format(path, format!("{what}: sampler output cannot be read"))
+            })? {
+                ReadOutputs::Translations(it) | ReadOutputs::Scales(it) => it
+                    .map(|v| [v[0] as f64, v[1] as f64, v[2] as f64, 0.0])
+                    .collect(),
                 ReadOutputs::Rotations(it) => it.into_f32().map(|v| v.map(|x| x as f64)).collect(),
                 ReadOutputs::MorphTargetWeights(_) => continue,
             };
@@ -351,15 +474,26 @@ fn from_gltf(path: &Path, doc: &gltf::Document, buffers: &[gltf::buffer::Data], 
                 gltf::animation::Interpolation::Linear => Interpolation::Linear,
                 gltf::animation::Interpolation::CubicSpline => Interpolation::CubicSpline,
             };
-            let per = if interpolation == Interpolation::CubicSpline { 3 } else { 1 };
+            let per = if interpolation == Interpolation::CubicSpline {
+                3
+            } else {
+                1
+            };
             if values.len() != per * times.len() {
                 return Err(TraceError::format(
                     path,
-                    format!("{what}: {} output values for {} keys", values.len(), times.len()),
+                    format!(
+                        "{what}: {} output values for {} keys",
+                        values.len(),
+                        times.len()
+                    ),
                 ));
             }
             if values.iter().any(|v| v.iter().any(|x| !x.is_finite())) {
-                return Err(TraceError::format(path, format!("{what}: output values are not finite")));
+                return Err(TraceError::format(
+                    path,
+                    format!("{what}: output values are not finite"),
+                ));
             }
             channels.push(Channel {
                 node: ch.target().node().index(),
@@ -372,8 +506,10 @@ fn from_gltf(path: &Path, doc: &gltf::Document, buffers: &[gltf::buffer::Data], 
     }
 
     // glTF's COLOR_0 is linear unless splatbridge metadata says the file keeps display values.
-    let encoding = extras_value(&doc.as_json().asset.extras)
-        .and_then(|v| v.pointer("/splatbridge/colorEncoding").and_then(|e| e.as_str().map(str::to_owned)));
+    let encoding = extras_value(&doc.as_json().asset.extras).and_then(|v| {
+        v.pointer("/splatbridge/colorEncoding")
+            .and_then(|e| e.as_str().map(str::to_owned))
+    });
     Ok(TriScene {
         meshes,
         materials,
@@ -385,7 +521,8 @@ fn from_gltf(path: &Path, doc: &gltf::Document, buffers: &[gltf::buffer::Data], 
 }
 
 fn extras_value(e: &gltf::json::Extras) -> Option<serde_json::Value> {
-    e.as_ref().and_then(|raw| serde_json::from_str(raw.get()).ok())
+    e.as_ref()
+        .and_then(|raw| serde_json::from_str(raw.get()).ok())
 }
 
 /// `extras.opencv` = {width, height, fx, fy, cx, cy} on a camera, when complete and valid.
@@ -414,7 +551,8 @@ fn obj_options() -> tobj::LoadOptions {
 
 /// Load an OBJ (and its MTL, when present) from a path.
 pub fn load_obj(path: &Path) -> Result<TriScene> {
-    let (models, mats) = tobj::load_obj(path, &obj_options()).map_err(|e| TraceError::format(path, format!("not a readable OBJ: {e}")))?;
+    let (models, mats) = tobj::load_obj(path, &obj_options())
+        .map_err(|e| TraceError::format(path, format!("not a readable OBJ: {e}")))?;
     // A missing or broken MTL leaves the geometry usable; vertex colours carry the colour.
     let mats = mats.unwrap_or_default();
     obj_scene(path, models, mats)
@@ -423,8 +561,10 @@ pub fn load_obj(path: &Path) -> Result<TriScene> {
 /// Load an OBJ from memory (materials are not resolved).
 pub fn load_obj_bytes(bytes: &[u8], name: &Path) -> Result<TriScene> {
     let mut r = std::io::BufReader::new(bytes);
-    let (models, _) = tobj::load_obj_buf(&mut r, &obj_options(), |_| Err(tobj::LoadError::OpenFileFailed))
-        .map_err(|e| TraceError::format(name, format!("not a readable OBJ: {e}")))?;
+    let (models, _) = tobj::load_obj_buf(&mut r, &obj_options(), |_| {
+        Err(tobj::LoadError::OpenFileFailed)
+    })
+    .map_err(|e| TraceError::format(name, format!("not a readable OBJ: {e}")))?;
     obj_scene(name, models, Vec::new())
 }
 
@@ -437,7 +577,11 @@ fn obj_scene(path: &Path, models: Vec<tobj::Model>, mats: Vec<tobj::Material>) -
             Material {
                 base_color: Vec4::new(kd[0], kd[1], kd[2], d),
                 texture: None,
-                alpha_mode: if d < 1.0 { AlphaMode::Blend } else { AlphaMode::Opaque },
+                alpha_mode: if d < 1.0 {
+                    AlphaMode::Blend
+                } else {
+                    AlphaMode::Opaque
+                },
             }
         })
         .collect();
@@ -452,9 +596,16 @@ fn obj_scene(path: &Path, models: Vec<tobj::Model>, mats: Vec<tobj::Material>) -
     for (mi, model) in models.into_iter().enumerate() {
         let m = model.mesh;
         let n = m.positions.len() / 3;
-        let positions: Vec<Vec3> = m.positions.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect();
+        let positions: Vec<Vec3> = m
+            .positions
+            .chunks_exact(3)
+            .map(|c| Vec3::new(c[0], c[1], c[2]))
+            .collect();
         if let Some(i) = positions.iter().position(|v| !v.is_finite()) {
-            return Err(TraceError::format(path, format!("object {mi} ('{}'): vertex {i} is not finite", model.name)));
+            return Err(TraceError::format(
+                path,
+                format!("object {mi} ('{}'): vertex {i} is not finite", model.name),
+            ));
         }
         let mut mat = m.material_id.map(|i| i as u32).unwrap_or(default_material);
         if mat as usize >= scene.materials.len() {
@@ -467,14 +618,24 @@ fn obj_scene(path: &Path, models: Vec<tobj::Model>, mats: Vec<tobj::Material>) -
                     mm.base_color = Vec4::new(1.0, 1.0, 1.0, mm.base_color.w);
                 }
             }
-            m.vertex_color.chunks_exact(3).map(|c| Vec4::new(c[0], c[1], c[2], 1.0)).collect()
+            m.vertex_color
+                .chunks_exact(3)
+                .map(|c| Vec4::new(c[0], c[1], c[2], 1.0))
+                .collect()
         } else {
             vec![Vec4::ONE; n]
         };
         if let Some(bad) = m.indices.iter().find(|&&i| i as usize >= n) {
-            return Err(TraceError::format(path, format!("object {mi} ('{}'): index {bad} out of range", model.name)));
+            return Err(TraceError::format(
+                path,
+                format!("object {mi} ('{}'): index {bad} out of range", model.name),
+            ));
         }
-        let tris: Vec<[u32; 3]> = m.indices.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+        let tris: Vec<[u32; 3]> = m
+            .indices
+            .chunks_exact(3)
+            .map(|c| [c[0], c[1], c[2]])
+            .collect();
         let mut mesh = Mesh {
             name: model.name.clone(),
             positions,

@@ -21,7 +21,14 @@ pub trait SecondaryRays {
     /// `offset` units (to leave the surface a ray starts on). 0 once below 1e-4.
     fn transmittance(&self, from: DVec3, to: DVec3, offset: f64) -> f32;
     /// The nearest hit with α ≥ `threshold` along `o + t·d` (d unit length), `offset ≤ t ≤ tmax`.
-    fn closest_opaque(&self, o: DVec3, d: DVec3, offset: f64, tmax: f64, threshold: f32) -> Option<OpaqueHit>;
+    fn closest_opaque(
+        &self,
+        o: DVec3,
+        d: DVec3,
+        offset: f64,
+        tmax: f64,
+        threshold: f32,
+    ) -> Option<OpaqueHit>;
 }
 
 /// A mesh scene frozen at one time, for secondary queries.
@@ -50,12 +57,22 @@ fn segment(from: DVec3, to: DVec3) -> Option<(DVec3, f64)> {
 
 impl SecondaryRays for MeshAt<'_> {
     fn transmittance(&self, from: DVec3, to: DVec3, offset: f64) -> f32 {
-        let Some((d, len)) = segment(from, to) else { return 1.0 };
+        let Some((d, len)) = segment(from, to) else {
+            return 1.0;
+        };
         let mut buf = KBuffer::new(self.k);
         let mut tr = 1.0f32;
         let mut after = None;
         loop {
-            self.tracer.collect(&self.insts, from, d, offset as f32, len as f32, after, &mut buf);
+            self.tracer.collect(
+                &self.insts,
+                from,
+                d,
+                offset as f32,
+                len as f32,
+                after,
+                &mut buf,
+            );
             for h in &buf.hits {
                 // Strictly before the end point: a surface at `to` does not shadow itself.
                 if h.t as f64 >= len {
@@ -73,11 +90,26 @@ impl SecondaryRays for MeshAt<'_> {
         }
     }
 
-    fn closest_opaque(&self, o: DVec3, d: DVec3, offset: f64, tmax: f64, threshold: f32) -> Option<OpaqueHit> {
+    fn closest_opaque(
+        &self,
+        o: DVec3,
+        d: DVec3,
+        offset: f64,
+        tmax: f64,
+        threshold: f32,
+    ) -> Option<OpaqueHit> {
         let mut buf = KBuffer::new(self.k);
         let mut after = None;
         loop {
-            self.tracer.collect(&self.insts, o, d, offset as f32, tmax as f32, after, &mut buf);
+            self.tracer.collect(
+                &self.insts,
+                o,
+                d,
+                offset as f32,
+                tmax as f32,
+                after,
+                &mut buf,
+            );
             for h in &buf.hits {
                 let c = self.tracer.shade(&self.insts, h);
                 if c.w >= threshold {
@@ -98,7 +130,9 @@ impl SecondaryRays for MeshAt<'_> {
 
 impl SecondaryRays for GaussianTracer {
     fn transmittance(&self, from: DVec3, to: DVec3, offset: f64) -> f32 {
-        let Some((d, len)) = segment(from, to) else { return 1.0 };
+        let Some((d, len)) = segment(from, to) else {
+            return 1.0;
+        };
         let mut tr = 1.0f32;
         for h in self.all_hits(from, d, 16) {
             let t = h.t as f64;
@@ -116,7 +150,14 @@ impl SecondaryRays for GaussianTracer {
         tr
     }
 
-    fn closest_opaque(&self, o: DVec3, d: DVec3, offset: f64, tmax: f64, threshold: f32) -> Option<OpaqueHit> {
+    fn closest_opaque(
+        &self,
+        o: DVec3,
+        d: DVec3,
+        offset: f64,
+        tmax: f64,
+        threshold: f32,
+    ) -> Option<OpaqueHit> {
         self.all_hits(o, d, 16)
             .into_iter()
             .filter(|h| (h.t as f64) >= offset && (h.t as f64) <= tmax)
@@ -125,7 +166,11 @@ impl SecondaryRays for GaussianTracer {
                 let g = h.gaussian as usize;
                 OpaqueHit {
                     t: h.t as f64,
-                    rgb: splatbridge_scene::sh::eval_color(self.cloud.sh_degree, self.cloud.sh_of(g), d.as_vec3()),
+                    rgb: splatbridge_scene::sh::eval_color(
+                        self.cloud.sh_degree,
+                        self.cloud.sh_of(g),
+                        d.as_vec3(),
+                    ),
                     alpha: h.bary[0],
                 }
             })

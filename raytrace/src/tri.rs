@@ -77,7 +77,9 @@ impl WRay {
         let mut v = ax * cy - ay * cx;
         let mut w = bx * ay - by * ax;
         if u == 0.0 || v == 0.0 || w == 0.0 {
-            let (ax, ay, bx, by, cx, cy) = (ax as f64, ay as f64, bx as f64, by as f64, cx as f64, cy as f64);
+            let (ax, ay, bx, by, cx, cy) = (
+                ax as f64, ay as f64, bx as f64, by as f64, cx as f64, cy as f64,
+            );
             u = (cx * by - cy * bx) as f32;
             v = (ax * cy - ay * cx) as f32;
             w = (bx * ay - by * ax) as f32;
@@ -111,7 +113,11 @@ mod tests {
 
     #[test]
     fn hits_inside_misses_outside_both_faces() {
-        let (a, b, c) = (Vec3::new(0.0, 0.0, 1.0), Vec3::new(1.0, 0.0, 1.0), Vec3::new(0.0, 1.0, 1.0));
+        let (a, b, c) = (
+            Vec3::new(0.0, 0.0, 1.0),
+            Vec3::new(1.0, 0.0, 1.0),
+            Vec3::new(0.0, 1.0, 1.0),
+        );
         let r = WRay::new(Vec3::new(0.25, 0.25, 0.0), Vec3::Z);
         let h = r.intersect(a, b, c, 0.0, f32::INFINITY).unwrap();
         assert!((h.t - 1.0).abs() < 1e-6);
@@ -129,10 +135,18 @@ mod tests {
     #[test]
     fn shared_edge_is_never_missed() {
         // Two triangles sharing the diagonal of the unit square; rays along the diagonal.
-        let p = [Vec3::new(0.0, 0.0, 1.0), Vec3::new(1.0, 0.0, 1.0), Vec3::new(1.0, 1.0, 1.0), Vec3::new(0.0, 1.0, 1.0)];
+        let p = [
+            Vec3::new(0.0, 0.0, 1.0),
+            Vec3::new(1.0, 0.0, 1.0),
+            Vec3::new(1.0, 1.0, 1.0),
+            Vec3::new(0.0, 1.0, 1.0),
+        ];
         for i in 1..100 {
             let s = i as f32 / 100.0 + 1e-3 * (i as f32).sin();
-            let r = WRay::new(Vec3::new(s, s, 0.0), Vec3::new(1e-3 * (i as f32).cos(), 0.0, 1.0).normalize());
+            let r = WRay::new(
+                Vec3::new(s, s, 0.0),
+                Vec3::new(1e-3 * (i as f32).cos(), 0.0, 1.0).normalize(),
+            );
             let h1 = r.intersect(p[0], p[1], p[2], 0.0, f32::INFINITY).is_some();
             let h2 = r.intersect(p[0], p[2], p[3], 0.0, f32::INFINITY).is_some();
             assert!(h1 || h2, "ray {i} slipped through the shared edge");
@@ -143,7 +157,13 @@ mod tests {
     fn coplanar_ray_misses() {
         let r = WRay::new(Vec3::new(-1.0, 0.2, 1.0), Vec3::X);
         assert!(r
-            .intersect(Vec3::new(0.0, 0.0, 1.0), Vec3::new(1.0, 0.0, 1.0), Vec3::new(0.0, 1.0, 1.0), 0.0, f32::INFINITY)
+            .intersect(
+                Vec3::new(0.0, 0.0, 1.0),
+                Vec3::new(1.0, 0.0, 1.0),
+                Vec3::new(0.0, 1.0, 1.0),
+                0.0,
+                f32::INFINITY
+            )
             .is_none());
     }
 }

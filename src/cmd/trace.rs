@@ -13,7 +13,8 @@ use anyhow::{bail, Context};
 use glam::{Quat, Vec3};
 use splatbridge_raytrace::scene_load::load_path;
 use splatbridge_raytrace::{
-    BackendKind, BuildPreset, GaussianTracer, MeshTracer, RenderOptions, Stats, TriScene,
+    BackendKind, BuildPreset, Compositing, GaussianTracer, MeshTracer, RenderOptions, Stats,
+    TriScene,
 };
 use splatbridge_scene::image_io::save_frame;
 use splatbridge_scene::{Camera, Frame, GaussianCloud};

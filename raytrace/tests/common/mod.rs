@@ -11,7 +11,9 @@ use std::collections::{HashMap, HashSet};
 
 use glam::{DVec3, Quat, Vec3, Vec4};
 use splatbridge_raytrace::model::{Material, Mesh, TriScene};
-use splatbridge_raytrace::{AlphaMode, BackendKind, BuildPreset, Compositing, MeshTracer, RenderOptions};
+use splatbridge_raytrace::{
+    AlphaMode, BackendKind, BuildPreset, Compositing, MeshTracer, RenderOptions,
+};
 use splatbridge_scene::Camera;
 
 /// Small deterministic generator (SplitMix64).
@@ -275,11 +277,27 @@ impl Reference {
             let a = rgba.w as f64;
             if a > 0.0 {
                 let mut rgb = rgba.truncate().as_dvec3().clamp(DVec3::ZERO, DVec3::ONE);
-                let enc = |x: f64| if x <= 0.0031308 { 12.92 * x } else { 1.055 * x.powf(1.0 / 2.4) - 0.055 };
-                let dec = |x: f64| if x <= 0.04045 { x / 12.92 } else { ((x + 0.055) / 1.055).powf(2.4) };
+                let enc = |x: f64| {
+                    if x <= 0.0031308 {
+                        12.92 * x
+                    } else {
+                        1.055 * x.powf(1.0 / 2.4) - 0.055
+                    }
+                };
+                let dec = |x: f64| {
+                    if x <= 0.04045 {
+                        x / 12.92
+                    } else {
+                        ((x + 0.055) / 1.055).powf(2.4)
+                    }
+                };
                 match (opts.compositing, self.scene.colors_linear) {
-                    (Compositing::Display, true) => rgb = DVec3::new(enc(rgb.x), enc(rgb.y), enc(rgb.z)),
-                    (Compositing::Viewer, false) => rgb = DVec3::new(dec(rgb.x), dec(rgb.y), dec(rgb.z)),
+                    (Compositing::Display, true) => {
+                        rgb = DVec3::new(enc(rgb.x), enc(rgb.y), enc(rgb.z))
+                    }
+                    (Compositing::Viewer, false) => {
+                        rgb = DVec3::new(dec(rgb.x), dec(rgb.y), dec(rgb.z))
+                    }
                     _ => {}
                 }
                 c += rgb * a * tr;
@@ -290,10 +308,23 @@ impl Reference {
             }
         }
         if opts.compositing == Compositing::Viewer {
-            let enc = |x: f64| if x <= 0.0031308 { 12.92 * x } else { 1.055 * x.powf(1.0 / 2.4) - 0.055 };
-            let dec = |x: f64| if x <= 0.04045 { x / 12.92 } else { ((x + 0.055) / 1.055).powf(2.4) };
+            let enc = |x: f64| {
+                if x <= 0.0031308 {
+                    12.92 * x
+                } else {
+                    1.055 * x.powf(1.0 / 2.4) - 0.055
+                }
+            };
+            let dec = |x: f64| {
+                if x <= 0.04045 {
+                    x / 12.92
+                } else {
+                    ((x + 0.055) / 1.055).powf(2.4)
+                }
+            };
             let bg = opts.background.as_dvec3();
-            let l = (c + DVec3::new(dec(bg.x), dec(bg.y), dec(bg.z)) * tr).clamp(DVec3::ZERO, DVec3::ONE);
+            let l = (c + DVec3::new(dec(bg.x), dec(bg.y), dec(bg.z)) * tr)
+                .clamp(DVec3::ZERO, DVec3::ONE);
             return (DVec3::new(enc(l.x), enc(l.y), enc(l.z)), 1.0 - tr);
         }
         (c + opts.background.as_dvec3() * tr, 1.0 - tr)
