@@ -28,10 +28,8 @@ use rayon::prelude::*;
 use splatbridge_scene::surfels::{split, split_ges, SplitParams, SurfelCloud, GES_EPSILON_FACTOR};
 use splatbridge_scene::{Camera, Frame, GaussianCloud};
 
-use crate::native::{
-    project_cloud, RenderError, RenderOptions, RenderStats, MAX_PAIRS, NEAR_REFERENCE,
-};
-use crate::project::{Extent, ViewParams};
+use crate::native::{RenderError, RenderOptions, MAX_PAIRS, NEAR_REFERENCE};
+use crate::project::{project_one, Extent, Projected, ViewParams};
 
 use gauss_pass::{gauss_tile, OUT_PLANES};
 use surfel_pass::{N, P_LIMIT, T};
@@ -192,15 +190,7 @@ pub fn render_ges_with_ids(
     stats.surfel_pairs = sb.pairs;
     let t1 = Instant::now();
 
-    let ropts = RenderOptions {
-        extent: opts.extent,
-        sh_degree_cap: opts.sh_degree_cap,
-        near: opts.near,
-        background: opts.background,
-        ..Default::default()
-    };
-    let mut rstats = RenderStats::default();
-    let proj = project_cloud(gaussians, &view, &ropts, &mut rstats);
+    let proj = project_all(gaussians, &view, opts);
     stats.projected = proj.len();
     let t2 = Instant::now();
 
@@ -251,6 +241,22 @@ pub fn render_ges_with_ids(
         blending: t4 - t3,
     };
     Ok((frame, stats, sb.ids))
+}
+
+/// Project every Gaussian with the native renderer's [`project_one`] (in parallel); the
+/// visible ones in input order.
+fn project_all(cloud: &GaussianCloud, view: &ViewParams, opts: &GesOptions) -> Vec<Projected> {
+    let degree = cloud.sh_degree.min(opts.sh_degree_cap);
+    let parts: Vec<Vec<Projected>> = (0..cloud.len())
+        .into_par_iter()
+        .chunks(8192)
+        .map(|idx| {
+            idx.into_iter()
+                .filter_map(|i| project_one(cloud, i, view, opts.extent, degree).ok())
+                .collect()
+        })
+        .collect();
+    parts.concat()
 }
 
 /// Tile-major output planes to a frame.
