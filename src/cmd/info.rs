@@ -234,3 +234,63 @@ fn print_text(v: &Value) {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::{Quat, Vec3};
+
+    #[test]
+    fn nearest_rank_quantiles() {
+        let d = distribution((1..=101).rev().map(|i| i as f32).collect());
+        assert_eq!(d["min"], json!(1.0));
+        assert_eq!(d["p01"], json!(2.0));
+        assert_eq!(d["p50"], json!(51.0));
+        assert_eq!(d["p99"], json!(100.0));
+        assert_eq!(d["max"], json!(101.0));
+        assert_eq!(d["mean"], json!(51.0));
+        assert!(distribution(Vec::new()).is_null());
+    }
+
+    #[test]
+    fn stats_count_the_unusual_values() {
+        let mut c = GaussianCloud::new(0);
+        let sh = [Vec3::ZERO];
+        c.push(
+            Vec3::new(-1.0, 0.0, 0.0),
+            Vec3::splat(-2.0),
+            Quat::IDENTITY,
+            f32::INFINITY,
+            &sh,
+        );
+        c.push(
+            Vec3::new(1.0, 2.0, 3.0),
+            Vec3::new(-23.0, 0.0, 0.0),
+            Quat::from_xyzw(0.0, 0.0, 0.0, 3.2),
+            f32::NEG_INFINITY,
+            &sh,
+        );
+        c.push(
+            Vec3::ZERO,
+            Vec3::ZERO,
+            Quat::from_xyzw(0.0, 0.0, 0.0, 1.0005),
+            0.0,
+            &sh,
+        );
+        let s = cloud_stats(&c);
+        assert_eq!(s["gaussians"], json!(3));
+        assert_eq!(s["sh_degree"], json!(0));
+        assert_eq!(s["bounds"]["min"], json!([-1.0, 0.0, 0.0]));
+        assert_eq!(s["bounds"]["max"], json!([1.0, 2.0, 3.0]));
+        let u = &s["unusual"];
+        assert_eq!(u["opacity_logit_pos_inf"], json!(1));
+        assert_eq!(u["opacity_logit_neg_inf"], json!(1));
+        // sigmoid(−inf) = 0 is below 1/255; sigmoid(0) = 0.5 is not.
+        assert_eq!(u["opacity_below_1_255"], json!(1));
+        // 3.2 is unnormalised; 1.0005 is within the 1e-3 tolerance.
+        assert_eq!(u["unnormalised_quaternions"], json!(1));
+        assert_eq!(u["tiny_log_scales"], json!(1));
+        assert_eq!(s["opacity"]["max"], json!(1.0));
+        assert_eq!(s["opacity"]["min"], json!(0.0));
+    }
+}
