@@ -16,8 +16,6 @@ use std::cmp::Ordering;
 use rayon::prelude::*;
 use splatbridge_scene::GaussianCloud;
 
-use crate::project::Projected;
-
 /// Per-tile lists of Gaussians, front to back, as ranks in the depth order (indices into the
 /// depth-sorted splat array, so a tile reads its splats in increasing memory order).
 #[derive(Clone, Debug, Default)]
@@ -57,17 +55,19 @@ pub fn stored_cmp(cloud: &GaussianCloud, i: usize, j: usize) -> Ordering {
         })
 }
 
-/// Order of the projected Gaussians, front to back: by f32 view depth, exact ties by
-/// [`stored_cmp`] (see the module docs).
-pub fn depth_order(proj: &[Projected], cloud: &GaussianCloud) -> Vec<u32> {
-    // Depths are > near ≥ 0, so the f32 bit patterns order like the values.
-    let mut keys: Vec<u64> = proj
-        .par_iter()
-        .enumerate()
-        .map(|(k, p)| ((p.splat.depth.to_bits() as u64) << 32) | k as u64)
-        .collect();
+/// Sort key of a projected Gaussian: f32 view depth above, its index below. Depths are
+/// > near ≥ 0, so the f32 bit patterns order like the values.
+#[inline]
+pub fn depth_key(depth: f32, index: u32) -> u64 {
+    ((depth.to_bits() as u64) << 32) | index as u64
+}
+
+/// Sort `keys` ([`depth_key`]s) and write the Gaussian indices front to back into `order`:
+/// by f32 view depth, exact ties by [`stored_cmp`] (see the module docs).
+pub fn depth_order(keys: &mut [u64], cloud: &GaussianCloud, order: &mut Vec<u32>) {
     keys.par_sort_unstable();
-    let mut order: Vec<u32> = keys.iter().map(|&k| k as u32).collect();
+    order.clear();
+    order.par_extend(keys.par_iter().map(|&k| k as u32));
     let mut start = 0;
     while start < keys.len() {
         let hi = keys[start] >> 32;
@@ -76,96 +76,132 @@ pub fn depth_order(proj: &[Projected], cloud: &GaussianCloud) -> Vec<u32> {
             end += 1;
         }
         if end - start > 1 {
-            order[start..end].sort_by(|&a, &b| {
-                stored_cmp(
-                    cloud,
-                    proj[a as usize].index as usize,
-                    proj[b as usize].index as usize,
-                )
-            });
+            order[start..end].sort_by(|&a, &b| stored_cmp(cloud, a as usize, b as usize));
         }
         start = end;
     }
-    order
 }
 
-/// Tile lists for a grid of `grid[0] × grid[1]` tiles. `order` is [`depth_order`]'s result.
-/// Fails (returns the pair count) when the lists would exceed `max_pairs`.
+/// A slice written from several threads at positions proven disjoint by the caller.
+struct Scatter(*mut u32);
+// SAFETY: only used by `bin_tiles`, where every position is written by exactly one chunk.
+unsafe impl Sync for Scatter {}
+
+/// Gaussians per chunk of the counting sort (fixed, so the split never depends on threads;
+/// the result would not either: counting sorts are exact).
+const CHUNK: usize = 16_384;
+
+#[inline(always)]
+fn for_tiles(r: &[u32; 4], gx: usize, mut f: impl FnMut(usize)) {
+    for ty in r[1]..r[3] {
+        let row = ty as usize * gx;
+        for tx in r[0]..r[2] {
+            f(row + tx as usize);
+        }
+    }
+}
+
+/// Tile lists for a grid of `grid[0] × grid[1]` tiles from the tile rectangles `[x0, y0, x1, y1)`
+/// of the Gaussians in depth order (`rects[rank]`): a stable counting sort by tile, so each
+/// tile's list is in depth order. Fails (returning the pair count) beyond `max_pairs`.
 pub fn bin_tiles(
-    proj: &[Projected],
-    order: &[u32],
+    rects: &[[u32; 4]],
     grid: [u32; 2],
     max_pairs: usize,
-) -> Result<Bins, usize> {
-    let (gx, gy) = (grid[0] as usize, grid[1] as usize);
-    let ntiles = gx * gy;
-    let rects: Vec<[u32; 4]> = order.par_iter().map(|&k| proj[k as usize].rect).collect();
-
-    // Pass 1: per-tile counts (integer sums: the same for any split).
-    let chunk = 16_384;
-    let counts = rects
-        .par_chunks(chunk)
-        .map(|rs| {
-            let mut c = vec![0u32; ntiles];
+    bins: &mut Bins,
+) -> Result<(), usize> {
+    let gx = grid[0] as usize;
+    let ntiles = gx * grid[1] as usize;
+    // Pass 1: per-chunk, per-tile counts.
+    let chunks = rects.len().div_ceil(CHUNK).max(1);
+    let mut counts = vec![0u32; chunks * ntiles];
+    counts
+        .par_chunks_mut(ntiles)
+        .zip(rects.par_chunks(CHUNK.max(1)))
+        .for_each(|(c, rs)| {
             for r in rs {
-                for ty in r[1]..r[3] {
-                    let row = ty as usize * gx;
-                    for tx in r[0]..r[2] {
-                        c[row + tx as usize] += 1;
-                    }
-                }
+                for_tiles(r, gx, |t| c[t] += 1);
             }
-            c
-        })
-        .reduce(
-            || vec![0u32; ntiles],
-            |mut a, b| {
-                a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
-                a
-            },
-        );
-    let mut offsets = Vec::with_capacity(ntiles + 1);
+        });
+    // Offsets: tile-major, then chunk, so chunk k's entries of a tile follow chunk k−1's.
+    bins.offsets.clear();
+    bins.offsets.reserve(ntiles + 1);
     let mut total = 0usize;
-    offsets.push(0);
-    for &c in &counts {
-        total += c as usize;
-        offsets.push(total);
+    let mut starts = vec![0usize; chunks * ntiles];
+    for t in 0..ntiles {
+        bins.offsets.push(total);
+        for k in 0..chunks {
+            starts[k * ntiles + t] = total;
+            total += counts[k * ntiles + t] as usize;
+        }
     }
+    bins.offsets.push(total);
     if total > max_pairs {
         return Err(total);
     }
+    drop(counts);
+    // Pass 2: every chunk scatters its ranks into its own reserved positions.
+    bins.list.clear();
+    bins.list.resize(total, 0);
+    let out = Scatter(bins.list.as_mut_ptr());
+    starts
+        .par_chunks_mut(ntiles)
+        .zip(rects.par_chunks(CHUNK.max(1)))
+        .enumerate()
+        .for_each(|(k, (cur, rs))| {
+            let out = &out;
+            for (j, r) in rs.iter().enumerate() {
+                let rank = (k * CHUNK + j) as u32;
+                for_tiles(r, gx, |t| {
+                    // SAFETY: `cur[t]` runs over the range reserved for (tile t, chunk k), which
+                    // no other chunk touches and which lies inside `list` (its length is the total).
+                    unsafe { out.0.add(cur[t]).write(rank) };
+                    cur[t] += 1;
+                });
+            }
+        });
+    Ok(())
+}
 
-    // Pass 2: bands of tile rows own contiguous slices of the list; each band walks the
-    // depth-sorted Gaussians and appends the ones touching its rows, so every tile's list is
-    // in depth order.
-    let mut list = vec![0u32; total];
-    let rows_per_band = gy.div_ceil(32).max(1);
-    let mut bands: Vec<(usize, usize, &mut [u32])> = Vec::new();
-    let mut rest: &mut [u32] = &mut list;
-    let mut row = 0;
-    while row < gy {
-        let end = (row + rows_per_band).min(gy);
-        let len = offsets[end * gx] - offsets[row * gx];
-        let (head, tail) = rest.split_at_mut(len);
-        bands.push((row, end, head));
-        rest = tail;
-        row = end;
-    }
-    bands.into_par_iter().for_each(|(r0, r1, out)| {
-        let base = offsets[r0 * gx];
-        let mut cursor: Vec<usize> = offsets[r0 * gx..r1 * gx].iter().map(|o| o - base).collect();
-        for (rank, r) in rects.iter().enumerate() {
-            let y0 = (r[1] as usize).max(r0);
-            let y1 = (r[3] as usize).min(r1);
-            for ty in y0..y1 {
-                let row = (ty - r0) * gx;
-                for tx in r[0] as usize..r[2] as usize {
-                    let c = &mut cursor[row + tx];
-                    out[*c] = rank as u32;
-                    *c += 1;
-                }
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use splatbridge_scene::rng::Rng;
+
+    /// The parallel counting sort equals the obvious per-tile filter, across chunk boundaries.
+    #[test]
+    fn counting_sort_matches_naive_lists() {
+        let grid = [13u32, 7u32];
+        let mut rng = Rng::new(1);
+        let rects: Vec<[u32; 4]> = (0..3 * CHUNK + 17)
+            .map(|_| {
+                let x0 = rng.below(13) as u32;
+                let y0 = rng.below(7) as u32;
+                [
+                    x0,
+                    y0,
+                    (x0 + 1 + rng.below(3) as u32).min(13),
+                    (y0 + 1 + rng.below(2) as u32).min(7),
+                ]
+            })
+            .collect();
+        let mut bins = Bins::default();
+        bin_tiles(&rects, grid, usize::MAX, &mut bins).unwrap();
+        for ty in 0..7u32 {
+            for tx in 0..13u32 {
+                let want: Vec<u32> = (0..rects.len() as u32)
+                    .filter(|&k| {
+                        let r = rects[k as usize];
+                        r[0] <= tx && tx < r[2] && r[1] <= ty && ty < r[3]
+                    })
+                    .collect();
+                assert_eq!(
+                    bins.tile((ty * 13 + tx) as usize),
+                    &want[..],
+                    "tile {tx},{ty}"
+                );
             }
         }
-    });
-    Ok(Bins { offsets, list })
+        assert!(bin_tiles(&rects, grid, 10, &mut bins).is_err());
+    }
 }

@@ -13,4 +13,4 @@ pub mod native;
 pub mod project;
 pub mod raster;
 
-pub use native::{render, Extent, PhaseTimes, RenderError, RenderOptions, RenderStats};
+pub use native::{render, Extent, PhaseTimes, RenderError, RenderOptions, RenderStats, Renderer};

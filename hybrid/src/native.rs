@@ -10,9 +10,9 @@ use std::time::{Duration, Instant};
 use rayon::prelude::*;
 use splatbridge_scene::{Camera, Frame, GaussianCloud};
 
-use crate::bin::{bin_tiles, depth_order};
+use crate::bin::{bin_tiles, depth_key, depth_order, Bins};
 pub use crate::project::Extent;
-use crate::project::{project_one, Culled, Projected, ViewParams};
+use crate::project::{project_one, Culled, Projected, Splat, ViewParams};
 use crate::raster::{rasterize, BlendParams};
 
 /// The reference's α clamp.
@@ -133,26 +133,18 @@ impl RenderOptions {
     }
 }
 
-/// Project every Gaussian (in parallel); returns the visible ones in input order and the counts.
-pub fn project_cloud(
-    cloud: &GaussianCloud,
-    view: &ViewParams,
-    opts: &RenderOptions,
-    stats: &mut RenderStats,
-) -> Vec<Projected> {
-    let degree = cloud.sh_degree.min(opts.sh_degree_cap);
-    let parts: Vec<(Vec<Projected>, [usize; 6])> = (0..cloud.len())
-        .into_par_iter()
-        .chunks(8192)
-        .map(|idx| {
-            let mut vis = Vec::with_capacity(idx.len());
+/// Count why Gaussians were culled.
+fn count_culled(all: &[Result<Projected, Culled>], stats: &mut RenderStats) {
+    let c = all
+        .par_chunks(CHUNK)
+        .map(|rs| {
             let mut c = [0usize; 6];
-            for i in idx {
-                match project_one(cloud, i, view, opts.extent, degree) {
-                    Ok(p) => vis.push(p),
+            for r in rs {
+                match r {
+                    Ok(_) => {}
                     Err(Culled::Near { in_view }) => {
                         c[0] += 1;
-                        c[1] += in_view as usize;
+                        c[1] += *in_view as usize;
                     }
                     Err(Culled::Behind) => c[2] += 1,
                     Err(Culled::Transparent) => c[3] += 1,
@@ -160,61 +152,118 @@ pub fn project_cloud(
                     Err(Culled::Offscreen) => c[5] += 1,
                 }
             }
-            (vis, c)
+            c
         })
-        .collect();
-    let mut out = Vec::with_capacity(parts.iter().map(|p| p.0.len()).sum());
-    for (vis, c) in parts {
-        out.extend(vis);
-        stats.culled_near += c[0];
-        stats.culled_near_in_view += c[1];
-        stats.culled_behind += c[2];
-        stats.culled_transparent += c[3];
-        stats.culled_degenerate += c[4];
-        stats.culled_offscreen += c[5];
-    }
-    out
+        .reduce(|| [0; 6], |a, b| std::array::from_fn(|i| a[i] + b[i]));
+    stats.culled_near = c[0];
+    stats.culled_near_in_view = c[1];
+    stats.culled_behind = c[2];
+    stats.culled_transparent = c[3];
+    stats.culled_degenerate = c[4];
+    stats.culled_offscreen = c[5];
 }
 
-/// Render `cloud` from `camera`: RGB, alpha `1 − T` and blended depth, with counters and timings.
+const CHUNK: usize = 8192;
+
+/// The renderer with its working buffers, kept between frames so an animation or a benchmark
+/// does not pay for fresh memory (page faults) on every frame. [`render`] uses a fresh one.
+#[derive(Default)]
+pub struct Renderer {
+    all: Vec<Result<Projected, Culled>>,
+    keys: Vec<u64>,
+    order: Vec<u32>,
+    rects: Vec<[u32; 4]>,
+    bins: Bins,
+    splats: Vec<Splat>,
+}
+
+impl Renderer {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Render `cloud` from `camera`: RGB, alpha `1 − T` and blended depth, with counters and
+    /// timings.
+    pub fn render(
+        &mut self,
+        cloud: &GaussianCloud,
+        camera: &Camera,
+        opts: &RenderOptions,
+    ) -> Result<(Frame, RenderStats), RenderError> {
+        camera.validate()?;
+        cloud.check_shape()?;
+        opts.validate()?;
+        let view = ViewParams::new(camera, opts.near as f64);
+        let mut stats = RenderStats {
+            gaussians: cloud.len(),
+            ..Default::default()
+        };
+        let degree = cloud.sh_degree.min(opts.sh_degree_cap);
+
+        let t0 = Instant::now();
+        self.all.clear();
+        self.all.par_extend(
+            (0..cloud.len())
+                .into_par_iter()
+                .with_min_len(CHUNK)
+                .map(|i| project_one(cloud, i, &view, opts.extent, degree)),
+        );
+        count_culled(&self.all, &mut stats);
+        self.keys.clear();
+        self.keys.par_extend(
+            self.all
+                .par_iter()
+                .enumerate()
+                .filter_map(|(i, r)| r.as_ref().ok().map(|p| depth_key(p.splat.depth, i as u32))),
+        );
+        stats.projected = self.keys.len();
+        let t1 = Instant::now();
+        depth_order(&mut self.keys, cloud, &mut self.order);
+        let t2 = Instant::now();
+        let all = &self.all;
+        let visible = |i: u32| match &all[i as usize] {
+            Ok(p) => p,
+            Err(_) => unreachable!("only projected Gaussians are ordered"),
+        };
+        self.rects.clear();
+        self.rects
+            .par_extend(self.order.par_iter().map(|&i| visible(i).rect));
+        bin_tiles(&self.rects, view.grid, MAX_PAIRS, &mut self.bins)
+            .map_err(RenderError::TooManyPairs)?;
+        stats.tile_pairs = self.bins.pairs() as u64;
+        self.splats.clear();
+        self.splats
+            .par_extend(self.order.par_iter().map(|&i| visible(i).splat));
+        let t3 = Instant::now();
+        let params = BlendParams {
+            alpha_clamp: opts.alpha_clamp,
+            background: opts.background,
+            exhaustive: opts.exhaustive,
+        };
+        let (frame, blends) = rasterize(
+            &self.splats,
+            &self.bins,
+            camera.width,
+            camera.height,
+            &params,
+        );
+        let t4 = Instant::now();
+        stats.blends = blends;
+        stats.times = PhaseTimes {
+            projection: t1 - t0,
+            sorting: t2 - t1,
+            binning: t3 - t2,
+            blending: t4 - t3,
+        };
+        Ok((frame, stats))
+    }
+}
+
+/// Render `cloud` from `camera` with a fresh [`Renderer`].
 pub fn render(
     cloud: &GaussianCloud,
     camera: &Camera,
     opts: &RenderOptions,
 ) -> Result<(Frame, RenderStats), RenderError> {
-    camera.validate()?;
-    cloud.check_shape()?;
-    opts.validate()?;
-    let view = ViewParams::new(camera, opts.near as f64);
-    let mut stats = RenderStats {
-        gaussians: cloud.len(),
-        ..Default::default()
-    };
-
-    let t0 = Instant::now();
-    let proj = project_cloud(cloud, &view, opts, &mut stats);
-    stats.projected = proj.len();
-    let t1 = Instant::now();
-    let order = depth_order(&proj, cloud);
-    let t2 = Instant::now();
-    let bins = bin_tiles(&proj, &order, view.grid, MAX_PAIRS).map_err(RenderError::TooManyPairs)?;
-    stats.tile_pairs = bins.pairs() as u64;
-    let splats: Vec<_> = order.par_iter().map(|&k| proj[k as usize].splat).collect();
-    drop(proj);
-    let t3 = Instant::now();
-    let params = BlendParams {
-        alpha_clamp: opts.alpha_clamp,
-        background: opts.background,
-        exhaustive: opts.exhaustive,
-    };
-    let (frame, blends) = rasterize(&splats, &bins, camera.width, camera.height, &params);
-    let t4 = Instant::now();
-    stats.blends = blends;
-    stats.times = PhaseTimes {
-        projection: t1 - t0,
-        sorting: t2 - t1,
-        binning: t3 - t2,
-        blending: t4 - t3,
-    };
-    Ok((frame, stats))
+    Renderer::new().render(cloud, camera, opts)
 }
