@@ -121,7 +121,10 @@ fn default_lidar_threshold() -> f32 {
 #[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub enum LidarMount {
     /// Sensor origin and rotation (w, x, y, z); the sensor spins about its local −y (up).
-    Pose { position: [f32; 3], rotation: [f32; 4] },
+    Pose {
+        position: [f32; 3],
+        rotation: [f32; 4],
+    },
     /// Rigidly at camera `index` of the scene's cameras.
     Camera { index: usize },
 }
@@ -142,17 +145,55 @@ pub struct EffectCounters {
     pub not_simulated: Vec<String>,
 }
 
+impl EffectCounters {
+    /// Add another frame's (or sample's) counters: counts and time summed, names merged in
+    /// first-seen order.
+    pub fn add(&mut self, other: &EffectCounters) {
+        self.particles += other.particles;
+        self.shadow_rays += other.shadow_rays;
+        self.lidar_points += other.lidar_points;
+        self.lidar_rays += other.lidar_rays;
+        self.extra_time_samples += other.extra_time_samples;
+        self.milliseconds += other.milliseconds;
+        for (mine, theirs) in [
+            (&mut self.simulated, &other.simulated),
+            (&mut self.not_simulated, &other.not_simulated),
+        ] {
+            for n in theirs {
+                if !mine.contains(n) {
+                    mine.push(n.clone());
+                }
+            }
+        }
+    }
+
+    /// True when no effect did any work (what an undeclared effect must show).
+    pub fn is_zero(&self) -> bool {
+        self.particles == 0
+            && self.shadow_rays == 0
+            && self.lidar_points == 0
+            && self.lidar_rays == 0
+            && self.extra_time_samples == 0
+            && self.simulated.is_empty()
+    }
+}
+
 impl Effects {
     /// Parse and validate the manifest's `effects` object. Errors name the effect and field.
     pub fn from_json(value: &serde_json::Map<String, serde_json::Value>) -> Result<Self, String> {
-        let e: Effects = serde_json::from_value(serde_json::Value::Object(value.clone()))
-            .map_err(|e| format!("effects: {e} (known effects: weather, motion_blur, shadows, lidar)"))?;
+        let e: Effects =
+            serde_json::from_value(serde_json::Value::Object(value.clone())).map_err(|e| {
+                format!("effects: {e} (known effects: weather, motion_blur, shadows, lidar)")
+            })?;
         e.validate()?;
         Ok(e)
     }
 
     pub fn is_empty(&self) -> bool {
-        self.weather.is_none() && self.motion_blur.is_none() && self.shadows.is_none() && self.lidar.is_none()
+        self.weather.is_none()
+            && self.motion_blur.is_none()
+            && self.shadows.is_none()
+            && self.lidar.is_none()
     }
 
     /// Names of the declared effects, in a fixed order.
@@ -177,7 +218,10 @@ impl Effects {
         let fin = |v: &[f32]| v.iter().all(|x| x.is_finite());
         if let Some(w) = &self.weather {
             if w.count == 0 || w.count > 10_000_000 {
-                return Err(format!("effects.weather.count: {} is outside 1..=10000000", w.count));
+                return Err(format!(
+                    "effects.weather.count: {} is outside 1..=10000000",
+                    w.count
+                ));
             }
             if !(w.fall_speed.is_finite() && w.fall_speed >= 0.0) {
                 return Err("effects.weather.fall_speed must be finite and not negative".into());
@@ -186,17 +230,24 @@ impl Effects {
                 return Err("effects.weather.size must be positive".into());
             }
             if !fin(&w.wind) || !(w.turbulence.is_finite() && w.turbulence >= 0.0) {
-                return Err("effects.weather: wind and turbulence must be finite (turbulence ≥ 0)".into());
+                return Err(
+                    "effects.weather: wind and turbulence must be finite (turbulence ≥ 0)".into(),
+                );
             }
             match &w.volume {
                 WeatherVolume::Box { min, max } => {
                     if !fin(min) || !fin(max) || (0..3).any(|k| max[k] <= min[k]) {
-                        return Err("effects.weather.volume.box: min must be below max on every axis".into());
+                        return Err(
+                            "effects.weather.volume.box: min must be below max on every axis"
+                                .into(),
+                        );
                     }
                 }
                 WeatherVolume::Camera { half_extent, .. } => {
                     if !fin(half_extent) || half_extent.iter().any(|&h| h <= 0.0) {
-                        return Err("effects.weather.volume.camera.half_extent must be positive".into());
+                        return Err(
+                            "effects.weather.volume.camera.half_extent must be positive".into()
+                        );
                     }
                 }
                 WeatherVolume::Scene => {}
@@ -204,30 +255,51 @@ impl Effects {
         }
         if let Some(m) = &self.motion_blur {
             if !(m.shutter.is_finite() && m.shutter > 0.0) {
-                return Err(format!("effects.motion_blur.shutter: {} must be positive", m.shutter));
+                return Err(format!(
+                    "effects.motion_blur.shutter: {} must be positive",
+                    m.shutter
+                ));
             }
             if m.samples < 2 || m.samples > 256 {
-                return Err(format!("effects.motion_blur.samples: {} is outside 2..=256", m.samples));
+                return Err(format!(
+                    "effects.motion_blur.samples: {} is outside 2..=256",
+                    m.samples
+                ));
             }
         }
         if let Some(s) = &self.shadows {
             let d = glam::Vec3::from(s.sun_direction);
             if !d.is_finite() || d.length() < 1e-6 {
-                return Err("effects.shadows.sun_direction must be a finite non-zero vector".into());
+                return Err(
+                    "effects.shadows.sun_direction must be a finite non-zero vector".into(),
+                );
             }
             if !(0.0..=1.0).contains(&s.strength) {
-                return Err(format!("effects.shadows.strength: {} is outside [0, 1]", s.strength));
+                return Err(format!(
+                    "effects.shadows.strength: {} is outside [0, 1]",
+                    s.strength
+                ));
             }
         }
         if let Some(l) = &self.lidar {
-            if l.channels == 0 || l.channels > 1024 || l.azimuth_steps == 0 || l.azimuth_steps > 100_000 {
-                return Err("effects.lidar: channels must be 1..=1024 and azimuth_steps 1..=100000".into());
+            if l.channels == 0
+                || l.channels > 1024
+                || l.azimuth_steps == 0
+                || l.azimuth_steps > 100_000
+            {
+                return Err(
+                    "effects.lidar: channels must be 1..=1024 and azimuth_steps 1..=100000".into(),
+                );
             }
             let [lo, hi] = l.vertical_fov_deg;
             if !(lo.is_finite() && hi.is_finite() && lo <= hi && lo >= -90.0 && hi <= 90.0) {
-                return Err("effects.lidar.vertical_fov_deg must be [low, high] within [-90, 90]".into());
+                return Err(
+                    "effects.lidar.vertical_fov_deg must be [low, high] within [-90, 90]".into(),
+                );
             }
-            if !(l.range.is_finite() && l.range > 0.0) || !(l.rotation_hz.is_finite() && l.rotation_hz > 0.0) {
+            if !(l.range.is_finite() && l.range > 0.0)
+                || !(l.rotation_hz.is_finite() && l.rotation_hz > 0.0)
+            {
                 return Err("effects.lidar: range and rotation_hz must be positive".into());
             }
             if !(0.0..=1.0).contains(&l.hit_threshold) || l.hit_threshold == 0.0 {
@@ -235,7 +307,10 @@ impl Effects {
             }
             if let LidarMount::Pose { position, rotation } = &l.mount {
                 if !fin(position) || !fin(rotation) || rotation.iter().all(|&x| x == 0.0) {
-                    return Err("effects.lidar.mount.pose: position and a non-zero rotation are required".into());
+                    return Err(
+                        "effects.lidar.mount.pose: position and a non-zero rotation are required"
+                            .into(),
+                    );
                 }
             }
         }
@@ -281,10 +356,17 @@ mod tests {
 
     #[test]
     fn invalid_values_name_the_field() {
-        assert!(parse(r#"{"shadows": {"sun_direction": [0,0,0], "strength": 0.5}}"#)
+        assert!(
+            parse(r#"{"shadows": {"sun_direction": [0,0,0], "strength": 0.5}}"#)
+                .unwrap_err()
+                .contains("sun_direction")
+        );
+        assert!(parse(r#"{"motion_blur": {"shutter": -1}}"#)
             .unwrap_err()
-            .contains("sun_direction"));
-        assert!(parse(r#"{"motion_blur": {"shutter": -1}}"#).unwrap_err().contains("shutter"));
-        assert!(parse(r#"{"weather": {"kind": "hail", "count": 1, "fall_speed": 1, "size": 1}}"#).is_err());
+            .contains("shutter"));
+        assert!(
+            parse(r#"{"weather": {"kind": "hail", "count": 1, "fall_speed": 1, "size": 1}}"#)
+                .is_err()
+        );
     }
 }

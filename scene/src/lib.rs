@@ -9,6 +9,7 @@
 pub mod camera;
 pub mod dynamic;
 pub mod effects;
+pub mod effects_run;
 pub mod error;
 pub mod fixtures;
 pub mod frame;

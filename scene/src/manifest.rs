@@ -12,8 +12,11 @@
 //! Paths are relative to the manifest's directory. Rotations are w, x, y, z like the PLY (any
 //! non-zero length; normalised on load). `static`, `objects`, `cameras` and `effects` are
 //! optional. An object gives either an explicit `track` or a generated `trajectory` rule
-//! ([`crate::trajectory::TrajectoryRule`], sampled at the scene's frame rate). Unknown keys are
-//! errors at every level, so a misspelt key is reported instead of silently ignored.
+//! ([`crate::trajectory::TrajectoryRule`], sampled at the scene's frame rate). Training-free
+//! edits: an object with `"remove": true` is left out (its file is not needed), and
+//! `"retime": {"offset": s, "scale": k}` replays its motion k times as fast, s seconds later
+//! ([`crate::trajectory::Retime`]). Unknown keys are errors at every level, so a misspelt key
+//! is reported instead of silently ignored.
 //!
 //! Every error names the manifest (or the file it refers to) and the field: `objects[1]
 //! ('car_1'): track[2].t = 1 is not after track[1].t = 2`.
@@ -29,7 +32,7 @@ use crate::dynamic::{
 };
 use crate::error::{Result, SceneError};
 use crate::ply::{read_ply, write_ply, PlyFormat, ReadOptions};
-use crate::trajectory::TrajectoryRule;
+use crate::trajectory::{Retime, TrajectoryRule};
 use crate::GaussianCloud;
 
 /// The format string this reader and writer understand.
@@ -74,6 +77,17 @@ pub struct ObjectJson {
     pub track: Option<Vec<KeyJson>>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub trajectory: Option<TrajectoryRule>,
+    /// Leave the object out of the scene (training-free removal). Its file is neither required
+    /// nor read, and it needs no track.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub remove: bool,
+    /// Replay the object's motion faster/slower and later/earlier ([`Retime`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub retime: Option<Retime>,
+}
+
+fn is_false(b: &bool) -> bool {
+    !*b
 }
 
 /// One pose key. f32 values: JSON numbers beyond f32 range become infinite and are rejected as
@@ -181,7 +195,25 @@ fn validate_manifest(path: &Path, m: &Manifest) -> Result<()> {
         if o.gaussians.trim().is_empty() {
             return Err(bad(path, format!("{at}.gaussians is empty")));
         }
-        match (&o.track, &o.trajectory) {
+        if let Some(r) = &o.retime {
+            r.check().map_err(|e| bad(path, format!("{at}: {e}")))?;
+        }
+        if o.remove {
+            if o.retime.is_some() {
+                return Err(bad(
+                    path,
+                    format!("{at}: \"remove\": true and \"retime\" contradict each other"),
+                ));
+            }
+            if o.track.is_some() && o.trajectory.is_some() {
+                return Err(bad(
+                    path,
+                    format!("{at}: give either \"track\" or \"trajectory\", not both"),
+                ));
+            }
+            continue;
+        }
+        let track = match (&o.track, &o.trajectory) {
             (Some(_), Some(_)) => {
                 return Err(bad(
                     path,
@@ -195,19 +227,23 @@ fn validate_manifest(path: &Path, m: &Manifest) -> Result<()> {
                 ))
             }
             (Some(keys), None) => {
-                track_from_json(keys)
-                    .validate()
+                let tr = track_from_json(keys);
+                tr.validate()
                     .map_err(|e| bad(path, format!("{at}: {e}")))?;
+                tr
             }
-            (None, Some(rule)) => {
-                rule.track(time.start, time.end, time.fps)
-                    .and_then(|tr| {
-                        tr.validate()
-                            .map_err(crate::trajectory::TrajectoryError)
-                            .map(|_| tr)
-                    })
-                    .map_err(|e| bad(path, format!("{at}: {e}")))?;
-            }
+            (None, Some(rule)) => rule
+                .track(time.start, time.end, time.fps)
+                .and_then(|tr| {
+                    tr.validate()
+                        .map_err(crate::trajectory::TrajectoryError)
+                        .map(|_| tr)
+                })
+                .map_err(|e| bad(path, format!("{at}: {e}")))?,
+        };
+        if let Some(r) = &o.retime {
+            r.apply(&track, time.start)
+                .map_err(|e| bad(path, format!("{at}: {e}")))?;
         }
     }
     Ok(())
@@ -240,7 +276,7 @@ pub fn load_manifest(path: &Path, opts: &ReadOptions) -> Result<(DynamicScene, V
     if let Some(s) = &m.static_gaussians {
         refs.push(("static".into(), s));
     }
-    for (k, o) in m.objects.iter().enumerate() {
+    for (k, o) in m.objects.iter().enumerate().filter(|(_, o)| !o.remove) {
         refs.push((
             format!("objects[{k}] ('{}').gaussians", o.name),
             &o.gaussians,
@@ -275,7 +311,7 @@ pub fn load_manifest(path: &Path, opts: &ReadOptions) -> Result<(DynamicScene, V
         fps: m.time.fps,
     };
     let mut objects = Vec::with_capacity(m.objects.len());
-    for (k, o) in m.objects.iter().enumerate() {
+    for (k, o) in m.objects.iter().enumerate().filter(|(_, o)| !o.remove) {
         let field = format!("objects[{k}] ('{}').gaussians", o.name);
         let gaussians = read(&field, &o.gaussians)?;
         let mut track = match (&o.track, &o.trajectory) {
@@ -287,6 +323,11 @@ pub fn load_manifest(path: &Path, opts: &ReadOptions) -> Result<(DynamicScene, V
         };
         for key in &mut track.keys {
             key.pose.rotation = crate::dynamic::normalize_or_identity(key.pose.rotation);
+        }
+        if let Some(r) = &o.retime {
+            track = r
+                .apply(&track, time.start)
+                .map_err(|e| bad(path, format!("objects[{k}] ('{}'): {e}", o.name)))?;
         }
         objects.push(SceneObject {
             name: o.name.clone(),
@@ -374,6 +415,8 @@ pub fn manifest_for(
                         .collect(),
                 ),
                 trajectory: None,
+                remove: false,
+                retime: None,
             })
             .collect(),
         cameras: cameras_file.map(str::to_string),

@@ -60,7 +60,10 @@ pub enum TrajectoryRule {
         distance: f32,
     },
     /// Explicit per-frame deltas: key k is at `start + Σ_{j<k} deltas[j]`, one key per frame.
-    Deltas { start: [f32; 3], deltas: Vec<[f32; 3]> },
+    Deltas {
+        start: [f32; 3],
+        deltas: Vec<[f32; 3]>,
+    },
 }
 
 /// What was wrong with a rule.
@@ -88,7 +91,11 @@ impl TrajectoryRule {
     fn check(&self) -> Result<(), TrajectoryError> {
         let finite3 = |v: &[f32; 3]| v.iter().all(|x| x.is_finite());
         match self {
-            TrajectoryRule::Straight { start, heading_deg, speed } => {
+            TrajectoryRule::Straight {
+                start,
+                heading_deg,
+                speed,
+            } => {
                 if !finite3(start) || !heading_deg.is_finite() || !speed.is_finite() {
                     return err("straight: non-finite start, heading or speed");
                 }
@@ -101,11 +108,18 @@ impl TrajectoryRule {
                 begin,
                 duration,
             } => {
-                if !finite3(start) || !heading_deg.is_finite() || !speed.is_finite() || !offset.is_finite() || !begin.is_finite() {
+                if !finite3(start)
+                    || !heading_deg.is_finite()
+                    || !speed.is_finite()
+                    || !offset.is_finite()
+                    || !begin.is_finite()
+                {
                     return err("lane_change: non-finite value");
                 }
                 if !(*duration > 0.0 && duration.is_finite()) {
-                    return err(format!("lane_change: duration must be positive, got {duration}"));
+                    return err(format!(
+                        "lane_change: duration must be positive, got {duration}"
+                    ));
                 }
             }
             TrajectoryRule::Turn {
@@ -116,7 +130,12 @@ impl TrajectoryRule {
                 angle_deg,
                 begin,
             } => {
-                if !finite3(start) || !heading_deg.is_finite() || !speed.is_finite() || !angle_deg.is_finite() || !begin.is_finite() {
+                if !finite3(start)
+                    || !heading_deg.is_finite()
+                    || !speed.is_finite()
+                    || !angle_deg.is_finite()
+                    || !begin.is_finite()
+                {
                     return err("turn: non-finite value");
                 }
                 if !(*radius > 0.0 && radius.is_finite()) {
@@ -133,7 +152,11 @@ impl TrajectoryRule {
                 begin,
                 distance,
             } => {
-                if !finite3(start) || !heading_deg.is_finite() || !speed.is_finite() || !begin.is_finite() {
+                if !finite3(start)
+                    || !heading_deg.is_finite()
+                    || !speed.is_finite()
+                    || !begin.is_finite()
+                {
                     return err("stop: non-finite value");
                 }
                 if *speed < 0.0 {
@@ -161,7 +184,11 @@ impl TrajectoryRule {
     /// Position and ground-plane velocity at time `t` (analytic rules only).
     fn state(&self, t: f64) -> (Vec3, Vec3) {
         match *self {
-            TrajectoryRule::Straight { start, heading_deg, speed } => {
+            TrajectoryRule::Straight {
+                start,
+                heading_deg,
+                speed,
+            } => {
                 let f = heading_dir(heading_deg.to_radians());
                 (Vec3::from(start) + f * speed * t as f32, f * speed)
             }
@@ -251,14 +278,20 @@ impl TrajectoryRule {
     pub fn track(&self, start: f64, end: f64, fps: f64) -> Result<Track, TrajectoryError> {
         self.check()?;
         if !(fps > 0.0 && fps.is_finite() && end >= start && start.is_finite() && end.is_finite()) {
-            return err(format!("time range {start}..{end} at {fps} fps is not usable"));
+            return err(format!(
+                "time range {start}..{end} at {fps} fps is not usable"
+            ));
         }
         let mut keys = Vec::new();
         if let TrajectoryRule::Deltas { start: p0, deltas } = self {
             let mut p = Vec3::from(*p0);
             let mut heading = Vec3::X;
             for k in 0..=deltas.len() {
-                let v = if k < deltas.len() { Vec3::from(deltas[k]) } else { Vec3::from(deltas[k - 1]) };
+                let v = if k < deltas.len() {
+                    Vec3::from(deltas[k])
+                } else {
+                    Vec3::from(deltas[k - 1])
+                };
                 if v.x.hypot(v.z) > 1e-9 {
                     heading = v;
                 }
@@ -297,6 +330,59 @@ impl TrajectoryRule {
                     rotation: heading_rotation(heading),
                 },
             });
+        }
+        Ok(Track { keys })
+    }
+}
+
+/// Retiming of an object's motion (training-free editing): the object plays its track `scale`
+/// times as fast, `offset` seconds later. A key at original time `τ` moves to
+/// `start + (τ − start)/scale + offset`, where `start` is the scene's start time, so the pose
+/// at scene time `t` is the original pose at `start + (t − offset − start)·scale`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Retime {
+    #[serde(default)]
+    pub offset: f64,
+    #[serde(default = "one")]
+    pub scale: f64,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+impl Retime {
+    /// Check finite values and a positive scale; the message names the field.
+    pub fn check(&self) -> Result<(), TrajectoryError> {
+        if !self.offset.is_finite() {
+            return err(format!("retime.offset = {} is not finite", self.offset));
+        }
+        if !(self.scale > 0.0 && self.scale.is_finite()) {
+            return err(format!(
+                "retime.scale = {} must be positive and finite",
+                self.scale
+            ));
+        }
+        Ok(())
+    }
+
+    /// The retimed track (key times mapped as in the type's docs; poses unchanged).
+    pub fn apply(&self, track: &Track, start: f64) -> Result<Track, TrajectoryError> {
+        self.check()?;
+        let keys: Vec<PoseKey> = track
+            .keys
+            .iter()
+            .map(|k| PoseKey {
+                t: start + (k.t - start) / self.scale + self.offset,
+                pose: k.pose,
+            })
+            .collect();
+        if let Some(i) = (1..keys.len()).find(|&i| !(keys[i].t > keys[i - 1].t)) {
+            return err(format!(
+                "retime: keys {} and {i} collapse to the same time (scale too large for the key spacing)",
+                i - 1
+            ));
         }
         Ok(Track { keys })
     }

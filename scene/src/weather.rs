@@ -39,7 +39,10 @@ pub fn particles(w: &Weather, t: f64, lo: Vec3, hi: Vec3) -> GaussianCloud {
             let p0 = lo + Vec3::new(r.f32(), r.f32(), r.f32()) * extent;
             let k = r.range(0.8, 1.2);
             let (w1, w2) = (r.range(0.5, 2.0), r.range(0.5, 2.0));
-            let (ph1, ph2) = (r.range(0.0, std::f32::consts::TAU), r.range(0.0, std::f32::consts::TAU));
+            let (ph1, ph2) = (
+                r.range(0.0, std::f32::consts::TAU),
+                r.range(0.0, std::f32::consts::TAU),
+            );
             let vel = down * w.fall_speed * k + wind;
             // Displacement computed in f64 so that t = 1e5 s does not lose the sub-unit part.
             let disp = vel.as_dvec3() * t;
@@ -50,18 +53,26 @@ pub fn particles(w: &Weather, t: f64, lo: Vec3, hi: Vec3) -> GaussianCloud {
             ) * w.turbulence;
             let rel = (p0 - lo).as_dvec3() + disp + drift.as_dvec3();
             let e = extent.as_dvec3();
-            let wrapped = glam::DVec3::new(rel.x.rem_euclid(e.x), rel.y.rem_euclid(e.y), rel.z.rem_euclid(e.z));
+            let wrapped = glam::DVec3::new(
+                rel.x.rem_euclid(e.x),
+                rel.y.rem_euclid(e.y),
+                rel.z.rem_euclid(e.z),
+            );
             let pos = lo + wrapped.as_vec3().min(extent);
             let (scale, rot) = match w.kind {
                 WeatherKind::Rain => {
                     let speed = vel.length();
                     let len = (speed * STREAK_SECONDS).max(w.size);
                     let dir = if speed > 0.0 { vel / speed } else { down };
-                    (Vec3::new(len, w.size * 0.3, w.size * 0.3), rotation_x_to(dir))
+                    (
+                        Vec3::new(len, w.size * 0.3, w.size * 0.3),
+                        rotation_x_to(dir),
+                    )
                 }
                 WeatherKind::Snow => {
                     let axis = Vec3::new(r.normal(), r.normal(), r.normal()).normalize_or(Vec3::Y);
-                    let spin = Quat::from_axis_angle(axis, r.range(0.0, std::f32::consts::TAU) + 0.3 * tf);
+                    let spin =
+                        Quat::from_axis_angle(axis, r.range(0.0, std::f32::consts::TAU) + 0.3 * tf);
                     (Vec3::new(w.size, w.size, w.size * 0.25), spin)
                 }
             };
@@ -114,7 +125,10 @@ mod tests {
             assert!(m.cmpge(lo).all() && m.cmple(hi).all(), "{m}");
         }
         let far = particles(&rain(3), 1e5, lo, hi);
-        assert!(far.means.iter().all(|m| m.is_finite() && m.cmpge(lo).all() && m.cmple(hi).all()));
+        assert!(far
+            .means
+            .iter()
+            .all(|m| m.is_finite() && m.cmpge(lo).all() && m.cmple(hi).all()));
     }
 
     #[test]
@@ -126,7 +140,10 @@ mod tests {
         let expected_dir = Vec3::new(1.0, 8.0, 0.0).normalize();
         // Per-particle speed factors change the magnitude, not the direction, only when wind is
         // zero; with wind the direction varies by at most atan(1/6.4) − atan(1/9.6) ≈ 3°.
-        assert!(long_axis.angle_between(expected_dir).abs().to_degrees() < 3.5 || long_axis.angle_between(-expected_dir).to_degrees() < 3.5);
+        assert!(
+            long_axis.angle_between(expected_dir).abs().to_degrees() < 3.5
+                || long_axis.angle_between(-expected_dir).to_degrees() < 3.5
+        );
         let s = c.scale(0);
         assert!(s.x > 5.0 * s.y);
     }
