@@ -302,11 +302,10 @@ fn push_slots(cloud: &mut GaussianCloud, v: &[f32; header::MAX_SLOTS], n_rest: u
         .push(Vec3::new(v[SLOT_DC], v[SLOT_DC + 1], v[SLOT_DC + 2]));
     let kr = n_rest / 3;
     let rest = &v[SLOT_REST..SLOT_REST + n_rest];
-    for c in 0..kr {
-        cloud
-            .sh
-            .push(Vec3::new(rest[c], rest[kr + c], rest[2 * kr + c]));
-    }
+    // One capacity check for the whole record (a Range-based iterator has an exact length).
+    cloud
+        .sh
+        .extend((0..kr).map(|c| Vec3::new(rest[c], rest[kr + c], rest[2 * kr + c])));
     acc.is_nan() || opacity.is_nan() || q.length_squared() == 0.0
 }
 
