@@ -67,6 +67,59 @@ pub fn vertex_bytes(s: &crate::MeshSoup, l: VertexLayout) -> Vec<u8> {
     b
 }
 
+/// A sink encoding vertices straight into the interleaved layout (no intermediate soup).
+pub struct Interleaved {
+    pub bytes: Vec<u8>,
+    layout: VertexLayout,
+    n: u32,
+}
+
+impl Interleaved {
+    pub fn new(vertices: usize, layout: VertexLayout) -> Self {
+        Interleaved {
+            bytes: Vec::with_capacity(vertices * layout.stride()),
+            layout,
+            n: 0,
+        }
+    }
+}
+
+impl crate::mesh::VertexSink for Interleaved {
+    const FULL: bool = true;
+    #[inline]
+    fn vertex(
+        &mut self,
+        p: glam::Vec3,
+        normal: [f32; 3],
+        rgba: [f32; 4],
+        uv: [f32; 2],
+        id: u32,
+    ) -> u32 {
+        let mut v = [0u8; 44];
+        let mut put = |o: usize, b: [u8; 4]| v[o..o + 4].copy_from_slice(&b);
+        for (k, x) in p.to_array().iter().chain(&normal).enumerate() {
+            put(4 * k, x.to_le_bytes());
+        }
+        let q = |c: f32| ((c.clamp(0.0, 1.0) * 65535.0).round() as u16).to_le_bytes();
+        let (c0, c1, c2, c3) = (q(rgba[0]), q(rgba[1]), q(rgba[2]), q(rgba[3]));
+        v[24..32].copy_from_slice(&[c0[0], c0[1], c1[0], c1[1], c2[0], c2[1], c3[0], c3[1]]);
+        let mut o = 32;
+        if self.layout.ids {
+            v[o..o + 4].copy_from_slice(&(id as f32).to_le_bytes());
+            o += 4;
+        }
+        if self.layout.uv {
+            v[o..o + 4].copy_from_slice(&uv[0].to_le_bytes());
+            v[o + 4..o + 8].copy_from_slice(&uv[1].to_le_bytes());
+        }
+        self.bytes.extend_from_slice(&v[..self.layout.stride()]);
+        self.n += 1;
+        self.n - 1
+    }
+    #[inline]
+    fn triangle(&mut self, _: [u32; 3]) {}
+}
+
 pub(crate) fn index_bytes(idx: &[u32]) -> Vec<u8> {
     let mut b = Vec::with_capacity(idx.len() * 4);
     for i in idx {
@@ -187,6 +240,9 @@ pub(crate) fn track_keys(
     out
 }
 
+/// Accessors of one object's animation (times, translations, rotations) and its first pose.
+pub(crate) type AnimAccessors = (usize, usize, usize, [f32; 3], [f32; 4]);
+
 /// A mesh region streamed after the small data.
 struct Region {
     vertex_offset: u64,
@@ -231,8 +287,7 @@ fn plan(
         images
             .push(json!({"bufferView": view, "mimeType": "image/png", "name": "gaussian_falloff"}));
     }
-    let mut object_anim: Vec<Option<(usize, usize, usize, [f32; 3], [f32; 4])>> =
-        vec![None; scene.objects.len()];
+    let mut object_anim: Vec<Option<AnimAccessors>> = vec![None; scene.objects.len()];
     for (k, o) in scene.objects.iter().enumerate() {
         let keys = track_keys(&o.track.keys, scene.time.start, scene.time.end);
         if keys.is_empty() {
@@ -434,8 +489,9 @@ fn stream_bin<W: Write>(w: &mut W, plan: &Plan, entries: &[MeshEntry<'_>]) -> io
         debug_assert_eq!(written, r.vertex_offset);
         let layout = plan.layout;
         let mut vb = 0u64;
-        e.mesher.map_chunks(
-            |c| vertex_bytes(&c, layout),
+        e.mesher.map_chunks_with(
+            |n| Interleaved::new(n, layout),
+            |s| s.bytes,
             |b| {
                 vb += b.len() as u64;
                 w.write_all(&b)

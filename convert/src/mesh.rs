@@ -57,6 +57,65 @@ impl MeshSoup {
     }
 }
 
+/// Where generated vertices and triangles go: a [`MeshSoup`], a bounds accumulator, or a
+/// writer's byte encoding. `FULL = false` sinks only need positions, so colours, normals and
+/// ids are not computed for them.
+pub trait VertexSink {
+    const FULL: bool;
+    /// Add a vertex and return its index (relative to the chunk).
+    fn vertex(&mut self, p: Vec3, normal: [f32; 3], rgba: [f32; 4], uv: [f32; 2], id: u32) -> u32;
+    fn triangle(&mut self, t: [u32; 3]);
+}
+
+impl VertexSink for MeshSoup {
+    const FULL: bool = true;
+    #[inline]
+    fn vertex(&mut self, p: Vec3, normal: [f32; 3], rgba: [f32; 4], uv: [f32; 2], id: u32) -> u32 {
+        let idx = self.positions.len() as u32;
+        self.positions.push(p.to_array());
+        self.normals.push(normal);
+        self.colors.push(rgba);
+        self.uvs.push(uv);
+        self.gaussian_ids.push(id);
+        idx
+    }
+    #[inline]
+    fn triangle(&mut self, t: [u32; 3]) {
+        self.indices.extend_from_slice(&t);
+    }
+}
+
+/// Exact per-axis bounds of the generated positions.
+#[derive(Clone, Copy, Debug)]
+pub struct Bounds {
+    pub lo: Vec3,
+    pub hi: Vec3,
+    pub count: u32,
+}
+
+impl Default for Bounds {
+    fn default() -> Self {
+        Bounds {
+            lo: Vec3::INFINITY,
+            hi: Vec3::NEG_INFINITY,
+            count: 0,
+        }
+    }
+}
+
+impl VertexSink for Bounds {
+    const FULL: bool = false;
+    #[inline]
+    fn vertex(&mut self, p: Vec3, _: [f32; 3], _: [f32; 4], _: [f32; 2], _: u32) -> u32 {
+        self.lo = self.lo.min(p);
+        self.hi = self.hi.max(p);
+        self.count += 1;
+        self.count - 1
+    }
+    #[inline]
+    fn triangle(&mut self, _: [u32; 3]) {}
+}
+
 /// The sRGB decoding function (IEC 61966-2-1), display value → linear.
 #[inline]
 pub fn srgb_to_linear(c: f32) -> f32 {
@@ -200,13 +259,13 @@ impl<'a> Mesher<'a> {
         sh::dc_color(coeffs)
     }
 
-    fn emit_frame(
+    fn emit_frame<S: VertexSink>(
         &self,
         f: &Frame,
         rgb: Vec3,
         id: u32,
         volumetric: bool,
-        out: &mut MeshSoup,
+        out: &mut S,
         s: &mut Scratch,
     ) {
         if !self.shape.layout(f.opacity, &mut s.layout) {
@@ -221,7 +280,6 @@ impl<'a> Mesher<'a> {
         s.keymap.clear();
         s.keymap.resize(1 + 6 * self.shape.rings.max(1), u32::MAX);
         let correct = volumetric && self.correct_three_fans;
-        let uv = self.shape.has_uv();
         for &(a, b) in planes {
             let ea = f.axes[a] * f.scales[a];
             let eb = f.axes[b] * f.scales[b];
@@ -241,39 +299,43 @@ impl<'a> Mesher<'a> {
                         continue;
                     }
                 }
-                let idx = out.positions.len() as u32;
                 let p = f.mean + ea * v.x + eb * v.y;
-                let alpha = if correct {
+                let alpha = if !S::FULL {
+                    0.0
+                } else if correct {
                     corrected_alpha(v.alpha)
                 } else {
                     v.alpha
                 };
-                out.positions.push(p.to_array());
-                out.normals.push(normal);
-                out.colors
-                    .push([rgb.x, rgb.y, rgb.z, alpha.clamp(0.0, 1.0)]);
-                if uv {
-                    out.uvs.push(v.uv);
-                }
-                out.gaussian_ids.push(id);
+                let idx = out.vertex(
+                    p,
+                    normal,
+                    [rgb.x, rgb.y, rgb.z, alpha.clamp(0.0, 1.0)],
+                    v.uv,
+                    id,
+                );
                 if let Some(sl) = slot {
                     s.keymap[sl] = idx;
                 }
                 s.map.push(idx);
             }
             for t in &s.layout.tris {
-                out.indices.extend(t.iter().map(|&k| s.map[k as usize]));
+                out.triangle(t.map(|k| s.map[k as usize]));
             }
         }
     }
 
-    fn emit_range(&self, range: Range<usize>, out: &mut MeshSoup, s: &mut Scratch) {
+    fn emit_range<S: VertexSink>(&self, range: Range<usize>, out: &mut S, s: &mut Scratch) {
         for i in range {
             let kind = self.kinds[i];
             if !kind.kept() {
                 continue;
             }
             let f = Frame::of(self.cloud, i);
+            if !S::FULL {
+                self.emit_frame(&f, Vec3::ZERO, 0, kind == Kind::Volumetric, out, s);
+                continue;
+            }
             let mut rgb = self.display_colour(i, f.mean);
             if self.linear {
                 rgb = Vec3::new(
@@ -291,13 +353,63 @@ impl<'a> Mesher<'a> {
         self.cloud.len().div_ceil(CHUNK)
     }
 
+    fn chunk_range(&self, c: usize) -> Range<usize> {
+        c * CHUNK..((c + 1) * CHUNK).min(self.cloud.len())
+    }
+
+    /// Vertices the chunk will produce (from the classification alone).
+    fn chunk_vertices(&self, c: usize) -> usize {
+        self.chunk_range(c)
+            .map(|i| self.vertices_of(i) as usize)
+            .sum()
+    }
+
     fn chunk(&self, c: usize) -> MeshSoup {
-        let n = self.cloud.len();
-        let range = c * CHUNK..((c + 1) * CHUNK).min(n);
-        let mut out = MeshSoup::default();
+        let n = self.chunk_vertices(c);
+        let mut out = MeshSoup {
+            positions: Vec::with_capacity(n),
+            normals: Vec::with_capacity(n),
+            colors: Vec::with_capacity(n),
+            uvs: Vec::with_capacity(n),
+            gaussian_ids: Vec::with_capacity(n),
+            indices: Vec::new(),
+        };
         let mut s = Scratch::default();
-        self.emit_range(range, &mut out, &mut s);
+        self.emit_range(self.chunk_range(c), &mut out, &mut s);
+        if !self.shape.has_uv() {
+            out.uvs = Vec::new();
+        }
         out
+    }
+
+    /// Like [`Mesher::map_chunks`] with a sink of the caller's: `make(vertices)` creates the
+    /// sink for a chunk of that many vertices, `finish` turns it into what `f` consumes.
+    pub fn map_chunks_with<S: VertexSink, T: Send, E>(
+        &self,
+        make: impl Fn(usize) -> S + Sync + Send,
+        finish: impl Fn(S) -> T + Sync + Send,
+        mut f: impl FnMut(T) -> Result<(), E>,
+    ) -> Result<(), E> {
+        let chunks = self.chunk_count();
+        let batch = (rayon::current_num_threads() * 2).max(1);
+        let mut c = 0;
+        while c < chunks {
+            let end = (c + batch).min(chunks);
+            let out: Vec<T> = (c..end)
+                .into_par_iter()
+                .map(|k| {
+                    let mut sink = make(self.chunk_vertices(k));
+                    let mut s = Scratch::default();
+                    self.emit_range(self.chunk_range(k), &mut sink, &mut s);
+                    finish(sink)
+                })
+                .collect();
+            for t in out {
+                f(t)?;
+            }
+            c = end;
+        }
+        Ok(())
     }
 
     /// Generate the mesh in order, a few chunks at a time in parallel: `map` turns each chunk
@@ -384,26 +496,20 @@ impl<'a> Mesher<'a> {
 
     /// Exact per-axis min and max of the generated positions (`None` when empty).
     pub fn bounds(&self) -> Option<([f32; 3], [f32; 3])> {
-        (0..self.chunk_count())
+        let b = (0..self.chunk_count())
             .into_par_iter()
-            .filter_map(|k| {
-                let s = self.chunk(k);
-                let mut it = s.positions.iter();
-                let first = *it.next()?;
-                Some(it.fold((first, first), |(mut lo, mut hi), p| {
-                    for a in 0..3 {
-                        lo[a] = lo[a].min(p[a]);
-                        hi[a] = hi[a].max(p[a]);
-                    }
-                    (lo, hi)
-                }))
+            .map(|k| {
+                let mut b = Bounds::default();
+                let mut s = Scratch::default();
+                self.emit_range(self.chunk_range(k), &mut b, &mut s);
+                b
             })
-            .reduce_with(|(alo, ahi), (blo, bhi)| {
-                (
-                    [alo[0].min(blo[0]), alo[1].min(blo[1]), alo[2].min(blo[2])],
-                    [ahi[0].max(bhi[0]), ahi[1].max(bhi[1]), ahi[2].max(bhi[2])],
-                )
-            })
+            .reduce(Bounds::default, |a, b| Bounds {
+                lo: a.lo.min(b.lo),
+                hi: a.hi.max(b.hi),
+                count: a.count + b.count,
+            });
+        (b.count > 0).then(|| (b.lo.to_array(), b.hi.to_array()))
     }
 
     /// The whole mesh in memory (tests, small scenes, in-memory consumers).

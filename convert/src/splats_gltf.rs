@@ -7,7 +7,8 @@
 //! log-scale), `…:OPACITY` (after the sigmoid), `…:SH_DEGREE_l_COEF_n` for every degree
 //! present (coefficients in the reference 3DGS order, which runs from m = −l to m = l), and
 //! the `COLOR_0` fallback `clamp(SH_C0·f_dc + 0.5)` with alpha = opacity (normalized u8).
-//! The extension object is `{"kernel": "ellipse", "colorSpace": "srgb_rec709_display"}`.
+//! The extension object is `{"kernel": "ellipse", "colorSpace": "srgb_rec709_display",
+//! "projection": "perspective", "sortingMethod": "cameraDistance"}`.
 //! `gltf_json` cannot name these attributes, so the document is typed with placeholder
 //! names and renamed in the JSON value before output. Invalid Gaussians (NaN, zero
 //! quaternions) are dropped and counted.
@@ -282,7 +283,7 @@ fn plan<'a>(
         }
         meshes.push(json!({
             "name": name,
-            "primitives": [{"attributes": attrs, "mode": 0, "extensions": {EXT: {"kernel": "ellipse", "colorSpace": "srgb_rec709_display"}}}],
+            "primitives": [{"attributes": attrs, "mode": 0, "extensions": {EXT: {"kernel": "ellipse", "colorSpace": "srgb_rec709_display", "projection": "perspective", "sortingMethod": "cameraDistance"}}}],
             "extras": {"role": if obj.is_some() { "object" } else { "static" }, "idOffset": report.meshes.last().map(|m| m.id_offset)}
         }));
         let mut node = json!({"name": name, "mesh": meshes.len() - 1});
@@ -593,6 +594,9 @@ fn read_primitive(
     Ok(())
 }
 
+/// Key times, translations and rotations of one animated node.
+type NodeAnimation = (Vec<f32>, Option<Vec<f32>>, Option<Vec<f32>>);
+
 /// Read a `KHR_gaussian_splatting` glTF/GLB back into a scene.
 pub fn read_file(path: &Path) -> crate::Result<DynamicScene> {
     let bad = |what: String| ConvertError::Format {
@@ -602,10 +606,7 @@ pub fn read_file(path: &Path) -> crate::Result<DynamicScene> {
     let (v, bufs) = load_document(path)?;
     let nodes = v["nodes"].as_array().cloned().unwrap_or_default();
     // Animated nodes: node -> (times, translations, rotations).
-    let mut animated: std::collections::HashMap<
-        usize,
-        (Vec<f32>, Option<Vec<f32>>, Option<Vec<f32>>),
-    > = Default::default();
+    let mut animated: std::collections::HashMap<usize, NodeAnimation> = Default::default();
     for a in v["animations"].as_array().into_iter().flatten() {
         for ch in a["channels"].as_array().into_iter().flatten() {
             let node = ch["target"]["node"]

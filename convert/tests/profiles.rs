@@ -424,3 +424,62 @@ fn baked_view_colour_follows_the_camera() {
     };
     assert!((lin.colors[0][0] - want).abs() < 1e-6);
 }
+
+/// Relative L2 error of a fan's head-on alpha against the rasterizer's footprint
+/// `o·exp(−r²/2)` (cut below 1/255), f64 on a dense grid.
+fn relative_l2(layout: &FanLayout, o: f64, texture: bool) -> f64 {
+    let extent = 6.0;
+    let steps = 300;
+    let (mut num, mut den) = (0.0, 0.0);
+    let tex = |u: f64, v: f64| splatbridge_convert::texture::falloff(u, v);
+    for i in 0..=steps {
+        for j in 0..=steps {
+            let x = -extent + 2.0 * extent * i as f64 / steps as f64;
+            let y = -extent + 2.0 * extent * j as f64 / steps as f64;
+            let g = o * (-0.5 * (x * x + y * y)).exp();
+            let truth = if g >= 1.0 / 255.0 { g } else { 0.0 };
+            let a = layout_alpha_at(layout, x, y, if texture { Some(&tex) } else { None });
+            num += (a - truth).powi(2);
+            den += truth * truth;
+        }
+    }
+    (num / den).sqrt()
+}
+
+#[test]
+fn profile_footprint_errors_per_triangle() {
+    // Head-on footprint error of one flat Gaussian per profile, averaged over opacities; the
+    // numbers back the choice of the default profile (see options.rs).
+    let cases = [
+        ("meshsplats n=8", Profile::MeshSplats, 8, 1),
+        ("rings n=8 m=2", Profile::Rings, 8, 2),
+        ("rings n=8 m=3", Profile::Rings, 8, 3),
+        ("rings n=16 m=3", Profile::Rings, 16, 3),
+        ("texture quad", Profile::Texture, 4, 1),
+        ("texture n=8", Profile::Texture, 8, 1),
+    ];
+    let mut errs = Vec::new();
+    for (name, profile, n, m) in cases {
+        let shape = ProfileShape::new(profile, n, m);
+        let mut e = 0.0;
+        let mut tris = 0;
+        let os = [0.1, 0.3, 0.6, 0.9, 1.0];
+        for o in os {
+            let mut lay = FanLayout::default();
+            shape.layout(o as f32, &mut lay);
+            tris = lay.tris.len();
+            e += relative_l2(&lay, o, profile == Profile::Texture) / os.len() as f64;
+        }
+        println!("{name:16} {tris:3} triangles: relative L2 footprint error {e:.4}");
+        errs.push(e);
+    }
+    // The opacity-aware profiles must beat the MeshSplats cone, and more rings must help.
+    assert!(
+        errs[1] < errs[0] && errs[2] < errs[1] && errs[3] < errs[2],
+        "{errs:?}"
+    );
+    assert!(
+        errs[4] < errs[2],
+        "the texture quad follows the profile better than 3 rings: {errs:?}"
+    );
+}

@@ -68,3 +68,84 @@ fn street_exports_are_validator_clean() {
         c => panic!("validator reported problems (exit {c:?}):\n{stdout}"),
     }
 }
+
+#[test]
+fn fourth_st_exports_are_validator_clean() {
+    let Some(_) = common::tools() else { return };
+    let Some(ply) = common::real("fourth_st.ply") else {
+        return;
+    };
+    let (cloud, _) = match splatbridge_scene::ply::read_ply(&ply, &Default::default()) {
+        Ok(c) => c,
+        Err(e) => {
+            println!("skipped: cannot read {}: {e}", ply.display());
+            return;
+        }
+    };
+    let scene = splatbridge_scene::dynamic::DynamicScene::from_static(cloud);
+    let dir = tempfile::tempdir().unwrap();
+    let mut mesh = Vec::new();
+    for profile in [Profile::MeshSplats, Profile::Rings, Profile::Texture] {
+        let p = dir.path().join(format!("fourth_st-{}.glb", profile.name()));
+        let r = convert_to_file(
+            &p,
+            &scene,
+            None,
+            &ConvertOptions {
+                profile,
+                ..Default::default()
+            },
+            false,
+        )
+        .unwrap();
+        println!(
+            "{}: {} triangles, {} bytes",
+            profile.name(),
+            r.triangles,
+            r.bytes
+        );
+        mesh.push(p);
+    }
+    let p = dir.path().join("fourth_st-splats.glb");
+    splatbridge_convert::splats_gltf::write_file(&p, &scene, &ConvertOptions::default()).unwrap();
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scripts/validate-exports.sh");
+    let out = Command::new(&script)
+        .arg("--mesh")
+        .args(&mesh)
+        .arg("--splats")
+        .arg(&p)
+        .output()
+        .expect("run validate-exports.sh");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    println!("{stdout}{}", String::from_utf8_lossy(&out.stderr));
+    match out.status.code() {
+        Some(3) => println!("skipped: the glTF validator cannot run here"),
+        Some(0) => {
+            assert_eq!(
+                stdout.lines().filter(|l| l.starts_with('{')).count(),
+                mesh.len() + 1
+            );
+            // The splat file carries exactly the validator's known lag: one invalid-attribute
+            // error per KHR_gaussian_splatting attribute (3 + 16 for SH degree 3).
+            let last = stdout.lines().rfind(|l| l.starts_with('{')).unwrap();
+            let v: serde_json::Value = serde_json::from_str(last).unwrap();
+            let codes = v["codes"].as_object().unwrap();
+            assert_eq!(
+                v["codes"]["MESH_PRIMITIVE_INVALID_ATTRIBUTE"],
+                3 + scene_attrs_sh(&scene)
+            );
+            assert!(
+                codes.keys().all(
+                    |k| k == "MESH_PRIMITIVE_INVALID_ATTRIBUTE" || k == "UNSUPPORTED_EXTENSION"
+                ),
+                "{codes:?}"
+            );
+        }
+        c => panic!("validator reported problems (exit {c:?}):\n{stdout}"),
+    }
+}
+
+/// SH attributes of a scene's static cloud: (degree + 1)² coefficients.
+fn scene_attrs_sh(scene: &splatbridge_scene::dynamic::DynamicScene) -> usize {
+    scene.static_gaussians.coeffs()
+}

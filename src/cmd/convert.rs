@@ -64,9 +64,9 @@ pub struct Args {
     /// Output file: .glb, .gltf, .obj or .ply.
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Meshing profile.
-    #[arg(long, value_enum, default_value = "rings")]
-    pub profile: ProfileArg,
+    /// Meshing profile (default: texture for glTF, rings for OBJ/PLY, which carry no texture).
+    #[arg(long, value_enum)]
+    pub profile: Option<ProfileArg>,
     /// Segments per fan (default 8; 4 for texture).
     #[arg(long)]
     pub segments: Option<usize>,
@@ -128,9 +128,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     pb.inc(1);
     let mut opts = ConvertOptions {
         profile: match args.profile {
-            ProfileArg::Meshsplats => Profile::MeshSplats,
-            ProfileArg::Rings => Profile::Rings,
-            ProfileArg::Texture => Profile::Texture,
+            Some(ProfileArg::Meshsplats) => Profile::MeshSplats,
+            Some(ProfileArg::Rings) => Profile::Rings,
+            Some(ProfileArg::Texture) => Profile::Texture,
+            None if is_gltf(&args.output) => Profile::Texture,
+            None => Profile::Rings,
         },
         segments: args.segments,
         rings: args.rings,

@@ -85,6 +85,42 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..Default::default()
     };
     let repeat = args.repeat.max(1);
+    if !args.splats {
+        // Phase breakdown of one run (static cloud only).
+        let shape = splatbridge_convert::shape_for(&opts);
+        let t = Instant::now();
+        let m =
+            splatbridge_convert::Mesher::new(&scene.static_gaussians, &shape, &opts, "static", 0);
+        let t_classify = t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let b = m.bounds();
+        let t_bounds = t.elapsed().as_secs_f64();
+        let layout = splatbridge_convert::gltf_writer::VertexLayout {
+            ids: true,
+            uv: profile == Profile::Texture,
+        };
+        let t = Instant::now();
+        let mut nb = 0usize;
+        m.map_chunks_with::<_, Vec<u8>, ()>(
+            |n| splatbridge_convert::gltf_writer::Interleaved::new(n, layout),
+            |s| s.bytes,
+            |v| {
+                nb += v.len();
+                Ok(())
+            },
+        )
+        .ok();
+        let t_vertices = t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        m.map_index_chunks::<usize, ()>(0, |i| i.len(), |_| Ok(()))
+            .ok();
+        let t_indices = t.elapsed().as_secs_f64();
+        eprintln!(
+            "phases: classify {t_classify:.3} s, bounds {t_bounds:.3} s, vertices {t_vertices:.3} s ({:.0} MB), indices {t_indices:.3} s; bounds {:?}",
+            nb as f64 / 1e6,
+            b
+        );
+    }
     let mut times = Vec::new();
     let mut report = None;
     for _ in 0..repeat {
