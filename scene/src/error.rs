@@ -7,13 +7,10 @@ use std::path::PathBuf;
 /// Errors from reading, validating or writing scenes, cameras and images.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
-    /// I/O failure on a named file.
-    #[error("{path}: {source}")]
-    Io {
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
+    /// I/O failure on a named file. The OS error is part of the message and deliberately not
+    /// a `source`, so error chains (`{:#}`) do not print it twice.
+    #[error("{path}: {err}")]
+    Io { path: PathBuf, err: std::io::Error },
     /// The file's content is malformed; `what` names the element, line or field.
     #[error("{path}: {what}")]
     Format { path: PathBuf, what: String },
@@ -26,7 +23,7 @@ impl SceneError {
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
         SceneError::Io {
             path: path.into(),
-            source,
+            err: source,
         }
     }
 
