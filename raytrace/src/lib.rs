@@ -13,11 +13,13 @@ pub mod composite;
 pub mod embree_backend;
 pub mod error;
 pub mod gaussian;
+pub mod lidar;
 pub mod model;
 pub mod obvhs_backend;
 pub mod render;
 pub mod scene_load;
 pub mod secondary;
+pub mod shadows;
 pub mod tri;
 
 pub use backend::{BackendKind, BuildPreset};

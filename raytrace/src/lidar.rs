@@ -1,0 +1,367 @@
+//! A spinning LiDAR ray-cast through the scene (the manifest's `effects.lidar`): the seeds'
+//! LiDAR prior made a sensor, for mesh scenes and for the Gaussians themselves.
+//!
+//! Sensor frame: like a camera (x right, y down, z forward); the head spins about its local −y
+//! (up). A beam at elevation `e` (positive up) and azimuth `a` (0 = local +z, increasing towards
+//! +x) has local direction `(cos e·sin a, −sin e, cos e·cos a)`. `channels` beams are spread
+//! evenly over `vertical_fov_deg` (inclusive ends; one channel sits at the middle). A `pose`
+//! mount maps local to world with its rotation (w, x, y, z) and position; a `camera` mount
+//! uses that camera's pose (so the identity pose in a y-down world spins about world up).
+//!
+//! One frame is one revolution: azimuth step `j` of `azimuth_steps` fires at
+//! `t_j = t + j/(rotation_hz·azimuth_steps)` with azimuth `2π·(rotation_hz·t + j/steps)`, so the
+//! head keeps turning continuously from frame to frame and every point carries its own
+//! timestamp. The geometry is the scene at the frame time `t` (frozen for the sweep).
+//!
+//! Return: hits are taken front to back in the tracer's order; the first hit at which the
+//! accumulated opacity `1 − Π(1 − αᵢ)` reaches `hit_threshold` gives the range (its distance).
+//! Nothing within `range` reaches it: no point. Intensity = that hit's α × |cos θ|, θ between
+//! the beam and the hit surface's normal (triangle normal in mode `mesh`; a Gaussian's
+//! shortest axis in mode `gaussian`): a simple Lambertian-like return strength in [0, 1].
+//!
+//! Output: [`write_ply`] writes x, y, z, intensity (float), time (double), ring (ushort) as
+//! binary little-endian PLY, atomically.
+
+use std::io::Write;
+use std::path::Path;
+use std::time::Instant;
+
+use glam::{DMat3, DQuat, DVec3, Mat3, Vec3};
+use rayon::prelude::*;
+use splatbridge_scene::effects::{Lidar, LidarMount};
+use splatbridge_scene::Camera;
+
+use crate::composite::{Hit, KBuffer};
+use crate::error::{Result, TraceError};
+use crate::gaussian::GaussianTracer;
+use crate::secondary::MeshAt;
+
+/// A LiDAR head at a fixed pose.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LidarSensor {
+    pub origin: DVec3,
+    /// Sensor-local to world.
+    pub to_world: DMat3,
+    /// Elevation of each channel, radians (positive up).
+    pub elevations: Vec<f64>,
+    pub azimuth_steps: u32,
+    pub rotation_hz: f64,
+    pub range: f64,
+    pub hit_threshold: f32,
+}
+
+/// One return.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LidarPoint {
+    pub position: DVec3,
+    pub range: f64,
+    pub intensity: f32,
+    /// Scene time the beam fired, seconds.
+    pub time: f64,
+    /// Channel index (0 = lowest elevation).
+    pub ring: u16,
+}
+
+/// One revolution's returns, ordered by azimuth step then channel.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LidarScan {
+    pub points: Vec<LidarPoint>,
+    pub rays: u64,
+    pub seconds: f64,
+}
+
+/// Where an opacity march stopped.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Return {
+    /// Distance along the unit beam.
+    pub t: f64,
+    /// α of the hit that crossed the threshold.
+    pub alpha: f32,
+    /// Unit surface normal at that hit (either orientation).
+    pub normal: DVec3,
+}
+
+/// Tracers a LiDAR can be cast through.
+pub trait OpacityMarch: Sync {
+    /// The first hit along `o + t·d` (`d` unit, `0 ≤ t ≤ tmax`) at which accumulated opacity
+    /// reaches `threshold`.
+    fn first_return(&self, o: DVec3, d: DVec3, tmax: f64, threshold: f32) -> Option<Return>;
+}
+
+impl LidarSensor {
+    /// From the declared effect; `cameras` are the scene's (for a camera mount).
+    pub fn from_effect(l: &Lidar, cameras: &[Camera]) -> Result<Self> {
+        splatbridge_scene::effects::Effects {
+            lidar: Some(l.clone()),
+            ..Default::default()
+        }
+        .validate()
+        .map_err(TraceError::Invalid)?;
+        let (origin, to_world) = match &l.mount {
+            LidarMount::Pose { position, rotation } => {
+                let q = DQuat::from_xyzw(
+                    rotation[1] as f64,
+                    rotation[2] as f64,
+                    rotation[3] as f64,
+                    rotation[0] as f64,
+                );
+                let n = q.length();
+                if !(n > 0.0 && n.is_finite()) {
+                    return Err(TraceError::Invalid(
+                        "lidar.mount.pose.rotation must be a finite non-zero quaternion".into(),
+                    ));
+                }
+                (Vec3::from(*position).as_dvec3(), DMat3::from_quat(q / n))
+            }
+            LidarMount::Camera { index } => {
+                let c = cameras.get(*index).ok_or_else(|| {
+                    TraceError::Invalid(format!(
+                        "lidar.mount.camera.index = {index}, but the scene has {} cameras",
+                        cameras.len()
+                    ))
+                })?;
+                (c.centre, c.cam_to_world())
+            }
+        };
+        let n = l.channels as usize;
+        let (lo, hi) = (
+            (l.vertical_fov_deg[0] as f64).to_radians(),
+            (l.vertical_fov_deg[1] as f64).to_radians(),
+        );
+        let elevations = (0..n)
+            .map(|c| {
+                if n == 1 {
+                    0.5 * (lo + hi)
+                } else {
+                    lo + (hi - lo) * c as f64 / (n - 1) as f64
+                }
+            })
+            .collect();
+        Ok(LidarSensor {
+            origin,
+            to_world,
+            elevations,
+            azimuth_steps: l.azimuth_steps,
+            rotation_hz: l.rotation_hz as f64,
+            range: l.range as f64,
+            hit_threshold: l.hit_threshold,
+        })
+    }
+
+    /// World direction of channel `ring` at azimuth `a` (radians).
+    pub fn direction(&self, ring: usize, a: f64) -> DVec3 {
+        let e = self.elevations[ring];
+        let local = DVec3::new(e.cos() * a.sin(), -e.sin(), e.cos() * a.cos());
+        (self.to_world * local).normalize()
+    }
+
+    /// Firing time and azimuth of step `j` in the revolution starting at frame time `t`.
+    pub fn step(&self, t: f64, j: u32) -> (f64, f64) {
+        let steps = self.azimuth_steps as f64;
+        let time = t + j as f64 / (self.rotation_hz * steps);
+        let turns = (self.rotation_hz * t).rem_euclid(1.0) + j as f64 / steps;
+        (time, std::f64::consts::TAU * turns)
+    }
+
+    /// Rays per revolution.
+    pub fn rays_per_frame(&self) -> u64 {
+        self.elevations.len() as u64 * self.azimuth_steps as u64
+    }
+}
+
+/// Cast one revolution starting at frame time `t` through `scene` (frozen at `t`).
+pub fn scan<M: OpacityMarch + ?Sized>(scene: &M, sensor: &LidarSensor, t: f64) -> LidarScan {
+    let start = Instant::now();
+    let channels = sensor.elevations.len();
+    let per_step: Vec<Vec<LidarPoint>> = (0..sensor.azimuth_steps)
+        .into_par_iter()
+        .map(|j| {
+            let (time, a) = sensor.step(t, j);
+            let mut out = Vec::new();
+            for ring in 0..channels {
+                let d = sensor.direction(ring, a);
+                if let Some(r) =
+                    scene.first_return(sensor.origin, d, sensor.range, sensor.hit_threshold)
+                {
+                    if r.t <= sensor.range && r.t.is_finite() {
+                        let cos = r.normal.dot(d).abs();
+                        out.push(LidarPoint {
+                            position: sensor.origin + d * r.t,
+                            range: r.t,
+                            intensity: (r.alpha * cos as f32).clamp(0.0, 1.0),
+                            time,
+                            ring: ring as u16,
+                        });
+                    }
+                }
+            }
+            out
+        })
+        .collect();
+    LidarScan {
+        points: per_step.into_iter().flatten().collect(),
+        rays: sensor.rays_per_frame(),
+        seconds: start.elapsed().as_secs_f64(),
+    }
+}
+
+impl OpacityMarch for MeshAt<'_> {
+    fn first_return(&self, o: DVec3, d: DVec3, tmax: f64, threshold: f32) -> Option<Return> {
+        let mut buf = KBuffer::new(self.k.max(1));
+        let mut after = None;
+        let mut tr = 1.0f32;
+        loop {
+            self.tracer
+                .collect(&self.insts, o, d, 0.0, tmax as f32, after, &mut buf);
+            for h in &buf.hits {
+                let a = self.tracer.shade(&self.insts, h).w;
+                tr *= 1.0 - a;
+                if 1.0 - tr >= threshold {
+                    return Some(Return {
+                        t: h.t as f64,
+                        alpha: a,
+                        normal: self.normal(h),
+                    });
+                }
+            }
+            if !buf.is_full() {
+                return None;
+            }
+            after = buf.hits.last().map(Hit::key);
+        }
+    }
+}
+
+impl MeshAt<'_> {
+    /// World unit normal of a hit's triangle (normals transform with the inverse transpose of
+    /// local-to-world, i.e. the transpose of `to_local`'s linear part).
+    fn normal(&self, h: &Hit) -> DVec3 {
+        let inst = &self.insts[h.instance as usize];
+        let blas = &self.tracer.blas[inst.mesh];
+        let mesh = &self.tracer.scene.meshes[inst.mesh];
+        let [a, b, c] = mesh.tris[h.tri as usize].map(|i| blas.rel[i as usize].as_dvec3());
+        let n = (b - a).cross(c - a);
+        let w = inst.to_local.matrix3.transpose() * n;
+        w.try_normalize().unwrap_or(DVec3::ZERO)
+    }
+}
+
+impl OpacityMarch for GaussianTracer {
+    fn first_return(&self, o: DVec3, d: DVec3, tmax: f64, threshold: f32) -> Option<Return> {
+        let ro = (o - self.anchor).as_vec3();
+        let rd = d.as_vec3();
+        let tmax = tmax as f32;
+        let mut buf = KBuffer::new(16);
+        let mut after: Option<(u32, u32, u32, u32)> = None;
+        let mut tr = 1.0f32;
+        loop {
+            buf.clear();
+            // The same hits and order as the tracer's own collection (t*, then index).
+            self.accel.traverse(ro, rd, tmax, &mut |p, cull| {
+                let p = p as usize;
+                let Some((t, alpha)) = self.response(p, ro, rd) else {
+                    return;
+                };
+                if t > tmax {
+                    return;
+                }
+                let h = Hit {
+                    t,
+                    gaussian: self.index[p],
+                    instance: 0,
+                    group: 0,
+                    tri: p as u32,
+                    bary: [alpha, 0.0, 0.0],
+                };
+                if after.is_some_and(|a| h.key() <= a) {
+                    return;
+                }
+                *cull = buf.insert(h, tmax);
+            });
+            for h in &buf.hits {
+                let a = h.bary[0];
+                tr *= 1.0 - a;
+                if 1.0 - tr >= threshold {
+                    let g = h.gaussian as usize;
+                    let s = self.cloud.scale(g);
+                    let axis = if s.x <= s.y && s.x <= s.z {
+                        0
+                    } else if s.y <= s.z {
+                        1
+                    } else {
+                        2
+                    };
+                    let n = Mat3::from_quat(self.cloud.unit_rotation(g)).col(axis);
+                    return Some(Return {
+                        t: h.t as f64,
+                        alpha: a,
+                        normal: n.as_dvec3().try_normalize().unwrap_or(DVec3::ZERO),
+                    });
+                }
+            }
+            if !buf.is_full() {
+                return None;
+            }
+            after = buf.hits.last().map(Hit::key);
+        }
+    }
+}
+
+/// Write a scan as a binary little-endian PLY (x, y, z, intensity as float; time as double;
+/// ring as ushort), atomically.
+pub fn write_ply(path: &Path, scan: &LidarScan) -> splatbridge_scene::Result<()> {
+    splatbridge_scene::image_io::with_atomic_writer(path, |w| {
+        write!(
+            w,
+            "ply\nformat binary_little_endian 1.0\ncomment splatbridge lidar scan\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty float intensity\nproperty double time\nproperty ushort ring\nend_header\n",
+            scan.points.len()
+        )?;
+        for p in &scan.points {
+            let v = p.position.as_vec3();
+            for x in [v.x, v.y, v.z, p.intensity] {
+                w.write_all(&x.to_le_bytes())?;
+            }
+            w.write_all(&p.time.to_le_bytes())?;
+            w.write_all(&p.ring.to_le_bytes())?;
+        }
+        Ok(())
+    })
+}
+
+/// Read back a scan written by [`write_ply`] (positions as f32, ranges not stored: 0).
+pub fn read_ply(bytes: &[u8]) -> std::result::Result<Vec<LidarPoint>, String> {
+    const HEADER_END: &[u8] = b"end_header\n";
+    let end = bytes
+        .windows(HEADER_END.len())
+        .position(|w| w == HEADER_END)
+        .ok_or("no end_header")?
+        + HEADER_END.len();
+    let header = std::str::from_utf8(&bytes[..end]).map_err(|e| e.to_string())?;
+    let n: usize = header
+        .lines()
+        .find_map(|l| l.strip_prefix("element vertex "))
+        .ok_or("no vertex element")?
+        .trim()
+        .parse()
+        .map_err(|e| format!("vertex count: {e}"))?;
+    const REC: usize = 4 * 4 + 8 + 2;
+    let body = &bytes[end..];
+    if body.len() != n * REC {
+        return Err(format!(
+            "{} data bytes for {n} points (expected {})",
+            body.len(),
+            n * REC
+        ));
+    }
+    let f = |b: &[u8], i: usize| f32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]);
+    Ok(body
+        .chunks_exact(REC)
+        .map(|r| LidarPoint {
+            position: Vec3::new(f(r, 0), f(r, 4), f(r, 8)).as_dvec3(),
+            range: 0.0,
+            intensity: f(r, 12),
+            time: f64::from_le_bytes(r[16..24].try_into().expect("8 bytes")),
+            ring: u16::from_le_bytes([r[24], r[25]]),
+        })
+        .collect())
+}
