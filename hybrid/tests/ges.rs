@@ -468,7 +468,7 @@ fn hard_cases_stay_finite() {
     let (f, _) = render_ges(&s, &g, &cam, &opts).unwrap();
     assert!(f.is_finite());
     // The straddling surfel fills the lower half of the view (its part at z > near).
-    assert!(f.alpha.iter().any(|&a| a == 1.0));
+    assert!(f.alpha.contains(&1.0));
 
     // 1e5 units from the origin: the same scene shifted with the camera gives the same image up
     // to f32 rounding of the stored positions (ulp of 1e5 is 0.0078; shifts of that size move

@@ -10,7 +10,7 @@ use splatbridge_hybrid::ges::{render_ges, GesOptions, GesStats};
 use splatbridge_scene::image_io::save_frame;
 use splatbridge_scene::surfels::{
     looks_like_ges, split, split_ges, SplitParams, SurfelCloud, DEFAULT_MAX_FLATNESS,
-    DEFAULT_MIN_OPACITY, GES_EPSILON_FACTOR,
+    DEFAULT_MIN_OPACITY, FOOTPRINT_SIGMAS, GES_EPSILON_FACTOR,
 };
 use splatbridge_scene::{Camera, GaussianCloud};
 
@@ -47,6 +47,10 @@ pub struct HybridKnobs {
     /// F·mean(surfel scales) of the surfel (GES: 5).
     #[arg(long, default_value_t = GES_EPSILON_FACTOR)]
     pub epsilon: f32,
+    /// Surfel footprint radius in standard deviations (GES: sqrt(2·ln 255) ≈ 3.33; 1.41 keeps a
+    /// split Gaussian's integrated opacity).
+    #[arg(long, default_value_t = FOOTPRINT_SIGMAS)]
+    pub footprint: f32,
     /// Surfel samples per pixel: 1 or 4.
     #[arg(long, default_value_t = 1, value_parser = parse_supersample)]
     pub supersample: u32,
@@ -72,6 +76,7 @@ impl HybridKnobs {
     pub fn options(&self) -> GesOptions {
         GesOptions {
             epsilon_factor: self.epsilon,
+            footprint_sigmas: self.footprint,
             supersample: self.supersample,
             blur: self.blur,
             background: self.background.to_array(),
@@ -130,7 +135,8 @@ impl HybridKnobs {
 
     pub fn describe(&self) -> String {
         format!(
-            "ε factor {}, supersample {}, blur {}, near {}, SH degree cap {}",
+            "footprint {}σ, ε factor {}, supersample {}, blur {}, near {}, SH degree cap {}",
+            self.footprint,
             self.epsilon,
             self.supersample,
             if self.blur { "on" } else { "off" },

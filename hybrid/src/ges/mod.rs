@@ -25,7 +25,9 @@ pub mod tiles;
 use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
-use splatbridge_scene::surfels::{split, split_ges, SplitParams, SurfelCloud, GES_EPSILON_FACTOR};
+use splatbridge_scene::surfels::{
+    split, split_ges, SplitParams, SurfelCloud, FOOTPRINT_SIGMAS, GES_EPSILON_FACTOR,
+};
 use splatbridge_scene::{Camera, Frame, GaussianCloud};
 
 use crate::native::{RenderError, RenderOptions, MAX_PAIRS, NEAR_REFERENCE};
@@ -39,6 +41,11 @@ use surfel_pass::{N, P_LIMIT, T};
 pub struct GesOptions {
     /// Depth tolerance factor F: `ε = F·mean_scale` of the covering surfel (GES: 5).
     pub epsilon_factor: f32,
+    /// Surfel footprint radius in standard deviations: GES's 1/255 boundary
+    /// [`FOOTPRINT_SIGMAS`] (≈ 3.33, default), or smaller for surfels split from a 3DGS cloud,
+    /// e.g. `sqrt(2)` ≈ 1.41, where the disc's area equals the integral of a unit-opacity
+    /// Gaussian (2π·s_u·s_v = π·r²·s_u·s_v).
+    pub footprint_sigmas: f32,
     /// Samples per pixel in pass 1: 1 or 4.
     pub supersample: u32,
     /// GES's 3×3 surfel colour blur.
@@ -56,6 +63,7 @@ impl Default for GesOptions {
     fn default() -> Self {
         GesOptions {
             epsilon_factor: GES_EPSILON_FACTOR,
+            footprint_sigmas: FOOTPRINT_SIGMAS,
             supersample: 1,
             blur: false,
             background: [0.0; 3],
@@ -72,6 +80,12 @@ impl GesOptions {
             return Err(RenderError::Option(format!(
                 "epsilon factor {} must be finite and ≥ 0",
                 self.epsilon_factor
+            )));
+        }
+        if !(self.footprint_sigmas > 0.0 && self.footprint_sigmas.is_finite()) {
+            return Err(RenderError::Option(format!(
+                "surfel footprint {} must be finite and > 0",
+                self.footprint_sigmas
             )));
         }
         if self.supersample != 1 && self.supersample != 4 {
@@ -172,6 +186,7 @@ pub fn render_ges_with_ids(
         surfels,
         &view,
         opts.epsilon_factor,
+        opts.footprint_sigmas,
         opts.sh_degree_cap,
         opts.supersample,
         MAX_PAIRS,

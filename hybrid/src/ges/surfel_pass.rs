@@ -128,12 +128,14 @@ pub fn screen_box(view: &ViewParams, c: DVec3, u: DVec3, w: DVec3) -> [f64; 4] {
 }
 
 /// Project surfel `i` for this view; `None` when entirely behind the near plane, off-screen or
-/// degenerate.
+/// degenerate. The ellipse reaches `footprint` standard deviations (GES: [`FOOTPRINT_SIGMAS`]),
+/// realised by scaling both axes by `footprint / FOOTPRINT_SIGMAS` (ε is not affected).
 pub fn project_surfel(
     s: &SurfelCloud,
     i: usize,
     view: &ViewParams,
     eps_factor: f32,
+    footprint: f32,
     sh_degree: u8,
 ) -> Option<SurfelSplat> {
     let w2c = view.world_to_cam;
@@ -141,7 +143,8 @@ pub fn project_surfel(
     let c = w2c * rel;
     let au = w2c * s.axes_u[i].as_dvec3();
     let av = w2c * s.axes_v[i].as_dvec3();
-    let [su, sv] = s.scales[i].map(|v| v as f64);
+    let k = footprint as f64 / FOOTPRINT_SIGMAS as f64;
+    let [su, sv] = s.scales[i].map(|v| v as f64 * k);
     let n = au.cross(av);
     if !(c.is_finite() && n.is_finite() && su > 0.0 && sv > 0.0 && su.is_finite() && sv.is_finite())
         || n.length_squared() == 0.0
@@ -238,6 +241,7 @@ pub fn surfel_pass(
     surfels: &SurfelCloud,
     view: &ViewParams,
     eps_factor: f32,
+    footprint: f32,
     sh_degree: u8,
     supersample: u32,
     max_pairs: usize,
@@ -245,7 +249,7 @@ pub fn surfel_pass(
     let degree = surfels.sh_degree.min(sh_degree);
     let proj: Vec<SurfelSplat> = (0..surfels.len())
         .into_par_iter()
-        .filter_map(|i| project_surfel(surfels, i, view, eps_factor, degree))
+        .filter_map(|i| project_surfel(surfels, i, view, eps_factor, footprint, degree))
         .collect();
     let t = TILE as i32;
     let rects: Vec<[u32; 4]> = proj

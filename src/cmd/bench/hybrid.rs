@@ -47,6 +47,9 @@ pub struct Args {
     /// Flatness thresholds of the sweep (comma-separated).
     #[arg(long, value_delimiter = ',', default_value = "0.1,0.2,0.3,0.5,1.0")]
     pub sweep_flatness: Vec<f32>,
+    /// Skip the second threshold sweep with a 1.41σ surfel footprint.
+    #[arg(long)]
+    pub no_footprint_sweep: bool,
     /// Also print the results as one JSON object.
     #[arg(long)]
     pub json: bool,
@@ -242,7 +245,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 )?);
             }
         }
-        let variants: [(&str, GesOptions); 5] = [
+        let fp = std::f32::consts::SQRT_2;
+        let variants: [(&str, GesOptions); 6] = [
+            (
+                "defaults, footprint 1.41σ",
+                GesOptions {
+                    footprint_sigmas: fp,
+                    ..opts
+                },
+            ),
             ("defaults, blur on", GesOptions { blur: true, ..opts }),
             (
                 "defaults, supersample 4",
