@@ -206,6 +206,112 @@ mod sse {
 #[cfg(target_arch = "x86_64")]
 pub use sse::blend4;
 
+/// Eight adjacent pixels at once: the same lane arithmetic as [`blend4`] on 256-bit vectors.
+/// Only meaningful inside a function compiled with AVX2 (see `raster::blend_tile`); elsewhere
+/// it is two [`blend4`] calls, which give the same bits.
+#[cfg(target_arch = "x86_64")]
+pub mod avx {
+    use std::arch::x86_64::*;
+
+    use super::*;
+
+    // SAFETY (all intrinsics below): callers run these only inside a function compiled with
+    // `target_feature(enable = "avx2")` after `is_x86_feature_detected!("avx2")`; memory
+    // accesses are the unaligned 8-lane loads/stores noted at their pointers.
+
+    #[inline(always)]
+    fn exp8(x: __m256) -> __m256 {
+        unsafe {
+            let s = |v: f32| _mm256_set1_ps(v);
+            let x = _mm256_min_ps(_mm256_max_ps(x, s(-87.0)), s(0.0));
+            let n = _mm256_sub_ps(
+                _mm256_add_ps(_mm256_mul_ps(x, s(LOG2E)), s(ROUND)),
+                s(ROUND),
+            );
+            let r = _mm256_sub_ps(
+                _mm256_sub_ps(x, _mm256_mul_ps(n, s(C1))),
+                _mm256_mul_ps(n, s(C2)),
+            );
+            let mut p = s(P[0]);
+            for c in &P[1..] {
+                p = _mm256_add_ps(_mm256_mul_ps(p, r), s(*c));
+            }
+            let y = _mm256_add_ps(
+                _mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(p, r), r), r),
+                s(1.0),
+            );
+            let e = _mm256_slli_epi32::<23>(_mm256_add_epi32(
+                _mm256_cvttps_epi32(n),
+                _mm256_set1_epi32(127),
+            ));
+            _mm256_mul_ps(y, _mm256_castsi256_ps(e))
+        }
+    }
+
+    /// Blend into pixels `base..base + 8` (pixel x of the first is `x0`). Returns (blends, stops).
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[inline(always)]
+    pub unsafe fn blend8(st: &mut TileState, base: usize, x0: f32, k: &SplatRow) -> (u32, u32) {
+        // Each pointer comes from a bounds-checked 8-element subslice of a tile plane, and every
+        // load/store below touches exactly those 8 lanes.
+        let lanes = |a: &mut [f32; N]| -> *mut f32 { a[base..base + 8].as_mut_ptr() };
+        let tp = lanes(&mut st.t);
+        let rp = lanes(&mut st.r);
+        let gp = lanes(&mut st.g);
+        let bp = lanes(&mut st.b);
+        let zp = lanes(&mut st.dz);
+        let wp = lanes(&mut st.w);
+        let dp = st.done[base..base + 8].as_mut_ptr() as *mut __m256i;
+        unsafe {
+            let s = |v: f32| _mm256_set1_ps(v);
+            let xs = _mm256_add_ps(s(x0), _mm256_set_ps(7.0, 6.0, 5.0, 4.0, 3.0, 2.0, 1.0, 0.0));
+            let dx = _mm256_sub_ps(s(k.sx), xs);
+            let q = _mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(s(k.c0), dx), dx), s(k.c2dy2));
+            let power = _mm256_sub_ps(_mm256_mul_ps(s(-0.5), q), _mm256_mul_ps(dx, s(k.c1dy)));
+            let a = _mm256_min_ps(_mm256_mul_ps(s(k.opacity), exp8(power)), s(k.clamp));
+            let t = _mm256_loadu_ps(tp);
+            let done = _mm256_castsi256_ps(_mm256_loadu_si256(dp));
+            let test_t = _mm256_mul_ps(t, _mm256_sub_ps(s(1.0), a));
+            let ok = _mm256_and_ps(
+                _mm256_cmp_ps::<_CMP_LE_OQ>(power, s(0.0)),
+                _mm256_cmp_ps::<_CMP_GE_OQ>(a, s(MIN_ALPHA)),
+            );
+            let live = _mm256_andnot_ps(done, ok);
+            let stop = _mm256_and_ps(live, _mm256_cmp_ps::<_CMP_LT_OQ>(test_t, s(MIN_T)));
+            let add = _mm256_andnot_ps(stop, live);
+            let w = _mm256_mul_ps(a, t);
+            let acc = |p: *mut f32, v: __m256| {
+                _mm256_storeu_ps(p, _mm256_add_ps(_mm256_loadu_ps(p), _mm256_and_ps(add, v)))
+            };
+            acc(rp, _mm256_mul_ps(s(k.color[0]), w));
+            acc(gp, _mm256_mul_ps(s(k.color[1]), w));
+            acc(bp, _mm256_mul_ps(s(k.color[2]), w));
+            acc(zp, _mm256_mul_ps(s(k.depth), w));
+            acc(wp, w);
+            _mm256_storeu_ps(
+                tp,
+                _mm256_or_ps(_mm256_and_ps(add, test_t), _mm256_andnot_ps(add, t)),
+            );
+            _mm256_storeu_si256(dp, _mm256_castps_si256(_mm256_or_ps(done, stop)));
+            (
+                (_mm256_movemask_ps(add) as u32).count_ones(),
+                (_mm256_movemask_ps(stop) as u32).count_ones(),
+            )
+        }
+    }
+}
+
+/// Eight adjacent pixels as two [`blend4`] calls (the portable path; the same bits as
+/// [`avx::blend8`]).
+#[inline(always)]
+pub fn blend8_pair(st: &mut TileState, base: usize, x0: f32, k: &SplatRow) -> (u32, u32) {
+    let (b0, s0) = blend4(st, base, x0, k);
+    let (b1, s1) = blend4(st, base + 4, x0 + 4.0, k);
+    (b0 + b1, s0 + s1)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -225,6 +331,40 @@ mod tests {
         assert_eq!(exp_nonpos(0.0), 1.0);
         assert_eq!(exp_nonpos(5.0), 1.0);
         assert!(exp_nonpos(-1e30) >= 0.0 && exp_nonpos(-1e30) < 1e-37);
+    }
+
+    /// The 8-lane AVX2 kernel gives the bits of two 4-lane calls.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn avx_kernel_matches_sse_kernel() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            println!("SKIP avx_kernel_matches_sse_kernel: the CPU has no AVX2");
+            return;
+        }
+        let mut rng = splatbridge_scene::rng::Rng::new(8);
+        let mut a = TileState::new(16, 13);
+        let mut b = TileState::new(16, 13);
+        for round in 0..4000 {
+            let k = SplatRow {
+                sx: rng.range(-4.0, 20.0),
+                c0: rng.range(0.0, 3.0),
+                c1dy: rng.range(-3.0, 3.0),
+                c2dy2: rng.range(0.0, 10.0),
+                opacity: rng.range(0.0, 1.0),
+                clamp: 0.999,
+                color: [rng.range(0.0, 2.0), rng.f32(), rng.f32()],
+                depth: rng.range(0.2, 9.0),
+            };
+            let base = 8 * (round % 32);
+            let x0 = (base % T) as f32;
+            // SAFETY: AVX2 was detected above.
+            let got = unsafe { avx::blend8(&mut a, base, x0, &k) };
+            assert_eq!(got, blend8_pair(&mut b, base, x0, &k));
+        }
+        assert_eq!(a.t.map(f32::to_bits), b.t.map(f32::to_bits));
+        assert_eq!(a.g.map(f32::to_bits), b.g.map(f32::to_bits));
+        assert_eq!(a.w.map(f32::to_bits), b.w.map(f32::to_bits));
+        assert_eq!(a.done, b.done);
     }
 
     /// The SIMD kernel (on x86_64) gives the bits of the plain per-lane arithmetic.

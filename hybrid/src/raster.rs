@@ -21,7 +21,9 @@ use rayon::prelude::*;
 use splatbridge_scene::Frame;
 
 use crate::bin::Bins;
-use crate::kernel::{blend4, SplatRow, TileState, T};
+#[cfg(target_arch = "x86_64")]
+use crate::kernel::avx;
+use crate::kernel::{blend4, blend8_pair, SplatRow, TileState, T};
 use crate::project::{Splat, TILE};
 
 /// Blending knobs.
@@ -51,7 +53,8 @@ fn prefetch(s: &Splat) {
 
 /// Blend the Gaussians `list` (front to back) into the tile whose top-left pixel is
 /// `(px0, py0)`; `st` holds the tile's accumulators ([`TileState::new`] marks the pixels outside
-/// the image). Returns the number of pixel–Gaussian blends.
+/// the image). Returns the number of pixel–Gaussian blends. Uses 8-lane AVX2 where the CPU has
+/// it (the same bits as the 4-lane path, see the kernel tests).
 pub fn blend_tile(
     splats: &[Splat],
     list: &[u32],
@@ -59,6 +62,46 @@ pub fn blend_tile(
     py0: i32,
     params: &BlendParams,
     st: &mut TileState,
+) -> u64 {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: AVX2 is present.
+        return unsafe { blend_tile_avx2(splats, list, px0, py0, params, st) };
+    }
+    blend_tile_with(splats, list, px0, py0, params, st, blend8_pair)
+}
+
+/// [`blend_tile_with`] compiled for AVX2 with the 256-bit kernel.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn blend_tile_avx2(
+    splats: &[Splat],
+    list: &[u32],
+    px0: i32,
+    py0: i32,
+    params: &BlendParams,
+    st: &mut TileState,
+) -> u64 {
+    // SAFETY: this function only runs when AVX2 is present.
+    let k8 = |st: &mut TileState, base: usize, x0: f32, k: &SplatRow| unsafe {
+        avx::blend8(st, base, x0, k)
+    };
+    blend_tile_with(splats, list, px0, py0, params, st, k8)
+}
+
+/// The tile loop, with the kernel for eight adjacent pixels as a parameter.
+#[inline(always)]
+fn blend_tile_with(
+    splats: &[Splat],
+    list: &[u32],
+    px0: i32,
+    py0: i32,
+    params: &BlendParams,
+    st: &mut TileState,
+    blend8: impl Fn(&mut TileState, usize, f32, &SplatRow) -> (u32, u32),
 ) -> u64 {
     let active = st.done.iter().filter(|&&d| d == 0).count() as u32;
     let mut finished = 0u32;
@@ -81,6 +124,7 @@ pub fn blend_tile(
         if x0 > x1 || y0 > y1 {
             continue;
         }
+        // 4-pixel groups q0..=q1 of each row; pairs of groups go through the 8-lane kernel.
         let (q0, q1) = (((x0 - px0) / 4) as usize, ((x1 - px0) / 4) as usize);
         let [c0, c1, c2] = s.conic;
         for y in y0..=y1 {
@@ -96,8 +140,15 @@ pub fn blend_tile(
                 color: s.color,
                 depth: s.depth,
             };
-            for q in q0..=q1 {
-                let (nb, ns) = blend4(st, ly * T + q * 4, (px0 + 4 * q as i32) as f32, &k);
+            let mut q = q0;
+            while q <= q1 {
+                let x = (px0 + 4 * q as i32) as f32;
+                let (nb, ns) = if q < q1 {
+                    blend8(st, ly * T + q * 4, x, &k)
+                } else {
+                    blend4(st, ly * T + q * 4, x, &k)
+                };
+                q += if q < q1 { 2 } else { 1 };
                 blends += nb as u64;
                 finished += ns;
             }
