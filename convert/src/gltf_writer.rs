@@ -282,7 +282,8 @@ fn plan(
 
     // Small data first: animations and the texture.
     let mut images = Vec::new();
-    if layout.uv {
+    let any_mesh = entries.iter().any(|e| !e.mesher.is_empty());
+    if layout.uv && any_mesh {
         let view = d.small_view(&crate::texture::png(), None);
         images
             .push(json!({"bufferView": view, "mimeType": "image/png", "name": "gaussian_falloff"}));
@@ -442,7 +443,7 @@ fn plan(
         "bufferViews": d.views,
         "accessors": d.accessors,
     });
-    if layout.uv {
+    if layout.uv && any_mesh {
         material["pbrMetallicRoughness"]["baseColorTexture"] = json!({"index": 0});
         doc["images"] = json!(images);
         doc["samplers"] =
@@ -450,7 +451,18 @@ fn plan(
         doc["textures"] = json!([{"sampler": 0, "source": 0}]);
     }
     doc["materials"] = json!([material]);
-    if !meshes.is_empty() {
+    if meshes.is_empty() {
+        // No mesh uses the material: leave it out (the validator flags unused objects).
+        for k in [
+            "materials",
+            "extensionsUsed",
+            "images",
+            "samplers",
+            "textures",
+        ] {
+            doc.as_object_mut().map(|o| o.remove(k));
+        }
+    } else {
         doc["meshes"] = json!(meshes);
     }
     if !channels.is_empty() {
@@ -459,7 +471,12 @@ fn plan(
     if !cameras.is_empty() {
         doc["cameras"] = json!(cameras);
     }
-    if let Some(uri) = bin_uri {
+    if bin_len == 0 {
+        // Nothing survived (an empty scene): a zero-length buffer is invalid glTF.
+        for k in ["buffers", "bufferViews", "accessors"] {
+            doc.as_object_mut().map(|o| o.remove(k));
+        }
+    } else if let Some(uri) = bin_uri {
         doc["buffers"][0]["uri"] = json!(uri);
     }
     let json = typed_json(&doc)?;

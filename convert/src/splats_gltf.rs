@@ -336,7 +336,11 @@ fn plan<'a>(
     if !cameras.is_empty() {
         doc["cameras"] = json!(cameras);
     }
-    if let Some(uri) = bin_uri {
+    if bin_len == 0 {
+        for k in ["buffers", "bufferViews", "accessors", "meshes"] {
+            doc.as_object_mut().map(|o| o.remove(k));
+        }
+    } else if let Some(uri) = bin_uri {
         doc["buffers"][0]["uri"] = json!(uri);
     }
     let typed = typed_json(&doc).map_err(|e| ConvertError::Invalid(e.to_string()))?;
@@ -361,17 +365,28 @@ fn plan<'a>(
 }
 
 fn stream<W: Write>(w: &mut W, small: &[u8], plans: &[CloudPlan<'_>]) -> io::Result<u64> {
+    use rayon::prelude::*;
     w.write_all(small)?;
     let mut n = small.len() as u64;
-    let mut buf = Vec::with_capacity(1 << 20);
+    // Each attribute is encoded in parallel chunks and written in order.
+    let batch = 2 * rayon::current_num_threads().max(1);
     for p in plans {
         for &(s, off) in &p.streams {
             debug_assert_eq!(off, n);
-            for chunk in p.keep.chunks(1 << 16) {
-                buf.clear();
-                s.write(p.cloud, chunk, &mut buf);
-                w.write_all(&buf)?;
-                n += buf.len() as u64;
+            let chunks: Vec<&[u32]> = p.keep.chunks(1 << 15).collect();
+            for group in chunks.chunks(batch) {
+                let bufs: Vec<Vec<u8>> = group
+                    .par_iter()
+                    .map(|c| {
+                        let mut buf = Vec::with_capacity(c.len() * s.bytes_per() as usize);
+                        s.write(p.cloud, c, &mut buf);
+                        buf
+                    })
+                    .collect();
+                for b in bufs {
+                    w.write_all(&b)?;
+                    n += b.len() as u64;
+                }
             }
         }
     }

@@ -44,6 +44,28 @@ fn street_exports_are_validator_clean() {
     };
     convert_to_file(&p, &scene, None, &opts, false).unwrap();
     mesh.push(p);
+    // Everything dropped (opacity below 1/255): cameras only, still valid glTF.
+    let mut empty = splatbridge_scene::dynamic::DynamicScene::from_static(common::cloud(5, 0, 3));
+    empty
+        .static_gaussians
+        .opacity_logits
+        .iter_mut()
+        .for_each(|x| *x = -10.0);
+    empty.cameras = scene.cameras.clone();
+    let p = dir.path().join("empty.glb");
+    let r = convert_to_file(
+        &p,
+        &empty,
+        None,
+        &ConvertOptions {
+            up: splatbridge_convert::UpAxis::Z,
+            ..Default::default()
+        },
+        false,
+    )
+    .unwrap();
+    assert_eq!((r.triangles, r.dropped_transparent), (0, 5));
+    mesh.push(p);
     let mut splats = Vec::new();
     let p = dir.path().join("street-splats.glb");
     if splatbridge_convert::splats_gltf::write_file(&p, &scene, &ConvertOptions::default()).is_ok()
