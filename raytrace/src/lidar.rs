@@ -257,7 +257,7 @@ impl OpacityMarch for GaussianTracer {
         loop {
             buf.clear();
             // The same hits and order as the tracer's own collection (t*, then index).
-            self.accel.traverse(ro, rd, tmax, &mut |p, cull| {
+            self.accel.traverse(ro, rd, tmax, &mut |p, _, cull| {
                 let p = p as usize;
                 let Some((t, alpha)) = self.response(p, ro, rd) else {
                     return;

@@ -159,12 +159,7 @@ fn samples_for(effects: &Effects, scene: &DynamicScene, t: f64) -> Vec<(f64, f32
         Some(m) if scene.is_dynamic() => {
             let n = m.samples.max(1);
             (0..n)
-                .map(|i| {
-                    (
-                        t + m.shutter * (i as f64 + 0.5) / n as f64,
-                        1.0 / n as f32,
-                    )
-                })
+                .map(|i| (t + m.shutter * (i as f64 + 0.5) / n as f64, 1.0 / n as f32))
                 .collect()
         }
         _ => vec![(t, 1.0)],

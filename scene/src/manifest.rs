@@ -228,8 +228,7 @@ fn validate_manifest(path: &Path, m: &Manifest) -> Result<()> {
             }
             (Some(keys), None) => {
                 let tr = track_from_json(keys);
-                tr.validate()
-                    .map_err(|e| bad(path, format!("{at}: {e}")))?;
+                tr.validate().map_err(|e| bad(path, format!("{at}: {e}")))?;
                 tr
             }
             (None, Some(rule)) => rule
