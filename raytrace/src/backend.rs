@@ -74,16 +74,25 @@ pub const EMBREE_AVAILABLE: bool = cfg!(feature = "embree");
 
 /// An acceleration structure over one primitive set.
 pub trait Accel: Send + Sync {
-    /// Call `visit(primitive, &mut cull)` for (at least) every primitive whose bounds the ray
-    /// `origin + t·dir, 0 ≤ t ≤ tmax` enters. `visit` may lower `cull`.
-    fn traverse(&self, origin: Vec3, dir: Vec3, tmax: f32, visit: &mut dyn FnMut(u32, &mut f32));
+    /// Call `visit(primitive, reported, &mut cull)` for (at least) every primitive whose
+    /// bounds the ray `origin + t·dir, 0 ≤ t ≤ tmax` enters. `reported` is true when the
+    /// backend's own primitive test already found a hit (Embree triangles), so the caller
+    /// can honour the backend's edge rule where its own test picks the neighbouring triangle.
+    /// `visit` may lower `cull`.
+    fn traverse(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        tmax: f32,
+        visit: &mut dyn FnMut(u32, bool, &mut f32),
+    );
 }
 
 /// An empty structure (no primitives).
 pub struct EmptyAccel;
 
 impl Accel for EmptyAccel {
-    fn traverse(&self, _: Vec3, _: Vec3, _: f32, _: &mut dyn FnMut(u32, &mut f32)) {}
+    fn traverse(&self, _: Vec3, _: Vec3, _: f32, _: &mut dyn FnMut(u32, bool, &mut f32)) {}
 }
 
 /// Build a structure over triangles (`tris` index `verts`).

@@ -281,37 +281,48 @@ impl MeshTracer {
             }
             let wray = WRay::new(lo, ld);
             let cull0 = buf.cull(tmax);
-            blas.accel.traverse(lo, ld, cull0, &mut |prim, cull| {
-                let p = prim as usize;
-                let [a, b, c] = mesh.tris[p].map(|i| blas.rel[i as usize]);
-                // Coverage from the watertight f32 test; distance and barycentrics of accepted
-                // hits are refined in f64 (f32 loses ~ulp(|o − v|)/size on small far triangles).
-                let Some(h) = wray.intersect(a, b, c, f32::NEG_INFINITY, f32::INFINITY) else {
-                    return;
-                };
-                let g = blas.group[p];
-                let (pn, pw) = blas.planes[g as usize];
-                let tp = (pw - pn.dot(lo64)) / pn.dot(ld64);
-                let t = if tp.is_finite() { tp as f32 } else { h.t };
-                // +0.0 normalises −0.0 so the bit pattern orders like the value.
-                let t = t + 0.0;
-                if !(t >= tmin && t <= tmax) {
-                    return;
-                }
-                let hit = Hit {
-                    t,
-                    gaussian: mesh.tri_gaussian[p],
-                    instance: ii as u32,
-                    group: g,
-                    tri: prim,
-                    bary: refine_bary(a.as_dvec3(), b.as_dvec3(), c.as_dvec3(), lo64, ld64)
-                        .unwrap_or(h.bary),
-                };
-                if after.is_some_and(|a| hit.key() <= a) {
-                    return;
-                }
-                *cull = buf.insert(hit, tmax);
-            });
+            blas.accel
+                .traverse(lo, ld, cull0, &mut |prim, reported, cull| {
+                    let p = prim as usize;
+                    let [a, b, c] = mesh.tris[p].map(|i| blas.rel[i as usize]);
+                    // Coverage from the watertight f32 test (or the backend's own report, whose
+                    // edge rule may pick the neighbouring triangle); distance and barycentrics of
+                    // accepted hits are refined in f64 (f32 loses ~ulp(|o − v|)/size on small far
+                    // triangles).
+                    let wt = wray.intersect(a, b, c, f32::NEG_INFINITY, f32::INFINITY);
+                    if wt.is_none() && !reported {
+                        return;
+                    }
+                    let g = blas.group[p];
+                    let (pn, pw) = blas.planes[g as usize];
+                    let tp = (pw - pn.dot(lo64)) / pn.dot(ld64);
+                    let refined = refine_bary(a.as_dvec3(), b.as_dvec3(), c.as_dvec3(), lo64, ld64);
+                    let h = match (wt, refined) {
+                        (Some(h), _) => h,
+                        (None, Some(bary)) if tp.is_finite() => {
+                            crate::tri::TriHit { t: tp as f32, bary }
+                        }
+                        _ => return,
+                    };
+                    let t = if tp.is_finite() { tp as f32 } else { h.t };
+                    // +0.0 normalises −0.0 so the bit pattern orders like the value.
+                    let t = t + 0.0;
+                    if !(t >= tmin && t <= tmax) {
+                        return;
+                    }
+                    let hit = Hit {
+                        t,
+                        gaussian: mesh.tri_gaussian[p],
+                        instance: ii as u32,
+                        group: g,
+                        tri: prim,
+                        bary: refined.unwrap_or(h.bary),
+                    };
+                    if after.is_some_and(|a| hit.key() <= a) {
+                        return;
+                    }
+                    *cull = buf.insert(hit, tmax);
+                });
         }
     }
 

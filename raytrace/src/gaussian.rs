@@ -147,7 +147,7 @@ impl GaussianTracer {
         buf: &mut KBuffer,
     ) {
         buf.clear();
-        self.accel.traverse(o, d, tmax, &mut |p, cull| {
+        self.accel.traverse(o, d, tmax, &mut |p, _, cull| {
             let p = p as usize;
             if let Some(n) = near {
                 if (self.mean[p] - n.origin).dot(n.forward) <= n.near {

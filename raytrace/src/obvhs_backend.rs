@@ -82,14 +82,20 @@ impl ObvhsAccel {
 }
 
 impl Accel for ObvhsAccel {
-    fn traverse(&self, origin: Vec3, dir: Vec3, tmax: f32, visit: &mut dyn FnMut(u32, &mut f32)) {
+    fn traverse(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        tmax: f32,
+        visit: &mut dyn FnMut(u32, bool, &mut f32),
+    ) {
         let ray = make_ray(origin, dir, tmax);
         let mut hit = RayHit::none();
         let mut cull = tmax;
         let map = &self.bvh.primitive_indices;
         self.bvh.ray_traverse(ray, &mut hit, |_, id| {
             let before = cull;
-            visit(map[id], &mut cull);
+            visit(map[id], false, &mut cull);
             if cull < before {
                 cull
             } else {

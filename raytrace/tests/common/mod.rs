@@ -223,7 +223,15 @@ impl Reference {
                         amb.insert(key);
                     }
                 }
-                if min < 0.0 {
+                // Exactly on an interior edge (shared within the group), f64 rounding can make
+                // λ slightly negative in both triangles: the group still covers the point.
+                let interior_ok = (0..3).all(|i| {
+                    let (va, vb) = (tri[(i + 1) % 3], tri[(i + 2) % 3]);
+                    l[i] >= 0.0
+                        || (l[i] >= -1e-9
+                            && !self.boundary[*mi].contains(&(va.min(vb), va.max(vb))))
+                });
+                if !interior_ok {
                     continue;
                 }
                 // A planar group's distance is its plane's (its largest triangle's): fans
