@@ -196,3 +196,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn alpha_clamp_accepts_only_the_named_values() {
+        assert_eq!(parse_alpha_clamp("0.99"), Ok(0.99));
+        assert_eq!(parse_alpha_clamp("0.999"), Ok(0.999));
+        assert!(parse_alpha_clamp("0.9").is_err());
+        assert!(parse_alpha_clamp("1").is_err());
+    }
+
+    #[test]
+    fn outputs_must_be_png_or_exr() {
+        assert!(check_output(Path::new("a/b.PNG")).is_ok());
+        assert!(check_output(Path::new("b.exr")).is_ok());
+        assert!(check_output(Path::new("b.jpg")).is_err());
+        assert!(check_output(Path::new("b")).is_err());
+    }
+}
