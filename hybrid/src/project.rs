@@ -241,14 +241,17 @@ pub fn project_one(
     let dir = rel.normalize();
     let color = sh::eval_color(sh_degree, cloud.sh_of(i), dir.as_vec3());
     let level = (255.0 * opacity as f64).ln();
+    let (xf, yf) = (x as f32, y as f32);
     let splat = Splat {
-        x: x as f32,
-        y: y as f32,
+        x: xf,
+        y: yf,
         conic: conic.map(|v| v as f32),
         opacity,
         color: color.to_array(),
         depth: t.z as f32,
-        bbox: footprint_box(x, y, [a, b, c], conic, level),
+        // The box is centred on the f32 position the blending loop uses (far off-screen means
+        // lose more than the box's 0.01 px slack when rounded to f32).
+        bbox: footprint_box(xf as f64, yf as f64, [a, b, c], conic, level),
     };
     Ok(Projected {
         splat,

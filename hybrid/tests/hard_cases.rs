@@ -28,7 +28,19 @@ fn render_ok(cloud: &GaussianCloud, cam: &Camera, what: &str) -> splatbridge_hyb
             "{what}: alpha out of [0, 1]"
         );
     }
-    render(cloud, cam, &RenderOptions::default()).unwrap().1
+    // The footprint box only skips work: the image equals visiting every pixel of every tile.
+    let (a, stats) = render(cloud, cam, &RenderOptions::default()).unwrap();
+    let (b, _) = render(
+        cloud,
+        cam,
+        &RenderOptions {
+            exhaustive: true,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert!(a == b, "{what}: the footprint box changed the image");
+    stats
 }
 
 #[test]
@@ -150,6 +162,21 @@ fn needles_subpixel_and_opaque() {
         Quat::from_xyzw(0.3, 0.1, 0.0, 2.0),
         2.0,
         &[Vec3::ONE],
+    );
+    // Huge, far off-screen means (1e6 px away in f32) whose footprint reaches the image.
+    c.push_activated(
+        Vec3::new(3.0e4, 0.0, 0.5),
+        Vec3::new(3.0e4, 0.3, 0.3),
+        Quat::IDENTITY,
+        0.9,
+        Vec3::ONE,
+    );
+    c.push_activated(
+        Vec3::new(0.0, -2.0e4, 0.3),
+        Vec3::new(0.2, 2.5e4, 0.2),
+        Quat::from_rotation_z(0.01),
+        0.9,
+        Vec3::Y,
     );
     // Unnormalised quaternions.
     c.push(
