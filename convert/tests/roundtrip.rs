@@ -331,3 +331,41 @@ fn failed_writes_leave_no_file() {
     .unwrap_err();
     assert!(unknown.to_string().contains("x.fbx"));
 }
+
+#[test]
+fn up_axis_is_a_root_rotation_not_baked_into_vertices() {
+    let scene = splatbridge_scene::dynamic::DynamicScene::from_static(common::cloud(20, 0, 2));
+    for (up, input_up) in [
+        (UpAxis::Y, Vec3::Y),
+        (UpAxis::Z, Vec3::Z),
+        (UpAxis::NegY, Vec3::NEG_Y),
+    ] {
+        let opts = ConvertOptions {
+            up,
+            ..Default::default()
+        };
+        let (bytes, _) = glb_bytes(&scene, None, &opts).unwrap();
+        let (doc, buffers, _) = gltf::import_slice(&bytes).unwrap();
+        let root = doc.default_scene().unwrap().nodes().next().unwrap();
+        let (_, r, _) = root.transform().decomposed();
+        // The input's up direction appears as glTF +Y.
+        assert!(
+            (Quat::from_array(r) * input_up - Vec3::Y).length() < 1e-6,
+            "{up:?}"
+        );
+        let child = root.children().next().unwrap();
+        let prim = child.mesh().unwrap().primitives().next().unwrap();
+        let pos: Vec<[f32; 3]> = prim
+            .reader(|b| Some(&buffers[b.index()]))
+            .read_positions()
+            .unwrap()
+            .collect();
+        assert_eq!(
+            pos,
+            mesh_cloud(&scene.static_gaussians, &opts)
+                .unwrap()
+                .0
+                .positions
+        );
+    }
+}
