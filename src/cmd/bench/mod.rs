@@ -2,6 +2,7 @@
 //! that explain them. Each target is its own module.
 
 pub mod convert;
+pub mod effects;
 pub mod hybrid;
 pub mod ply;
 pub mod render;
@@ -25,6 +26,8 @@ pub enum Target {
     Trace(trace::Args),
     /// GES hybrid against native on the same scene and camera.
     Hybrid(hybrid::Args),
+    /// Cost of each effect per frame (weather, motion blur, shadows, LiDAR) with counters.
+    Effects(effects::Args),
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -34,5 +37,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Target::Convert(a) => convert::run(a),
         Target::Trace(a) => trace::run(a),
         Target::Hybrid(a) => hybrid::run(a),
+        Target::Effects(a) => effects::run(a),
     }
 }
