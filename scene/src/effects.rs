@@ -167,6 +167,32 @@ impl EffectCounters {
         }
     }
 
+    /// One line for a run's stdout summary: what ran, its counts and time, and what a renderer
+    /// left out.
+    pub fn summary(&self) -> String {
+        let mut s = format!(
+            "effects: {} | particles {}, extra time samples {}, shadow rays {}, LiDAR rays {} → points {}, {:.1} ms",
+            if self.simulated.is_empty() {
+                "none".to_string()
+            } else {
+                self.simulated.join(", ")
+            },
+            self.particles,
+            self.extra_time_samples,
+            self.shadow_rays,
+            self.lidar_rays,
+            self.lidar_points,
+            self.milliseconds
+        );
+        if !self.not_simulated.is_empty() {
+            s.push_str(&format!(
+                " | declared but not simulated here: {}",
+                self.not_simulated.join(", ")
+            ));
+        }
+        s
+    }
+
     /// True when no effect did any work (what an undeclared effect must show).
     pub fn is_zero(&self) -> bool {
         self.particles == 0
@@ -332,6 +358,37 @@ mod tests {
         let e = parse("{}").unwrap();
         assert!(e.is_empty());
         assert!(e.names().is_empty());
+    }
+
+    #[test]
+    fn counters_add_and_summarise() {
+        let mut a = EffectCounters {
+            particles: 10,
+            simulated: vec!["weather".into()],
+            milliseconds: 1.5,
+            ..Default::default()
+        };
+        assert!(!a.is_zero());
+        assert!(EffectCounters::default().is_zero());
+        let b = EffectCounters {
+            particles: 5,
+            shadow_rays: 7,
+            simulated: vec!["weather".into(), "shadows".into()],
+            not_simulated: vec!["lidar".into()],
+            milliseconds: 0.5,
+            ..Default::default()
+        };
+        a.add(&b);
+        assert_eq!((a.particles, a.shadow_rays, a.milliseconds), (15, 7, 2.0));
+        assert_eq!(a.simulated, ["weather", "shadows"]);
+        let s = a.summary();
+        assert!(
+            s.contains("weather, shadows") && s.contains("not simulated here: lidar"),
+            "{s}"
+        );
+        assert!(EffectCounters::default()
+            .summary()
+            .starts_with("effects: none"));
     }
 
     #[test]
