@@ -344,6 +344,10 @@ pub fn compare(
                     &mut r,
                 )?;
                 records.push(r);
+                // Per-frame OBJs are intermediates of the measurement (one per camera × time);
+                // the record keeps their size. Removing them keeps a comparison's folder small.
+                let _ = std::fs::remove_file(&obj);
+                let _ = std::fs::remove_file(obj.with_extension("mtl"));
             }
         }
     }

@@ -37,12 +37,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let saved = splatbridge_scene::manifest::save_manifest(&out.join("scene"), &scene)?;
     let _ = saved;
 
-    // The deliverables a user takes away: an animated GLB and per-frame OBJs.
+    // The deliverables a user takes away: an animated GLB and an OBJ.
     let opts = ConvertOptions::default();
     let glb = out.join("street.glb");
     let report = splatbridge_convert::convert_to_file(&glb, &scene, None, &opts, false)?;
-    let obj = out.join("street.obj");
-    splatbridge_convert::convert_to_file(&obj, &scene, None, &opts, true)?;
+    // OBJ cannot animate: one OBJ of the first frame (`convert --frames` writes every frame).
+    let obj = out.join("street_t0.obj");
+    let first =
+        splatbridge_scene::dynamic::DynamicScene::from_static(scene.composite(scene.time.start));
+    splatbridge_convert::convert_to_file(&obj, &first, None, &opts, false)?;
 
     let cams: Vec<_> = scene
         .cameras
@@ -68,7 +71,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let preamble = format!(
         "The built-in street scene (seed {}): {} static Gaussians, {} moving objects, {} cameras, {:.1}–{:.1} s at {} fps.\n\n\
          Exports: `street.glb` ({} triangles, {} bytes; profile `{}`, animated object nodes and the scene's cameras) and \
-         `street_NNNN.obj` (one OBJ per frame; OBJ has no per-vertex alpha). The scene itself is in `scene/` \
+         `street_t0.obj` (the first frame: OBJ has neither per-vertex alpha nor animation; `convert --frames` writes one OBJ per frame). The scene itself is in `scene/` \
          (manifest, PLYs, cameras.json).\n\n\
          Every image below is measured against native splatting (the reference) at the same camera and time.",
         args.seed,
@@ -85,11 +88,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     parity::write_reports(out, "splatbridge demo", &preamble, &rel)?;
     print_summary(&records);
     println!(
-        "demo finished in {:.1} s: {} (report), {} (GLB), {} (OBJ frames)",
+        "demo finished in {:.1} s: {} (report), {} (GLB), {} (OBJ)",
         t0.elapsed().as_secs_f64(),
         out.join("report.md").display(),
         glb.display(),
-        out.join("street_0000.obj").display()
+        obj.display()
     );
     Ok(())
 }
