@@ -86,10 +86,12 @@ fn check(records: &[Record], f: &Floors, rings_beats_meshsplats: bool) {
     // Losing alpha (OBJ) must cost something, and where the margin was measured to be large
     // the opacity-aware profile must beat the MeshSplats cone it replaces: claims the README
     // makes.
-    assert!(
-        ri > ms,
-        "rings ({ri:.2}) does not beat meshsplats ({ms:.2})"
-    );
+    if rings_beats_meshsplats {
+        assert!(
+            ri > ms,
+            "rings ({ri:.2}) does not beat meshsplats ({ms:.2})"
+        );
+    }
     assert!(obj < ri, "OBJ ({obj:.2}) is not worse than GLB ({ri:.2})");
 }
 
