@@ -86,6 +86,29 @@ pub trait Accel: Send + Sync {
         tmax: f32,
         visit: &mut dyn FnMut(u32, bool, &mut f32),
     );
+
+    /// The structure's own primitive order, when it has one: `slots()[s]` is the primitive at
+    /// slot `s`. Callers that lay their per-primitive data out in slot order and traverse with
+    /// [`Accel::traverse_slots`] read it sequentially instead of at random (on converted
+    /// scenes, gathering vertices through the index buffer was the dominant cost).
+    fn slots(&self) -> Option<&[u32]> {
+        None
+    }
+
+    /// As [`Accel::traverse`], but visiting slots (see [`Accel::slots`]; identity when None)
+    /// and allowed to skip nodes the ray leaves before `tmin` (resuming a k-buffer query from
+    /// the last hit: without it every round re-walks the tree from the origin).
+    fn traverse_slots(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        tmin: f32,
+        tmax: f32,
+        visit: &mut dyn FnMut(u32, bool, &mut f32),
+    ) {
+        let _ = tmin;
+        self.traverse(origin, dir, tmax, visit)
+    }
 }
 
 /// An empty structure (no primitives).

@@ -46,6 +46,11 @@ pub struct Blas {
     pub lo: DVec3,
     pub hi: DVec3,
     pub accel: Box<dyn Accel>,
+    /// Per slot of the acceleration structure (see `Accel::slots`): the triangle's vertices
+    /// (relative), its index in the mesh and its group, so traversal reads them in order.
+    pub slot_verts: Vec<[Vec3; 3]>,
+    pub slot_tri: Vec<u32>,
+    pub slot_group: Vec<u32>,
 }
 
 /// A hit in the k-buffer.
@@ -200,6 +205,15 @@ impl MeshTracer {
             }
             let planes = best.into_iter().map(|(_, p)| p).collect();
             let accel = build_triangles(backend, preset, &rel, &m.tris)?;
+            let slot_tri: Vec<u32> = match accel.slots() {
+                Some(s) => s.to_vec(),
+                None => (0..m.tris.len() as u32).collect(),
+            };
+            let slot_verts = slot_tri
+                .iter()
+                .map(|&t| m.tris[t as usize].map(|i| rel[i as usize]))
+                .collect();
+            let slot_group = slot_tri.iter().map(|&t| group[t as usize]).collect();
             blas.push(Blas {
                 anchor,
                 rel,
@@ -208,6 +222,9 @@ impl MeshTracer {
                 lo,
                 hi,
                 accel,
+                slot_verts,
+                slot_tri,
+                slot_group,
             });
         }
         Ok(MeshTracer {
@@ -281,10 +298,12 @@ impl MeshTracer {
             }
             let wray = WRay::new(lo, ld);
             let cull0 = buf.cull(tmax);
+            // Resume from the last hit: the distance of `after` in this instance's ray units
+            // (the local direction keeps the world parameter, so it is the same number).
+            let t_from = after.map(|a| f32::from_bits(a.0)).unwrap_or(0.0).max(tmin);
             blas.accel
-                .traverse(lo, ld, cull0, &mut |prim, reported, cull| {
-                    let p = prim as usize;
-                    let [a, b, c] = mesh.tris[p].map(|i| blas.rel[i as usize]);
+                .traverse_slots(lo, ld, t_from, cull0, &mut |slot, reported, cull| {
+                    let [a, b, c] = blas.slot_verts[slot as usize];
                     // Coverage from the watertight f32 test (or the backend's own report, whose
                     // edge rule may pick the neighbouring triangle); distance and barycentrics of
                     // accepted hits are refined in f64 (f32 loses ~ulp(|o − v|)/size on small far
@@ -293,7 +312,9 @@ impl MeshTracer {
                     if wt.is_none() && !reported {
                         return;
                     }
-                    let g = blas.group[p];
+                    let g = blas.slot_group[slot as usize];
+                    let prim = blas.slot_tri[slot as usize];
+                    let p = prim as usize;
                     let (pn, pw) = blas.planes[g as usize];
                     let tp = (pw - pn.dot(lo64)) / pn.dot(ld64);
                     let refined = refine_bary(a.as_dvec3(), b.as_dvec3(), c.as_dvec3(), lo64, ld64);

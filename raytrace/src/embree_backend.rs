@@ -245,6 +245,36 @@ impl Accel for EmbreeAccel {
         tmax: f32,
         visit: &mut dyn FnMut(u32, bool, &mut f32),
     ) {
+        self.query(origin, dir, 0.0, tmax, visit);
+    }
+
+    fn traverse_slots(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        tmin: f32,
+        tmax: f32,
+        visit: &mut dyn FnMut(u32, bool, &mut f32),
+    ) {
+        // Start just before `tmin` (1e-5 relative margin) so a hit at exactly `tmin` is kept.
+        let tnear = if tmin > 0.0 && tmin.is_finite() {
+            tmin * (1.0 - 1e-5)
+        } else {
+            0.0
+        };
+        self.query(origin, dir, tnear, tmax, visit);
+    }
+}
+
+impl EmbreeAccel {
+    fn query(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        tnear: f32,
+        tmax: f32,
+        visit: &mut dyn FnMut(u32, bool, &mut f32),
+    ) {
         // SAFETY: the closure outlives the query; the 'static is only to store it in the
         // context struct and is never used beyond this call.
         let mut vref: &mut dyn FnMut(u32, bool, &mut f32) = visit;
@@ -273,7 +303,7 @@ impl Accel for EmbreeAccel {
                 org_x: origin.x,
                 org_y: origin.y,
                 org_z: origin.z,
-                tnear: 0.0,
+                tnear,
                 dir_x: dir.x,
                 dir_y: dir.y,
                 dir_z: dir.z,

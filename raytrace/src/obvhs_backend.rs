@@ -81,6 +81,44 @@ impl ObvhsAccel {
     }
 }
 
+impl ObvhsAccel {
+    /// Traverse. obvhs's CWBVH node test clamps a node's entry distance to at least 1e-4 ray
+    /// units (`cwbvh::node::EPSILON`), so a node the ray leaves within 1e-4 of its origin is
+    /// skipped. Nodes are therefore tested against a ray whose origin sits 2e-4 units before
+    /// `tmin` (before the real origin when resuming from 0: hits right at the camera are kept),
+    /// while the caller's closure tests primitives against its own unmoved ray, so hit values
+    /// never depend on the shift. Resuming from the last hit this skips the nodes behind it.
+    fn walk(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        tmin: f32,
+        tmax: f32,
+        map: Option<&[u32]>,
+        visit: &mut dyn FnMut(u32, bool, &mut f32),
+    ) {
+        let tmin = if tmin.is_finite() { tmin.max(0.0) } else { 0.0 };
+        // 1e-5 relative covers the f32 rounding of `origin + dir·shift` at large tmin.
+        let shift = tmin - tmin * 1e-5 - 2e-4;
+        let ray = make_ray(origin + dir * shift, dir, tmax - shift);
+        let mut hit = RayHit::none();
+        let mut cull = tmax;
+        self.bvh.ray_traverse(ray, &mut hit, |_, id| {
+            let before = cull;
+            let prim = match map {
+                Some(m) => m[id],
+                None => id as u32,
+            };
+            visit(prim, false, &mut cull);
+            if cull < before {
+                cull - shift
+            } else {
+                f32::INFINITY
+            }
+        });
+    }
+}
+
 impl Accel for ObvhsAccel {
     fn traverse(
         &self,
@@ -89,18 +127,28 @@ impl Accel for ObvhsAccel {
         tmax: f32,
         visit: &mut dyn FnMut(u32, bool, &mut f32),
     ) {
-        let ray = make_ray(origin, dir, tmax);
-        let mut hit = RayHit::none();
-        let mut cull = tmax;
-        let map = &self.bvh.primitive_indices;
-        self.bvh.ray_traverse(ray, &mut hit, |_, id| {
-            let before = cull;
-            visit(map[id], false, &mut cull);
-            if cull < before {
-                cull
-            } else {
-                f32::INFINITY
-            }
-        });
+        self.walk(
+            origin,
+            dir,
+            0.0,
+            tmax,
+            Some(&self.bvh.primitive_indices),
+            visit,
+        );
+    }
+
+    fn slots(&self) -> Option<&[u32]> {
+        Some(&self.bvh.primitive_indices)
+    }
+
+    fn traverse_slots(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        tmin: f32,
+        tmax: f32,
+        visit: &mut dyn FnMut(u32, bool, &mut f32),
+    ) {
+        self.walk(origin, dir, tmin, tmax, None, visit);
     }
 }

@@ -310,3 +310,33 @@ fn axis_aligned_rays_with_negative_zero_components_hit() {
         );
     }
 }
+
+#[test]
+fn hits_right_at_the_origin_and_resumed_rounds_are_kept() {
+    // obvhs skips nodes the ray leaves within 1e-4 of its origin; geometry 5e-5 ahead of the
+    // ray (a camera touching a splat, a shadow ray leaving a surface) must still be hit, and
+    // coplanar hits at a resumed round's start distance must not be lost.
+    let mut m = ids();
+    push_fan(&mut m, 1, Vec3::ZERO, Vec3::X, Vec3::Y, 8, Vec3::ONE, 0.5);
+    for i in 0..40u32 {
+        push_fan(
+            &mut m,
+            10 + i,
+            Vec3::new(0.0, 0.0, 0.5),
+            Vec3::X * (1.0 + i as f32 * 0.01),
+            Vec3::Y,
+            8,
+            Vec3::ONE,
+            0.1,
+        );
+    }
+    for b in backends() {
+        let tr = MeshTracer::new(scene_of(m.clone()), b, BuildPreset::Medium).unwrap();
+        let insts = tr.prepare(0.0);
+        for dz in [5e-5, 1e-6] {
+            let hits = tr.all_hits(&insts, DVec3::new(0.1, 0.05, -dz), DVec3::Z, 4);
+            assert_eq!(hits.len(), 41, "{b}: origin {dz} before the first fan");
+            assert_eq!(hits[0].gaussian, 1);
+        }
+    }
+}
