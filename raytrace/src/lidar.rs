@@ -23,15 +23,17 @@
 //! binary little-endian PLY, atomically.
 
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use glam::{DMat3, DQuat, DVec3, Mat3, Vec3};
 use rayon::prelude::*;
+use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::effects::{Lidar, LidarMount};
 use splatbridge_scene::Camera;
 
-use crate::composite::{Hit, KBuffer};
+use crate::backend::{BackendKind, BuildPreset};
+use crate::composite::{Hit, KBuffer, MeshTracer};
 use crate::error::{Result, TraceError};
 use crate::gaussian::GaussianTracer;
 use crate::secondary::MeshAt;
@@ -305,6 +307,85 @@ impl OpacityMarch for GaussianTracer {
             after = buf.hits.last().map(Hit::key);
         }
     }
+}
+
+/// What a per-frame LiDAR run produced.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LidarRun {
+    /// One PLY per frame, `DIR/lidar_NNNN.ply` (frame index).
+    pub files: Vec<PathBuf>,
+    pub rays: u64,
+    pub points: u64,
+    /// Time spent casting (not building tracers or writing), seconds.
+    pub seconds: f64,
+}
+
+/// File name of frame `i`'s scan.
+pub fn frame_file(dir: &Path, i: usize) -> PathBuf {
+    dir.join(format!("lidar_{i:04}.ply"))
+}
+
+/// Scan every frame of `scene` through its Gaussians (mode gaussian) with the declared
+/// `lidar` effect and write one PLY per frame into `dir` (created). Each frame's content is
+/// [`splatbridge_scene::effects_run::build_frame`]'s (declared weather particles included, so
+/// rain and snow return points as they would on a real sensor). `Ok(None)` when the scene
+/// declares no LiDAR.
+pub fn scan_scene_gaussian(
+    scene: &DynamicScene,
+    dir: &Path,
+    backend: BackendKind,
+    preset: BuildPreset,
+) -> Result<Option<LidarRun>> {
+    let effects = splatbridge_scene::effects_run::effects_of(scene)?;
+    let Some(l) = &effects.lidar else {
+        return Ok(None);
+    };
+    let sensor = LidarSensor::from_effect(l, &scene.cameras)?;
+    std::fs::create_dir_all(dir).map_err(|e| TraceError::Io {
+        path: dir.to_path_buf(),
+        source: e,
+    })?;
+    let mut run = LidarRun::default();
+    for (i, t) in scene.frame_times().into_iter().enumerate() {
+        let cloud = splatbridge_scene::effects_run::build_frame(scene, t, None)?.cloud;
+        let tracer = GaussianTracer::new(cloud, backend, preset)?;
+        let s = scan(&tracer, &sensor, t);
+        let path = frame_file(dir, i);
+        write_ply(&path, &s)?;
+        run.rays += s.rays;
+        run.points += s.points.len() as u64;
+        run.seconds += s.seconds;
+        run.files.push(path);
+    }
+    Ok(Some(run))
+}
+
+/// Scan a triangle scene (an export, mode mesh) at each of `times` with `lidar`, writing one
+/// PLY per time into `dir`; `cameras` serve a camera mount. Animated objects are instanced at
+/// each time ([`MeshTracer::at`]), not rebuilt.
+pub fn scan_mesh_frames(
+    tracer: &MeshTracer,
+    lidar: &Lidar,
+    cameras: &[Camera],
+    times: &[f64],
+    dir: &Path,
+) -> Result<LidarRun> {
+    let sensor = LidarSensor::from_effect(lidar, cameras)?;
+    std::fs::create_dir_all(dir).map_err(|e| TraceError::Io {
+        path: dir.to_path_buf(),
+        source: e,
+    })?;
+    let mut run = LidarRun::default();
+    for (i, &t) in times.iter().enumerate() {
+        let s = scan(&tracer.at(t), &sensor, t);
+        let path = frame_file(dir, i);
+        write_ply(&path, &s)?;
+        run.rays += s.rays;
+        run.points += s.points.len() as u64;
+        run.seconds += s.seconds;
+        run.files.push(path);
+    }
+    Ok(run)
 }
 
 /// Write a scan as a binary little-endian PLY (x, y, z, intensity as float; time as double;
