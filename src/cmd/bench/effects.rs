@@ -42,6 +42,7 @@ pub struct Args {
 struct Times {
     build: f64,
     native: f64,
+    bvh: f64,
     trace: f64,
     lidar: f64,
 }
@@ -71,6 +72,8 @@ fn run_once(scene: &DynamicScene, t: f64, cam: &Camera) -> anyhow::Result<(Times
     };
     let start = Instant::now();
     let tracer = GaussianTracer::new(cloud, BackendKind::Obvhs, BuildPreset::Medium)?;
+    times.bvh = start.elapsed().as_secs_f64() * 1e3;
+    let start = Instant::now();
     let opts = RenderOptions::default();
     match &effects.shadows {
         Some(s) => {
@@ -150,8 +153,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         cases.push((name, s));
     }
     println!(
-        "{:<12} {:>9} {:>10} {:>10} {:>10} {:>10}  counters",
-        "effect", "build ms", "native ms", "trace ms", "lidar ms", "total ms"
+        "{:<12} {:>9} {:>10} {:>8} {:>10} {:>10} {:>10}  counters",
+        "effect", "build ms", "native ms", "bvh ms", "trace ms", "lidar ms", "total ms"
     );
     let mut none_total = None;
     for (name, scene) in &cases {
@@ -164,25 +167,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             counters = c;
         }
         let m = |f: fn(&Times) -> f64| median(runs.iter().map(f).collect());
-        let (b, n, tr, l) = (
+        let (b, n, bv, tr, l) = (
             m(|t| t.build),
             m(|t| t.native),
+            m(|t| t.bvh),
             m(|t| t.trace),
             m(|t| t.lidar),
         );
-        let total = b + n + tr + l;
+        let total = b + n + bv + tr + l;
         let extra = match none_total {
             None => {
                 none_total = Some(total);
                 String::new()
             }
-            Some(z) => format!(" (+{:.1} ms)", total - z),
+            Some(z) => format!(" ({:+.1} ms)", total - z),
         };
         println!(
-            "{:<12} {:>9.2} {:>10.2} {:>10.2} {:>10.2} {:>10.2}  particles {}, extra time samples {}, shadow rays {}, lidar rays {} → points {}{extra}",
+            "{:<12} {:>9.2} {:>10.2} {:>8.2} {:>10.2} {:>10.2} {:>10.2}  particles {}, extra time samples {}, shadow rays {}, lidar rays {} → points {}{extra}",
             name,
             b,
             n,
+            bv,
             tr,
             l,
             total,
