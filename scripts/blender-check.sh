@@ -3,10 +3,12 @@
 # ../shared/tools/blender-check.py and check what a Blender user gets:
 #   - one mesh object per glTF mesh node, the cameras present,
 #   - a material that is BLEND, unlit/emissive, with the colour attribute wired to both
-#     colour and alpha,
+#     colour and alpha; with --surfels exports, the surfel material ("surfels") is OPAQUE,
+#     unlit/emissive, with the colour attribute wired to colour (alpha is 1 and unused),
 #   - one action per moving object spanning the scene's time range.
 # Usage: scripts/blender-check.sh [FILE.glb ...]
-#   Without files, the street fixture is exported with every profile and checked.
+#   Without files, the street fixture is exported with every profile (and with surfels) and
+#   checked.
 #   Set RENDER=1 to also render through the first camera (Cycles) next to each file.
 # Exit status: 0 all checks pass, 1 a check failed, 3 Blender is not installed.
 set -euo pipefail
@@ -24,6 +26,8 @@ if (( ${#files[@]} == 0 )); then
     (cd "$repo" && cargo run -q --release -p splatbridge-convert --example export_street -- "$out/street-$p.glb" "$p" >/dev/null)
     files+=("$out/street-$p.glb")
   done
+  (cd "$repo" && cargo run -q --release -p splatbridge-convert --example export_street -- "$out/street-surfels.glb" texture --surfels >/dev/null)
+  files+=("$out/street-surfels.glb")
 fi
 
 status=0
@@ -58,12 +62,27 @@ for o in meshes:
         problems.append(f"object {o['name']} has no material")
     if not o.get("color_attributes"):
         problems.append(f"object {o['name']} has no colour attribute")
+# The surfel material of --surfels exports (glTF name "surfels"; Blender may add ".001").
+def is_surfel_material(name):
+    return name == "surfels" or name.startswith("surfels.")
+gltf_materials = [m.get("name") for m in doc.get("materials", [])]
 for m in rep["materials"]:
     blend = m.get("blend_method") == "BLEND" or m.get("surface_render_method") == "BLENDED"
-    for key, ok in [("alpha blending", blend), ("colour attribute → colour", m["color_attribute_to_color"]),
-                    ("colour attribute → alpha", m["color_attribute_to_alpha"]), ("unlit/emissive", m["emissive_or_unlit"])]:
+    if is_surfel_material(m["name"]):
+        opaque = m.get("blend_method") == "OPAQUE" or m.get("surface_render_method") == "DITHERED"
+        checks = [("opaque mode", opaque), ("colour attribute → colour", m["color_attribute_to_color"]),
+                  ("unlit/emissive", m["emissive_or_unlit"])]
+    else:
+        checks = [("alpha blending", blend), ("colour attribute → colour", m["color_attribute_to_color"]),
+                  ("colour attribute → alpha", m["color_attribute_to_alpha"]), ("unlit/emissive", m["emissive_or_unlit"])]
+    for key, ok in checks:
         if not ok:
             problems.append(f"material {m['name']}: no {key}")
+if "surfels" in gltf_materials and not any(is_surfel_material(m["name"]) for m in rep["materials"]):
+    problems.append("the file has a surfel material but Blender imported none")
+for o in meshes:
+    if any(is_surfel_material(n) for n in o.get("materials", [])) and not o.get("color_attributes"):
+        problems.append(f"object {o['name']}: surfel material without a colour attribute")
 moving = {c["target"]["node"] for a in doc.get("animations", []) for c in a["channels"] if c["target"]["path"] in ("translation", "rotation")}
 meta = doc["asset"].get("extras", {}).get("splatbridge", {})
 fps = rep["scene"]["fps"]

@@ -9,7 +9,8 @@
 #       extension's attributes yet); anything else is a defect.
 #   scripts/validate-exports.sh
 #       Build the CLI, export the street fixture and ../shared/data/real/fourth_st.ply with
-#       every profile (GLB and glTF) and as splats, and validate them all.
+#       every profile (GLB and glTF), with surfels (--surfels, default and rings profile) and
+#       as splats, and validate them all.
 # Exit status: 0 clean, 1 a file failed, 3 the validator cannot run here (no node/npm).
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
@@ -38,7 +39,8 @@ if (( ${#mesh[@]} == 0 && ${#splats[@]} == 0 )); then
   sb=$repo/target/release/splatbridge
   inputs=()
   if "$sb" fixture street -o "$out/street" >&2 2>&1; then
-    inputs+=("$(ls "$out"/street/*.json 2>/dev/null | head -1 || true)")
+    # The manifest is scene.json (cameras.json beside it is not a scene).
+    if [[ -f $out/street/scene.json ]]; then inputs+=("$out/street/scene.json"); fi
   else
     echo "validate-exports: no street fixture (fixture command failed); using real data only" >&2
   fi
@@ -52,6 +54,8 @@ if (( ${#mesh[@]} == 0 && ${#splats[@]} == 0 )); then
       "$sb" convert "$in" --profile "$prof" -o "$out/$name-$prof.gltf" >&2 && mesh+=("$out/$name-$prof.gltf")
     done
     "$sb" convert "$in" --volumetric flat -o "$out/$name-flat.glb" >&2 && mesh+=("$out/$name-flat.glb")
+    "$sb" convert "$in" --surfels -o "$out/$name-surfels.glb" >&2 && mesh+=("$out/$name-surfels.glb")
+    "$sb" convert "$in" --surfels --profile rings -o "$out/$name-surfels-rings.gltf" >&2 && mesh+=("$out/$name-surfels-rings.gltf")
     "$sb" convert "$in" --splats -o "$out/$name-splats.glb" >&2 && splats+=("$out/$name-splats.glb")
   done
 fi

@@ -254,7 +254,8 @@ struct Region {
 struct Plan {
     json: Vec<u8>,
     small: Vec<u8>,
-    regions: Vec<Option<Region>>,
+    /// Per entry: the residual primitive's region, then the surfel primitive's.
+    regions: Vec<[Option<Region>; 2]>,
     bin_len: u64,
     layout: VertexLayout,
 }
@@ -283,6 +284,7 @@ fn plan(
     // Small data first: animations and the texture.
     let mut images = Vec::new();
     let any_mesh = entries.iter().any(|e| !e.mesher.is_empty());
+    // Surfels carry no texture coordinates; the falloff image serves residual meshes only.
     if layout.uv && any_mesh {
         let view = d.small_view(&crate::texture::png(), None);
         images
@@ -328,49 +330,100 @@ fn plan(
         d.small.push(0);
     }
 
-    // Mesh regions after the small data.
+    // Mesh regions after the small data: per entry the residual primitive, then the surfels.
     let mut offset = d.small.len() as u64;
-    let stride = layout.stride();
+    let surfel_layout = VertexLayout {
+        ids: layout.ids,
+        uv: false,
+    };
+    let any_residual = entries.iter().any(|e| !e.mesher.is_empty());
+    let any_surfels = entries
+        .iter()
+        .any(|e| e.surfels.as_ref().is_some_and(|s| !s.is_empty()));
+    // Materials in use, in order: the splat material, then the surfel material.
+    let splat_material = 0usize;
+    let surfel_material = usize::from(any_residual);
     let mut regions = Vec::with_capacity(entries.len());
     let mut meshes: Vec<Value> = Vec::new();
     let mut frame_nodes: Vec<(usize, usize)> = Vec::new();
     for e in entries {
         let m = &e.mesher;
-        let Some((lo, hi)) = (if m.is_empty() { None } else { m.bounds() }) else {
-            regions.push(None);
+        let residual_bounds = if m.is_empty() { None } else { m.bounds() };
+        let surfel_bounds =
+            e.surfels
+                .as_ref()
+                .and_then(|s| if s.is_empty() { None } else { s.bounds() });
+        if residual_bounds.is_none() && surfel_bounds.is_none() {
+            regions.push([None, None]);
             continue;
-        };
-        let nv = m.counts.vertices;
-        let region = Region {
-            vertex_offset: offset,
-            vertex_len: nv * stride as u64,
-            index_len: m.counts.triangles * 12,
-        };
-        d.views.push(json!({"buffer": 0, "byteOffset": offset, "byteLength": region.vertex_len, "byteStride": stride, "target": ARRAY_BUFFER}));
-        let vv = d.views.len() - 1;
-        d.views.push(json!({"buffer": 0, "byteOffset": offset + region.vertex_len, "byteLength": region.index_len, "target": ELEMENT_ARRAY_BUFFER}));
-        let iv = d.views.len() - 1;
-        offset += region.vertex_len + region.index_len;
-        let pos = d.accessor(json!({"bufferView": vv, "byteOffset": 0, "componentType": FLOAT, "count": nv, "type": "VEC3", "min": lo, "max": hi}));
-        let nor = d.accessor(json!({"bufferView": vv, "byteOffset": 12, "componentType": FLOAT, "count": nv, "type": "VEC3"}));
-        let col = d.accessor(json!({"bufferView": vv, "byteOffset": 24, "componentType": UNSIGNED_SHORT, "normalized": true, "count": nv, "type": "VEC4"}));
-        let mut attrs = json!({"POSITION": pos, "NORMAL": nor, "COLOR_0": col});
-        if layout.ids {
-            attrs["_GAUSSIAN_ID"] = json!(d.accessor(json!({"bufferView": vv, "byteOffset": layout.id_offset(), "componentType": FLOAT, "count": nv, "type": "SCALAR"})));
         }
-        if layout.uv {
-            attrs["TEXCOORD_0"] = json!(d.accessor(json!({"bufferView": vv, "byteOffset": layout.uv_offset(), "componentType": FLOAT, "count": nv, "type": "VEC2"})));
+        let mut prims = Vec::new();
+        let mut pair = [None, None];
+        let parts = [
+            (
+                residual_bounds,
+                layout,
+                m.counts.vertices,
+                m.counts.triangles,
+                splat_material,
+            ),
+            (
+                surfel_bounds,
+                surfel_layout,
+                e.surfels.as_ref().map_or(0, |s| s.counts.vertices),
+                e.surfels.as_ref().map_or(0, |s| s.counts.triangles),
+                surfel_material,
+            ),
+        ];
+        for (slot, (bounds, layout, nv, nt, material)) in parts.into_iter().enumerate() {
+            let Some((lo, hi)) = bounds else { continue };
+            let stride = layout.stride();
+            let region = Region {
+                vertex_offset: offset,
+                vertex_len: nv * stride as u64,
+                index_len: nt * 12,
+            };
+            d.views.push(json!({"buffer": 0, "byteOffset": offset, "byteLength": region.vertex_len, "byteStride": stride, "target": ARRAY_BUFFER}));
+            let vv = d.views.len() - 1;
+            d.views.push(json!({"buffer": 0, "byteOffset": offset + region.vertex_len, "byteLength": region.index_len, "target": ELEMENT_ARRAY_BUFFER}));
+            let iv = d.views.len() - 1;
+            offset += region.vertex_len + region.index_len;
+            let pos = d.accessor(json!({"bufferView": vv, "byteOffset": 0, "componentType": FLOAT, "count": nv, "type": "VEC3", "min": lo, "max": hi}));
+            let nor = d.accessor(json!({"bufferView": vv, "byteOffset": 12, "componentType": FLOAT, "count": nv, "type": "VEC3"}));
+            let col = d.accessor(json!({"bufferView": vv, "byteOffset": 24, "componentType": UNSIGNED_SHORT, "normalized": true, "count": nv, "type": "VEC4"}));
+            let mut attrs = json!({"POSITION": pos, "NORMAL": nor, "COLOR_0": col});
+            if layout.ids {
+                attrs["_GAUSSIAN_ID"] = json!(d.accessor(json!({"bufferView": vv, "byteOffset": layout.id_offset(), "componentType": FLOAT, "count": nv, "type": "SCALAR"})));
+            }
+            if layout.uv {
+                attrs["TEXCOORD_0"] = json!(d.accessor(json!({"bufferView": vv, "byteOffset": layout.uv_offset(), "componentType": FLOAT, "count": nv, "type": "VEC2"})));
+            }
+            let ind = d.accessor(json!({"bufferView": iv, "componentType": UNSIGNED_INT, "count": nt * 3, "type": "SCALAR"}));
+            prims.push(
+                json!({"attributes": attrs, "indices": ind, "material": material, "mode": 4}),
+            );
+            pair[slot] = Some(region);
         }
-        let ind = d.accessor(json!({"bufferView": iv, "componentType": UNSIGNED_INT, "count": m.counts.triangles * 3, "type": "SCALAR"}));
         let (role, name) = match e.role {
             Role::Static => ("static", "static".to_string()),
             Role::Object(k) => ("object", scene.objects[k].name.clone()),
             Role::Frame(k) => ("frame", format!("frame_{k:04}")),
         };
+        let mut extras = json!({"role": role, "idOffset": m.counts.id_offset, "gaussians": m.counts.gaussians_in});
+        if let Some(s) = &e.surfels {
+            extras["surfels"] = json!(s.counts.surfels - s.counts.dropped_overflow);
+            extras["primitives"] = json!(if pair[0].is_some() && pair[1].is_some() {
+                vec!["gaussians", "surfels"]
+            } else if pair[0].is_some() {
+                vec!["gaussians"]
+            } else {
+                vec!["surfels"]
+            });
+        }
         meshes.push(json!({
             "name": name,
-            "primitives": [{"attributes": attrs, "indices": ind, "material": 0, "mode": 4}],
-            "extras": {"role": role, "idOffset": m.counts.id_offset, "gaussians": m.counts.gaussians_in}
+            "primitives": prims,
+            "extras": extras
         }));
         let mesh = meshes.len() - 1;
         let mut node = json!({"name": name, "mesh": mesh});
@@ -398,7 +451,7 @@ fn plan(
         }
         root_children.push(nodes.len());
         nodes.push(node);
-        regions.push(Some(region));
+        regions.push(pair);
     }
     if let Some((input, outs)) = &frame_anim {
         for &(ni, k) in &frame_nodes {
@@ -443,27 +496,42 @@ fn plan(
         "bufferViews": d.views,
         "accessors": d.accessors,
     });
-    if layout.uv && any_mesh {
+    let textured = layout.uv && any_residual;
+    if textured {
         material["pbrMetallicRoughness"]["baseColorTexture"] = json!({"index": 0});
         doc["images"] = json!(images);
         doc["samplers"] =
             json!([{"magFilter": 9729, "minFilter": 9729, "wrapS": 33071, "wrapT": 33071}]);
         doc["textures"] = json!([{"sampler": 0, "source": 0}]);
     }
-    doc["materials"] = json!([material]);
+    // Only materials a primitive uses (the validator flags unused objects).
+    let mut materials = Vec::new();
+    if any_residual {
+        materials.push(material);
+    }
+    if any_surfels {
+        // Surfels are opaque: vertex alpha is 1 and OPAQUE ignores it anyway; no texture.
+        materials.push(json!({
+            "name": "surfels",
+            "alphaMode": "OPAQUE",
+            "doubleSided": true,
+            "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
+            "extensions": {"KHR_materials_unlit": {}}
+        }));
+    }
+    doc["materials"] = json!(materials);
     if meshes.is_empty() {
-        // No mesh uses the material: leave it out (the validator flags unused objects).
-        for k in [
-            "materials",
-            "extensionsUsed",
-            "images",
-            "samplers",
-            "textures",
-        ] {
+        for k in ["materials", "extensionsUsed"] {
             doc.as_object_mut().map(|o| o.remove(k));
         }
     } else {
         doc["meshes"] = json!(meshes);
+    }
+    if !textured {
+        // The falloff image is in the buffer only when a residual mesh uses it.
+        for k in ["images", "samplers", "textures"] {
+            doc.as_object_mut().map(|o| o.remove(k));
+        }
     }
     if !channels.is_empty() {
         doc["animations"] = json!([{"name": "scene", "samplers": samplers, "channels": channels}]);
@@ -501,33 +569,62 @@ pub(crate) fn typed_json(doc: &Value) -> io::Result<Vec<u8>> {
 fn stream_bin<W: Write>(w: &mut W, plan: &Plan, entries: &[MeshEntry<'_>]) -> io::Result<u64> {
     w.write_all(&plan.small)?;
     let mut written = plan.small.len() as u64;
-    for (e, r) in entries.iter().zip(&plan.regions) {
-        let Some(r) = r else { continue };
-        debug_assert_eq!(written, r.vertex_offset);
-        let layout = plan.layout;
-        let mut vb = 0u64;
-        e.mesher.map_chunks_with(
-            |n| Interleaved::new(n, layout),
-            |s| s.bytes,
-            |b| {
-                vb += b.len() as u64;
+    for (e, pair) in entries.iter().zip(&plan.regions) {
+        if let Some(r) = &pair[0] {
+            debug_assert_eq!(written, r.vertex_offset);
+            let layout = plan.layout;
+            let mut vb = 0u64;
+            e.mesher.map_chunks_with(
+                |n| Interleaved::new(n, layout),
+                |s| s.bytes,
+                |b| {
+                    vb += b.len() as u64;
+                    w.write_all(&b)
+                },
+            )?;
+            let mut ib = 0u64;
+            e.mesher.map_index_chunks(0, index_bytes, |b| {
+                ib += b.len() as u64;
                 w.write_all(&b)
-            },
-        )?;
-        let mut ib = 0u64;
-        e.mesher.map_index_chunks(0, index_bytes, |b| {
-            ib += b.len() as u64;
-            w.write_all(&b)
-        })?;
-        if vb != r.vertex_len || ib != r.index_len {
-            return Err(io::Error::other(format!(
-                "internal: mesh '{}' produced {vb}+{ib} bytes, planned {}+{}",
-                e.mesher.counts.name, r.vertex_len, r.index_len
-            )));
+            })?;
+            check_region(&e.mesher.counts.name, vb, ib, r)?;
+            written += vb + ib;
         }
-        written += vb + ib;
+        if let (Some(r), Some(s)) = (&pair[1], &e.surfels) {
+            debug_assert_eq!(written, r.vertex_offset);
+            let layout = VertexLayout {
+                ids: plan.layout.ids,
+                uv: false,
+            };
+            let mut vb = 0u64;
+            s.map_chunks_with(
+                |n| Interleaved::new(n, layout),
+                |s| s.bytes,
+                |b| {
+                    vb += b.len() as u64;
+                    w.write_all(&b)
+                },
+            )?;
+            let mut ib = 0u64;
+            s.map_index_chunks(0, index_bytes, |b| {
+                ib += b.len() as u64;
+                w.write_all(&b)
+            })?;
+            check_region(&s.counts.name, vb, ib, r)?;
+            written += vb + ib;
+        }
     }
     Ok(written)
+}
+
+fn check_region(name: &str, vb: u64, ib: u64, r: &Region) -> io::Result<()> {
+    if vb != r.vertex_len || ib != r.index_len {
+        return Err(io::Error::other(format!(
+            "internal: mesh '{name}' produced {vb}+{ib} bytes, planned {}+{}",
+            r.vertex_len, r.index_len
+        )));
+    }
+    Ok(())
 }
 
 /// Write a GLB: header, JSON chunk (space-padded), BIN chunk (zero-padded). Returns bytes.
@@ -596,7 +693,18 @@ pub fn write_file(
 ) -> crate::Result<ConvertReport> {
     let mut report = ConvertReport::new(if glb { "glb" } else { "gltf" }, opts);
     let shape = shape_for(opts);
-    let entries = prepare(scene, frames, opts, &shape, &mut report)?;
+    let split = opts
+        .surfels
+        .as_ref()
+        .map(|o| crate::surfels::split_scene(scene, frames, o));
+    let (scene, frames) = match &split {
+        Some(s) => (&s.residual, s.frames.as_ref()),
+        None => (scene, frames),
+    };
+    let entries = match (&split, &opts.surfels) {
+        (Some(s), Some(o)) => crate::prepare_split(s, o, opts, &shape, &mut report)?,
+        _ => prepare(scene, frames, opts, &shape, &mut report)?,
+    };
     if glb {
         let mut bytes = 0;
         splatbridge_scene::image_io::with_atomic_writer(path, |w| {

@@ -32,6 +32,7 @@ pub mod options;
 pub mod ply_mesh;
 pub mod profile;
 pub mod splats_gltf;
+pub mod surfels;
 pub mod texture;
 
 use std::io::Write;
@@ -87,6 +88,8 @@ pub enum Role {
 pub struct MeshEntry<'a> {
     pub role: Role,
     pub mesher: Mesher<'a>,
+    /// The part's surfels (`--surfels`), written as a second, opaque primitive.
+    pub surfels: Option<surfels::SurfelMesher<'a>>,
 }
 
 /// Classify every cloud of a scene (static, objects, per-frame content), apply the triangle
@@ -130,6 +133,7 @@ pub fn prepare<'a>(
         entries.push(MeshEntry {
             role,
             mesher: Mesher::new(cloud, shape, opts, &name, offset),
+            surfels: None,
         });
         offset += cloud.len() as u64;
     }
@@ -151,6 +155,49 @@ pub fn prepare<'a>(
         }
         report.add(e.mesher.counts.clone());
     }
+    Ok(entries)
+}
+
+/// [`prepare`] for a scene split into surfels and residual Gaussians: the residual parts are
+/// classified as usual (and keep their unsplit `_GAUSSIAN_ID`s), each entry gets its part's
+/// surfels, and the report gets the split's counts (`gaussians_in` is the unsplit total).
+pub fn prepare_split<'a>(
+    split: &'a surfels::SplitScene,
+    so: &surfels::SurfelOptions,
+    opts: &ConvertOptions,
+    shape: &'a ProfileShape,
+    report: &mut ConvertReport,
+) -> Result<Vec<MeshEntry<'a>>> {
+    let mut entries = prepare(&split.residual, split.frames.as_ref(), opts, shape, report)?;
+    debug_assert_eq!(entries.len(), split.parts.len());
+    let mut sr = surfels::SurfelReport::new(so);
+    let mut offset = 0u64;
+    for (e, part) in entries.iter_mut().zip(&split.parts) {
+        let n = (part.residual_ids.len() + part.surfel_ids.len()) as u64;
+        e.mesher.set_id_map(&part.residual_ids, offset);
+        let sm = surfels::SurfelMesher::new(part, so, opts, n);
+        sr.add(sm.counts.clone());
+        if sm.counts.vertices >= u32::MAX as u64 {
+            return Err(ConvertError::Invalid(format!(
+                "{}: {} surfel vertices do not fit u32 indices",
+                part.name, sm.counts.vertices
+            )));
+        }
+        e.surfels = Some(sm);
+        offset += n;
+    }
+    if opts.gaussian_ids && offset > 1 << 24 {
+        return Err(ConvertError::Invalid(format!(
+            "{offset} Gaussians: _GAUSSIAN_ID is a float attribute, exact only below 2^24 = 16777216; convert without ids"
+        )));
+    }
+    for (m, e) in report.meshes.iter_mut().zip(&entries) {
+        m.id_offset = e.mesher.counts.id_offset;
+    }
+    report.gaussians_in += sr.surfels;
+    report.vertices += sr.vertices;
+    report.triangles += sr.triangles;
+    report.surfels = Some(sr);
     Ok(entries)
 }
 
@@ -210,7 +257,18 @@ pub fn write_glb<W: Write>(
 ) -> Result<ConvertReport> {
     let mut report = ConvertReport::new("glb", opts);
     let shape = shape_for(opts);
-    let entries = prepare(scene, frames, opts, &shape, &mut report)?;
+    let split = opts
+        .surfels
+        .as_ref()
+        .map(|o| surfels::split_scene(scene, frames, o));
+    let (scene, frames) = match &split {
+        Some(s) => (&s.residual, s.frames.as_ref()),
+        None => (scene, frames),
+    };
+    let entries = match (&split, &opts.surfels) {
+        (Some(s), Some(o)) => prepare_split(s, o, opts, &shape, &mut report)?,
+        _ => prepare(scene, frames, opts, &shape, &mut report)?,
+    };
     let bytes = gltf_writer::write_glb(w, &entries, scene, frames, opts, &report).map_err(|e| {
         ConvertError::Io {
             path: "<memory>".into(),
@@ -246,6 +304,12 @@ pub fn convert_to_file(
     let mut report = match format {
         Format::Glb | Format::Gltf => {
             gltf_writer::write_file(path, format == Format::Glb, scene, frames, opts)?
+        }
+        Format::Obj | Format::Ply if opts.surfels.is_some() => {
+            return Err(ConvertError::Format {
+                path: path.into(),
+                what: "surfel export writes glTF (.glb or .gltf): OBJ and PLY carry one material without alpha modes".into(),
+            })
         }
         Format::Obj => obj::write_file(path, scene, frames, opts, obj_frames)?,
         Format::Ply => ply_mesh::write_file(path, scene, frames, opts)?,

@@ -154,6 +154,8 @@ pub struct Mesher<'a> {
     linear: bool,
     /// Vertex count and index pattern of a flat and a volumetric Gaussian.
     templates: [(u32, Vec<u32>); 2],
+    /// Explicit `_GAUSSIAN_ID` per Gaussian (a split cloud keeps its unsplit ids).
+    id_map: Option<&'a [u32]>,
     pub counts: MeshCounts,
 }
 
@@ -180,6 +182,7 @@ impl<'a> Mesher<'a> {
             bake_centre: opts.bake_view.as_ref().map(|c| c.centre),
             linear: opts.color_encoding == ColorEncoding::Linear,
             templates: [(0, Vec::new()), (0, Vec::new())],
+            id_map: None,
             counts: MeshCounts {
                 name: name.to_string(),
                 gaussians_in: cloud.len() as u64,
@@ -230,6 +233,13 @@ impl<'a> Mesher<'a> {
         let [(fv, fi), (vv, vi)] = &self.templates;
         c.vertices = flat * *fv as u64 + vol * *vv as u64;
         c.triangles = flat * (fi.len() / 3) as u64 + vol * (vi.len() / 3) as u64;
+    }
+
+    /// Use `ids[i]` as Gaussian `i`'s `_GAUSSIAN_ID` instead of `id_offset + i`.
+    pub fn set_id_map(&mut self, ids: &'a [u32], id_offset: u64) {
+        assert_eq!(ids.len(), self.cloud.len(), "one id per Gaussian");
+        self.id_map = Some(ids);
+        self.counts.id_offset = id_offset;
     }
 
     pub fn kind(&self, i: usize) -> Kind {
@@ -344,7 +354,10 @@ impl<'a> Mesher<'a> {
                     srgb_to_linear(rgb.z),
                 );
             }
-            let id = (self.counts.id_offset + i as u64) as u32;
+            let id = match self.id_map {
+                Some(m) => m[i],
+                None => (self.counts.id_offset + i as u64) as u32,
+            };
             self.emit_frame(&f, rgb, id, kind == Kind::Volumetric, out, s);
         }
     }

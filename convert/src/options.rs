@@ -146,6 +146,10 @@ pub struct ConvertOptions {
     pub color_encoding: ColorEncoding,
     /// Write the `_GAUSSIAN_ID` vertex attribute (glTF) / `gaussian_id` property (PLY).
     pub gaussian_ids: bool,
+    /// Split off opaque surfels and write them with their own OPAQUE material (glTF only;
+    /// see `surfels.rs`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub surfels: Option<crate::surfels::SurfelOptions>,
 }
 
 impl Default for ConvertOptions {
@@ -162,6 +166,7 @@ impl Default for ConvertOptions {
             bake_view_name: None,
             color_encoding: ColorEncoding::default(),
             gaussian_ids: true,
+            surfels: None,
         }
     }
 }
@@ -186,6 +191,9 @@ impl ConvertOptions {
                 "flat ratio must be a finite number ≥ 0, got {}",
                 self.flat_ratio
             ));
+        }
+        if let Some(s) = &self.surfels {
+            s.validate()?;
         }
         if let Some(c) = &self.bake_view {
             c.validate()
@@ -235,6 +243,11 @@ pub struct ConvertReport {
     pub bytes: u64,
     pub seconds: f64,
     pub warnings: Vec<String>,
+    /// The surfel split (`--surfels`): thresholds and counts. With a split, `gaussians_in`
+    /// counts every input Gaussian, `meshes` the residual ones, and `vertices`/`triangles`
+    /// include the surfel fans.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub surfels: Option<crate::surfels::SurfelReport>,
 }
 
 impl ConvertReport {
@@ -261,7 +274,7 @@ impl ConvertReport {
 
     /// The metadata object embedded into outputs.
     pub fn metadata(&self, opts: &ConvertOptions) -> serde_json::Value {
-        serde_json::json!({
+        let mut v = serde_json::json!({
             "generator": concat!("splatbridge ", env!("CARGO_PKG_VERSION")),
             "options": opts,
             "colorEncoding": opts.color_encoding,
@@ -276,6 +289,10 @@ impl ConvertReport {
                 "triangles": self.triangles,
             },
             "meshes": self.meshes,
-        })
+        });
+        if let Some(s) = &self.surfels {
+            v["surfels"] = serde_json::json!(s);
+        }
+        v
     }
 }

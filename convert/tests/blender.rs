@@ -1,7 +1,8 @@
 //! The street fixture's GLB, every profile, imported into Blender through
 //! `scripts/blender-check.sh`: one object per mesh node, the cameras, a BLEND unlit material
 //! with the colour attribute wired to colour and alpha, one action per moving object over the
-//! scene's time range. Skips with a printed reason when Blender is not installed.
+//! scene's time range; with `--surfels` also an OPAQUE unlit surfel material with the colour
+//! attribute wired. Skips with a printed reason when Blender is not installed.
 
 use std::path::Path;
 use std::process::Command;
@@ -31,6 +32,22 @@ fn street_glb_imports_into_blender_as_intended() {
         .unwrap();
         files.push(p);
     }
+    // --surfels: an OPAQUE unlit surfel material next to the BLEND one (the script checks
+    // both; objects get surfels with these thresholds only if their Gaussians qualify).
+    let p = dir.path().join("street-surfels.glb");
+    let r = convert_to_file(
+        &p,
+        &scene,
+        None,
+        &ConvertOptions {
+            surfels: Some(Default::default()),
+            ..Default::default()
+        },
+        false,
+    )
+    .unwrap();
+    assert!(r.surfels.as_ref().unwrap().surfels > 0);
+    files.push(p);
     let out = Command::new(&script)
         .args(&files)
         .output()
@@ -39,13 +56,24 @@ fn street_glb_imports_into_blender_as_intended() {
     println!("{stdout}{}", String::from_utf8_lossy(&out.stderr));
     match out.status.code() {
         Some(3) => println!("skipped: Blender is not available"),
-        Some(0) => assert_eq!(
-            stdout
-                .lines()
-                .filter(|l| l.contains("\"problems\": []"))
-                .count(),
-            files.len()
-        ),
+        Some(0) => {
+            assert_eq!(
+                stdout
+                    .lines()
+                    .filter(|l| l.contains("\"problems\": []"))
+                    .count(),
+                files.len()
+            );
+            let last = stdout.lines().rfind(|l| l.starts_with('{')).unwrap();
+            let v: serde_json::Value = serde_json::from_str(last).unwrap();
+            let mats = v["materials"].as_array().unwrap();
+            let find = |n: &str| mats.iter().find(|m| m["name"] == n).cloned();
+            let s = find("surfels").expect("surfel material imported");
+            assert_eq!(s["blend_method"], "OPAQUE");
+            assert_eq!(s["emissive_or_unlit"], true);
+            assert_eq!(s["color_attribute_to_color"], true);
+            assert_eq!(find("gaussian_splats").unwrap()["blend_method"], "BLEND");
+        }
         c => panic!("Blender check failed (exit {c:?}):\n{stdout}"),
     }
 }

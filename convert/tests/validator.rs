@@ -1,5 +1,5 @@
 //! Every export of the synthetic street scene passes the Khronos glTF-Validator: mesh exports
-//! with 0 errors and 0 warnings, splat exports with only the validator's known lag
+//! (every profile, and with `--surfels`) with 0 errors and 0 warnings, splat exports with only the validator's known lag
 //! (MESH_PRIMITIVE_INVALID_ATTRIBUTE). Runs `scripts/validate-exports.sh`; skips with a
 //! printed reason when node or the validator are not available.
 
@@ -35,6 +35,34 @@ fn street_exports_are_validator_clean() {
             mesh.push(p);
         }
     }
+    // Surfel exports (OPAQUE surfel fans + BLEND residual), with per-frame content too.
+    for (name, profile) in [
+        ("surfels.glb", Profile::Texture),
+        ("surfels-rings.gltf", Profile::Rings),
+    ] {
+        let p = dir.path().join(format!("street-{name}"));
+        let opts = ConvertOptions {
+            profile,
+            surfels: Some(Default::default()),
+            ..Default::default()
+        };
+        let r = convert_to_file(&p, &scene, Some(&frames), &opts, false).unwrap();
+        assert!(r.surfels.as_ref().unwrap().surfels > 0);
+        mesh.push(p);
+    }
+    // Every Gaussian a surfel: only the surfel material, no texture.
+    let p = dir.path().join("street-all-surfels.glb");
+    let opts = ConvertOptions {
+        surfels: Some(splatbridge_convert::surfels::SurfelOptions {
+            min_opacity: 0.0,
+            max_flatness: f32::MAX,
+            segments: 6,
+        }),
+        ..Default::default()
+    };
+    let r = convert_to_file(&p, &scene, None, &opts, false).unwrap();
+    assert_eq!(r.surfels.as_ref().unwrap().residual, 0);
+    mesh.push(p);
     let p = dir.path().join("street-flat-noids.glb");
     let opts = ConvertOptions {
         volumetric: VolumetricMode::Flat,

@@ -103,6 +103,20 @@ pub struct Args {
     /// Drop invalid Gaussians (NaN, zero quaternions) while loading instead of failing.
     #[arg(long)]
     pub drop_invalid: bool,
+    /// Split off opaque surfels (GES): Gaussians with opacity ≥ --surfel-opacity and
+    /// smallest/middle scale ≤ --surfel-flatness become opaque fans out to their 1/255 footprint
+    /// with an OPAQUE unlit material; the rest use --profile (BLEND). glTF only.
+    #[arg(long)]
+    pub surfels: bool,
+    /// Surfel opacity threshold (with --surfels).
+    #[arg(long, value_name = "A", default_value_t = splatbridge_scene::surfels::DEFAULT_MIN_OPACITY, requires = "surfels")]
+    pub surfel_opacity: f32,
+    /// Surfel flatness threshold, smallest/middle scale (with --surfels).
+    #[arg(long, value_name = "R", default_value_t = splatbridge_scene::surfels::DEFAULT_MAX_FLATNESS, requires = "surfels")]
+    pub surfel_flatness: f32,
+    /// Triangles per surfel fan (with --surfels).
+    #[arg(long, value_name = "N", default_value_t = splatbridge_convert::surfels::DEFAULT_SURFEL_SEGMENTS, requires = "surfels")]
+    pub surfel_segments: usize,
     /// Print the report as JSON on stdout.
     #[arg(long)]
     pub json: bool,
@@ -152,8 +166,26 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ColorArg::Display => ColorEncoding::Display,
         },
         gaussian_ids: !args.no_ids,
+        surfels: args
+            .surfels
+            .then_some(splatbridge_convert::surfels::SurfelOptions {
+                min_opacity: args.surfel_opacity,
+                max_flatness: args.surfel_flatness,
+                segments: args.surfel_segments,
+            }),
         ..Default::default()
     };
+    if args.surfels && (args.splats || !is_gltf(&args.output)) {
+        bail!(
+            "{}: --surfels writes a mesh glTF (.glb or .gltf), not {}",
+            args.output.display(),
+            if args.splats {
+                "--splats"
+            } else {
+                "OBJ or PLY"
+            }
+        );
+    }
     if let Some(spec) = &args.bake_view {
         let cam_args = CameraArgs {
             camera: Some(spec.clone()),
@@ -231,6 +263,24 @@ fn print_summary(args: &Args, r: &ConvertReport) {
         if n > 0 {
             eprintln!("  dropped        {n:>12}  ({what})");
         }
+    }
+    if let Some(s) = &r.surfels {
+        eprintln!(
+            "  surfels        {:>12}  (opacity ≥ {}, flatness ≤ {}, {}-segment opaque fans{})",
+            s.surfels,
+            s.min_opacity,
+            s.max_flatness,
+            s.segments,
+            if s.dropped_overflow > 0 {
+                format!(", {} dropped: scale overflow", s.dropped_overflow)
+            } else {
+                String::new()
+            }
+        );
+        eprintln!(
+            "  residual       {:>12}  (Gaussians left to profile {})",
+            s.residual, r.profile
+        );
     }
     if r.triangles > 0 {
         eprintln!("  vertices       {:>12}", r.vertices);
