@@ -1,6 +1,6 @@
 //! With the `embree` feature: tell the linker where `libembree4.so` is (the folder that
 //! `scripts/get-embree.sh` fills, or `SPLATBRIDGE_EMBREE_DIR`) and embed an rpath to it, so
-//! test binaries and the CLI run without `LD_LIBRARY_PATH`. Without the feature: nothing.
+//! this crate's test binaries run without `LD_LIBRARY_PATH`. Without the feature: nothing.
 
 use std::path::PathBuf;
 
@@ -31,7 +31,8 @@ fn main() {
         );
     }
     println!("cargo:rustc-link-search=native={}", dir.display());
-    // The rpath must reach every binary that links the library (tests, the CLI): `link-arg`
-    // from a dependency's build script applies to the final link of dependents as well.
+    // The rpath reaches this package's own test binaries (`rustc-link-arg` does not propagate
+    // to dependents): the root CLI built with `--features embree` needs LD_LIBRARY_PATH,
+    // which scripts/get-embree.sh prints.
     println!("cargo:rustc-link-arg=-Wl,-rpath,{}", dir.display());
 }

@@ -5,7 +5,8 @@
 # carries `libembree4-<hash>.so.4` and its TBB in `embreex.libs/` (with RPATH $ORIGIN). The
 # script unpacks the wheel into .tools/embree/, adds a `libembree4.so` symlink for the linker,
 # and prints the environment raytrace/build.rs reads (SPLATBRIDGE_EMBREE_DIR; its default is
-# this folder, so the print is informational). bindgen in embree4-sys needs libclang-dev.
+# this folder) and the LD_LIBRARY_PATH the CLI binary needs (the raytrace test binaries carry an
+# rpath). bindgen in embree4-sys needs libclang-dev.
 #
 # Usage: scripts/get-embree.sh [DEST]   (default DEST: <repo>/.tools/embree)
 set -euo pipefail
@@ -49,4 +50,6 @@ if ! command -v llvm-config >/dev/null 2>&1 && ! ls /usr/lib/llvm-*/lib/libclang
     echo "warning: libclang not found; bindgen (embree4-sys) needs it: apt-get install libclang-dev" >&2
 fi
 echo "export SPLATBRIDGE_EMBREE_DIR=$lib"
+echo "# the raytrace tests embed an rpath; the CLI built with --features embree also needs:"
+echo "export LD_LIBRARY_PATH=$lib\${LD_LIBRARY_PATH:+:\$LD_LIBRARY_PATH}"
 echo "# then: cargo test -p splatbridge-raytrace --features embree"
