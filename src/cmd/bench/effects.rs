@@ -156,16 +156,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "{:<12} {:>9} {:>10} {:>8} {:>10} {:>10} {:>10}  counters",
         "effect", "build ms", "native ms", "bvh ms", "trace ms", "lidar ms", "total ms"
     );
-    let mut none_total = None;
-    for (name, scene) in &cases {
-        let mut runs = Vec::new();
-        let mut counters = EffectCounters::default();
-        for _ in 0..args.repeats.max(1) {
+    // Repeats interleave the cases so that load from other processes falls on all of them alike.
+    let mut all: Vec<(Vec<Times>, EffectCounters)> =
+        vec![(Vec::new(), EffectCounters::default()); cases.len()];
+    for _ in 0..args.repeats.max(1) {
+        for ((name, scene), (runs, counters)) in cases.iter().zip(all.iter_mut()) {
             let (t, c) =
                 run_once(scene, args.time, &cam).with_context(|| format!("effect {name}"))?;
             runs.push(t);
-            counters = c;
+            *counters = c;
         }
+    }
+    let mut none_total = None;
+    for ((name, _), (runs, counters)) in cases.iter().zip(&all) {
         let m = |f: fn(&Times) -> f64| median(runs.iter().map(f).collect());
         let (b, n, bv, tr, l) = (
             m(|t| t.build),
