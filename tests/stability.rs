@@ -210,7 +210,7 @@ fn unnormalised_quaternions_render_as_their_unit_versions() {
     let mut a = native_ref::random_cloud(40, 3);
     let b = a.clone();
     for (i, q) in a.rotations.iter_mut().enumerate() {
-        *q = *q * (0.5 + (i % 7) as f32 * 0.45);
+        *q *= 0.5 + (i % 7) as f32 * 0.45;
     }
     let fa = native_checked(&a, &front(64, 48), "unnormalised");
     let (fb, _) = render(&b, &front(64, 48), &RenderOptions::default()).unwrap();

@@ -1,13 +1,335 @@
-//! `splatbridge accuracy`: Sweep the accuracy knobs one at a time and plot error against time.
+//! `splatbridge accuracy`: sweep the named knobs one at a time around the defaults and measure
+//! error against the reference (native splatting, reference settings) and time. Writes
+//! `accuracy.json`, `accuracy.md` and plots of PSNR against time and against triangles, with the
+//! Pareto front and the MeshSplats default marked.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use splatbridge::parity::{self, CompareConfig};
+use splatbridge::report::plot::{self, Point};
+use splatbridge::report::{markdown_table, Record};
+use splatbridge_convert::{ConvertOptions, Profile};
+use splatbridge_hybrid::native::RenderOptions as NativeOptions;
+use splatbridge_hybrid::project::Extent;
+use splatbridge_scene::surfels::SplitParams;
+use splatbridge_scene::{Camera, Frame, GaussianCloud};
+
+use super::common;
+use super::compare::resolve_cameras;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Arguments of this command (not wired yet).
-    #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
-    pub rest: Vec<String>,
+    /// A 3DGS PLY or a splatbridge-scene/1 manifest (measured at --time).
+    pub scene: PathBuf,
+    /// Cameras, comma-separated (as `compare --cameras`).
+    #[arg(long, default_value = "orbit:3")]
+    pub cameras: String,
+    #[arg(long, default_value_t = 0.0)]
+    pub time: f64,
+    #[arg(long, default_value_t = 320)]
+    pub width: u32,
+    #[arg(long, default_value_t = 240)]
+    pub height: u32,
+    /// Knob families to sweep (default: all): profile, segments, extent, k, native-extent,
+    /// hybrid, sh-degree.
+    #[arg(long, value_delimiter = ',')]
+    pub only: Vec<String>,
+    #[arg(long)]
+    pub drop_invalid: bool,
+    #[arg(short, long)]
+    pub out: PathBuf,
+}
+
+/// One knob setting to measure.
+enum Setting {
+    Mesh(Box<ConvertOptions>, usize),
+    Native(NativeOptions),
+    Hybrid(SplitParams),
+}
+
+fn mesh(profile: Profile, segments: Option<usize>, rings: usize) -> ConvertOptions {
+    ConvertOptions {
+        profile,
+        segments,
+        rings,
+        ..ConvertOptions::default()
+    }
+}
+
+/// The sweep: (family, value label, setting, is the MeshSplats default).
+fn settings(only: &[String]) -> Vec<(&'static str, String, Setting, bool)> {
+    let want = |f: &str| only.is_empty() || only.iter().any(|o| o == f);
+    let mut v = Vec::new();
+    let base = ConvertOptions::default();
+    if want("profile") {
+        v.push((
+            "profile",
+            "meshsplats".into(),
+            Setting::Mesh(Box::new(mesh(Profile::MeshSplats, None, base.rings)), 16),
+            true,
+        ));
+        for m in 1..=4 {
+            v.push((
+                "profile",
+                format!("rings m={m}"),
+                Setting::Mesh(Box::new(mesh(Profile::Rings, None, m)), 16),
+                false,
+            ));
+        }
+        v.push((
+            "profile",
+            "texture".into(),
+            Setting::Mesh(Box::new(mesh(Profile::Texture, None, base.rings)), 16),
+            false,
+        ));
+    }
+    if want("segments") {
+        for n in [4, 6, 8, 12, 16, 32] {
+            v.push((
+                "segments",
+                format!("rings n={n}"),
+                Setting::Mesh(Box::new(mesh(Profile::Rings, Some(n), base.rings)), 16),
+                false,
+            ));
+        }
+    }
+    if want("extent") {
+        // The 2.7σ cut against the 1/255 footprint, both as single-ring fans.
+        v.push((
+            "extent",
+            "2.7σ (meshsplats)".into(),
+            Setting::Mesh(Box::new(mesh(Profile::MeshSplats, None, 1)), 16),
+            false,
+        ));
+        v.push((
+            "extent",
+            "1/255 footprint (rings m=1)".into(),
+            Setting::Mesh(Box::new(mesh(Profile::Rings, None, 1)), 16),
+            false,
+        ));
+    }
+    if want("k") {
+        for k in [4, 8, 16, 32] {
+            v.push((
+                "k",
+                format!("k={k}"),
+                Setting::Mesh(Box::new(base.clone()), k),
+                false,
+            ));
+        }
+    }
+    if want("native-extent") {
+        v.push((
+            "native-extent",
+            "3σ".into(),
+            Setting::Native(NativeOptions::default()),
+            false,
+        ));
+        v.push((
+            "native-extent",
+            "alpha".into(),
+            Setting::Native(NativeOptions {
+                extent: Extent::Alpha,
+                ..NativeOptions::default()
+            }),
+            false,
+        ));
+    }
+    if want("sh-degree") {
+        for d in 0..=3u8 {
+            v.push((
+                "sh-degree",
+                format!("SH ≤ {d}"),
+                Setting::Native(NativeOptions {
+                    sh_degree_cap: d,
+                    ..NativeOptions::default()
+                }),
+                false,
+            ));
+        }
+    }
+    if want("hybrid") {
+        for (a, r) in [
+            (0.5, 0.2),
+            (0.7, 0.1),
+            (0.8, 0.1),
+            (0.9, 0.05),
+            (0.95, 0.05),
+        ] {
+            v.push((
+                "hybrid",
+                format!("opacity≥{a} flat≤{r}"),
+                Setting::Hybrid(SplitParams {
+                    min_opacity: a,
+                    max_flatness: r,
+                }),
+                false,
+            ));
+        }
+    }
+    v
+}
+
+fn mean(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        f64::NAN
+    } else {
+        v.iter().sum::<f64>() / v.len() as f64
+    }
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let _ = args;
-    anyhow::bail!("accuracy is not implemented yet")
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("{}: cannot create the output folder", args.out.display()))?;
+    let scene = common::load(&args.scene, args.drop_invalid)?;
+    let cloud: GaussianCloud = scene.composite(args.time);
+    let cams: Vec<Camera> =
+        resolve_cameras(&args.cameras, &cloud, &scene, args.width, args.height)?;
+    let refs: Vec<Frame> = cams
+        .iter()
+        .map(|c| parity::render_native(&cloud, c, &NativeOptions::default()).map(|r| r.frame))
+        .collect::<anyhow::Result<_>>()?;
+    let cfg = CompareConfig::default();
+    let sweep = settings(&args.only);
+    let pb = common::progress(sweep.len() as u64, "accuracy");
+    let mut records = Vec::new();
+    let mut points_time = Vec::new();
+    let mut points_tris = Vec::new();
+    for (family, value, setting, baseline) in sweep {
+        pb.set_message(format!("{family} {value}"));
+        let mut psnr = Vec::new();
+        let mut ms = Vec::new();
+        let mut triangles = 0;
+        let mut first: Option<Record> = None;
+        let mut push = |img: &Frame,
+                        reference: &Frame,
+                        t_ms: f64,
+                        cam: &Camera,
+                        tris: u64,
+                        b: u64|
+         -> anyhow::Result<()> {
+            let r = parity::measure(
+                reference,
+                img,
+                Record {
+                    renderer: String::new(),
+                    knob: family.into(),
+                    value: value.clone(),
+                    camera: cam.name.clone(),
+                    time: args.time,
+                    milliseconds: t_ms,
+                    triangles: tris,
+                    bytes: b,
+                    ..Record::default()
+                },
+            )?;
+            psnr.push(r.psnr);
+            ms.push(t_ms);
+            if first.is_none() {
+                first = Some(r);
+            }
+            Ok(())
+        };
+        let renderer = match &setting {
+            Setting::Mesh(opts, k) => {
+                let path = args.out.join(format!("sweep_{}.glb", records.len()));
+                let m = parity::export_and_load(
+                    &splatbridge_scene::dynamic::DynamicScene::from_static(cloud.clone()),
+                    opts,
+                    &path,
+                    cfg.backend,
+                    cfg.preset,
+                )?;
+                triangles = m.triangles;
+                for (c, reference) in cams.iter().zip(&refs) {
+                    let img = parity::render_mesh(&m, c, 0.0, *k)?;
+                    push(&img.frame, reference, img.ms, c, m.triangles, m.bytes)?;
+                }
+                let _ = std::fs::remove_file(&path);
+                "trace-mesh"
+            }
+            Setting::Native(o) => {
+                for (c, reference) in cams.iter().zip(&refs) {
+                    let img = parity::render_native(&cloud, c, o)?;
+                    push(&img.frame, reference, img.ms, c, 0, 0)?;
+                }
+                "native"
+            }
+            Setting::Hybrid(split) => {
+                for (c, reference) in cams.iter().zip(&refs) {
+                    let img = parity::render_hybrid(&cloud, c, *split, &cfg.ges)?;
+                    push(&img.frame, reference, img.ms, c, 0, 0)?;
+                }
+                "hybrid"
+            }
+        };
+        let mut r = first.context("no camera")?;
+        r.renderer = renderer.into();
+        r.psnr = mean(&psnr);
+        r.milliseconds = mean(&ms);
+        r.camera = format!("mean of {}", cams.len());
+        let label = value.clone();
+        points_time.push(Point {
+            label: label.clone(),
+            series: family.into(),
+            cost: r.milliseconds,
+            psnr: r.psnr,
+            baseline,
+        });
+        if triangles > 0 {
+            points_tris.push(Point {
+                label,
+                series: family.into(),
+                cost: triangles as f64,
+                psnr: r.psnr,
+                baseline,
+            });
+        }
+        records.push(r);
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    plot::plot(
+        &points_time,
+        "milliseconds per frame (log)",
+        "PSNR against time",
+        &args.out.join("psnr_vs_time"),
+    )?;
+    if !points_tris.is_empty() {
+        plot::plot(
+            &points_tris,
+            "triangles (log)",
+            "PSNR against triangles",
+            &args.out.join("psnr_vs_triangles"),
+        )?;
+    }
+    let json = serde_json::to_string_pretty(&records)?;
+    splatbridge_scene::image_io::write_atomic(&args.out.join("accuracy.json"), json.as_bytes())?;
+    let front: Vec<String> = plot::pareto_front(&points_tris)
+        .into_iter()
+        .map(|i| points_tris[i].label.clone())
+        .collect();
+    let md = format!(
+        "# Accuracy against cost: `{}`\n\n{} cameras at {}×{}, time {}. Reference: native splatting, reference settings. \
+         Each row changes one knob from the defaults; PSNR is the mean over cameras.\n\n\
+         ![PSNR against triangles](psnr_vs_triangles.png)\n![PSNR against time](psnr_vs_time.png)\n\n\
+         Pareto front (PSNR against triangles): {}\n\n{}",
+        args.scene.display(),
+        cams.len(),
+        args.width,
+        args.height,
+        args.time,
+        front.join(", "),
+        markdown_table(&records, false)
+    );
+    splatbridge_scene::image_io::write_atomic(&args.out.join("accuracy.md"), md.as_bytes())?;
+    for r in &records {
+        println!(
+            "{:14} {:28} PSNR {:7.2} dB  {:9.1} ms  {:>10} triangles",
+            r.knob, r.value, r.psnr, r.milliseconds, r.triangles
+        );
+    }
+    println!("wrote {}", args.out.join("accuracy.md").display());
+    Ok(())
 }
