@@ -9,13 +9,10 @@ pub enum TraceError {
     /// The input file is malformed; `what` names the element (node, accessor, line) and the fault.
     #[error("{path}: {what}")]
     Format { path: PathBuf, what: String },
-    /// I/O failure on a named file.
-    #[error("{path}: {source}")]
-    Io {
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
+    /// I/O failure on a named file. The OS error is part of the message and deliberately not
+    /// a `source`, so error chains (`{:#}`) print it once.
+    #[error("{path}: {err}")]
+    Io { path: PathBuf, err: std::io::Error },
     /// Invalid arguments or values not tied to a file (a camera, an option, a backend).
     #[error("{0}")]
     Invalid(String),

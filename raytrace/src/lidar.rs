@@ -343,7 +343,7 @@ pub fn scan_scene_gaussian(
     let sensor = LidarSensor::from_effect(l, &scene.cameras)?;
     std::fs::create_dir_all(dir).map_err(|e| TraceError::Io {
         path: dir.to_path_buf(),
-        source: e,
+        err: e,
     })?;
     let mut run = LidarRun::default();
     for (i, t) in scene.frame_times().into_iter().enumerate() {
@@ -373,7 +373,7 @@ pub fn scan_mesh_frames(
     let sensor = LidarSensor::from_effect(lidar, cameras)?;
     std::fs::create_dir_all(dir).map_err(|e| TraceError::Io {
         path: dir.to_path_buf(),
-        source: e,
+        err: e,
     })?;
     let mut run = LidarRun::default();
     for (i, &t) in times.iter().enumerate() {
