@@ -1,12 +1,21 @@
 //! `splatbridge render`: render a scene with the native 3DGS splatting renderer (the reference
 //! forward pass; knobs and their reference defaults in `splatbridge_hybrid::native`).
+//!
+//! Each frame's content comes from `splatbridge_scene::effects_run::build_blur_frames`: the
+//! composite plus declared weather particles, as one sample or, with `motion_blur`, one cloud
+//! per shutter sample rendered and averaged (`blend_frames`). With no effects declared the one
+//! sample is the composite itself, so the image is the plain composite render bit for bit.
+//! Shadows and LiDAR are ray-traced effects: this renderer lists them as not simulated.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
+use serde_json::json;
 use splatbridge_hybrid::{Extent, RenderOptions, RenderStats, Renderer};
+use splatbridge_scene::effects::EffectCounters;
+use splatbridge_scene::effects_run::{blend_frames, build_blur_frames, effects_of, not_simulated};
 use splatbridge_scene::image_io::save_frame;
-use splatbridge_scene::Camera;
+use splatbridge_scene::{Camera, Frame};
 
 use crate::cmd::common::{load, parse_rgb, with_suffix, CameraArgs};
 
@@ -72,6 +81,20 @@ impl RenderKnobs {
         }
     }
 
+    /// The knobs as JSON (for `--json` reports).
+    pub fn to_json(&self) -> serde_json::Value {
+        json!({
+            "extent": match self.extent {
+                ExtentArg::Sigma3 => "sigma3",
+                ExtentArg::Alpha => "alpha",
+            },
+            "alpha_clamp": short(self.alpha_clamp),
+            "sh_degree": self.sh_degree,
+            "near": short(self.near),
+            "background": self.background.to_array().map(short),
+        })
+    }
+
     pub fn describe(&self) -> String {
         format!(
             "extent {}, alpha clamp {}, SH degree cap {}, near {}, background {},{},{}",
@@ -109,6 +132,59 @@ pub struct Args {
     /// Output image: .png (8-bit RGB) or .exr (float RGBA and Z depth).
     #[arg(short, long)]
     pub out: PathBuf,
+    /// Print one JSON object (knobs, per-frame stats, effect counters) instead of the summary.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// An f32 knob as the f64 its shortest decimal form denotes (0.99, not 0.9900000095367432).
+pub fn short(x: f32) -> f64 {
+    x.to_string().parse().unwrap_or(x as f64)
+}
+
+/// Effects this renderer simulates (the others are reported as not simulated).
+pub const SIMULATES: &[&str] = &["weather", "motion_blur"];
+
+/// Sum of the stats of several renders (the time samples of one motion-blurred frame).
+pub fn add_stats(total: &mut RenderStats, s: &RenderStats) {
+    total.gaussians += s.gaussians;
+    total.projected += s.projected;
+    total.culled_near += s.culled_near;
+    total.culled_near_in_view += s.culled_near_in_view;
+    total.culled_behind += s.culled_behind;
+    total.culled_transparent += s.culled_transparent;
+    total.culled_degenerate += s.culled_degenerate;
+    total.culled_offscreen += s.culled_offscreen;
+    total.tile_pairs += s.tile_pairs;
+    total.blends += s.blends;
+    total.times.projection += s.times.projection;
+    total.times.sorting += s.times.sorting;
+    total.times.binning += s.times.binning;
+    total.times.blending += s.times.blending;
+}
+
+/// The stats of a render as JSON (times in milliseconds).
+pub fn stats_json(s: &RenderStats) -> serde_json::Value {
+    let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
+    json!({
+        "gaussians": s.gaussians,
+        "projected": s.projected,
+        "culled_near": s.culled_near,
+        "culled_near_in_view": s.culled_near_in_view,
+        "culled_behind": s.culled_behind,
+        "culled_transparent": s.culled_transparent,
+        "culled_degenerate": s.culled_degenerate,
+        "culled_offscreen": s.culled_offscreen,
+        "tile_pairs": s.tile_pairs,
+        "blends": s.blends,
+        "milliseconds": {
+            "total": ms(s.times.total()),
+            "projection": ms(s.times.projection),
+            "sorting": ms(s.times.sorting),
+            "binning": ms(s.times.binning),
+            "blending": ms(s.times.blending),
+        },
+    })
 }
 
 /// Print what a render did; warn when the near plane removed Gaussians inside the view.
@@ -138,6 +214,11 @@ pub fn print_summary(cam: &Camera, stats: &RenderStats, near: f32) {
         ms(t.binning),
         ms(t.blending)
     );
+    warn_near(stats, near);
+}
+
+/// Warn when the near plane removed Gaussians that project inside the view.
+pub fn warn_near(stats: &RenderStats, near: f32) {
     if stats.culled_near_in_view > 0 {
         eprintln!(
             "warning: the near plane (z ≤ {near}) culled {} Gaussians that project inside the view; \
@@ -160,7 +241,9 @@ fn check_output(out: &Path) -> anyhow::Result<()> {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     check_output(&args.out)?;
+    let name = args.scene.display().to_string();
     let scene = load(&args.scene, args.drop_invalid)?;
+    let effects = effects_of(&scene).with_context(|| name.clone())?;
     let opts = args.knobs.options();
     opts.validate()?;
     let times = if args.frames {
@@ -168,31 +251,76 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         vec![args.time.unwrap_or(scene.time.start)]
     };
-    // The camera is resolved once (orbit rigs frame the first composite), so frames share it.
-    let first = scene.composite(times[0]);
+    // The camera is resolved once (orbit rigs frame the first composite, without particles),
+    // so frames share it.
     let cam = args
         .camera
-        .resolve(&first, &scene.cameras)
-        .with_context(|| args.scene.display().to_string())?;
-    println!("render {}: {}", args.scene.display(), args.knobs.describe());
-    let mut cloud = Some(first);
+        .resolve(&scene.composite(times[0]), &scene.cameras)
+        .with_context(|| name.clone())?;
+    if !args.json {
+        println!("render {name}: {}", args.knobs.describe());
+    }
     let mut renderer = Renderer::new();
+    let mut counters = EffectCounters::default();
+    let mut frames_json = Vec::with_capacity(times.len());
     for (i, &t) in times.iter().enumerate() {
-        let c = match cloud.take() {
-            Some(c) => c,
-            None => scene.composite(t),
+        let blur = build_blur_frames(&scene, t, Some(&cam)).with_context(|| name.clone())?;
+        counters.add(&blur.counters);
+        let mut rendered: Vec<Frame> = Vec::with_capacity(blur.samples.len());
+        let mut stats = RenderStats::default();
+        for s in &blur.samples {
+            let (f, st) = renderer
+                .render(&s.cloud, &cam, &opts)
+                .with_context(|| name.clone())?;
+            rendered.push(f);
+            add_stats(&mut stats, &st);
+        }
+        let frame = if rendered.len() == 1 {
+            rendered.pop().expect("one sample")
+        } else {
+            let weights: Vec<f32> = blur.samples.iter().map(|s| s.weight).collect();
+            blend_frames(&rendered, &weights).with_context(|| name.clone())?
         };
-        let (frame, stats) = renderer
-            .render(&c, &cam, &opts)
-            .with_context(|| args.scene.display().to_string())?;
         let out = if args.frames {
             with_suffix(&args.out, &format!("{i:04}"))
         } else {
             args.out.clone()
         };
         save_frame(&out, &frame)?;
-        println!("{} (t = {t})", out.display());
-        print_summary(&cam, &stats, opts.near);
+        if args.json {
+            frames_json.push(json!({
+                "output": out.display().to_string(),
+                "time": t,
+                "time_samples": blur.samples.len(),
+                "stats": stats_json(&stats),
+            }));
+            warn_near(&stats, opts.near);
+        } else {
+            if blur.samples.len() > 1 {
+                println!(
+                    "{} (t = {t}, {} motion-blur samples blended; stats summed over them)",
+                    out.display(),
+                    blur.samples.len()
+                );
+            } else {
+                println!("{} (t = {t})", out.display());
+            }
+            print_summary(&cam, &stats, opts.near);
+        }
+    }
+    counters.not_simulated = not_simulated(&effects, SIMULATES);
+    if args.json {
+        let report = json!({
+            "command": "render",
+            "scene": name,
+            "camera": {"name": cam.name, "width": cam.width, "height": cam.height},
+            "knobs": args.knobs.to_json(),
+            "frames": frames_json,
+            "effects": serde_json::to_value(&counters)?,
+        });
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        println!("{}", counters.summary());
     }
     Ok(())
 }
