@@ -237,84 +237,59 @@ pub fn compare(
         let cloud = scene.composite(t);
         for (ci, cam) in cams.iter().enumerate() {
             let tag = format!("c{ci}_t{t:.2}");
-            let base = Record {
-                camera: cam.name.clone(),
-                time: t,
-                ..Record::default()
-            };
             progress(&format!("native {tag}"));
             let reference = render_native(&cloud, cam, &cfg.native)?;
-            let mut r = Record {
-                renderer: "native".into(),
-                milliseconds: reference.ms,
-                ..base.clone()
+            // Measure `img` against the reference, save it and its heat-map as `name`, record it.
+            let mut emit = |name: String, img: &Frame, r: Record| -> anyhow::Result<()> {
+                let mut r = measure(
+                    &reference.frame,
+                    img,
+                    Record {
+                        camera: cam.name.clone(),
+                        time: t,
+                        ..r
+                    },
+                )?;
+                save_pair(dir, &name, &reference.frame, img, &mut r)?;
+                records.push(r);
+                Ok(())
             };
-            r = measure(&reference.frame, &reference.frame, r)?;
-            save_pair(
-                dir,
-                &format!("native_{tag}"),
+            let named = |renderer: &str, ms: f64| Record {
+                renderer: renderer.into(),
+                milliseconds: ms,
+                ..Record::default()
+            };
+            emit(
+                format!("native_{tag}"),
                 &reference.frame,
-                &reference.frame,
-                &mut r,
+                named("native", reference.ms),
             )?;
-            records.push(r);
             if cfg.hybrid {
                 progress(&format!("hybrid {tag}"));
                 let h = render_hybrid(&cloud, cam, cfg.split, &cfg.ges)?;
-                let mut r = Record {
-                    renderer: "hybrid".into(),
-                    milliseconds: h.ms,
-                    ..base.clone()
-                };
-                r = measure(&reference.frame, &h.frame, r)?;
-                save_pair(
-                    dir,
-                    &format!("hybrid_{tag}"),
-                    &reference.frame,
-                    &h.frame,
-                    &mut r,
-                )?;
-                records.push(r);
+                emit(format!("hybrid_{tag}"), &h.frame, named("hybrid", h.ms))?;
             }
             if cfg.gaussian_trace {
                 progress(&format!("trace gaussians {tag}"));
                 let (g, _) = render_gaussians(&cloud, cam, cfg)?;
-                let mut r = Record {
-                    renderer: "trace-gaussian".into(),
-                    milliseconds: g.ms,
-                    ..base.clone()
-                };
-                r = measure(&reference.frame, &g.frame, r)?;
-                save_pair(
-                    dir,
-                    &format!("tracegauss_{tag}"),
-                    &reference.frame,
+                emit(
+                    format!("tracegauss_{tag}"),
                     &g.frame,
-                    &mut r,
+                    named("trace-gaussian", g.ms),
                 )?;
-                records.push(r);
             }
+            let mesh_record = |profile: &str, format: &str, ms: f64, m: &TracedMesh| Record {
+                profile: profile.into(),
+                format: format.into(),
+                triangles: m.triangles,
+                bytes: m.bytes,
+                ..named("trace-mesh", ms)
+            };
             for (profile, format, m) in &meshes {
                 progress(&format!("trace {profile}.{format} {tag}"));
                 let img = render_mesh(m, cam, t, cfg.k)?;
-                let mut r = Record {
-                    renderer: "trace-mesh".into(),
-                    profile: profile.clone(),
-                    format: format.clone(),
-                    milliseconds: img.ms,
-                    triangles: m.triangles,
-                    bytes: m.bytes,
-                    ..base.clone()
-                };
-                r = measure(&reference.frame, &img.frame, r)?;
-                save_pair(
-                    dir,
-                    &format!("mesh_{profile}_{format}_{tag}"),
-                    &reference.frame,
-                    &img.frame,
-                    &mut r,
-                )?;
-                records.push(r);
+                let r = mesh_record(profile, format, img.ms, m);
+                emit(format!("mesh_{profile}_{format}_{tag}"), &img.frame, r)?;
             }
             // Dynamic scenes: OBJ has no animation, so the frame's own OBJ is exported and traced.
             for &p in &obj_profiles {
@@ -326,24 +301,8 @@ pub fn compare(
                 let obj = dir.join(format!("mesh_{}_{tag}.obj", p.name()));
                 let m = export_and_load(&frame_scene, &opts, &obj, cfg.backend, cfg.preset)?;
                 let img = render_mesh(&m, cam, 0.0, cfg.k)?;
-                let mut r = Record {
-                    renderer: "trace-mesh".into(),
-                    profile: p.name().into(),
-                    format: "obj".into(),
-                    milliseconds: img.ms,
-                    triangles: m.triangles,
-                    bytes: m.bytes,
-                    ..base.clone()
-                };
-                r = measure(&reference.frame, &img.frame, r)?;
-                save_pair(
-                    dir,
-                    &format!("mesh_{}_obj_{tag}", p.name()),
-                    &reference.frame,
-                    &img.frame,
-                    &mut r,
-                )?;
-                records.push(r);
+                let r = mesh_record(p.name(), "obj", img.ms, &m);
+                emit(format!("mesh_{}_obj_{tag}", p.name()), &img.frame, r)?;
                 // Per-frame OBJs are intermediates of the measurement (one per camera × time);
                 // the record keeps their size. Removing them keeps a comparison's folder small.
                 let _ = std::fs::remove_file(&obj);
