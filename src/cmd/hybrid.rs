@@ -1,20 +1,28 @@
 //! `splatbridge hybrid`: render with the GES-style hybrid (opaque surfels through a z-buffer,
 //! then the residual Gaussians unsorted; `splatbridge_hybrid::ges`). Surfels come from a split
 //! of the trained cloud by opacity and flatness, or from a GES PLY's own flags.
+//!
+//! The frame's content comes from `splatbridge_scene::effects_run::build_blur_frames` (the
+//! composite plus declared weather particles; with `motion_blur`, one cloud per shutter sample,
+//! each split and rendered, then averaged). With no effects declared the one sample is the
+//! composite itself. Shadows and LiDAR are ray-traced effects, listed as not simulated.
 
 use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{bail, Context};
+use serde_json::json;
 use splatbridge_hybrid::ges::{render_ges, GesOptions, GesStats};
+use splatbridge_scene::effects_run::{blend_frames, build_blur_frames, effects_of, not_simulated};
 use splatbridge_scene::image_io::save_frame;
 use splatbridge_scene::surfels::{
     looks_like_ges, split, split_ges, SplitParams, SurfelCloud, DEFAULT_MAX_FLATNESS,
     DEFAULT_MIN_OPACITY, FOOTPRINT_SIGMAS, GES_EPSILON_FACTOR,
 };
-use splatbridge_scene::{Camera, GaussianCloud};
+use splatbridge_scene::{Camera, Frame, GaussianCloud};
 
 use crate::cmd::common::{load, parse_rgb, CameraArgs};
+use crate::cmd::render::{short, SIMULATES};
 
 /// `on` or `off`.
 pub fn parse_on_off(s: &str) -> Result<bool, String> {
@@ -133,6 +141,22 @@ impl HybridKnobs {
         ))
     }
 
+    /// The knobs as JSON (for `--json` reports).
+    pub fn to_json(&self) -> serde_json::Value {
+        json!({
+            "surfel_opacity": short(self.surfel_opacity),
+            "surfel_flatness": short(self.surfel_flatness),
+            "epsilon": short(self.epsilon),
+            "footprint": short(self.footprint),
+            "supersample": self.supersample,
+            "blur": self.blur,
+            "ges_ply": self.ges_ply,
+            "background": self.background.to_array().map(short),
+            "near": short(self.near),
+            "sh_degree": self.sh_degree,
+        })
+    }
+
     pub fn describe(&self) -> String {
         format!(
             "footprint {}σ, ε factor {}, supersample {}, blur {}, near {}, SH degree cap {}",
@@ -163,6 +187,48 @@ pub struct Args {
     /// Output image: .png (8-bit RGB) or .exr (float RGBA and Z depth).
     #[arg(short, long)]
     pub out: PathBuf,
+    /// Print one JSON object (knobs, stats, effect counters) instead of the summary.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Sum of the stats of several renders (the time samples of one motion-blurred frame).
+pub fn add_stats(total: &mut GesStats, s: &GesStats) {
+    total.surfels += s.surfels;
+    total.surfels_drawn += s.surfels_drawn;
+    total.surfel_pairs += s.surfel_pairs;
+    total.gaussians += s.gaussians;
+    total.projected += s.projected;
+    total.tile_pairs += s.tile_pairs;
+    total.culled_pairs += s.culled_pairs;
+    total.blends += s.blends;
+    total.times.surfels += s.times.surfels;
+    total.times.projection += s.times.projection;
+    total.times.binning += s.times.binning;
+    total.times.blending += s.times.blending;
+}
+
+/// The stats of a hybrid render as JSON (times in milliseconds).
+pub fn stats_json(s: &GesStats, split_ms: f64) -> serde_json::Value {
+    let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
+    json!({
+        "surfels": s.surfels,
+        "surfels_drawn": s.surfels_drawn,
+        "surfel_pairs": s.surfel_pairs,
+        "gaussians": s.gaussians,
+        "projected": s.projected,
+        "tile_pairs": s.tile_pairs,
+        "culled_pairs": s.culled_pairs,
+        "blends": s.blends,
+        "milliseconds": {
+            "total": split_ms + ms(s.times.total()),
+            "split": split_ms,
+            "surfels": ms(s.times.surfels),
+            "projection": ms(s.times.projection),
+            "binning": ms(s.times.binning),
+            "blending": ms(s.times.blending),
+        },
+    })
 }
 
 /// Print what a hybrid render did.
@@ -197,26 +263,67 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if ext != "png" && ext != "exr" {
         bail!("{}: output must end in .png or .exr", args.out.display());
     }
+    let name = args.scene.display().to_string();
     let scene = load(&args.scene, args.drop_invalid)?;
-    let cloud = scene.composite(args.time.unwrap_or(scene.time.start));
+    let effects = effects_of(&scene).with_context(|| name.clone())?;
+    let t = args.time.unwrap_or(scene.time.start);
+    // Orbit rigs frame the composite (without particles), as `render` does.
     let cam = args
         .camera
-        .resolve(&cloud, &scene.cameras)
-        .with_context(|| args.scene.display().to_string())?;
+        .resolve(&scene.composite(t), &scene.cameras)
+        .with_context(|| name.clone())?;
     let opts = args.knobs.options();
     opts.validate()?;
-    let t0 = Instant::now();
-    let (surfels, rest, how) = args.knobs.split(&cloud)?;
-    let split_ms = t0.elapsed().as_secs_f64() * 1e3;
-    println!(
-        "hybrid {}: surfels by {how}; {}",
-        args.scene.display(),
-        args.knobs.describe()
-    );
-    let (frame, stats) = render_ges(&surfels, &rest, &cam, &opts)
-        .with_context(|| args.scene.display().to_string())?;
+    let blur = build_blur_frames(&scene, t, Some(&cam)).with_context(|| name.clone())?;
+    let mut counters = blur.counters.clone();
+    counters.not_simulated = not_simulated(&effects, SIMULATES);
+    let mut rendered: Vec<Frame> = Vec::with_capacity(blur.samples.len());
+    let mut stats = GesStats::default();
+    let mut split_ms = 0.0;
+    let mut how = String::new();
+    for s in &blur.samples {
+        let t0 = Instant::now();
+        let (surfels, rest, h) = args.knobs.split(&s.cloud)?;
+        split_ms += t0.elapsed().as_secs_f64() * 1e3;
+        how = h;
+        let (f, st) = render_ges(&surfels, &rest, &cam, &opts).with_context(|| name.clone())?;
+        rendered.push(f);
+        add_stats(&mut stats, &st);
+    }
+    let frame = if rendered.len() == 1 {
+        rendered.pop().expect("one sample")
+    } else {
+        let weights: Vec<f32> = blur.samples.iter().map(|s| s.weight).collect();
+        blend_frames(&rendered, &weights).with_context(|| name.clone())?
+    };
     save_frame(&args.out, &frame)?;
-    println!("{}", args.out.display());
+    if args.json {
+        let report = json!({
+            "command": "hybrid",
+            "scene": name,
+            "output": args.out.display().to_string(),
+            "time": t,
+            "time_samples": blur.samples.len(),
+            "surfels_by": how,
+            "camera": {"name": cam.name, "width": cam.width, "height": cam.height},
+            "knobs": args.knobs.to_json(),
+            "stats": stats_json(&stats, split_ms),
+            "effects": serde_json::to_value(&counters)?,
+        });
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    println!("hybrid {name}: surfels by {how}; {}", args.knobs.describe());
+    if blur.samples.len() > 1 {
+        println!(
+            "{} (t = {t}, {} motion-blur samples blended; stats summed over them)",
+            args.out.display(),
+            blur.samples.len()
+        );
+    } else {
+        println!("{} (t = {t})", args.out.display());
+    }
     print_summary(&cam, &stats, split_ms);
+    println!("{}", counters.summary());
     Ok(())
 }
