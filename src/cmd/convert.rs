@@ -8,8 +8,10 @@ use std::time::Instant;
 use anyhow::{bail, Context};
 use clap::ValueEnum;
 use splatbridge_convert::{
-    ColorEncoding, ConvertOptions, ConvertReport, Profile, UpAxis, VolumetricMode,
+    ColorEncoding, ConvertOptions, ConvertReport, FrameClouds, Profile, UpAxis, VolumetricMode,
 };
+use splatbridge_scene::effects::EffectCounters;
+use splatbridge_scene::effects_run::{effects_of, not_simulated, weather_frames};
 
 use crate::cmd::common::{self, CameraArgs};
 
@@ -211,6 +213,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.output.display()
         );
     }
+    // Weather is per-frame content: one glTF node per frame, particles in every OBJ frame
+    // (`--splats` writes the scene's Gaussians only). Other effects are not content.
+    let declared = effects_of(&scene).with_context(|| args.scene.display().to_string())?;
+    let mut effects = EffectCounters::default();
+    let weather = match args.splats {
+        true => None,
+        false => {
+            let start = Instant::now();
+            let w = weather_frames(&scene).with_context(|| args.scene.display().to_string())?;
+            w.map(|(times, clouds)| {
+                effects.particles = clouds.iter().map(|c| c.len() as u64).sum();
+                effects.milliseconds = start.elapsed().as_secs_f64() * 1e3;
+                effects.simulated.push("weather".into());
+                FrameClouds { times, clouds }
+            })
+        }
+    };
+    effects.not_simulated = not_simulated(
+        &declared,
+        if weather.is_some() { &["weather"] } else { &[] },
+    );
     pb.set_message("converting");
     pb.inc(1);
     let mut report: ConvertReport = if args.splats {
@@ -222,15 +245,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         splatbridge_convert::splats_gltf::write_file(&args.output, &scene, &opts)?
     } else {
-        splatbridge_convert::convert_to_file(&args.output, &scene, None, &opts, args.frames)?
+        splatbridge_convert::convert_to_file(
+            &args.output,
+            &scene,
+            weather.as_ref(),
+            &opts,
+            args.frames,
+        )?
     };
     pb.inc(1);
     pb.finish_and_clear();
     report.seconds = t0.elapsed().as_secs_f64();
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        let mut v = serde_json::to_value(&report)?;
+        v["effects"] = serde_json::to_value(&effects)?;
+        println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
         print_summary(&args, &report);
+        println!("{}", effects.summary());
     }
     Ok(())
 }
