@@ -18,10 +18,14 @@ enum Command {
     #[command(after_help = "Example:\n  splatbridge info scene.ply --json")]
     Info(cmd::info::Args),
     /// Generate a deterministic synthetic scene (street, large, hard).
-    #[command(after_help = "Examples:\n  splatbridge fixture street -o out/street\n  splatbridge fixture large --count 1000000 -o out/large")]
+    #[command(
+        after_help = "Examples:\n  splatbridge fixture street -o out/street\n  splatbridge fixture large --count 1000000 -o out/large"
+    )]
     Fixture(cmd::fixture::Args),
     /// Render a scene with the native 3DGS splatting renderer (the reference).
-    #[command(after_help = "Example:\n  splatbridge render scene.ply --camera orbit:8:0 -o out.png")]
+    #[command(
+        after_help = "Example:\n  splatbridge render scene.ply --camera orbit:8:0 -o out.png"
+    )]
     Render(cmd::render::Args),
     /// Convert Gaussians to triangle meshes (GLB/glTF/OBJ/PLY) or native glTF splats.
     #[command(after_help = "Example:\n  splatbridge convert scene.ply --profile rings -o out.glb")]
@@ -30,16 +34,22 @@ enum Command {
     #[command(after_help = "Example:\n  splatbridge trace out.glb --camera scene:0 -o traced.png")]
     Trace(cmd::trace::Args),
     /// Render with the GES-style hybrid: opaque surfels, then unsorted Gaussians.
-    #[command(after_help = "Example:\n  splatbridge hybrid scene.ply --camera orbit:8:0 -o hybrid.png")]
+    #[command(
+        after_help = "Example:\n  splatbridge hybrid scene.ply --camera orbit:8:0 -o hybrid.png"
+    )]
     Hybrid(cmd::hybrid::Args),
     /// Render every renderer and profile against native splatting and report parity.
-    #[command(after_help = "Example:\n  splatbridge compare scene.ply --cameras orbit:4 -o compare/")]
+    #[command(
+        after_help = "Example:\n  splatbridge compare scene.ply --cameras orbit:4 -o compare/"
+    )]
     Compare(cmd::compare::Args),
     /// Sweep the accuracy knobs one at a time and plot error against time.
     #[command(after_help = "Example:\n  splatbridge accuracy scene.ply -o accuracy/")]
     Accuracy(cmd::accuracy::Args),
     /// Benchmarks: PLY load, native render, convert, trace, hybrid.
-    #[command(after_help = "Example:\n  splatbridge bench render scene.ply --width 1920 --height 1080")]
+    #[command(
+        after_help = "Example:\n  splatbridge bench render scene.ply --width 1920 --height 1080"
+    )]
     Bench(cmd::bench::Args),
     /// Run the whole pipeline on the built-in street scene and write a report.
     #[command(after_help = "Example:\n  splatbridge demo -o demo/")]

@@ -39,9 +39,18 @@ impl Camera {
     /// A camera at `eye` looking at `target`: z = normalize(target − eye), x = normalize(z × up),
     /// y = z × x (so `up` is the world direction that appears up in the image), vertical field of
     /// view `fov_y_deg`, square pixels, principal point at the image centre.
-    pub fn look_at(eye: DVec3, target: DVec3, up: DVec3, fov_y_deg: f64, width: u32, height: u32) -> Result<Self> {
+    pub fn look_at(
+        eye: DVec3,
+        target: DVec3,
+        up: DVec3,
+        fov_y_deg: f64,
+        width: u32,
+        height: u32,
+    ) -> Result<Self> {
         if width == 0 || height == 0 {
-            return Err(SceneError::Invalid(format!("image size {width}×{height} is empty")));
+            return Err(SceneError::Invalid(format!(
+                "image size {width}×{height} is empty"
+            )));
         }
         if !(fov_y_deg > 0.0 && fov_y_deg < 180.0) {
             return Err(SceneError::Invalid(format!(
@@ -50,12 +59,16 @@ impl Camera {
         }
         let z = target - eye;
         if !(z.length() > 0.0) || !z.is_finite() || !up.is_finite() {
-            return Err(SceneError::Invalid("camera eye and target coincide or are not finite".into()));
+            return Err(SceneError::Invalid(
+                "camera eye and target coincide or are not finite".into(),
+            ));
         }
         let z = z.normalize();
         let x = z.cross(up);
         if !(x.length() > 1e-12) {
-            return Err(SceneError::Invalid("camera up vector is parallel to the view direction".into()));
+            return Err(SceneError::Invalid(
+                "camera up vector is parallel to the view direction".into(),
+            ));
         }
         let x = x.normalize();
         let y = z.cross(x);
@@ -134,10 +147,16 @@ impl Camera {
             && self.centre.is_finite()
             && self.world_to_cam.is_finite();
         if !ok {
-            return Err(SceneError::Invalid(format!("camera '{}' has invalid intrinsics or pose", self.name)));
+            return Err(SceneError::Invalid(format!(
+                "camera '{}' has invalid intrinsics or pose",
+                self.name
+            )));
         }
         let r = self.world_to_cam;
-        let e = (r * r.transpose() - DMat3::IDENTITY).to_cols_array().iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        let e = (r * r.transpose() - DMat3::IDENTITY)
+            .to_cols_array()
+            .iter()
+            .fold(0.0f64, |a, v| a.max(v.abs()));
         if e > 1e-3 {
             return Err(SceneError::Invalid(format!(
                 "camera '{}' rotation is not orthonormal (error {e:.2e})",
@@ -204,15 +223,16 @@ impl CameraJson {
 /// Read a 3DGS `cameras.json`; every camera is validated and errors name the entry.
 pub fn load_cameras_json(path: &Path) -> Result<Vec<Camera>> {
     let text = std::fs::read_to_string(path).map_err(|e| SceneError::io(path, e))?;
-    let entries: Vec<CameraJson> =
-        serde_json::from_str(&text).map_err(|e| SceneError::format(path, format!("not a 3DGS cameras.json: {e}")))?;
+    let entries: Vec<CameraJson> = serde_json::from_str(&text)
+        .map_err(|e| SceneError::format(path, format!("not a 3DGS cameras.json: {e}")))?;
     entries
         .iter()
         .enumerate()
         .map(|(i, e)| {
             let c = e.to_camera();
-            c.validate()
-                .map_err(|err| SceneError::format(path, format!("camera {i} ('{}'): {err}", e.img_name)))?;
+            c.validate().map_err(|err| {
+                SceneError::format(path, format!("camera {i} ('{}'): {err}", e.img_name))
+            })?;
             Ok(c)
         })
         .collect()
@@ -220,8 +240,13 @@ pub fn load_cameras_json(path: &Path) -> Result<Vec<Camera>> {
 
 /// Write cameras in the 3DGS `cameras.json` layout.
 pub fn save_cameras_json(path: &Path, cams: &[Camera]) -> Result<()> {
-    let entries: Vec<CameraJson> = cams.iter().enumerate().map(|(i, c)| CameraJson::from_camera(i as i64, c)).collect();
-    let text = serde_json::to_string_pretty(&entries).map_err(|e| SceneError::Invalid(e.to_string()))?;
+    let entries: Vec<CameraJson> = cams
+        .iter()
+        .enumerate()
+        .map(|(i, c)| CameraJson::from_camera(i as i64, c))
+        .collect();
+    let text =
+        serde_json::to_string_pretty(&entries).map_err(|e| SceneError::Invalid(e.to_string()))?;
     crate::image_io::write_atomic(path, text.as_bytes())
 }
 
@@ -257,9 +282,9 @@ impl OrbitRig {
     /// `n` cameras evenly spaced in azimuth around the robust centre of `means`, far enough that
     /// the robust bounding sphere fills the vertical field of view.
     pub fn cameras(&self, cloud: &crate::GaussianCloud, n: usize) -> Result<Vec<Camera>> {
-        let (lo, hi) = cloud
-            .robust_bounds(self.percentile)
-            .ok_or_else(|| SceneError::Invalid("cannot place an orbit around an empty scene".into()))?;
+        let (lo, hi) = cloud.robust_bounds(self.percentile).ok_or_else(|| {
+            SceneError::Invalid("cannot place an orbit around an empty scene".into())
+        })?;
         self.cameras_around(lo.as_dvec3(), hi.as_dvec3(), n)
     }
 
@@ -278,7 +303,14 @@ impl OrbitRig {
             .map(|i| {
                 let az = std::f64::consts::TAU * i as f64 / n.max(1) as f64;
                 let dir = (e1 * az.cos() + e2 * az.sin()) * el.cos() + up * el.sin();
-                let mut cam = Camera::look_at(centre + dir * dist, centre, up, self.fov_y_deg, self.width, self.height)?;
+                let mut cam = Camera::look_at(
+                    centre + dir * dist,
+                    centre,
+                    up,
+                    self.fov_y_deg,
+                    self.width,
+                    self.height,
+                )?;
                 cam.name = format!("orbit {i}/{n}");
                 Ok(cam)
             })
@@ -294,7 +326,10 @@ pub enum CameraSpec {
     /// `scene:I`: camera I of the scene's own cameras.
     Scene(usize),
     /// `PATH.json:I`: camera I of a 3DGS `cameras.json`.
-    Json { path: std::path::PathBuf, index: usize },
+    Json {
+        path: std::path::PathBuf,
+        index: usize,
+    },
 }
 
 impl std::str::FromStr for CameraSpec {
@@ -311,7 +346,9 @@ impl std::str::FromStr for CameraSpec {
             let (n, i) = rest.split_once(':').ok_or_else(bad)?;
             let (n, index) = (num(n)?, num(i)?);
             if n == 0 || index >= n {
-                return Err(SceneError::Invalid(format!("camera spec '{s}': index must be below N > 0")));
+                return Err(SceneError::Invalid(format!(
+                    "camera spec '{s}': index must be below N > 0"
+                )));
             }
             return Ok(CameraSpec::Orbit { n, index });
         }
@@ -335,7 +372,15 @@ mod tests {
 
     #[test]
     fn look_at_with_minus_y_up_is_upright_in_y_down_world() {
-        let c = Camera::look_at(DVec3::new(0.0, 0.0, -5.0), DVec3::ZERO, DVec3::NEG_Y, 60.0, 64, 48).unwrap();
+        let c = Camera::look_at(
+            DVec3::new(0.0, 0.0, -5.0),
+            DVec3::ZERO,
+            DVec3::NEG_Y,
+            60.0,
+            64,
+            48,
+        )
+        .unwrap();
         // A point above the target (−y in a y-down world) appears in the upper half of the image.
         let p = c.to_camera(DVec3::new(0.0, -1.0, 0.0));
         assert!(p.y < 0.0 && p.z > 0.0);
@@ -345,18 +390,38 @@ mod tests {
 
     #[test]
     fn cameras_json_round_trip() {
-        let c = Camera::look_at(DVec3::new(1.0, 2.0, 3.0), DVec3::ZERO, DVec3::NEG_Y, 45.0, 100, 50).unwrap();
+        let c = Camera::look_at(
+            DVec3::new(1.0, 2.0, 3.0),
+            DVec3::ZERO,
+            DVec3::NEG_Y,
+            45.0,
+            100,
+            50,
+        )
+        .unwrap();
         let j = CameraJson::from_camera(0, &c);
         let back = j.to_camera();
-        assert!((back.world_to_cam - c.world_to_cam).to_cols_array().iter().all(|v| v.abs() < 1e-12));
+        assert!((back.world_to_cam - c.world_to_cam)
+            .to_cols_array()
+            .iter()
+            .all(|v| v.abs() < 1e-12));
         assert_eq!(back.centre, c.centre);
     }
 
     #[test]
     fn camera_specs_parse() {
-        assert_eq!("orbit:8:3".parse::<CameraSpec>().unwrap(), CameraSpec::Orbit { n: 8, index: 3 });
-        assert_eq!("scene:2".parse::<CameraSpec>().unwrap(), CameraSpec::Scene(2));
-        assert!(matches!("a/cameras.json:1".parse::<CameraSpec>().unwrap(), CameraSpec::Json { index: 1, .. }));
+        assert_eq!(
+            "orbit:8:3".parse::<CameraSpec>().unwrap(),
+            CameraSpec::Orbit { n: 8, index: 3 }
+        );
+        assert_eq!(
+            "scene:2".parse::<CameraSpec>().unwrap(),
+            CameraSpec::Scene(2)
+        );
+        assert!(matches!(
+            "a/cameras.json:1".parse::<CameraSpec>().unwrap(),
+            CameraSpec::Json { index: 1, .. }
+        ));
         assert!("orbit:8:9".parse::<CameraSpec>().is_err());
         assert!("nonsense".parse::<CameraSpec>().is_err());
     }

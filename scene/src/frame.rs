@@ -40,7 +40,11 @@ impl Frame {
 
     /// True when every value of every plane is finite.
     pub fn is_finite(&self) -> bool {
-        self.rgb.iter().chain(&self.alpha).chain(&self.depth).all(|v| v.is_finite())
+        self.rgb
+            .iter()
+            .chain(&self.alpha)
+            .chain(&self.depth)
+            .all(|v| v.is_finite())
     }
 
     /// Largest absolute per-channel RGB difference to `other` (same size required).

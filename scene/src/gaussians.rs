@@ -86,7 +86,14 @@ impl GaussianCloud {
     }
 
     /// Append one Gaussian from stored values. `sh` must hold `coeffs()` triples (coefficient-major).
-    pub fn push(&mut self, mean: Vec3, log_scale: Vec3, rotation: Quat, opacity_logit: f32, sh: &[Vec3]) {
+    pub fn push(
+        &mut self,
+        mean: Vec3,
+        log_scale: Vec3,
+        rotation: Quat,
+        opacity_logit: f32,
+        sh: &[Vec3],
+    ) {
         debug_assert_eq!(sh.len(), self.coeffs());
         self.means.push(mean);
         self.log_scales.push(log_scale);
@@ -100,12 +107,20 @@ impl GaussianCloud {
 
     /// Append one Gaussian from activated values (scale, opacity in [0,1], any rotation, RGB base
     /// colour in [0,1] turned into a DC coefficient; higher-order coefficients zero).
-    pub fn push_activated(&mut self, mean: Vec3, scale: Vec3, rotation: Quat, opacity: f32, rgb: Vec3) {
+    pub fn push_activated(
+        &mut self,
+        mean: Vec3,
+        scale: Vec3,
+        rotation: Quat,
+        opacity: f32,
+        rgb: Vec3,
+    ) {
         let k = self.coeffs();
         let mut sh = vec![Vec3::ZERO; k];
         sh[0] = (rgb - Vec3::splat(0.5)) / crate::sh::SH_C0;
         self.means.push(mean);
-        self.log_scales.push(Vec3::new(scale.x.ln(), scale.y.ln(), scale.z.ln()));
+        self.log_scales
+            .push(Vec3::new(scale.x.ln(), scale.y.ln(), scale.z.ln()));
         self.rotations.push(rotation);
         self.opacity_logits.push(logit(opacity));
         self.sh.extend_from_slice(&sh);
@@ -307,7 +322,13 @@ mod tests {
     fn retain_and_extend_keep_arrays_consistent() {
         let mut a = GaussianCloud::new(1);
         for i in 0..5 {
-            a.push_activated(Vec3::splat(i as f32), Vec3::ONE, Quat::IDENTITY, 0.5, Vec3::ONE);
+            a.push_activated(
+                Vec3::splat(i as f32),
+                Vec3::ONE,
+                Quat::IDENTITY,
+                0.5,
+                Vec3::ONE,
+            );
         }
         a.retain_indices(|i| i % 2 == 0);
         assert_eq!(a.len(), 3);
@@ -323,7 +344,13 @@ mod tests {
     #[test]
     fn zero_quaternion_is_invalid_and_activates_to_identity() {
         let mut a = GaussianCloud::new(0);
-        a.push(Vec3::ZERO, Vec3::ZERO, Quat::from_xyzw(0.0, 0.0, 0.0, 0.0), 0.0, &[Vec3::ZERO]);
+        a.push(
+            Vec3::ZERO,
+            Vec3::ZERO,
+            Quat::from_xyzw(0.0, 0.0, 0.0, 0.0),
+            0.0,
+            &[Vec3::ZERO],
+        );
         assert_eq!(a.invalid_reason(0), Some("zero quaternion"));
         assert_eq!(a.unit_rotation(0), Quat::IDENTITY);
     }

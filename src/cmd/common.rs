@@ -102,13 +102,21 @@ impl CameraArgs {
                     bail!("scene:{i}: the input has no cameras of its own (use orbit:N:I or PATH.json:I)");
                 }
                 own.get(i)
-                    .with_context(|| format!("scene:{i}: the input has only {} cameras", own.len()))?
+                    .with_context(|| {
+                        format!("scene:{i}: the input has only {} cameras", own.len())
+                    })?
                     .clone()
             }
             CameraSpec::Json { path, index } => {
                 let cams = load_cameras_json(&path)?;
                 cams.get(index)
-                    .with_context(|| format!("{}: camera {index} requested, file has {}", path.display(), cams.len()))?
+                    .with_context(|| {
+                        format!(
+                            "{}: camera {index} requested, file has {}",
+                            path.display(),
+                            cams.len()
+                        )
+                    })?
                     .clone()
             }
         };
@@ -138,7 +146,13 @@ pub fn parse_rgb(s: &str) -> Result<glam::Vec3, String> {
 
 /// `OUT` with `_NAME` inserted before the extension (for per-frame outputs).
 pub fn with_suffix(out: &Path, suffix: &str) -> PathBuf {
-    let stem = out.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-    let ext = out.extension().map(|e| format!(".{}", e.to_string_lossy())).unwrap_or_default();
+    let stem = out
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let ext = out
+        .extension()
+        .map(|e| format!(".{}", e.to_string_lossy()))
+        .unwrap_or_default();
     out.with_file_name(format!("{stem}_{suffix}{ext}"))
 }
