@@ -6,20 +6,45 @@
 //! onto glTF's +Y; by default that node is undone, so cameras (`orbit`, `cameras.json`,
 //! `scene:I`) and renders live in the capture's frame like native renders. `--gltf-frame`
 //! keeps the glTF world frame.
+//!
+//! Declared effects (the manifest's, or `--effects-from MANIFEST`'s for an exported file, which
+//! carries none of its own) are simulated here: weather particles of the frame (mode gaussian:
+//! `effects_run::build_frame`; mode mesh: converted in memory with the scene as one frame
+//! node), motion blur (every shutter sample traced and averaged; mode gaussian builds one BVH
+//! per sample), sun shadows (`splatbridge_raytrace::shadows`) and LiDAR (one PLY per frame,
+//! `lidar_NNNN.ply` with NNNN the frame index, in `--lidar-out`, by default the output image's
+//! directory). An exported file's weather is drawn as exported (its per-frame particle nodes).
 
 use std::path::{Path, PathBuf};
+use std::time::Instant;
 
 use anyhow::{bail, Context};
+use clap::ValueEnum;
 use glam::{Quat, Vec3};
+use serde_json::json;
+use splatbridge_convert::FrameClouds;
+use splatbridge_raytrace::lidar::{
+    frame_file, scan, scan_mesh_frames, scan_scene_gaussian, write_ply, LidarRun, LidarSensor,
+};
 use splatbridge_raytrace::scene_load::load_path;
+use splatbridge_raytrace::shadows::{
+    gaussian_bounds, mesh_bounds, render_gaussian_shadowed, render_mesh_shadowed, SunShadows,
+};
 use splatbridge_raytrace::{
     BackendKind, BuildPreset, Compositing, GaussianTracer, MeshTracer, RenderOptions, Stats,
     TriScene,
+};
+use splatbridge_scene::dynamic::DynamicScene;
+use splatbridge_scene::effects::{EffectCounters, Effects, Shadows};
+use splatbridge_scene::effects_run::{
+    blend_frames, build_blur_frames, build_frame, effects_of, not_simulated, time_samples,
+    weather_frames, weather_particles,
 };
 use splatbridge_scene::image_io::save_frame;
 use splatbridge_scene::{Camera, Frame, GaussianCloud};
 
 use crate::cmd::common::{load, parse_rgb, CameraArgs};
+use crate::cmd::render::short;
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Mode {
@@ -115,6 +140,10 @@ pub struct TraceInput {
     /// Drop invalid Gaussians with a warning instead of failing (PLY/manifest input).
     #[arg(long)]
     pub drop_invalid: bool,
+    /// For an exported file (GLB/glTF/OBJ): take the declared effects, time range and cameras
+    /// of this manifest (the scene it was exported from).
+    #[arg(long, value_name = "MANIFEST")]
+    pub effects_from: Option<PathBuf>,
 }
 
 #[derive(clap::Args)]
@@ -127,6 +156,17 @@ pub struct Args {
     /// Output image (.png or .exr).
     #[arg(short, long)]
     pub output: PathBuf,
+    /// Directory for the LiDAR scans (`lidar_NNNN.ply`) when the scene declares `lidar`
+    /// (default: the output image's directory).
+    #[arg(long, value_name = "DIR")]
+    pub lidar_out: Option<PathBuf>,
+    /// Scan every frame of the scene's time range, not only the traced one.
+    #[arg(long)]
+    pub lidar_all_frames: bool,
+    /// Print one JSON object (options, stats, effect counters, LiDAR files) instead of the
+    /// summary.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// A loaded input, ready to build tracers for any backend.
@@ -142,6 +182,11 @@ pub struct Prepared {
     pub options: RenderOptions,
     pub time: f64,
     pub what: String,
+    /// The scene whose declared effects apply: the input scene, or `--effects-from`'s.
+    pub effects_scene: Option<DynamicScene>,
+    pub effects: Effects,
+    /// What building the frame's content cost (weather particles).
+    pub counters: EffectCounters,
 }
 
 fn is_mesh_file(p: &Path) -> bool {
@@ -165,6 +210,12 @@ fn frame_cloud(scene: &TriScene, t: f64) -> GaussianCloud {
 
 impl TraceInput {
     pub fn prepare(&self) -> anyhow::Result<Prepared> {
+        self.prepare_with(false)
+    }
+
+    /// As [`TraceInput::prepare`]; `all_weather_frames` converts every frame's weather (mode
+    /// mesh), for scanning every frame, instead of the traced frame's only.
+    pub fn prepare_with(&self, all_weather_frames: bool) -> anyhow::Result<Prepared> {
         let name = self.input.display().to_string();
         let options = RenderOptions {
             k: self.k,
@@ -185,7 +236,20 @@ impl TraceInput {
             if !self.gltf_frame {
                 scene.to_capture_frame();
             }
-            let own = scene.cameras(self.time);
+            let (effects_scene, effects) = match &self.effects_from {
+                Some(m) => {
+                    let s = load(m, false)?;
+                    let e = effects_of(&s).with_context(|| m.display().to_string())?;
+                    (Some(s), e)
+                }
+                None => (None, Effects::default()),
+            };
+            let mut own = scene.cameras(self.time);
+            if own.is_empty() {
+                if let Some(s) = &effects_scene {
+                    own = s.cameras.clone();
+                }
+            }
             let camera = self
                 .camera
                 .resolve(&frame_cloud(&scene, self.time), &own)
@@ -200,16 +264,34 @@ impl TraceInput {
                 camera,
                 options,
                 time: self.time,
+                effects_scene,
+                effects,
+                counters: EffectCounters::default(),
             });
         }
+        if let Some(m) = &self.effects_from {
+            bail!(
+                "{}: --effects-from is for exported files (GLB/glTF/OBJ); {name} declares its own effects",
+                m.display()
+            );
+        }
         let scene = load(&self.input, self.drop_invalid)?;
+        let effects = effects_of(&scene).with_context(|| name.clone())?;
         let cloud = scene.composite(self.time);
         let camera = self
             .camera
             .resolve(&cloud, &scene.cameras)
             .with_context(|| name.clone())?;
+        let mut counters = EffectCounters::default();
         let loaded = match self.mode {
-            Mode::Gaussian => Loaded::Gaussians(cloud),
+            // Without weather the frame is the composite itself (bit-identical).
+            Mode::Gaussian if effects.weather.is_none() => Loaded::Gaussians(cloud),
+            Mode::Gaussian => {
+                let f =
+                    build_frame(&scene, self.time, Some(&camera)).with_context(|| name.clone())?;
+                counters = f.counters;
+                Loaded::Gaussians(f.cloud)
+            }
             Mode::Mesh => {
                 let mut opts = splatbridge_convert::ConvertOptions::default();
                 if let Some(p) = self.profile {
@@ -219,8 +301,15 @@ impl TraceInput {
                         ProfileArg::Texture => splatbridge_convert::Profile::Texture,
                     };
                 }
-                let (bytes, _) = splatbridge_convert::glb_bytes(&scene, None, &opts)
+                let frames = mesh_weather(&scene, &effects, self.time, &camera, all_weather_frames)
                     .with_context(|| name.clone())?;
+                if let Some((fc, c)) = &frames {
+                    counters = c.clone();
+                    debug_assert!(fc.times.len() == fc.clouds.len());
+                }
+                let (bytes, _) =
+                    splatbridge_convert::glb_bytes(&scene, frames.as_ref().map(|f| &f.0), &opts)
+                        .with_context(|| name.clone())?;
                 let mut tri =
                     splatbridge_raytrace::scene_load::load_glb_bytes(&bytes, &self.input)?;
                 tri.to_capture_frame();
@@ -240,8 +329,38 @@ impl TraceInput {
             options,
             time: self.time,
             what,
+            effects_scene: Some(scene),
+            effects,
+            counters,
         })
     }
+}
+
+/// Weather for an in-memory conversion (mode mesh): the traced frame's particles as the one
+/// frame node (always visible), or every frame's (`all`, for scanning every frame).
+fn mesh_weather(
+    scene: &DynamicScene,
+    effects: &Effects,
+    t: f64,
+    camera: &Camera,
+    all: bool,
+) -> anyhow::Result<Option<(FrameClouds, EffectCounters)>> {
+    let Some(w) = &effects.weather else {
+        return Ok(None);
+    };
+    let start = Instant::now();
+    let (times, clouds) = if all {
+        weather_frames(scene)?.expect("weather is declared")
+    } else {
+        (vec![t], vec![weather_particles(scene, w, t, Some(camera))?])
+    };
+    let counters = EffectCounters {
+        particles: clouds.iter().map(|c| c.len() as u64).sum(),
+        milliseconds: start.elapsed().as_secs_f64() * 1e3,
+        simulated: vec!["weather".into()],
+        ..Default::default()
+    };
+    Ok(Some((FrameClouds { times, clouds }, counters)))
 }
 
 /// A tracer built for one backend.
@@ -279,6 +398,114 @@ impl Tracer {
     }
 }
 
+/// One traced image (a frame, or one shutter sample of it) and what its shadows cost.
+struct Traced {
+    frame: Frame,
+    stats: Stats,
+    shadow_rays: u64,
+    shadow_ms: f64,
+}
+
+/// Trace `tracer` at `time`, with sun shadows when `shadows` is declared.
+fn trace_at(
+    tracer: &Tracer,
+    p: &Prepared,
+    time: f64,
+    shadows: Option<&Shadows>,
+) -> anyhow::Result<Traced> {
+    let Some(s) = shadows else {
+        let (frame, stats) = match tracer {
+            Tracer::Mesh(t) => t.render(&p.camera, time, &p.options)?,
+            Tracer::Gaussians(t) => t.render(&p.camera, &p.options)?,
+        };
+        return Ok(Traced {
+            frame,
+            stats,
+            shadow_rays: 0,
+            shadow_ms: 0.0,
+        });
+    };
+    let (frame, stats, st) = match tracer {
+        Tracer::Mesh(t) => {
+            let (lo, hi) = mesh_bounds(t, time);
+            let sun = SunShadows::from_effect(s, lo, hi)?;
+            render_mesh_shadowed(t, &p.camera, time, &p.options, &sun)?
+        }
+        Tracer::Gaussians(t) => {
+            let (lo, hi) = gaussian_bounds(t);
+            let sun = SunShadows::from_effect(s, lo, hi)?;
+            render_gaussian_shadowed(t, &p.camera, &p.options, &sun)?
+        }
+    };
+    Ok(Traced {
+        frame,
+        stats,
+        shadow_rays: st.shadow_rays,
+        // Shadow-ray time is summed over worker threads; divided by their number it estimates
+        // the wall time the shadows added.
+        shadow_ms: st.cpu_seconds * 1e3 / rayon::current_num_threads().max(1) as f64,
+    })
+}
+
+/// Index of the scene frame nearest to `t` (names the LiDAR file of a single-frame scan).
+fn frame_index(times: &[f64], t: f64) -> usize {
+    times
+        .iter()
+        .enumerate()
+        .min_by(|a, b| (a.1 - t).abs().total_cmp(&(b.1 - t).abs()))
+        .map(|(i, _)| i)
+        .unwrap_or(0)
+}
+
+/// Cast the declared LiDAR: the traced frame through `tracer` (frozen at the frame time), or
+/// every frame of the scene.
+fn run_lidar(
+    args: &Args,
+    p: &Prepared,
+    tracer: &Tracer,
+    dir: &Path,
+) -> anyhow::Result<Option<LidarRun>> {
+    let (Some(l), Some(scene)) = (&p.effects.lidar, &p.effects_scene) else {
+        return Ok(None);
+    };
+    let backend: BackendKind = args.backend.into();
+    if args.lidar_all_frames {
+        return Ok(match tracer {
+            Tracer::Gaussians(_) => {
+                scan_scene_gaussian(scene, dir, backend, args.input.preset.into())?
+            }
+            Tracer::Mesh(t) => Some(scan_mesh_frames(
+                t,
+                l,
+                &scene.cameras,
+                &scene.frame_times(),
+                dir,
+            )?),
+        });
+    }
+    let sensor = LidarSensor::from_effect(l, &scene.cameras)?;
+    let s = match tracer {
+        Tracer::Gaussians(t) => scan(t, &sensor, p.time),
+        Tracer::Mesh(t) => scan(&t.at(p.time), &sensor, p.time),
+    };
+    std::fs::create_dir_all(dir).with_context(|| dir.display().to_string())?;
+    let path = frame_file(dir, frame_index(&scene.frame_times(), p.time));
+    write_ply(&path, &s)?;
+    Ok(Some(LidarRun {
+        files: vec![path],
+        rays: s.rays,
+        points: s.points.len() as u64,
+        seconds: s.seconds,
+    }))
+}
+
+fn add_trace_stats(total: &mut Stats, s: &Stats) {
+    total.rays += s.rays;
+    total.hits += s.hits;
+    total.traversals += s.traversals;
+    total.seconds += s.seconds;
+}
+
 pub fn run(args: Args) -> anyhow::Result<()> {
     let ext = args
         .output
@@ -288,24 +515,194 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if ext != "png" && ext != "exr" {
         bail!("{}: output must end in .png or .exr", args.output.display());
     }
-    let p = args.input.prepare()?;
+    let name = args.input.input.display().to_string();
+    let all_frames = args.lidar_all_frames && args.input.mode == Mode::Mesh;
+    let p = args.input.prepare_with(all_frames)?;
     let backend: BackendKind = args.backend.into();
-    let tracer = Tracer::build(&p, backend, args.input.preset.into())
-        .with_context(|| args.input.input.display().to_string())?;
-    let (frame, stats) = tracer.render(&p)?;
+    let preset: BuildPreset = args.input.preset.into();
+    let samples = match &p.effects_scene {
+        Some(s) => time_samples(s, p.time).with_context(|| name.clone())?,
+        None => vec![(p.time, 1.0)],
+    };
+    let blurred = samples.len() > 1;
+    let shadows = p.effects.shadows.as_ref();
+    let mut counters = p.counters.clone();
+    let mut build_seconds = 0.0;
+    // The tracer of the frame at t: every mesh-mode sample, LiDAR, and the unblurred image.
+    let needs_frame_tracer =
+        !blurred || p.effects.lidar.is_some() || matches!(p.loaded, Loaded::Mesh(_));
+    let tracer = if needs_frame_tracer {
+        let t = Tracer::build(&p, backend, preset).with_context(|| name.clone())?;
+        build_seconds += t.build_seconds();
+        Some(t)
+    } else {
+        None
+    };
+    let mut traced = Vec::with_capacity(samples.len());
+    let mut stats = Stats::default();
+    let mut blur_ms = 0.0;
+    match (&tracer, &p.loaded) {
+        (Some(tr), Loaded::Mesh(_)) => {
+            for (i, &(ts, _)) in samples.iter().enumerate() {
+                let start = Instant::now();
+                traced.push(trace_at(tr, &p, ts, shadows).with_context(|| name.clone())?);
+                if i > 0 {
+                    blur_ms += start.elapsed().as_secs_f64() * 1e3;
+                }
+            }
+        }
+        (Some(tr), Loaded::Gaussians(_)) if !blurred => {
+            traced.push(trace_at(tr, &p, p.time, shadows).with_context(|| name.clone())?);
+        }
+        _ => {
+            let scene = p
+                .effects_scene
+                .as_ref()
+                .expect("motion blur needs the scene");
+            let blur =
+                build_blur_frames(scene, p.time, Some(&p.camera)).with_context(|| name.clone())?;
+            // The blur build generates the frame's particles once, as build_frame did.
+            counters = blur.counters.clone();
+            for (i, sample) in blur.samples.into_iter().enumerate() {
+                let start = Instant::now();
+                let g = GaussianTracer::new(sample.cloud, backend, preset)
+                    .with_context(|| name.clone())?;
+                build_seconds += g.build_seconds;
+                let tr = Tracer::Gaussians(g);
+                traced.push(trace_at(&tr, &p, sample.time, shadows).with_context(|| name.clone())?);
+                if i > 0 {
+                    blur_ms += start.elapsed().as_secs_f64() * 1e3;
+                }
+            }
+        }
+    }
+    if p.effects.motion_blur.is_some() && !counters.simulated.iter().any(|n| n == "motion_blur") {
+        counters.extra_time_samples += samples.len() as u64 - 1;
+        counters.simulated.push("motion_blur".into());
+    }
+    counters.milliseconds += blur_ms;
+    let mut shadow_rays = 0;
+    for t in &traced {
+        add_trace_stats(&mut stats, &t.stats);
+        shadow_rays += t.shadow_rays;
+        counters.milliseconds += t.shadow_ms;
+    }
+    if shadows.is_some() {
+        counters.shadow_rays += shadow_rays;
+        counters.simulated.push("shadows".into());
+    }
+    let frame = if traced.len() == 1 {
+        traced.pop().expect("one sample").frame
+    } else {
+        let frames: Vec<Frame> = traced.into_iter().map(|t| t.frame).collect();
+        let weights: Vec<f32> = samples.iter().map(|s| s.1).collect();
+        blend_frames(&frames, &weights).with_context(|| name.clone())?
+    };
     save_frame(&args.output, &frame)?;
+
+    let lidar_dir = match &args.lidar_out {
+        Some(d) => d.clone(),
+        None => match args.output.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+            _ => PathBuf::from("."),
+        },
+    };
+    let lidar = match &tracer {
+        Some(tr) => run_lidar(&args, &p, tr, &lidar_dir).with_context(|| name.clone())?,
+        None => None,
+    };
+    if let Some(run) = &lidar {
+        counters.lidar_rays += run.rays;
+        counters.lidar_points += run.points;
+        counters.milliseconds += run.seconds * 1e3;
+        counters.simulated.push("lidar".into());
+    }
+    // An exported file's weather is part of the file: drawn as exported, not simulated here.
+    let exported_weather = matches!(p.loaded, Loaded::Mesh(_))
+        && p.effects.weather.is_some()
+        && !counters.simulated.iter().any(|n| n == "weather");
+    let simulates: &[&str] = if exported_weather {
+        &["motion_blur", "shadows", "lidar", "weather"]
+    } else {
+        &["weather", "motion_blur", "shadows", "lidar"]
+    };
+    counters.not_simulated = not_simulated(&p.effects, simulates);
+
+    if args.json {
+        let report = json!({
+            "command": "trace",
+            "input": name,
+            "output": args.output.display().to_string(),
+            "mode": match args.input.mode {
+                Mode::Mesh => "mesh",
+                Mode::Gaussian => "gaussian",
+            },
+            "backend": backend.to_string(),
+            "time": p.time,
+            "time_samples": samples.len(),
+            "camera": {"name": p.camera.name, "width": p.camera.width, "height": p.camera.height},
+            "options": {
+                "k": p.options.k,
+                "preset": args.input.preset.to_possible_value().map(|v| v.get_name().to_string()),
+                "background": p.options.background.to_array().map(short),
+                "near": short(p.options.near),
+                "compositing": match p.options.compositing {
+                    Compositing::Display => "display",
+                    Compositing::Viewer => "viewer",
+                },
+            },
+            "stats": {
+                "what": p.what,
+                "rays": stats.rays,
+                "hits": stats.hits,
+                "traversals": stats.traversals,
+                "trace_seconds": stats.seconds,
+                "build_seconds": build_seconds,
+                "mrays_per_second": stats.mrays_per_second(),
+                "hits_per_ray": stats.hits_per_ray(),
+            },
+            "lidar": lidar.as_ref().map(|r| json!({
+                "dir": lidar_dir.display().to_string(),
+                "files": r.files.iter().map(|f| f.display().to_string()).collect::<Vec<_>>(),
+                "rays": r.rays,
+                "points": r.points,
+            })),
+            "exported_weather": exported_weather,
+            "effects": serde_json::to_value(&counters)?,
+        });
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
     println!("{}", p.what);
     println!(
-        "{}: {}×{} camera '{}', backend {backend}, BVH build {:.3} s, trace {:.3} s ({:.2} Mrays/s), {:.2} hits/ray, {:.2} traversals/ray",
+        "{}: {}×{} camera '{}', backend {backend}, BVH build {:.3} s, trace {:.3} s ({:.2} Mrays/s), {:.2} hits/ray, {:.2} traversals/ray{}",
         args.output.display(),
         p.camera.width,
         p.camera.height,
         p.camera.name,
-        tracer.build_seconds(),
+        build_seconds,
         stats.seconds,
         stats.mrays_per_second(),
         stats.hits_per_ray(),
         stats.traversals as f64 / stats.rays.max(1) as f64,
+        if blurred {
+            format!(" (over {} motion-blur samples, blended)", samples.len())
+        } else {
+            String::new()
+        }
     );
+    if let Some(r) = &lidar {
+        println!(
+            "LiDAR: {} scan(s) in {}, {} rays → {} points",
+            r.files.len(),
+            lidar_dir.display(),
+            r.rays,
+            r.points
+        );
+    }
+    if exported_weather {
+        println!("weather: drawn as exported (the file's per-frame particle nodes)");
+    }
+    println!("{}", counters.summary());
     Ok(())
 }
