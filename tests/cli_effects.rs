@@ -281,23 +281,40 @@ fn declared_effects_report_their_work() {
         assert_eq!(count(e, "lidar_points"), points, "trace {mode}");
         assert_eq!(r["lidar"]["files"][0].as_str(), Some(s(&file)));
     }
-    // Every frame scanned; default directory: next to the output image.
+    // Every frame scanned; default directory: next to the output image. Particles: mode mesh
+    // converts every frame's once; mode gaussian generates the traced frame's and each scanned
+    // frame's.
     let sub = dir.path().join("all");
     std::fs::create_dir_all(&sub).unwrap();
     let out_img = sub.join("t.png");
-    let r = json(
-        &[
-            &["trace", m, "--lidar-all-frames", "-o", s(&out_img)][..],
-            &SIZE,
-        ]
-        .concat(),
-    );
-    let mut total = 0;
-    for i in 0..FRAMES {
-        total += ply_points(&sub.join(format!("lidar_{i:04}.ply")));
+    for (mode, particles) in [("mesh", RAIN * FRAMES), ("gaussian", RAIN * (FRAMES + 1))] {
+        for i in 0..FRAMES {
+            let _ = std::fs::remove_file(sub.join(format!("lidar_{i:04}.ply")));
+        }
+        let r = json(
+            &[
+                &[
+                    "trace",
+                    m,
+                    "--mode",
+                    mode,
+                    "--lidar-all-frames",
+                    "-o",
+                    s(&out_img),
+                ][..],
+                &SIZE,
+            ]
+            .concat(),
+        );
+        let mut total = 0;
+        for i in 0..FRAMES {
+            total += ply_points(&sub.join(format!("lidar_{i:04}.ply")));
+        }
+        let e = effects(&r);
+        assert_eq!(count(e, "lidar_points"), total, "{mode}");
+        assert_eq!(count(e, "lidar_rays"), FRAMES * 32 * 256, "{mode}");
+        assert_eq!(count(e, "particles"), particles, "{mode}");
     }
-    assert_eq!(count(effects(&r), "lidar_points"), total);
-    assert_eq!(count(effects(&r), "lidar_rays"), FRAMES * 32 * 256);
     let out = ok(&[&["trace", m, "-o", s(&out_img)][..], &SIZE].concat());
     assert!(
         out.contains(&format!(

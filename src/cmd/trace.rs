@@ -611,6 +611,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(tr) => run_lidar(&args, &p, tr, &lidar_dir).with_context(|| name.clone())?,
         None => None,
     };
+    if let (Some(run), Some(w), Loaded::Gaussians(_)) = (&lidar, &p.effects.weather, &p.loaded) {
+        if args.lidar_all_frames {
+            // scan_scene_gaussian generates each scanned frame's particles again (the count
+            // is constant over time; effects::Weather::count).
+            counters.particles += run.files.len() as u64 * w.count as u64;
+        }
+    }
     if let Some(run) = &lidar {
         counters.lidar_rays += run.rays;
         counters.lidar_points += run.points;
