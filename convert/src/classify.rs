@@ -27,6 +27,24 @@
 //! approaches an axis; that residual is not corrected. `meshsplats` applies no correction
 //! (faithful to the published converter).
 //!
+//! ## Coplanar separation
+//! Fans that lie exactly in one plane (splats of a flat wall or road, common in synthetic
+//! scenes and in surface-aligned captures) are invisible to each other in a ray tracer that
+//! continues a ray from its last transparent hit: Cycles starts the continuation ray on the
+//! hit point and skips that primitive, so every other fan in the same plane sits at t = 0 and
+//! is never hit; only one of the overlapping splats shows per sample and the surface renders
+//! far too transparent (the street fixture in Blender 3.4: 16.5 dB against native, 24.8 dB
+//! once the planes are broken). [`coplanar_offset`] therefore moves every Gaussian's fans along
+//! its normal by `ℓ·2⁻²⁰·R`, with `ℓ ∈ [−128, 127]` a hash of the Gaussian's id and `R` a bound
+//! on the magnitude of its world coordinates rounded up to a power of two: one step is 16
+//! f32 ulps of the largest coordinates below `R` (enough for the continuation ray to find the
+//! next fan), Gaussians in one binade share the step exactly (distinct levels never land
+//! within a step of each other), the whole spread is at most ±2.4·10⁻⁴ of the coordinates
+//! (±3.7 mm at 20–30 m), and two overlapping coplanar Gaussians still share a level with
+//! probability 1/256. The shift is along the normal only: head-on footprints are
+//! unchanged; depth order among Gaussians closer than the spread follows the hash instead of
+//! the view (native splatting orders them by centre depth).
+//!
 //! ## Budget score
 //! `--max-triangles` keeps the Gaussians with the largest `opacity · s_max · s_mid`
 //! (opacity times the area of the 1σ ellipse of the fan's plane, up to π): a proxy for
@@ -128,6 +146,35 @@ pub fn classify(
         Kind::Volumetric
     } else {
         Kind::Flat
+    }
+}
+
+/// Levels of the coplanar separation (module docs).
+pub const COPLANAR_LEVELS: i64 = 256;
+/// One level's step as a fraction of the coordinate magnitude: 2⁻²⁰ (8–16 f32 ulps).
+pub const COPLANAR_STEP: f32 = 1.0 / 1_048_576.0;
+
+/// The shift along the normal of the Gaussian with global id `id` whose world coordinates
+/// are bounded by `reach` (module docs): `ℓ(id)·2⁻²⁰·R`, `R` = `reach` rounded up to a power
+/// of two. Zero for a zero or non-finite `reach`.
+#[inline]
+pub fn coplanar_offset(id: u32, reach: f32) -> f32 {
+    // splitmix64 finaliser: neighbouring ids get unrelated levels.
+    let mut z = (id as u64).wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^= z >> 31;
+    let level = (z % COPLANAR_LEVELS as u64) as i64 - COPLANAR_LEVELS / 2;
+    if !(reach > 0.0 && reach.is_finite()) {
+        return 0.0;
+    }
+    // Round up to a power of two (exact: clear the mantissa after carrying into the exponent).
+    let r = f32::from_bits((reach.max(f32::MIN_POSITIVE).to_bits() + 0x007f_ffff) & 0xff80_0000);
+    let d = level as f32 * COPLANAR_STEP * r;
+    if d.is_finite() {
+        d
+    } else {
+        0.0
     }
 }
 

@@ -130,9 +130,19 @@ pub fn prepare<'a>(
     let mut entries = Vec::with_capacity(clouds.len());
     for (role, name, cloud) in clouds {
         cloud.check_shape()?;
+        let mut mesher = Mesher::new(cloud, shape, opts, &name, offset);
+        if let Role::Object(k) = role {
+            let reach = scene.objects[k]
+                .track
+                .keys
+                .iter()
+                .map(|k| k.pose.translation.abs().max_element())
+                .fold(0.0f32, f32::max);
+            mesher.set_frame_reach(reach);
+        }
         entries.push(MeshEntry {
             role,
-            mesher: Mesher::new(cloud, shape, opts, &name, offset),
+            mesher,
             surfels: None,
         });
         offset += cloud.len() as u64;
@@ -175,7 +185,8 @@ pub fn prepare_split<'a>(
     for (e, part) in entries.iter_mut().zip(&split.parts) {
         let n = (part.residual_ids.len() + part.surfel_ids.len()) as u64;
         e.mesher.set_id_map(&part.residual_ids, offset);
-        let sm = surfels::SurfelMesher::new(part, so, opts, n);
+        let mut sm = surfels::SurfelMesher::new(part, so, opts, n);
+        sm.set_frame_reach(e.mesher.frame_reach());
         sr.add(sm.counts.clone());
         if sm.counts.vertices >= u32::MAX as u64 {
             return Err(ConvertError::Invalid(format!(

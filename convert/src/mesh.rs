@@ -156,6 +156,10 @@ pub struct Mesher<'a> {
     templates: [(u32, Vec<u32>); 2],
     /// Explicit `_GAUSSIAN_ID` per Gaussian (a split cloud keeps its unsplit ids).
     id_map: Option<&'a [u32]>,
+    /// Coplanar separation on (see `classify.rs`), and the largest distance the cloud's
+    /// frame moves from the world origin (an object's track), for the coordinate bound.
+    coplanar: bool,
+    frame_reach: f32,
     pub counts: MeshCounts,
 }
 
@@ -183,6 +187,8 @@ impl<'a> Mesher<'a> {
             linear: opts.color_encoding == ColorEncoding::Linear,
             templates: [(0, Vec::new()), (0, Vec::new())],
             id_map: None,
+            coplanar: opts.coplanar_offset,
+            frame_reach: 0.0,
             counts: MeshCounts {
                 name: name.to_string(),
                 gaussians_in: cloud.len() as u64,
@@ -240,6 +246,24 @@ impl<'a> Mesher<'a> {
         assert_eq!(ids.len(), self.cloud.len(), "one id per Gaussian");
         self.id_map = Some(ids);
         self.counts.id_offset = id_offset;
+    }
+
+    /// The cloud is in a frame that sits up to `reach` from the world origin (an object's
+    /// track): the coplanar separation scales with world, not local, coordinates.
+    pub fn set_frame_reach(&mut self, reach: f32) {
+        self.frame_reach = if reach.is_finite() { reach.abs() } else { 0.0 };
+    }
+
+    pub fn frame_reach(&self) -> f32 {
+        self.frame_reach
+    }
+
+    /// The global id of Gaussian `i`.
+    fn global_id(&self, i: usize) -> u32 {
+        match self.id_map {
+            Some(m) => m[i],
+            None => (self.counts.id_offset + i as u64) as u32,
+        }
     }
 
     pub fn kind(&self, i: usize) -> Kind {
@@ -341,7 +365,13 @@ impl<'a> Mesher<'a> {
             if !kind.kept() {
                 continue;
             }
-            let f = Frame::of(self.cloud, i);
+            let mut f = Frame::of(self.cloud, i);
+            let id = self.global_id(i);
+            if self.coplanar {
+                // The bound of the fan's world coordinates: centre, frame and fan extent.
+                let reach = f.mean.abs().max_element() + self.frame_reach + 4.0 * f.scales[0].abs();
+                f.mean += f.normal() * crate::classify::coplanar_offset(id, reach);
+            }
             if !S::FULL {
                 self.emit_frame(&f, Vec3::ZERO, 0, kind == Kind::Volumetric, out, s);
                 continue;
@@ -354,10 +384,6 @@ impl<'a> Mesher<'a> {
                     srgb_to_linear(rgb.z),
                 );
             }
-            let id = match self.id_map {
-                Some(m) => m[i],
-                None => (self.counts.id_offset + i as u64) as u32,
-            };
             self.emit_frame(&f, rgb, id, kind == Kind::Volumetric, out, s);
         }
     }

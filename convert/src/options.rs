@@ -124,6 +124,10 @@ pub enum ColorEncoding {
 /// it the three-fan form (3× the triangles) pays for itself from oblique views.
 pub const DEFAULT_FLAT_RATIO: f32 = 0.3;
 
+fn yes() -> bool {
+    true
+}
+
 /// Everything that shapes a conversion.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct ConvertOptions {
@@ -146,6 +150,11 @@ pub struct ConvertOptions {
     pub color_encoding: ColorEncoding,
     /// Write the `_GAUSSIAN_ID` vertex attribute (glTF) / `gaussian_id` property (PLY).
     pub gaussian_ids: bool,
+    /// Move each Gaussian's fans along its normal by a tiny hashed amount so that exactly
+    /// coplanar splats stay visible to ray tracers that continue from the last hit (Cycles);
+    /// see `classify.rs`. On by default.
+    #[serde(default = "yes")]
+    pub coplanar_offset: bool,
     /// Split off opaque surfels and write them with their own OPAQUE material (glTF only;
     /// see `surfels.rs`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -166,6 +175,7 @@ impl Default for ConvertOptions {
             bake_view_name: None,
             color_encoding: ColorEncoding::default(),
             gaussian_ids: true,
+            coplanar_offset: true,
             surfels: None,
         }
     }

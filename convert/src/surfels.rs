@@ -276,6 +276,8 @@ pub struct SurfelMesher<'a> {
     keep: Vec<bool>,
     bake_centre: Option<DVec3>,
     linear: bool,
+    coplanar: bool,
+    frame_reach: f32,
     pub counts: SurfelCounts,
 }
 
@@ -324,8 +326,15 @@ impl<'a> SurfelMesher<'a> {
             keep,
             bake_centre: opts.bake_view.as_ref().map(|c| c.centre),
             linear: opts.color_encoding == ColorEncoding::Linear,
+            coplanar: opts.coplanar_offset,
+            frame_reach: 0.0,
             counts,
         }
+    }
+
+    /// See [`crate::Mesher::set_frame_reach`].
+    pub fn set_frame_reach(&mut self, reach: f32) {
+        self.frame_reach = if reach.is_finite() { reach.abs() } else { 0.0 };
     }
 
     pub fn is_empty(&self) -> bool {
@@ -360,14 +369,22 @@ impl<'a> SurfelMesher<'a> {
             if !self.keep[i] {
                 continue;
             }
-            let (mean, eu, ev) = (
+            let (mut mean, eu, ev) = (
                 s.means[i],
                 s.axes_u[i] * s.scales[i][0],
                 s.axes_v[i] * s.scales[i][1],
             );
+            let nrm = s.normal(i).normalize_or(Vec3::Z);
+            if self.coplanar {
+                // The same separation as the residual Gaussians (classify.rs), so a surfel
+                // and a splat in one plane do not hide each other in Cycles either.
+                let reach = mean.abs().max_element()
+                    + self.frame_reach
+                    + 4.0 * s.scales[i][0].max(s.scales[i][1]);
+                mean += nrm * crate::classify::coplanar_offset(self.ids[i], reach);
+            }
             let (rgba, normal, id) = if S::FULL {
                 let c = self.colour(i);
-                let nrm = s.normal(i).normalize_or(Vec3::Z);
                 ([c.x, c.y, c.z, 1.0], nrm.to_array(), self.ids[i])
             } else {
                 ([0.0; 4], [0.0; 3], 0)

@@ -189,9 +189,12 @@ fn meshsplats_fan_matches_f64_reference() {
     let rot = Quat::from_xyzw(0.3, -0.5, 0.2, 0.8).normalize();
     let s = Vec3::new(0.2, 0.5, 0.01); // largest axis is y
     let c = one(s, rot, 0.7);
+    // The published geometry exactly: without the coplanar separation (tested on its own in
+    // tests/coplanar.rs).
     let opts = ConvertOptions {
         profile: Profile::MeshSplats,
         color_encoding: splatbridge_convert::ColorEncoding::Display,
+        coplanar_offset: false,
         ..Default::default()
     };
     let (m, _) = mesh_cloud(&c, &opts).unwrap();

@@ -192,7 +192,22 @@ fn surfel_glb_splits_assigns_materials_and_keeps_ids() {
             );
         }
     }
-    let (plain, _) = splatbridge_convert::mesh_cloud(&rest, &ConvertOptions::default()).unwrap();
+    // (Exact positions: both without the coplanar separation, which hashes the ids and the
+    // residual keeps its unsplit ids.)
+    let exact = ConvertOptions {
+        coplanar_offset: false,
+        ..opts.clone()
+    };
+    let (bytes, _) = glb_bytes(&scene, Some(&fr), &exact).unwrap();
+    let (doc, buffers, _) = gltf::import_slice(&bytes).unwrap();
+    let (plain, _) = splatbridge_convert::mesh_cloud(
+        &rest,
+        &ConvertOptions {
+            coplanar_offset: false,
+            ..Default::default()
+        },
+    )
+    .unwrap();
     let stat = doc
         .nodes()
         .find(|n| n.name() == Some("static"))
@@ -234,14 +249,31 @@ fn surfel_fans_reach_the_footprint_in_the_object_frame() {
     .sqrt();
     for (j, f) in soup.positions.chunks(n + 1).enumerate() {
         let id = part.surfel_ids[j] as usize - scene.static_gaussians.len();
-        let centre = car.means[id].as_dvec3();
-        assert_eq!(Vec3::from(f[0]).as_dvec3(), centre);
+        let mean = car.means[id].as_dvec3();
         // Reference axes from the stored quaternion, scales sorted largest first.
         let q = car.rotations[id].as_dquat().normalize();
         let s = car.log_scales[id].as_dvec3().to_array().map(f64::exp);
         let mut order = [0usize, 1, 2];
         order.sort_by(|&a, &b| s[b].total_cmp(&s[a]));
         let axes = [0, 1, 2].map(|k| q * [DVec3::X, DVec3::Y, DVec3::Z][order[k]]);
+        // The centre is the mean moved along the normal by the coplanar separation: at most
+        // 128 steps of 2^-20 of the world-coordinate bound rounded up to a power of two
+        // (≤ 2× the bound; classify.rs).
+        let centre = Vec3::from(f[0]).as_dvec3();
+        let off = centre - mean;
+        let frame = scene.objects[0]
+            .track
+            .keys
+            .iter()
+            .map(|k| k.pose.translation.abs().max_element() as f64)
+            .fold(0.0, f64::max);
+        let reach = mean.abs().max_element() + frame + 4.0 * s[order[0]];
+        assert!(
+            off.length() <= 2.0 * 128.0 * reach / 1048576.0 * 1.0001,
+            "{off}"
+        );
+        // f32 rounding of a centre ≈ 2 m from the origin: 1e-6 is a few ulps.
+        assert!((off - axes[2] * off.dot(axes[2])).length() < 1e-6);
         for (k, v) in f[1..].iter().enumerate() {
             let d = Vec3::from(*v).as_dvec3() - centre;
             let (u, w) = (d.dot(axes[0]) / s[order[0]], d.dot(axes[1]) / s[order[1]]);

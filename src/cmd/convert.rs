@@ -99,6 +99,12 @@ pub struct Args {
     /// Vertex colour encoding of glTF outputs.
     #[arg(long, value_enum, default_value = "linear")]
     pub color_encoding: ColorArg,
+    /// Keep exactly coplanar splats exactly coplanar. By default each Gaussian's fans move
+    /// along its normal by a hashed step of ≤ 1.2e-4 of its coordinates' magnitude, so that
+    /// Cycles (which continues a ray from its last transparent hit) sees every splat of a
+    /// flat surface, not one; without it such surfaces render far too transparent in Blender.
+    #[arg(long)]
+    pub no_coplanar_offset: bool,
     /// Do not write the _GAUSSIAN_ID attribute.
     #[arg(long)]
     pub no_ids: bool,
@@ -168,6 +174,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ColorArg::Display => ColorEncoding::Display,
         },
         gaussian_ids: !args.no_ids,
+        coplanar_offset: !args.no_coplanar_offset,
         surfels: args
             .surfels
             .then_some(splatbridge_convert::surfels::SurfelOptions {
