@@ -150,13 +150,9 @@ fn settings(only: &[String]) -> Vec<(&'static str, String, Setting, bool)> {
         }
     }
     if want("hybrid") {
-        for (a, r) in [
-            (0.5, 0.2),
-            (0.7, 0.1),
-            (0.8, 0.1),
-            (0.9, 0.05),
-            (0.95, 0.05),
-        ] {
+        // Around the defaults (opacity ≥ 0.8, flatness ≤ 0.3), including GES's own 0.8 rule
+        // with a stricter flatness and the setting that ignores flatness.
+        for (a, r) in [(0.5, 0.3), (0.8, 0.1), (0.8, 0.3), (0.9, 0.5), (0.95, 1.0)] {
             v.push((
                 "hybrid",
                 format!("opacity≥{a} flat≤{r}"),

@@ -47,30 +47,26 @@ pub fn markdown_table(records: &[Record], thumbs: bool) -> String {
     let mut s = String::new();
     let _ = write!(
         s,
-        "| renderer | profile | file | knob | camera | t | PSNR dB | SSIM | tile-SSIM | max err | ms | triangles | bytes |"
+        "| renderer | profile | file | knob | setting | camera | t | PSNR dB | SSIM | tile-SSIM | max err | ms | triangles | bytes |"
     );
     if thumbs {
         s.push_str(" image | difference |");
     }
     s.push('\n');
-    s.push_str("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    s.push_str("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     if thumbs {
         s.push_str("---|---|");
     }
     s.push('\n');
     for r in records {
-        let knob = if r.knob.is_empty() {
-            String::new()
-        } else {
-            format!("{}={}", r.knob, r.value)
-        };
         let _ = write!(
             s,
-            "| {} | {} | {} | {} | {} | {:.2} | {} | {:.4} | {:.4} | {:.3} | {:.1} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {:.2} | {} | {:.4} | {:.4} | {:.3} | {:.1} | {} | {} |",
             r.renderer,
             r.profile,
             r.format,
-            knob,
+            r.knob,
+            r.value,
             r.camera,
             r.time,
             fmt_psnr(r.psnr),
