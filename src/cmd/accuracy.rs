@@ -37,6 +37,9 @@ pub struct Args {
     pub only: Vec<String>,
     #[arg(long)]
     pub drop_invalid: bool,
+    /// Re-draw the plots and table from OUT/accuracy.json without measuring again.
+    #[arg(long)]
+    pub replot: bool,
     #[arg(short, long)]
     pub out: PathBuf,
 }
@@ -175,7 +178,83 @@ fn mean(v: &[f64]) -> f64 {
     }
 }
 
+/// The MeshSplats default, marked on the plots.
+fn is_baseline(r: &Record) -> bool {
+    r.knob == "profile" && r.value == "meshsplats"
+}
+
+/// Plot points from the records: every setting against time; against triangles only the knobs
+/// that change the mesh's shape (the k-buffer changes time only, and the extent rows are the
+/// same meshes as two profile rows, so they would sit on top of other points).
+fn points(records: &[Record]) -> (Vec<Point>, Vec<Point>) {
+    let point = |r: &Record, cost: f64| Point {
+        label: r.value.clone(),
+        series: r.knob.clone(),
+        cost,
+        psnr: r.psnr,
+        baseline: is_baseline(r),
+    };
+    let time = records.iter().map(|r| point(r, r.milliseconds)).collect();
+    let tris = records
+        .iter()
+        .filter(|r| r.triangles > 0 && (r.knob == "profile" || r.knob == "segments"))
+        .map(|r| point(r, r.triangles as f64))
+        .collect();
+    (time, tris)
+}
+
+/// Plots and `accuracy.md` from the records (also used by `--replot`).
+fn write_outputs(out: &std::path::Path, what: &str, records: &[Record]) -> anyhow::Result<()> {
+    let (points_time, points_tris) = points(records);
+    plot::plot(
+        &points_time,
+        "milliseconds per frame (log)",
+        "PSNR against time",
+        &out.join("psnr_vs_time"),
+    )?;
+    if !points_tris.is_empty() {
+        plot::plot(
+            &points_tris,
+            "triangles (log)",
+            "PSNR against triangles",
+            &out.join("psnr_vs_triangles"),
+        )?;
+    }
+    let front: Vec<String> = plot::pareto_front(&points_tris)
+        .into_iter()
+        .map(|i| points_tris[i].label.clone())
+        .collect();
+    let md = format!(
+        "# Accuracy against cost\n\n{what}. Reference: native splatting, reference settings. \
+         Each row changes one knob from the defaults; PSNR is the mean over cameras; milliseconds are \
+         render (trace) times on a shared 2-core machine, so compare them within one run only.\n\n\
+         ![PSNR against triangles](psnr_vs_triangles.png)\n![PSNR against time](psnr_vs_time.png)\n\n\
+         Pareto front (PSNR against triangles): {}\n\n{}",
+        front.join(", "),
+        markdown_table(records, false)
+    );
+    splatbridge_scene::image_io::write_atomic(&out.join("accuracy.md"), md.as_bytes())?;
+    for r in records {
+        println!(
+            "{:14} {:28} PSNR {:7.2} dB  {:9.1} ms  {:>10} triangles",
+            r.knob, r.value, r.psnr, r.milliseconds, r.triangles
+        );
+    }
+    Ok(())
+}
+
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.replot {
+        let path = args.out.join("accuracy.json");
+        let text = std::fs::read_to_string(&path)
+            .with_context(|| format!("{}: cannot read", path.display()))?;
+        let records: Vec<Record> = serde_json::from_str(&text)
+            .with_context(|| format!("{}: not an accuracy report", path.display()))?;
+        let what = format!("`{}` (re-plotted from accuracy.json)", args.scene.display());
+        write_outputs(&args.out, &what, &records)?;
+        println!("wrote {}", args.out.join("accuracy.md").display());
+        return Ok(());
+    }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("{}: cannot create the output folder", args.out.display()))?;
     let scene = common::load(&args.scene, args.drop_invalid)?;
@@ -190,13 +269,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let sweep = settings(&args.only);
     let pb = common::progress(sweep.len() as u64, "accuracy");
     let mut records = Vec::new();
-    let mut points_time = Vec::new();
-    let mut points_tris = Vec::new();
-    for (family, value, setting, baseline) in sweep {
+    for (family, value, setting, _baseline) in sweep {
         pb.set_message(format!("{family} {value}"));
         let mut psnr = Vec::new();
         let mut ms = Vec::new();
-        let mut triangles = 0;
         let mut first: Option<Record> = None;
         let mut push = |img: &Frame,
                         reference: &Frame,
@@ -237,7 +313,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     cfg.backend,
                     cfg.preset,
                 )?;
-                triangles = m.triangles;
                 for (c, reference) in cams.iter().zip(&refs) {
                     let img = parity::render_mesh(&m, c, 0.0, *k)?;
                     push(&img.frame, reference, img.ms, c, m.triangles, m.bytes)?;
@@ -265,67 +340,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         r.psnr = mean(&psnr);
         r.milliseconds = mean(&ms);
         r.camera = format!("mean of {}", cams.len());
-        let label = value.clone();
-        points_time.push(Point {
-            label: label.clone(),
-            series: family.into(),
-            cost: r.milliseconds,
-            psnr: r.psnr,
-            baseline,
-        });
-        if triangles > 0 {
-            points_tris.push(Point {
-                label,
-                series: family.into(),
-                cost: triangles as f64,
-                psnr: r.psnr,
-                baseline,
-            });
-        }
         records.push(r);
         pb.inc(1);
     }
     pb.finish_and_clear();
-    plot::plot(
-        &points_time,
-        "milliseconds per frame (log)",
-        "PSNR against time",
-        &args.out.join("psnr_vs_time"),
-    )?;
-    if !points_tris.is_empty() {
-        plot::plot(
-            &points_tris,
-            "triangles (log)",
-            "PSNR against triangles",
-            &args.out.join("psnr_vs_triangles"),
-        )?;
-    }
     let json = serde_json::to_string_pretty(&records)?;
     splatbridge_scene::image_io::write_atomic(&args.out.join("accuracy.json"), json.as_bytes())?;
-    let front: Vec<String> = plot::pareto_front(&points_tris)
-        .into_iter()
-        .map(|i| points_tris[i].label.clone())
-        .collect();
-    let md = format!(
-        "# Accuracy against cost: `{}`\n\n{} cameras at {}×{}, time {}. Reference: native splatting, reference settings. \
-         Each row changes one knob from the defaults; PSNR is the mean over cameras.\n\n\
-         ![PSNR against triangles](psnr_vs_triangles.png)\n![PSNR against time](psnr_vs_time.png)\n\n\
-         Pareto front (PSNR against triangles): {}\n\n{}",
+    let what = format!(
+        "`{}`: {} cameras at {}×{}, time {}",
         args.scene.display(),
         cams.len(),
         args.width,
         args.height,
-        args.time,
-        front.join(", "),
-        markdown_table(&records, false)
+        args.time
     );
-    splatbridge_scene::image_io::write_atomic(&args.out.join("accuracy.md"), md.as_bytes())?;
-    for r in &records {
-        println!(
-            "{:14} {:28} PSNR {:7.2} dB  {:9.1} ms  {:>10} triangles",
-            r.knob, r.value, r.psnr, r.milliseconds, r.triangles
-        );
-    }
+    write_outputs(&args.out, &what, &records)?;
     println!("wrote {}", args.out.join("accuracy.md").display());
     Ok(())
 }

@@ -5,10 +5,11 @@ pub mod plot;
 
 use std::fmt::Write as _;
 
-use serde::Serialize;
+use serde::{Deserialize, Deserializer, Serialize};
 
 /// One measured image against the native-splatting reference.
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+#[serde(default)]
 pub struct Record {
     /// native, hybrid, trace-gaussian, trace-mesh.
     pub renderer: String,
@@ -22,6 +23,7 @@ pub struct Record {
     pub camera: String,
     pub time: f64,
     /// dB; +inf for an image identical to the reference (JSON: null).
+    #[serde(deserialize_with = "null_is_infinite")]
     pub psnr: f64,
     pub ssim: f64,
     pub tile_ssim: f64,
@@ -32,6 +34,11 @@ pub struct Record {
     /// Image and heat-map paths relative to the report.
     pub image: String,
     pub heatmap: String,
+}
+
+/// JSON has no infinity: serde_json writes +inf as null, read back here as +inf.
+fn null_is_infinite<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::INFINITY))
 }
 
 fn fmt_psnr(p: f64) -> String {
@@ -90,4 +97,24 @@ pub fn markdown_table(records: &[Record], thumbs: bool) -> String {
         s.push('\n');
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn records_round_trip_through_json_with_infinite_psnr() {
+        let r = Record {
+            renderer: "native".into(),
+            psnr: f64::INFINITY,
+            ssim: 1.0,
+            ..Record::default()
+        };
+        let json = serde_json::to_string(&vec![r.clone()]).unwrap();
+        assert!(json.contains("\"psnr\":null"));
+        let back: Vec<Record> = serde_json::from_str(&json).unwrap();
+        assert_eq!(back[0].psnr, f64::INFINITY);
+        assert_eq!(back[0].renderer, "native");
+    }
 }

@@ -47,6 +47,22 @@ pub fn pareto_front(pts: &[Point]) -> Vec<usize> {
     front
 }
 
+/// Axis labels for costs spanning decades: 750k, 2.8M, 12 (no trailing ".0").
+fn si(v: f64) -> String {
+    let trim = |x: f64| {
+        let t = format!("{x:.3}");
+        t.trim_end_matches('0').trim_end_matches('.').to_string()
+    };
+    let a = v.abs();
+    if a >= 1e6 {
+        format!("{}M", trim(v / 1e6))
+    } else if a >= 1e3 {
+        format!("{}k", trim(v / 1e3))
+    } else {
+        trim(v)
+    }
+}
+
 static FONT: Once = Once::new();
 
 fn register_font() {
@@ -127,6 +143,7 @@ where
         .map_err(|e| anyhow::anyhow!("{e:?}"))?;
     chart
         .configure_mesh()
+        .x_label_formatter(&|v| si(*v))
         .x_desc(x_label)
         .y_desc("PSNR against native splatting (dB)")
         .label_style(("sans-serif", 14))
@@ -222,6 +239,14 @@ mod tests {
             p(0.5, f64::NAN),
         ];
         assert_eq!(pareto_front(&pts), vec![0, 2, 4]);
+    }
+
+    #[test]
+    fn si_labels() {
+        assert_eq!(si(2_830_200.0), "2.83M");
+        assert_eq!(si(707_550.0), "707.55k");
+        assert_eq!(si(1e6), "1M");
+        assert_eq!(si(12.0), "12");
     }
 
     #[test]
