@@ -26,8 +26,10 @@ fn main() {
         }
     };
     let scene = splatbridge_scene::fixtures::street(1);
+    // As `splatbridge convert` writes it (coplanar separation on: the file is for Blender).
     let opts = ConvertOptions {
         profile,
+        coplanar_offset: true,
         surfels: args
             .iter()
             .any(|a| a == "--surfels")

@@ -45,6 +45,16 @@
 //! unchanged; depth order among Gaussians closer than the spread follows the hash instead of
 //! the view (native splatting orders them by centre depth).
 //!
+//! What it costs: rasterising viewers draw coplanar layers in index order whatever their
+//! depth, so they do not change; the in-repo ray tracer breaks exact ties by Gaussian id, which
+//! on the grid-built street fixture happens to follow native's depth order, so there the
+//! hashed order loses 0.5–3.3 dB per camera (320×240, texture profile: street 24.88 → 24.34,
+//! side 29.78 → 26.43, elevated 26.47 → 25.11, reverse 23.13 → 24.17); on `fourth_st.ply`,
+//! which has no exactly coplanar Gaussians, 27.25 → 27.26 dB. Hence the separation is off in
+//! [`crate::ConvertOptions::default`] (in-memory conversions for the tracer and the parity
+//! floors measured with it) and on in `splatbridge convert`, whose files are the ones opened in
+//! Blender.
+//!
 //! ## Budget score
 //! `--max-triangles` keeps the Gaussians with the largest `opacity · s_max · s_mid`
 //! (opacity times the area of the 1σ ellipse of the fan's plane, up to π): a proxy for

@@ -124,10 +124,6 @@ pub enum ColorEncoding {
 /// it the three-fan form (3× the triangles) pays for itself from oblique views.
 pub const DEFAULT_FLAT_RATIO: f32 = 0.3;
 
-fn yes() -> bool {
-    true
-}
-
 /// Everything that shapes a conversion.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct ConvertOptions {
@@ -152,8 +148,8 @@ pub struct ConvertOptions {
     pub gaussian_ids: bool,
     /// Move each Gaussian's fans along its normal by a tiny hashed amount so that exactly
     /// coplanar splats stay visible to ray tracers that continue from the last hit (Cycles);
-    /// see `classify.rs`. On by default.
-    #[serde(default = "yes")]
+    /// see `classify.rs` for what it costs. Off here, on in `splatbridge convert`.
+    #[serde(default)]
     pub coplanar_offset: bool,
     /// Split off opaque surfels and write them with their own OPAQUE material (glTF only;
     /// see `surfels.rs`).
@@ -175,7 +171,7 @@ impl Default for ConvertOptions {
             bake_view_name: None,
             color_encoding: ColorEncoding::default(),
             gaussian_ids: true,
-            coplanar_offset: true,
+            coplanar_offset: false,
             surfels: None,
         }
     }

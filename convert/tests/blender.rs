@@ -41,6 +41,7 @@ fn street_glb_imports_into_blender_as_intended() {
         None,
         &ConvertOptions {
             surfels: Some(Default::default()),
+            coplanar_offset: true,
             ..Default::default()
         },
         false,

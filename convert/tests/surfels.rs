@@ -76,8 +76,10 @@ fn surfel_glb_splits_assigns_materials_and_keeps_ids() {
     let scene = common::street(500);
     let fr = frames();
     let so = SurfelOptions::default();
+    // As `splatbridge convert --surfels` writes it (coplanar separation on).
     let opts = ConvertOptions {
         surfels: Some(so),
+        coplanar_offset: true,
         ..Default::default()
     };
     let (bytes, report) = glb_bytes(&scene, Some(&fr), &opts).unwrap();
@@ -233,7 +235,10 @@ fn surfel_fans_reach_the_footprint_in_the_object_frame() {
         segments: 12,
         ..Default::default()
     };
-    let opts = ConvertOptions::default();
+    let opts = ConvertOptions {
+        coplanar_offset: true,
+        ..Default::default()
+    };
     let split = split_scene(&scene, None, &so);
     // Object 0 ("car"): surfels in its local frame, centres at the local means.
     let part = &split.parts[1];

@@ -44,6 +44,7 @@ fn street_exports_are_validator_clean() {
         let opts = ConvertOptions {
             profile,
             surfels: Some(Default::default()),
+            coplanar_offset: true,
             ..Default::default()
         };
         let r = convert_to_file(&p, &scene, Some(&frames), &opts, false).unwrap();
