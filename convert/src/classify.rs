@@ -118,7 +118,7 @@ impl Frame {
         }
     }
 
-    /// Unit normal of the main fan: ± the shortest axis, oriented as axes[0] × axes[1] so the
+    /// Unit normal of the main fan: ± the shortest axis, oriented as `axes[0] × axes[1]` so the
     /// fan's winding is counter-clockwise around it.
     pub fn normal(&self) -> Vec3 {
         let n = self.axes[0].cross(self.axes[1]);

@@ -17,12 +17,28 @@
 //! * Vertex attributes: POSITION, NORMAL (the Gaussian's shortest axis), COLOR_0 (RGBA,
 //!   normalized u16, linear by default: see [`options::ColorEncoding`]), `_GAUSSIAN_ID` and,
 //!   for the `texture` profile, TEXCOORD_0; u32 indexed TRIANGLES; one unlit, double-sided
-//!   BLEND material.
+//!   BLEND material. With `--surfels` ([`surfels`]) each part's mesh gets a second primitive:
+//!   opaque surfel fans with an unlit, double-sided OPAQUE material `surfels`.
+//! * With [`ConvertOptions::coplanar_offset`] (on in `splatbridge convert`), every Gaussian's
+//!   fans sit a hashed sub-millimetre step off its own plane, so that Cycles renders exactly
+//!   coplanar splats (see [`classify`] for why and what it costs).
 //! * `_GAUSSIAN_ID` (FLOAT SCALAR, exact for ids below 2²⁴; glTF forbids unsigned-int vertex
 //!   attributes) is the Gaussian's index in [`DynamicScene::composite`] order: static
 //!   Gaussians first, then each object's in order, then per-frame content. Every
 //!   mesh's `extras.idOffset` says where its ids start.
-//! * `asset.extras.splatbridge`: the options and counts ([`options::ConvertReport::metadata`]).
+//! * `asset.extras.splatbridge`: the options and counts ([`options::ConvertReport::metadata`]),
+//!   with the surfel split's thresholds and counts under `surfels`.
+//!
+//! ## Blender
+//! Blender 3.4 imports the BLEND material as Emission/Transparent mixed by `COLOR_0` alpha
+//! (× the falloff texture's alpha) behind a Light Path "Is Camera Ray" switch; camera rays keep
+//! that flag through transparent bounces, so Cycles composites the layers correctly. What the
+//! file cannot carry and a Cycles comparison with native splatting must set: the Standard view
+//! transform (3.4 defaults to Filmic), a black world (the factory world is grey) and enough
+//! transparent bounces (Cycles' default 8 cuts a ray off after 8 splat layers);
+//! `scripts/blender-parity-settings.py` sets them. Cycles blends in linear light where native
+//! splatting blends display values, which leaves the render somewhat brighter
+//! (`scripts/blender-render-compare.sh`).
 
 pub mod classify;
 pub mod gltf_writer;
