@@ -88,18 +88,19 @@ pub fn heading_rotation(forward: Vec3) -> Quat {
 }
 
 impl TrajectoryRule {
-    fn check(&self) -> Result<(), TrajectoryError> {
-        let finite3 = |v: &[f32; 3]| v.iter().all(|x| x.is_finite());
+    /// The rule's name and every number it holds (positions, angles, speeds, times), so
+    /// finiteness is checked in one place.
+    fn numbers(&self) -> (&'static str, Vec<f64>) {
+        let v3 = |a: &[f32; 3]| a.iter().map(|&x| x as f64).collect::<Vec<_>>();
         match self {
             TrajectoryRule::Straight {
                 start,
                 heading_deg,
                 speed,
-            } => {
-                if !finite3(start) || !heading_deg.is_finite() || !speed.is_finite() {
-                    return err("straight: non-finite start, heading or speed");
-                }
-            }
+            } => (
+                "straight",
+                [v3(start), vec![*heading_deg as f64, *speed as f64]].concat(),
+            ),
             TrajectoryRule::LaneChange {
                 start,
                 heading_deg,
@@ -107,21 +108,20 @@ impl TrajectoryRule {
                 offset,
                 begin,
                 duration,
-            } => {
-                if !finite3(start)
-                    || !heading_deg.is_finite()
-                    || !speed.is_finite()
-                    || !offset.is_finite()
-                    || !begin.is_finite()
-                {
-                    return err("lane_change: non-finite value");
-                }
-                if !(*duration > 0.0 && duration.is_finite()) {
-                    return err(format!(
-                        "lane_change: duration must be positive, got {duration}"
-                    ));
-                }
-            }
+            } => (
+                "lane_change",
+                [
+                    v3(start),
+                    vec![
+                        *heading_deg as f64,
+                        *speed as f64,
+                        *offset as f64,
+                        *begin,
+                        *duration,
+                    ],
+                ]
+                .concat(),
+            ),
             TrajectoryRule::Turn {
                 start,
                 heading_deg,
@@ -129,56 +129,70 @@ impl TrajectoryRule {
                 radius,
                 angle_deg,
                 begin,
-            } => {
-                if !finite3(start)
-                    || !heading_deg.is_finite()
-                    || !speed.is_finite()
-                    || !angle_deg.is_finite()
-                    || !begin.is_finite()
-                {
-                    return err("turn: non-finite value");
-                }
-                if !(*radius > 0.0 && radius.is_finite()) {
-                    return err(format!("turn: radius must be positive, got {radius}"));
-                }
-                if *speed <= 0.0 {
-                    return err("turn: speed must be positive");
-                }
-            }
+            } => (
+                "turn",
+                [
+                    v3(start),
+                    vec![
+                        *heading_deg as f64,
+                        *speed as f64,
+                        *radius as f64,
+                        *angle_deg as f64,
+                        *begin,
+                    ],
+                ]
+                .concat(),
+            ),
             TrajectoryRule::Stop {
                 start,
                 heading_deg,
                 speed,
                 begin,
                 distance,
-            } => {
-                if !finite3(start)
-                    || !heading_deg.is_finite()
-                    || !speed.is_finite()
-                    || !begin.is_finite()
-                {
-                    return err("stop: non-finite value");
-                }
-                if *speed < 0.0 {
-                    return err("stop: speed must not be negative");
-                }
-                if !(*distance > 0.0 && distance.is_finite()) {
-                    return err(format!("stop: distance must be positive, got {distance}"));
-                }
-            }
-            TrajectoryRule::Deltas { start, deltas } => {
-                if !finite3(start) {
-                    return err("deltas: non-finite start");
-                }
-                if deltas.is_empty() {
-                    return err("deltas: at least one delta is needed");
-                }
-                if let Some(k) = deltas.iter().position(|d| !finite3(d)) {
-                    return err(format!("deltas: delta {k} is not finite"));
-                }
-            }
+            } => (
+                "stop",
+                [
+                    v3(start),
+                    vec![*heading_deg as f64, *speed as f64, *begin, *distance as f64],
+                ]
+                .concat(),
+            ),
+            TrajectoryRule::Deltas { start, .. } => ("deltas", v3(start)),
         }
-        Ok(())
+    }
+
+    fn check(&self) -> Result<(), TrajectoryError> {
+        let (name, numbers) = self.numbers();
+        if numbers.iter().any(|x| !x.is_finite()) {
+            return err(format!("{name}: non-finite value"));
+        }
+        match self {
+            TrajectoryRule::LaneChange { duration, .. } if !(*duration > 0.0) => err(format!(
+                "lane_change: duration must be positive, got {duration}"
+            )),
+            TrajectoryRule::Turn { radius, .. } if !(*radius > 0.0) => {
+                err(format!("turn: radius must be positive, got {radius}"))
+            }
+            TrajectoryRule::Turn { speed, .. } if *speed <= 0.0 => {
+                err("turn: speed must be positive")
+            }
+            TrajectoryRule::Stop { speed, .. } if *speed < 0.0 => {
+                err("stop: speed must not be negative")
+            }
+            TrajectoryRule::Stop { distance, .. } if !(*distance > 0.0) => {
+                err(format!("stop: distance must be positive, got {distance}"))
+            }
+            TrajectoryRule::Deltas { deltas, .. } if deltas.is_empty() => {
+                err("deltas: at least one delta is needed")
+            }
+            TrajectoryRule::Deltas { deltas, .. } => {
+                match deltas.iter().position(|d| d.iter().any(|x| !x.is_finite())) {
+                    Some(k) => err(format!("deltas: delta {k} is not finite")),
+                    None => Ok(()),
+                }
+            }
+            _ => Ok(()),
+        }
     }
 
     /// Position and ground-plane velocity at time `t` (analytic rules only).
