@@ -49,7 +49,7 @@ pub struct GaussianTracer {
 
 /// Near culling for primary rays: the camera origin (relative to the anchor) and forward axis.
 #[derive(Clone, Copy, Debug)]
-struct Near {
+pub(crate) struct Near {
     origin: Vec3,
     forward: Vec3,
     near: f32,
@@ -137,7 +137,7 @@ impl GaussianTracer {
         t.is_finite().then_some((t, alpha))
     }
 
-    fn collect(
+    pub(crate) fn collect(
         &self,
         o: Vec3,
         d: Vec3,

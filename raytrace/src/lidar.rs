@@ -257,29 +257,8 @@ impl OpacityMarch for GaussianTracer {
         let mut after: Option<(u32, u32, u32, u32)> = None;
         let mut tr = 1.0f32;
         loop {
-            buf.clear();
-            // The same hits and order as the tracer's own collection (t*, then index).
-            self.accel.traverse(ro, rd, tmax, &mut |p, _, cull| {
-                let p = p as usize;
-                let Some((t, alpha)) = self.response(p, ro, rd) else {
-                    return;
-                };
-                if t > tmax {
-                    return;
-                }
-                let h = Hit {
-                    t,
-                    gaussian: self.index[p],
-                    instance: 0,
-                    group: 0,
-                    tri: p as u32,
-                    bary: [alpha, 0.0, 0.0],
-                };
-                if after.is_some_and(|a| h.key() <= a) {
-                    return;
-                }
-                *cull = buf.insert(h, tmax);
-            });
+            // The tracer's own collection: the same hits in the same (t*, index) order.
+            self.collect(ro, rd, None, tmax, after, &mut buf);
             for h in &buf.hits {
                 let a = h.bary[0];
                 tr *= 1.0 - a;
