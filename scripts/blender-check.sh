@@ -83,12 +83,18 @@ if "surfels" in gltf_materials and not any(is_surfel_material(m["name"]) for m i
 for o in meshes:
     if any(is_surfel_material(n) for n in o.get("materials", [])) and not o.get("color_attributes"):
         problems.append(f"object {o['name']}: surfel material without a colour attribute")
-moving = {c["target"]["node"] for a in doc.get("animations", []) for c in a["channels"] if c["target"]["path"] in ("translation", "rotation")}
+channels = [(a, c) for a in doc.get("animations", []) for c in a["channels"]]
+moving = {c["target"]["node"] for _, c in channels if c["target"]["path"] in ("translation", "rotation")}
+# Per-frame content (weather particles) is one node per frame shown by a STEP scale 0 <-> 1.
+visibility = {c["target"]["node"] for _, c in channels if c["target"]["path"] == "scale"} - moving
+for a, c in channels:
+    if c["target"]["node"] in visibility and a["samplers"][c["sampler"]].get("interpolation", "LINEAR") != "STEP":
+        problems.append(f"node {c['target']['node']}: visibility (scale) animation is not STEP")
 meta = doc["asset"].get("extras", {}).get("splatbridge", {})
 fps = rep["scene"]["fps"]
 animated = [o for o in meshes if o["action"]]
-if len(animated) != len(moving):
-    problems.append(f"{len(animated)} animated objects for {len(moving)} moving nodes")
+if len(animated) != len(moving) + len(visibility):
+    problems.append(f"{len(animated)} animated objects for {len(moving)} moving and {len(visibility)} per-frame nodes")
 times = []
 for a in doc.get("animations", []):
     for s in a["samplers"]:
