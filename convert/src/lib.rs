@@ -67,12 +67,10 @@ pub use profile::ProfileShape;
 /// Errors of conversion and writing.
 #[derive(Debug, thiserror::Error)]
 pub enum ConvertError {
-    #[error("{path}: {source}")]
-    Io {
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
+    /// I/O failure on a named file. The OS error is part of the message and deliberately not
+    /// a `source`, so error chains (`{:#}`) print it once.
+    #[error("{path}: {err}")]
+    Io { path: PathBuf, err: std::io::Error },
     #[error("{path}: {what}")]
     Format { path: PathBuf, what: String },
     #[error("{0}")]
@@ -299,7 +297,7 @@ pub fn write_glb<W: Write>(
     let bytes = gltf_writer::write_glb(w, &entries, scene, frames, opts, &report).map_err(|e| {
         ConvertError::Io {
             path: "<memory>".into(),
-            source: e,
+            err: e,
         }
     })?;
     report.bytes = bytes;
@@ -378,7 +376,7 @@ pub fn sample_pose(keys: &[splatbridge_scene::dynamic::PoseKey], t: f64) -> Pose
 pub(crate) fn io_err(path: &Path) -> impl Fn(std::io::Error) -> ConvertError + '_ {
     move |e| ConvertError::Io {
         path: path.into(),
-        source: e,
+        err: e,
     }
 }
 

@@ -119,7 +119,7 @@ pub fn write_glb<W: Write>(
     let bytes = glb_container(w, &json, bin_len, |w| stream(w, &small, &plans)).map_err(|e| {
         ConvertError::Io {
             path: "<memory>".into(),
-            source: e,
+            err: e,
         }
     })?;
     report.bytes = bytes;
