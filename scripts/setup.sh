@@ -7,16 +7,18 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 need=()
-command -v blender >/dev/null 2>&1 || need+=(blender)
-python3 -c 'import numpy' >/dev/null 2>&1 || /usr/bin/python3 -c 'import numpy' >/dev/null 2>&1 || need+=(python3-numpy)
-[ -e /usr/lib/llvm-14/lib/libclang.so ] || ls /usr/lib/x86_64-linux-gnu/libclang*.so* >/dev/null 2>&1 || need+=(libclang-dev)
+installed() { dpkg-query -W -f='${Status}' "$1" 2>/dev/null | grep -q "install ok installed"; }
+# blender: the import check; python3-numpy: Debian's Blender 3.4 importer needs it;
+# libclang-dev: bindgen in embree4-sys (headers included, not just the runtime library).
+for pkg in blender python3-numpy libclang-dev unzip; do
+  installed "$pkg" || need+=("$pkg")
+done
 command -v node >/dev/null 2>&1 || need+=(nodejs npm)
-command -v unzip >/dev/null 2>&1 || need+=(unzip)
 if ((${#need[@]})); then
   if [ "$(id -u)" = 0 ]; then
     echo "setup: installing ${need[*]}"
     apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${need[@]}" >/dev/null
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${need[@]}" >/dev/null
   else
     echo "setup: please install: ${need[*]} (apt-get needs root)" >&2
     exit 1
