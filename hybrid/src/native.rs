@@ -99,6 +99,26 @@ pub struct RenderStats {
     pub times: PhaseTimes,
 }
 
+/// Stats of several renders summed (the time samples of one motion-blurred frame).
+impl std::ops::AddAssign<&RenderStats> for RenderStats {
+    fn add_assign(&mut self, s: &RenderStats) {
+        self.gaussians += s.gaussians;
+        self.projected += s.projected;
+        self.culled_near += s.culled_near;
+        self.culled_near_in_view += s.culled_near_in_view;
+        self.culled_behind += s.culled_behind;
+        self.culled_transparent += s.culled_transparent;
+        self.culled_degenerate += s.culled_degenerate;
+        self.culled_offscreen += s.culled_offscreen;
+        self.tile_pairs += s.tile_pairs;
+        self.blends += s.blends;
+        self.times.projection += s.times.projection;
+        self.times.sorting += s.times.sorting;
+        self.times.binning += s.times.binning;
+        self.times.blending += s.times.blending;
+    }
+}
+
 /// Errors of a render request.
 #[derive(Debug, thiserror::Error)]
 pub enum RenderError {

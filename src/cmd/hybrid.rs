@@ -192,22 +192,6 @@ pub struct Args {
     pub json: bool,
 }
 
-/// Sum of the stats of several renders (the time samples of one motion-blurred frame).
-pub fn add_stats(total: &mut GesStats, s: &GesStats) {
-    total.surfels += s.surfels;
-    total.surfels_drawn += s.surfels_drawn;
-    total.surfel_pairs += s.surfel_pairs;
-    total.gaussians += s.gaussians;
-    total.projected += s.projected;
-    total.tile_pairs += s.tile_pairs;
-    total.culled_pairs += s.culled_pairs;
-    total.blends += s.blends;
-    total.times.surfels += s.times.surfels;
-    total.times.projection += s.times.projection;
-    total.times.binning += s.times.binning;
-    total.times.blending += s.times.blending;
-}
-
 /// The stats of a hybrid render as JSON (times in milliseconds).
 pub fn stats_json(s: &GesStats, split_ms: f64) -> serde_json::Value {
     let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
@@ -288,7 +272,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         how = h;
         let (f, st) = render_ges(&surfels, &rest, &cam, &opts).with_context(|| name.clone())?;
         rendered.push(f);
-        add_stats(&mut stats, &st);
+        stats += &st;
     }
     let frame = if rendered.len() == 1 {
         rendered.pop().expect("one sample")

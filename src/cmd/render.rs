@@ -145,24 +145,6 @@ pub fn short(x: f32) -> f64 {
 /// Effects this renderer simulates (the others are reported as not simulated).
 pub const SIMULATES: &[&str] = &["weather", "motion_blur"];
 
-/// Sum of the stats of several renders (the time samples of one motion-blurred frame).
-pub fn add_stats(total: &mut RenderStats, s: &RenderStats) {
-    total.gaussians += s.gaussians;
-    total.projected += s.projected;
-    total.culled_near += s.culled_near;
-    total.culled_near_in_view += s.culled_near_in_view;
-    total.culled_behind += s.culled_behind;
-    total.culled_transparent += s.culled_transparent;
-    total.culled_degenerate += s.culled_degenerate;
-    total.culled_offscreen += s.culled_offscreen;
-    total.tile_pairs += s.tile_pairs;
-    total.blends += s.blends;
-    total.times.projection += s.times.projection;
-    total.times.sorting += s.times.sorting;
-    total.times.binning += s.times.binning;
-    total.times.blending += s.times.blending;
-}
-
 /// The stats of a render as JSON (times in milliseconds).
 pub fn stats_json(s: &RenderStats) -> serde_json::Value {
     let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
@@ -273,7 +255,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 .render(&s.cloud, &cam, &opts)
                 .with_context(|| name.clone())?;
             rendered.push(f);
-            add_stats(&mut stats, &st);
+            stats += &st;
         }
         let frame = if rendered.len() == 1 {
             rendered.pop().expect("one sample")

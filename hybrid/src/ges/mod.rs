@@ -140,6 +140,24 @@ pub struct GesStats {
     pub times: GesTimes,
 }
 
+/// Stats of several renders summed (the time samples of one motion-blurred frame).
+impl std::ops::AddAssign<&GesStats> for GesStats {
+    fn add_assign(&mut self, s: &GesStats) {
+        self.surfels += s.surfels;
+        self.surfels_drawn += s.surfels_drawn;
+        self.surfel_pairs += s.surfel_pairs;
+        self.gaussians += s.gaussians;
+        self.projected += s.projected;
+        self.tile_pairs += s.tile_pairs;
+        self.culled_pairs += s.culled_pairs;
+        self.blends += s.blends;
+        self.times.surfels += s.times.surfels;
+        self.times.projection += s.times.projection;
+        self.times.binning += s.times.binning;
+        self.times.blending += s.times.blending;
+    }
+}
+
 /// Render surfels and residual Gaussians from `camera`.
 pub fn render_ges(
     surfels: &SurfelCloud,
