@@ -427,28 +427,19 @@ impl<'a> Mesher<'a> {
         &self,
         make: impl Fn(usize) -> S + Sync + Send,
         finish: impl Fn(S) -> T + Sync + Send,
-        mut f: impl FnMut(T) -> Result<(), E>,
+        f: impl FnMut(T) -> Result<(), E>,
     ) -> Result<(), E> {
         let chunks = self.chunk_count();
-        let batch = (rayon::current_num_threads() * 2).max(1);
-        let mut c = 0;
-        while c < chunks {
-            let end = (c + batch).min(chunks);
-            let out: Vec<T> = (c..end)
-                .into_par_iter()
-                .map(|k| {
-                    let mut sink = make(self.chunk_vertices(k));
-                    let mut s = Scratch::default();
-                    self.emit_range(self.chunk_range(k), &mut sink, &mut s);
-                    finish(sink)
-                })
-                .collect();
-            for t in out {
-                f(t)?;
-            }
-            c = end;
-        }
-        Ok(())
+        in_order(
+            chunks,
+            |k| {
+                let mut sink = make(self.chunk_vertices(k));
+                let mut s = Scratch::default();
+                self.emit_range(self.chunk_range(k), &mut sink, &mut s);
+                finish(sink)
+            },
+            f,
+        )
     }
 
     /// Generate the mesh in order, a few chunks at a time in parallel: `map` turns each chunk
@@ -457,23 +448,10 @@ impl<'a> Mesher<'a> {
     pub fn map_chunks<T: Send, E>(
         &self,
         map: impl Fn(MeshSoup) -> T + Sync + Send,
-        mut f: impl FnMut(T) -> Result<(), E>,
+        f: impl FnMut(T) -> Result<(), E>,
     ) -> Result<(), E> {
         let chunks = self.chunk_count();
-        let batch = (rayon::current_num_threads() * 2).max(1);
-        let mut c = 0;
-        while c < chunks {
-            let end = (c + batch).min(chunks);
-            let out: Vec<T> = (c..end)
-                .into_par_iter()
-                .map(|k| map(self.chunk(k)))
-                .collect();
-            for t in out {
-                f(t)?;
-            }
-            c = end;
-        }
-        Ok(())
+        in_order(chunks, |k| map(self.chunk(k)), f)
     }
 
     /// Generate the index buffer in order without regenerating geometry: every kept
@@ -483,7 +461,7 @@ impl<'a> Mesher<'a> {
         &self,
         base: u32,
         map: impl Fn(&[u32]) -> T + Sync + Send,
-        mut f: impl FnMut(T) -> Result<(), E>,
+        f: impl FnMut(T) -> Result<(), E>,
     ) -> Result<(), E> {
         let chunks = self.chunk_count();
         let n = self.cloud.len();
@@ -496,33 +474,24 @@ impl<'a> Mesher<'a> {
                 acc += self.vertices_of(i);
             }
         }
-        let batch = (rayon::current_num_threads() * 2).max(1);
-        let mut c = 0;
-        while c < chunks {
-            let end = (c + batch).min(chunks);
-            let out: Vec<T> = (c..end)
-                .into_par_iter()
-                .map(|k| {
-                    let mut idx = Vec::new();
-                    let mut v = starts[k] as u32;
-                    for i in k * CHUNK..((k + 1) * CHUNK).min(n) {
-                        let t = match self.kinds[i] {
-                            Kind::Flat => &self.templates[0],
-                            Kind::Volumetric => &self.templates[1],
-                            _ => continue,
-                        };
-                        idx.extend(t.1.iter().map(|&j| v + j));
-                        v += t.0;
-                    }
-                    map(&idx)
-                })
-                .collect();
-            for t in out {
-                f(t)?;
-            }
-            c = end;
-        }
-        Ok(())
+        in_order(
+            chunks,
+            |k| {
+                let mut idx = Vec::new();
+                let mut v = starts[k] as u32;
+                for i in k * CHUNK..((k + 1) * CHUNK).min(n) {
+                    let t = match self.kinds[i] {
+                        Kind::Flat => &self.templates[0],
+                        Kind::Volumetric => &self.templates[1],
+                        _ => continue,
+                    };
+                    idx.extend(t.1.iter().map(|&j| v + j));
+                    v += t.0;
+                }
+                map(&idx)
+            },
+            f,
+        )
     }
 
     fn vertices_of(&self, i: usize) -> u64 {
@@ -605,4 +574,24 @@ pub fn apply_budget(meshers: &mut [&mut Mesher<'_>], max_triangles: u64) {
     for m in meshers.iter_mut() {
         m.recount();
     }
+}
+
+/// Map `0..chunks` in parallel, a few chunks per batch, and hand the results to `f` in order:
+/// the writers stream chunk by chunk without holding the whole mesh, and still use every core.
+pub(crate) fn in_order<T: Send, E>(
+    chunks: usize,
+    map: impl Fn(usize) -> T + Sync + Send,
+    mut f: impl FnMut(T) -> Result<(), E>,
+) -> Result<(), E> {
+    let batch = (rayon::current_num_threads() * 2).max(1);
+    let mut c = 0;
+    while c < chunks {
+        let end = (c + batch).min(chunks);
+        let out: Vec<T> = (c..end).into_par_iter().map(&map).collect();
+        for t in out {
+            f(t)?;
+        }
+        c = end;
+    }
+    Ok(())
 }

@@ -39,7 +39,7 @@ use splatbridge_scene::surfels::{
 use splatbridge_scene::{sh, GaussianCloud};
 
 use crate::classify::Frame;
-use crate::mesh::{srgb_to_linear, VertexSink};
+use crate::mesh::{in_order, srgb_to_linear, VertexSink};
 use crate::options::{ColorEncoding, ConvertOptions};
 use crate::FrameClouds;
 
@@ -421,27 +421,18 @@ impl<'a> SurfelMesher<'a> {
         &self,
         make: impl Fn(usize) -> S + Sync + Send,
         finish: impl Fn(S) -> T + Sync + Send,
-        mut f: impl FnMut(T) -> Result<(), E>,
+        f: impl FnMut(T) -> Result<(), E>,
     ) -> Result<(), E> {
         let chunks = self.chunk_count();
-        let batch = (rayon::current_num_threads() * 2).max(1);
-        let mut c = 0;
-        while c < chunks {
-            let end = (c + batch).min(chunks);
-            let out: Vec<T> = (c..end)
-                .into_par_iter()
-                .map(|k| {
-                    let mut sink = make(self.chunk_vertices(k));
-                    self.emit_range(self.chunk_range(k), &mut sink);
-                    finish(sink)
-                })
-                .collect();
-            for t in out {
-                f(t)?;
-            }
-            c = end;
-        }
-        Ok(())
+        in_order(
+            chunks,
+            |k| {
+                let mut sink = make(self.chunk_vertices(k));
+                self.emit_range(self.chunk_range(k), &mut sink);
+                finish(sink)
+            },
+            f,
+        )
     }
 
     /// The index buffer in order, chunk by chunk (absolute indices, `base` added).
