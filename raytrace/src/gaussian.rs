@@ -177,13 +177,19 @@ impl GaussianTracer {
 
     /// Every Gaussian the ray reaches with α ≥ 1/255 in (t*, index) order, as (hit, α).
     pub fn all_hits(&self, o: DVec3, d: DVec3, k: usize) -> Vec<Hit> {
+        self.hits_until(o, d, k, f32::INFINITY)
+    }
+
+    /// As [`GaussianTracer::all_hits`], but only hits with `t ≤ tmax`: the traversal itself
+    /// stops there (segment and shadow queries need nothing beyond their end).
+    pub fn hits_until(&self, o: DVec3, d: DVec3, k: usize, tmax: f32) -> Vec<Hit> {
         let o = (o - self.anchor).as_vec3();
         let d = d.as_vec3();
         let mut out = Vec::new();
         let mut buf = KBuffer::new(k.max(1));
         let mut after = None;
         loop {
-            self.collect(o, d, None, f32::INFINITY, after, &mut buf);
+            self.collect(o, d, None, tmax, after, &mut buf);
             out.extend_from_slice(&buf.hits);
             if !buf.is_full() {
                 return out;

@@ -134,7 +134,8 @@ impl SecondaryRays for GaussianTracer {
             return 1.0;
         };
         let mut tr = 1.0f32;
-        for h in self.all_hits(from, d, 16) {
+        // One f32 step past the end so no hit below the f64 length is lost to rounding.
+        for h in self.hits_until(from, d, 16, (len as f32).next_up()) {
             let t = h.t as f64;
             if t < offset {
                 continue;
@@ -158,7 +159,7 @@ impl SecondaryRays for GaussianTracer {
         tmax: f64,
         threshold: f32,
     ) -> Option<OpaqueHit> {
-        self.all_hits(o, d, 16)
+        self.hits_until(o, d, 16, (tmax as f32).next_up())
             .into_iter()
             .filter(|h| (h.t as f64) >= offset && (h.t as f64) <= tmax)
             .find(|h| h.bary[0] >= threshold)
