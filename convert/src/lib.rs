@@ -54,8 +54,7 @@ pub mod texture;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use glam::{Quat, Vec3};
-use splatbridge_scene::dynamic::{DynamicScene, Pose};
+use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::GaussianCloud;
 
 pub use mesh::{MeshSoup, Mesher};
@@ -341,36 +340,6 @@ pub fn convert_to_file(
     };
     report.seconds = t0.elapsed().as_secs_f64();
     Ok(report)
-}
-
-/// The pose of a track at time `t`: linear translation, shortest-path slerp, held outside
-/// the keyed range; identity without keys.
-pub fn sample_pose(keys: &[splatbridge_scene::dynamic::PoseKey], t: f64) -> Pose {
-    let identity = Pose {
-        translation: Vec3::ZERO,
-        rotation: Quat::IDENTITY,
-    };
-    let Some(first) = keys.first() else {
-        return identity;
-    };
-    if t <= first.t {
-        return first.pose;
-    }
-    let last = keys[keys.len() - 1];
-    if t >= last.t {
-        return last.pose;
-    }
-    let j = keys.partition_point(|k| k.t <= t);
-    let (a, b) = (keys[j - 1], keys[j]);
-    let u = ((t - a.t) / (b.t - a.t)) as f32;
-    let mut qb = b.pose.rotation;
-    if a.pose.rotation.dot(qb) < 0.0 {
-        qb = -qb;
-    }
-    Pose {
-        translation: a.pose.translation.lerp(b.pose.translation, u),
-        rotation: a.pose.rotation.slerp(qb, u).normalize(),
-    }
 }
 
 pub(crate) fn io_err(path: &Path) -> impl Fn(std::io::Error) -> ConvertError + '_ {

@@ -16,7 +16,7 @@ use glam::{Affine3A, Vec3};
 use splatbridge_scene::dynamic::DynamicScene;
 
 use crate::options::{ColorEncoding, ConvertOptions, ConvertReport};
-use crate::{prepare, sample_pose, shape_for, FrameClouds, MeshEntry, Role};
+use crate::{prepare, shape_for, FrameClouds, MeshEntry, Role};
 
 /// The transform that places a mesh entry in the written (up-corrected) world at time `t`,
 /// or `None` when the entry is not shown at `t` (per-frame content of another frame).
@@ -31,7 +31,7 @@ pub(crate) fn placement(
     match e.role {
         Role::Static => Some(root),
         Role::Object(k) => {
-            let p = sample_pose(&scene.objects[k].track.keys, t);
+            let p = scene.objects[k].track.sample(t);
             Some(root * Affine3A::from_rotation_translation(p.rotation.normalize(), p.translation))
         }
         Role::Frame(k) => {

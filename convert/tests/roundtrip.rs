@@ -282,10 +282,7 @@ fn splats_round_trip_through_khr_gaussian_splatting() {
             assert_eq!(o.name, b.name);
             check(&o.gaussians, &b.gaussians);
             for t in [0.0, 0.3, 0.77, 1.2, 2.0] {
-                let (pa, pb) = (
-                    splatbridge_convert::sample_pose(&o.track.keys, t),
-                    splatbridge_convert::sample_pose(&b.track.keys, t),
-                );
+                let (pa, pb) = (o.track.sample(t), b.track.sample(t));
                 assert!((pa.translation - pb.translation).length() < 1e-5);
                 assert!(pa.rotation.dot(pb.rotation).abs() > 1.0 - 1e-6);
             }
