@@ -144,28 +144,22 @@ pub fn render_mesh(m: &TracedMesh, cam: &Camera, time: f64, k: usize) -> anyhow:
     })
 }
 
-/// Ray-trace the Gaussians themselves (3DGRT-style); returns the frame and the build time.
+/// Ray-trace the Gaussians themselves (3DGRT-style) with a tracer built once per time.
 pub fn render_gaussians(
-    cloud: &GaussianCloud,
+    tracer: &GaussianTracer,
     cam: &Camera,
-    cfg: &CompareConfig,
-) -> anyhow::Result<(Rendered, f64)> {
-    let t0 = Instant::now();
-    let tracer = GaussianTracer::new(cloud.clone(), cfg.backend, cfg.preset)?;
-    let build_ms = t0.elapsed().as_secs_f64() * 1e3;
+    k: usize,
+) -> anyhow::Result<Rendered> {
     let opts = TraceOptions {
-        k: cfg.k,
+        k,
         ..TraceOptions::default()
     };
-    let t1 = Instant::now();
+    let t0 = Instant::now();
     let (frame, _) = tracer.render(cam, &opts)?;
-    Ok((
-        Rendered {
-            frame,
-            ms: t1.elapsed().as_secs_f64() * 1e3,
-        },
-        build_ms,
-    ))
+    Ok(Rendered {
+        frame,
+        ms: t0.elapsed().as_secs_f64() * 1e3,
+    })
 }
 
 /// Fill the metric fields of `r` from `img` against `reference`.
@@ -235,6 +229,11 @@ pub fn compare(
     }
     for &t in times {
         let cloud = scene.composite(t);
+        // The Gaussian tracer's BVH depends on the time only: one build serves every camera.
+        let gaussians = cfg
+            .gaussian_trace
+            .then(|| GaussianTracer::new(cloud.clone(), cfg.backend, cfg.preset))
+            .transpose()?;
         for (ci, cam) in cams.iter().enumerate() {
             let tag = format!("c{ci}_t{t:.2}");
             progress(&format!("native {tag}"));
@@ -269,9 +268,9 @@ pub fn compare(
                 let h = render_hybrid(&cloud, cam, cfg.split, &cfg.ges)?;
                 emit(format!("hybrid_{tag}"), &h.frame, named("hybrid", h.ms))?;
             }
-            if cfg.gaussian_trace {
+            if let Some(tracer) = &gaussians {
                 progress(&format!("trace gaussians {tag}"));
-                let (g, _) = render_gaussians(&cloud, cam, cfg)?;
+                let g = render_gaussians(tracer, cam, cfg.k)?;
                 emit(
                     format!("tracegauss_{tag}"),
                     &g.frame,
