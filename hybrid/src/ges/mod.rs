@@ -33,7 +33,7 @@ use splatbridge_scene::{Camera, Frame, GaussianCloud};
 use crate::native::{RenderError, RenderOptions, MAX_PAIRS, NEAR_REFERENCE};
 use crate::project::{project_one, Extent, Projected, ViewParams};
 
-use gauss_pass::{gauss_tile, OUT_PLANES};
+use gauss_pass::{gauss_tile, FrameOut};
 use surfel_pass::{N, P_LIMIT, T};
 
 /// Knobs of the hybrid renderer.
@@ -253,19 +253,21 @@ pub fn render_ges_with_ids(
     drop(proj);
     let t3 = Instant::now();
 
-    let mut buf = vec![0f32; gx * gy * OUT_PLANES * N];
-    let mut jobs: Vec<(usize, &mut [f32])> = buf.chunks_mut(OUT_PLANES * N).enumerate().collect();
-    jobs.sort_by_key(|(t, _)| std::cmp::Reverse(bins.tile(*t).len()));
+    let mut order: Vec<usize> = (0..gx * gy).collect();
+    order.sort_by_key(|&t| std::cmp::Reverse(bins.tile(t).len()));
     let bg = opts.background;
-    stats.blends = jobs
+    let mut frame = Frame::new(camera.width, camera.height);
+    let out = FrameOut::new(&mut frame);
+    stats.blends = order
         .into_par_iter()
         .with_max_len(1)
-        .map(|(t, out)| {
+        .map(|t| {
             let (px0, py0) = (((t % gx) * T) as i32, ((t / gx) * T) as i32);
-            gauss_tile(&splats, bins.tile(t), px0, py0, sb.tile(t), bg, out)
+            // SAFETY: each tile index appears once in `order`, so each pixel is written once;
+            // `frame` is not otherwise used until the parallel loop has finished.
+            unsafe { gauss_tile(&splats, bins.tile(t), px0, py0, sb.tile(t), bg, &out) }
         })
         .sum();
-    let frame = assemble(&buf, camera.width, camera.height, gx);
     let t4 = Instant::now();
     stats.times = GesTimes {
         surfels: t1 - t0,
@@ -290,31 +292,6 @@ fn project_all(cloud: &GaussianCloud, view: &ViewParams, opts: &GesOptions) -> V
         })
         .collect();
     parts.concat()
-}
-
-/// Tile-major output planes to a frame.
-fn assemble(buf: &[f32], width: u32, height: u32, gx: usize) -> Frame {
-    let mut frame = Frame::new(width, height);
-    let w = width as usize;
-    frame
-        .rgb
-        .par_chunks_mut(3 * w)
-        .zip(frame.alpha.par_chunks_mut(w))
-        .zip(frame.depth.par_chunks_mut(w))
-        .enumerate()
-        .for_each(|(y, ((rgb, alpha), depth))| {
-            let (ty, ly) = (y / T, y % T);
-            for x in 0..w {
-                let tile = &buf[(ty * gx + x / T) * OUT_PLANES * N..][..OUT_PLANES * N];
-                let i = ly * T + x % T;
-                rgb[3 * x] = tile[i];
-                rgb[3 * x + 1] = tile[N + i];
-                rgb[3 * x + 2] = tile[2 * N + i];
-                alpha[x] = tile[3 * N + i];
-                depth[x] = tile[4 * N + i];
-            }
-        });
-    frame
 }
 
 /// How a cloud is turned into surfels and Gaussians.
