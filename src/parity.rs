@@ -227,13 +227,23 @@ pub fn compare(
             obj_profiles.push(p);
         }
     }
+    // One BVH per part of the scene for every time and camera: times re-pose the objects.
+    let mut gaussians = cfg
+        .gaussian_trace
+        .then(|| {
+            GaussianTracer::for_scene(
+                scene,
+                times.first().copied().unwrap_or(0.0),
+                cfg.backend,
+                cfg.preset,
+            )
+        })
+        .transpose()?;
     for &t in times {
         let cloud = scene.composite(t);
-        // The Gaussian tracer's BVH depends on the time only: one build serves every camera.
-        let gaussians = cfg
-            .gaussian_trace
-            .then(|| GaussianTracer::new(cloud.clone(), cfg.backend, cfg.preset))
-            .transpose()?;
+        if let Some(g) = &mut gaussians {
+            g.set_time(t);
+        }
         for (ci, cam) in cams.iter().enumerate() {
             let tag = format!("c{ci}_t{t:.2}");
             progress(&format!("native {tag}"));

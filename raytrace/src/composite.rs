@@ -80,6 +80,8 @@ impl Hit {
 pub struct KBuffer {
     pub k: usize,
     pub hits: Vec<Hit>,
+    /// Candidates tested since the counter was last reset (statistics only).
+    pub candidates: u32,
 }
 
 impl KBuffer {
@@ -87,6 +89,7 @@ impl KBuffer {
         KBuffer {
             k,
             hits: Vec::with_capacity(k + 1),
+            candidates: 0,
         }
     }
 
@@ -98,12 +101,19 @@ impl KBuffer {
         self.hits.len() >= self.k
     }
 
+    /// Whether a hit with this key would be dropped by [`KBuffer::insert`] (the buffer is full
+    /// and the key is not below its last one).
+    #[inline]
+    pub fn rejects(&self, key: Key) -> bool {
+        self.is_full() && key >= self.hits[self.k - 1].key()
+    }
+
     /// Insert; returns the cull distance to use afterwards (with a relative margin of 2⁻²⁰ so
     /// rounding in node tests never culls a hit at exactly the k-th distance).
     #[inline]
     pub fn insert(&mut self, h: Hit, tmax: f32) -> f32 {
         let key = h.key();
-        if self.is_full() && key >= self.hits[self.k - 1].key() {
+        if self.rejects(key) {
             return self.cull(tmax);
         }
         match self.hits.binary_search_by(|x| x.key().cmp(&key)) {
@@ -303,6 +313,7 @@ impl MeshTracer {
             let t_from = after.map(|a| f32::from_bits(a.0)).unwrap_or(0.0).max(tmin);
             blas.accel
                 .traverse_slots(lo, ld, t_from, cull0, &mut |slot, reported, cull| {
+                    buf.candidates = buf.candidates.wrapping_add(1);
                     let [a, b, c] = blas.slot_verts[slot as usize];
                     // Coverage from the watertight f32 test (or the backend's own report, whose
                     // edge rule may pick the neighbouring triangle); distance and barycentrics of
@@ -314,34 +325,37 @@ impl MeshTracer {
                     }
                     let g = blas.slot_group[slot as usize];
                     let prim = blas.slot_tri[slot as usize];
-                    let p = prim as usize;
                     let (pn, pw) = blas.planes[g as usize];
                     let tp = (pw - pn.dot(lo64)) / pn.dot(ld64);
-                    let refined = refine_bary(a.as_dvec3(), b.as_dvec3(), c.as_dvec3(), lo64, ld64);
-                    let h = match (wt, refined) {
-                        (Some(h), _) => h,
-                        (None, Some(bary)) if tp.is_finite() => {
-                            crate::tri::TriHit { t: tp as f32, bary }
-                        }
-                        _ => return,
+                    let t = match wt {
+                        _ if tp.is_finite() => tp as f32,
+                        Some(h) => h.t,
+                        None => return,
                     };
-                    let t = if tp.is_finite() { tp as f32 } else { h.t };
                     // +0.0 normalises −0.0 so the bit pattern orders like the value.
                     let t = t + 0.0;
                     if !(t >= tmin && t <= tmax) {
                         return;
                     }
+                    let key = (t.to_bits(), mesh.tri_gaussian[prim as usize], ii as u32, g);
+                    if after.is_some_and(|a| key <= a) || buf.rejects(key) {
+                        return;
+                    }
+                    // Only hits that enter the buffer pay for the f64 barycentrics.
+                    let refined = refine_bary(a.as_dvec3(), b.as_dvec3(), c.as_dvec3(), lo64, ld64);
+                    let bary = match (wt, refined) {
+                        (_, Some(bary)) => bary,
+                        (Some(h), None) => h.bary,
+                        (None, None) => return,
+                    };
                     let hit = Hit {
                         t,
-                        gaussian: mesh.tri_gaussian[p],
+                        gaussian: key.1,
                         instance: ii as u32,
                         group: g,
                         tri: prim,
-                        bary: refined.unwrap_or(h.bary),
+                        bary,
                     };
-                    if after.is_some_and(|a| hit.key() <= a) {
-                        return;
-                    }
                     *cull = buf.insert(hit, tmax);
                 });
         }
@@ -387,6 +401,7 @@ impl MeshTracer {
         let mut tr = 1.0f32;
         let (mut c, mut dsum, mut wsum) = (Vec3::ZERO, 0.0f32, 0.0f32);
         let mut after = None;
+        buf.candidates = 0;
         let lin = self.scene.colors_linear;
         let (to_display, to_linear) = match opts.compositing {
             Compositing::Display => (lin, false),
@@ -447,6 +462,7 @@ impl MeshTracer {
         }
         out.alpha = 1.0 - tr;
         out.depth = if wsum > 0.0 { dsum / wsum } else { 0.0 };
+        out.candidates = buf.candidates;
         out
     }
 

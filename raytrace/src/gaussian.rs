@@ -15,35 +15,77 @@
 //! Compositing follows native splatting: front to back, and a Gaussian that would take T below
 //! 1e-4 stops the ray without being added. As in the rasterizer, a Gaussian whose mean is at
 //! view depth ≤ `RenderOptions::near` (0.2) is culled (primary rays only).
+//!
+//! Dynamic scenes are instanced, not rebuilt: the static Gaussians, each object (in its own
+//! frame, under its SE(3) track) and a frame's weather particles are separate parts with their
+//! own BVH. [`GaussianTracer::set_time`] only re-poses the objects; a ray is carried into each
+//! part's frame in f64 (a rigid motion keeps the ray parameter), and an object's SH is evaluated
+//! in the local ray direction, which equals evaluating the rotated SH in the world direction.
+//! Hits keep the global index the Gaussian has in [`DynamicScene::composite`], so ties order as
+//! in the composite. A part fixed in the world takes the exact path of a plain cloud
+//! (`o − anchor`, `d`): a static scene renders bit-identically either way.
 
 use std::time::Instant;
 
-use glam::{DVec3, Mat3, Vec3};
+use glam::{DAffine3, DVec3, Mat3, Vec3};
+use splatbridge_scene::dynamic::{DynamicScene, Track};
 use splatbridge_scene::{sh, Camera, Frame, GaussianCloud};
 
-use crate::backend::{build_boxes, Accel, BackendKind, BuildPreset};
-use crate::composite::{Hit, KBuffer};
+use crate::backend::{build_boxes, Accel, BackendKind, BuildPreset, EmptyAccel};
+use crate::composite::{Hit, KBuffer, Key};
 use crate::error::Result;
-use crate::render::{render_frame, PixelOut, RenderOptions, Stats};
+use crate::render::{ray_box, render_frame, PixelOut, RenderOptions, Stats};
 
 /// The rasterizer's near cull (default of `RenderOptions::near`): view-space depth of the
 /// mean must exceed this.
 pub const NEAR_CULL: f32 = 0.2;
 
+/// Proxies and BVH of one cloud in its own frame: the static Gaussians, one object, or a
+/// frame's particles.
+struct Part {
+    cloud: GaussianCloud,
+    /// Global index of the part's first Gaussian (its place in the composite).
+    id_offset: u32,
+    /// The object's track; None for a part fixed in the world.
+    track: Option<Track>,
+    anchor: DVec3,
+    /// Index into `cloud` of each proxy.
+    index: Vec<u32>,
+    mean: Vec<Vec3>,
+    /// `S⁻¹Rᵀ`.
+    inv: Vec<Mat3>,
+    opacity: Vec<f32>,
+    /// Squared extent in standard deviations, `2·ln(255·o)`.
+    r2: Vec<f32>,
+    accel: Box<dyn Accel>,
+    /// Bounds of the proxy boxes in the part's frame (absolute, not anchor-relative).
+    lo: DVec3,
+    hi: DVec3,
+}
+
+/// Where a moving part is at the current time.
+#[derive(Clone, Copy, Debug)]
+struct Placed {
+    /// World point → anchor-relative local point.
+    to_local: DAffine3,
+    /// Local (absolute, not anchor-relative) → world.
+    to_world: DAffine3,
+    /// World bounds of the part's proxies, padded.
+    lo: DVec3,
+    hi: DVec3,
+}
+
 /// Gaussians prepared for ray tracing.
 pub struct GaussianTracer {
-    pub cloud: GaussianCloud,
-    pub anchor: DVec3,
-    /// Index into `cloud` of each proxy.
-    pub index: Vec<u32>,
-    pub mean: Vec<Vec3>,
-    /// `S⁻¹Rᵀ`.
-    pub inv: Vec<Mat3>,
-    pub opacity: Vec<f32>,
-    /// Squared extent in standard deviations, `2·ln(255·o)`.
-    pub r2: Vec<f32>,
-    pub accel: Box<dyn Accel>,
+    parts: Vec<Part>,
+    /// Per part: its placement at the current time (None: fixed in the world).
+    placed: Vec<Option<Placed>>,
+    /// Gaussians of the scene proper (the particles' ids start here).
+    scene_len: u32,
+    time: f64,
+    preset: BuildPreset,
     pub backend: BackendKind,
+    /// Seconds spent building every part's BVH so far.
     pub build_seconds: f64,
 }
 
@@ -55,24 +97,30 @@ pub(crate) struct Near {
     near: f32,
 }
 
-impl GaussianTracer {
-    /// Build proxies and their BVH over a (world-space) cloud.
-    pub fn new(cloud: GaussianCloud, backend: BackendKind, preset: BuildPreset) -> Result<Self> {
+impl Part {
+    fn build(
+        cloud: GaussianCloud,
+        id_offset: u32,
+        track: Option<Track>,
+        backend: BackendKind,
+        preset: BuildPreset,
+    ) -> Result<Self> {
         cloud.check_shape()?;
-        let start = Instant::now();
         let (lo, hi) = cloud.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
         let anchor = (0.5 * (lo.as_dvec3() + hi.as_dvec3())).as_vec3().as_dvec3();
-        let mut t = GaussianTracer {
+        let mut t = Part {
+            cloud: GaussianCloud::new(0),
+            id_offset,
+            track,
             anchor,
             index: Vec::new(),
             mean: Vec::new(),
             inv: Vec::new(),
             opacity: Vec::new(),
             r2: Vec::new(),
-            accel: Box::new(crate::backend::EmptyAccel),
-            backend,
-            build_seconds: 0.0,
-            cloud: GaussianCloud::new(0),
+            accel: Box::new(EmptyAccel),
+            lo: DVec3::splat(f64::INFINITY),
+            hi: DVec3::splat(f64::NEG_INFINITY),
         };
         let mut boxes = Vec::new();
         for i in 0..cloud.len() {
@@ -100,7 +148,10 @@ impl GaussianTracer {
             // relative 1e-5 plus one f32 ulp of the mean so rounding cannot clip the proxy.
             let half = Vec3::new(m.row(0).length(), m.row(1).length(), m.row(2).length());
             let pad = half * 1e-5 + Vec3::splat(mu.abs().max_element() * 1.2e-7);
-            boxes.push((mu - half - pad, mu + half + pad));
+            let (blo, bhi) = (mu - half - pad, mu + half + pad);
+            t.lo = t.lo.min(blo.as_dvec3() + anchor);
+            t.hi = t.hi.max(bhi.as_dvec3() + anchor);
+            boxes.push((blo, bhi));
             t.index.push(i as u32);
             t.mean.push(mu);
             t.inv.push(inv);
@@ -109,14 +160,46 @@ impl GaussianTracer {
         }
         t.accel = build_boxes(backend, preset, &boxes)?;
         t.cloud = cloud;
-        t.build_seconds = start.elapsed().as_secs_f64();
         Ok(t)
+    }
+
+    /// The part's placement at `t` (None for a part fixed in the world).
+    fn place(&self, t: f64) -> Option<Placed> {
+        let track = self.track.as_ref()?;
+        let pose = track.sample(t);
+        let to_world = DAffine3::from_rotation_translation(
+            pose.rotation.as_dquat(),
+            pose.translation.as_dvec3(),
+        );
+        let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+        if self.index.is_empty() {
+            (lo, hi) = (DVec3::ZERO, DVec3::ZERO);
+        } else {
+            for c in 0..8 {
+                let p = DVec3::new(
+                    if c & 1 == 0 { self.lo.x } else { self.hi.x },
+                    if c & 2 == 0 { self.lo.y } else { self.hi.y },
+                    if c & 4 == 0 { self.lo.z } else { self.hi.z },
+                );
+                let w = to_world.transform_point3(p);
+                lo = lo.min(w);
+                hi = hi.max(w);
+            }
+        }
+        // Pad by a relative 1e-6 so rounding in the f64 transform cannot clip a hit.
+        let pad = (hi - lo).max_element() * 1e-6 + 1e-9 * hi.abs().max(lo.abs()).max_element();
+        Some(Placed {
+            to_local: DAffine3::from_translation(-self.anchor) * to_world.inverse(),
+            to_world,
+            lo: lo - DVec3::splat(pad),
+            hi: hi + DVec3::splat(pad),
+        })
     }
 
     /// Response of proxy `p` along the ray (relative origin `o`, unit direction `d`):
     /// (t*, α) or None when α < 1/255.
     #[inline]
-    pub fn response(&self, p: usize, o: Vec3, d: Vec3) -> Option<(f32, f32)> {
+    fn response(&self, p: usize, o: Vec3, d: Vec3) -> Option<(f32, f32)> {
         let inv = self.inv[p];
         let og = inv * (o - self.mean[p]);
         let dg = inv * d;
@@ -136,43 +219,238 @@ impl GaussianTracer {
         let t = (-og.dot(dg) / dd).max(0.0) + 0.0;
         t.is_finite().then_some((t, alpha))
     }
+}
 
+impl GaussianTracer {
+    /// Build proxies and their BVH over a (world-space) cloud.
+    pub fn new(cloud: GaussianCloud, backend: BackendKind, preset: BuildPreset) -> Result<Self> {
+        let start = Instant::now();
+        let n = cloud.len() as u32;
+        let part = Part::build(cloud, 0, None, backend, preset)?;
+        Ok(GaussianTracer {
+            parts: vec![part],
+            placed: vec![None],
+            scene_len: n,
+            time: 0.0,
+            preset,
+            backend,
+            build_seconds: start.elapsed().as_secs_f64(),
+        })
+    }
+
+    /// Build one BVH for the static Gaussians and one per object (in the object's frame), and
+    /// pose the objects at time `t`. Later times need only [`GaussianTracer::set_time`].
+    pub fn for_scene(
+        scene: &DynamicScene,
+        t: f64,
+        backend: BackendKind,
+        preset: BuildPreset,
+    ) -> Result<Self> {
+        let start = Instant::now();
+        let mut parts = Vec::with_capacity(scene.objects.len() + 1);
+        parts.push(Part::build(
+            scene.static_gaussians.clone(),
+            0,
+            None,
+            backend,
+            preset,
+        )?);
+        let mut offset = scene.static_gaussians.len() as u32;
+        for o in &scene.objects {
+            parts.push(Part::build(
+                o.gaussians.clone(),
+                offset,
+                Some(o.track.clone()),
+                backend,
+                preset,
+            )?);
+            offset += o.gaussians.len() as u32;
+        }
+        let mut tracer = GaussianTracer {
+            placed: vec![None; parts.len()],
+            parts,
+            scene_len: offset,
+            time: t,
+            preset,
+            backend,
+            build_seconds: start.elapsed().as_secs_f64(),
+        };
+        tracer.set_time(t);
+        Ok(tracer)
+    }
+
+    /// Pose every object at time `t` (no BVH is rebuilt).
+    pub fn set_time(&mut self, t: f64) {
+        self.time = t;
+        for (slot, part) in self.placed.iter_mut().zip(&self.parts) {
+            *slot = part.place(t);
+        }
+    }
+
+    /// The time the objects are posed at.
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    /// Replace the frame's particles (world-space Gaussians after the scene's, e.g. weather):
+    /// only their own small BVH is built.
+    pub fn set_particles(&mut self, particles: Option<GaussianCloud>) -> Result<()> {
+        if self.parts.len() > 1
+            && self
+                .parts
+                .last()
+                .is_some_and(|p| p.id_offset == self.scene_len && p.track.is_none())
+        {
+            self.parts.pop();
+            self.placed.pop();
+        }
+        if let Some(p) = particles.filter(|p| !p.is_empty()) {
+            let start = Instant::now();
+            let part = Part::build(p, self.scene_len, None, self.backend, self.preset)?;
+            self.parts.push(part);
+            self.placed.push(None);
+            self.build_seconds += start.elapsed().as_secs_f64();
+        }
+        Ok(())
+    }
+
+    /// Number of Gaussians (scene and particles).
+    pub fn len(&self) -> usize {
+        self.parts.iter().map(|p| p.cloud.len()).sum()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// World bounds of the Gaussians' means at the current time.
+    pub fn bounds(&self) -> Option<(DVec3, DVec3)> {
+        let mut out: Option<(DVec3, DVec3)> = None;
+        for (part, placed) in self.parts.iter().zip(&self.placed) {
+            for m in &part.cloud.means {
+                let w = match placed {
+                    Some(p) => p.to_world.transform_point3(m.as_dvec3()),
+                    None => m.as_dvec3(),
+                };
+                if !w.is_finite() {
+                    continue;
+                }
+                out = Some(match out {
+                    Some((lo, hi)) => (lo.min(w), hi.max(w)),
+                    None => (w, w),
+                });
+            }
+        }
+        out
+    }
+
+    /// The ray in part `i`'s anchor-relative frame (f32) and the local direction (f64).
+    #[inline]
+    fn local_ray(&self, i: usize, o: DVec3, d: DVec3) -> (Vec3, Vec3) {
+        match &self.placed[i] {
+            None => ((o - self.parts[i].anchor).as_vec3(), d.as_vec3()),
+            Some(p) => (
+                p.to_local.transform_point3(o).as_vec3(),
+                p.to_local.transform_vector3(d).as_vec3(),
+            ),
+        }
+    }
+
+    /// Fill `buf` with the k smallest-key hits with key > `after` and `t ≤ tmax` along the
+    /// world ray `o + t·d` (`d` unit length). `near`: the camera's forward axis and near
+    /// distance (primary rays).
     pub(crate) fn collect(
         &self,
-        o: Vec3,
-        d: Vec3,
-        near: Option<Near>,
+        o: DVec3,
+        d: DVec3,
+        near: Option<(DVec3, f32)>,
         tmax: f32,
-        after: Option<(u32, u32, u32, u32)>,
+        after: Option<Key>,
         buf: &mut KBuffer,
     ) {
         buf.clear();
-        self.accel.traverse(o, d, tmax, &mut |p, _, cull| {
-            let p = p as usize;
-            if let Some(n) = near {
-                if (self.mean[p] - n.origin).dot(n.forward) <= n.near {
-                    return;
+        for (pi, part) in self.parts.iter().enumerate() {
+            if part.index.is_empty() {
+                continue;
+            }
+            if let Some(pl) = &self.placed[pi] {
+                match ray_box(o, d, pl.lo, pl.hi) {
+                    Some((b0, b1)) if b1 >= 0.0 && b0 <= buf.cull(tmax) as f64 => {}
+                    _ => continue,
                 }
             }
-            let Some((t, alpha)) = self.response(p, o, d) else {
-                return;
-            };
-            if t > tmax {
-                return;
-            }
-            let h = Hit {
-                t,
-                gaussian: self.index[p],
-                instance: 0,
-                group: 0,
-                tri: p as u32,
-                bary: [alpha, 0.0, 0.0],
-            };
-            if after.is_some_and(|a| h.key() <= a) {
-                return;
-            }
-            *cull = buf.insert(h, tmax);
-        });
+            let (ro, rd) = self.local_ray(pi, o, d);
+            let near = near.map(|(f, near)| Near {
+                origin: ro,
+                forward: match &self.placed[pi] {
+                    None => f.as_vec3(),
+                    Some(p) => p.to_local.transform_vector3(f).as_vec3(),
+                },
+                near,
+            });
+            let cull0 = buf.cull(tmax);
+            part.accel.traverse(ro, rd, cull0, &mut |p, _, cull| {
+                let p = p as usize;
+                if let Some(n) = near {
+                    if (part.mean[p] - n.origin).dot(n.forward) <= n.near {
+                        return;
+                    }
+                }
+                let Some((t, alpha)) = part.response(p, ro, rd) else {
+                    return;
+                };
+                if t > tmax {
+                    return;
+                }
+                let h = Hit {
+                    t,
+                    gaussian: part.id_offset + part.index[p],
+                    instance: pi as u32,
+                    group: 0,
+                    tri: part.index[p],
+                    bary: [alpha, 0.0, 0.0],
+                };
+                if after.is_some_and(|a| h.key() <= a) {
+                    return;
+                }
+                *cull = buf.insert(h, tmax);
+            });
+        }
+    }
+
+    /// Colour of a hit seen along world direction `d`: the Gaussian's full SH in that
+    /// direction (an object's SH in the local direction).
+    pub fn hit_color(&self, h: &Hit, d: DVec3) -> Vec3 {
+        let i = h.instance as usize;
+        let part = &self.parts[i];
+        let dir = match &self.placed[i] {
+            None => d.as_vec3(),
+            Some(p) => p.to_local.transform_vector3(d).as_vec3(),
+        };
+        sh::eval_color(part.cloud.sh_degree, part.cloud.sh_of(h.tri as usize), dir)
+    }
+
+    /// World normal of a hit Gaussian: its shortest axis.
+    pub fn hit_normal(&self, h: &Hit) -> DVec3 {
+        let i = h.instance as usize;
+        let part = &self.parts[i];
+        let g = h.tri as usize;
+        let s = part.cloud.scale(g);
+        let axis = if s.x <= s.y && s.x <= s.z {
+            0
+        } else if s.y <= s.z {
+            1
+        } else {
+            2
+        };
+        let n = Mat3::from_quat(part.cloud.unit_rotation(g))
+            .col(axis)
+            .as_dvec3();
+        let n = match &self.placed[i] {
+            None => n,
+            Some(p) => p.to_world.matrix3 * n,
+        };
+        n.try_normalize().unwrap_or(DVec3::ZERO)
     }
 
     /// Every Gaussian the ray reaches with α ≥ 1/255 in (t*, index) order, as (hit, α).
@@ -183,8 +461,6 @@ impl GaussianTracer {
     /// As [`GaussianTracer::all_hits`], but only hits with `t ≤ tmax`: the traversal itself
     /// stops there (segment and shadow queries need nothing beyond their end).
     pub fn hits_until(&self, o: DVec3, d: DVec3, k: usize, tmax: f32) -> Vec<Hit> {
-        let o = (o - self.anchor).as_vec3();
-        let d = d.as_vec3();
         let mut out = Vec::new();
         let mut buf = KBuffer::new(k.max(1));
         let mut after = None;
@@ -207,19 +483,13 @@ impl GaussianTracer {
         opts: &RenderOptions,
         buf: &mut KBuffer,
     ) -> PixelOut {
-        let ro = (o - self.anchor).as_vec3();
-        let rd = d.as_vec3();
-        let near = forward.map(|f| Near {
-            origin: ro,
-            forward: f.as_vec3(),
-            near: opts.near,
-        });
+        let near = forward.map(|f| (f, opts.near));
         let mut out = PixelOut::default();
         let mut tr = 1.0f32;
         let (mut c, mut dsum, mut wsum) = (Vec3::ZERO, 0.0f32, 0.0f32);
         let mut after = None;
         'rounds: loop {
-            self.collect(ro, rd, near, f32::INFINITY, after, buf);
+            self.collect(o, d, near, f32::INFINITY, after, buf);
             out.traversals += 1;
             for h in &buf.hits {
                 let a = h.bary[0];
@@ -228,8 +498,7 @@ impl GaussianTracer {
                     break 'rounds;
                 }
                 out.hits += 1;
-                let g = h.gaussian as usize;
-                let col = sh::eval_color(self.cloud.sh_degree, self.cloud.sh_of(g), rd);
+                let col = self.hit_color(h, d);
                 let w = a * tr;
                 c += col * w;
                 dsum += w * h.t;
@@ -247,7 +516,7 @@ impl GaussianTracer {
         out
     }
 
-    /// Render `cam`.
+    /// Render `cam` at the current time.
     pub fn render(&self, cam: &Camera, opts: &RenderOptions) -> Result<(Frame, Stats)> {
         opts.validate()?;
         let forward = cam.world_to_cam.row(2);

@@ -26,7 +26,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use glam::{DMat3, DQuat, DVec3, Mat3, Vec3};
+use glam::{DMat3, DQuat, DVec3, Vec3};
 use rayon::prelude::*;
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::effects::{Lidar, LidarMount};
@@ -250,33 +250,21 @@ impl MeshAt<'_> {
 
 impl OpacityMarch for GaussianTracer {
     fn first_return(&self, o: DVec3, d: DVec3, tmax: f64, threshold: f32) -> Option<Return> {
-        let ro = (o - self.anchor).as_vec3();
-        let rd = d.as_vec3();
         let tmax = tmax as f32;
         let mut buf = KBuffer::new(16);
         let mut after: Option<(u32, u32, u32, u32)> = None;
         let mut tr = 1.0f32;
         loop {
             // The tracer's own collection: the same hits in the same (t*, index) order.
-            self.collect(ro, rd, None, tmax, after, &mut buf);
+            self.collect(o, d, None, tmax, after, &mut buf);
             for h in &buf.hits {
                 let a = h.bary[0];
                 tr *= 1.0 - a;
                 if 1.0 - tr >= threshold {
-                    let g = h.gaussian as usize;
-                    let s = self.cloud.scale(g);
-                    let axis = if s.x <= s.y && s.x <= s.z {
-                        0
-                    } else if s.y <= s.z {
-                        1
-                    } else {
-                        2
-                    };
-                    let n = Mat3::from_quat(self.cloud.unit_rotation(g)).col(axis);
                     return Some(Return {
                         t: h.t as f64,
                         alpha: a,
-                        normal: n.as_dvec3().try_normalize().unwrap_or(DVec3::ZERO),
+                        normal: self.hit_normal(h),
                     });
                 }
             }
@@ -325,10 +313,25 @@ pub fn scan_scene_gaussian(
         err: e,
     })?;
     let mut run = LidarRun::default();
+    // One BVH per part for the whole range: frames only re-pose the objects and replace the
+    // frame's weather particles.
+    let mut tracer: Option<GaussianTracer> = None;
     for (i, t) in scene.frame_times().into_iter().enumerate() {
-        let cloud = splatbridge_scene::effects_run::build_frame(scene, t, None)?.cloud;
-        let tracer = GaussianTracer::new(cloud, backend, preset)?;
-        let s = scan(&tracer, &sensor, t);
+        let particles = match &effects.weather {
+            Some(w) => Some(splatbridge_scene::effects_run::weather_particles(
+                scene, w, t, None,
+            )?),
+            None => None,
+        };
+        let tracer = match &mut tracer {
+            Some(tr) => {
+                tr.set_time(t);
+                tr
+            }
+            None => tracer.insert(GaussianTracer::for_scene(scene, t, backend, preset)?),
+        };
+        tracer.set_particles(particles)?;
+        let s = scan(&*tracer, &sensor, t);
         let path = frame_file(dir, i);
         write_ply(&path, &s)?;
         run.rays += s.rays;

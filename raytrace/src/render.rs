@@ -80,6 +80,8 @@ pub struct Stats {
     pub hits: u64,
     /// Traversals (one per k-buffer round per ray).
     pub traversals: u64,
+    /// Candidate primitives the BVH handed to the exact test (mode mesh: triangles).
+    pub candidates: u64,
     pub seconds: f64,
 }
 
@@ -100,6 +102,7 @@ pub struct PixelOut {
     pub depth: f32,
     pub hits: u32,
     pub traversals: u32,
+    pub candidates: u32,
 }
 
 /// World-space ray through continuous pixel coordinate (u, v): origin, unit direction.
@@ -144,6 +147,7 @@ where
             frame.depth[k] = p.depth;
             stats.hits += p.hits as u64;
             stats.traversals += p.traversals as u64;
+            stats.candidates += p.candidates as u64;
         }
     }
     stats.rays = (w * h) as u64;

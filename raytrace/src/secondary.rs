@@ -163,17 +163,10 @@ impl SecondaryRays for GaussianTracer {
             .into_iter()
             .filter(|h| (h.t as f64) >= offset && (h.t as f64) <= tmax)
             .find(|h| h.bary[0] >= threshold)
-            .map(|h| {
-                let g = h.gaussian as usize;
-                OpaqueHit {
-                    t: h.t as f64,
-                    rgb: splatbridge_scene::sh::eval_color(
-                        self.cloud.sh_degree,
-                        self.cloud.sh_of(g),
-                        d.as_vec3(),
-                    ),
-                    alpha: h.bary[0],
-                }
+            .map(|h| OpaqueHit {
+                t: h.t as f64,
+                rgb: self.hit_color(&h, d),
+                alpha: h.bary[0],
             })
     }
 }

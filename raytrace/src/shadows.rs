@@ -115,13 +115,10 @@ impl SunShadows {
     }
 }
 
-/// World bounds of a Gaussian tracer's cloud (means), for [`SunShadows::from_effect`].
+/// World bounds of a Gaussian tracer's means at its current time, for
+/// [`SunShadows::from_effect`].
 pub fn gaussian_bounds(tracer: &GaussianTracer) -> (DVec3, DVec3) {
-    tracer
-        .cloud
-        .bounds()
-        .map(|(a, b)| (a.as_dvec3(), b.as_dvec3()))
-        .unwrap_or((DVec3::ZERO, DVec3::ZERO))
+    tracer.bounds().unwrap_or((DVec3::ZERO, DVec3::ZERO))
 }
 
 /// World bounds of a mesh scene's instances at `time`.

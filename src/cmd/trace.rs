@@ -7,13 +7,15 @@
 //! `scene:I`) and renders live in the capture's frame like native renders. `--gltf-frame`
 //! keeps the glTF world frame.
 //!
+//! Mode gaussian builds one BVH per part (static Gaussians, each object in its own frame, the
+//! frame's weather particles) and poses the objects at each time (instancing, no rebuild).
+//!
 //! Declared effects (the manifest's, or `--effects-from MANIFEST`'s for an exported file, which
 //! carries none of its own) are simulated here: weather particles of the frame (mode gaussian:
-//! `effects_run::build_frame`; mode mesh: converted in memory with the scene as one frame
-//! node), motion blur (every shutter sample traced and averaged; mode gaussian builds one BVH
-//! per sample), sun shadows (`splatbridge_raytrace::shadows`) and LiDAR (one PLY per frame,
-//! `lidar_NNNN.ply` with NNNN the frame index, in `--lidar-out`, by default the output image's
-//! directory). An exported file's weather is drawn as exported (its per-frame particle nodes).
+//! a part of their own; mode mesh: converted in memory with the scene as one frame node),
+//! motion blur (every shutter sample traced at its time and averaged), sun shadows
+//! (`splatbridge_raytrace::shadows`) and LiDAR (one PLY per frame, `lidar_NNNN.ply` with NNNN
+//! the frame index, in `--lidar-out`, by default the output image's directory). An exported file's weather is drawn as exported (its per-frame particle nodes).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -37,8 +39,7 @@ use splatbridge_raytrace::{
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::effects::{EffectCounters, Effects, Shadows};
 use splatbridge_scene::effects_run::{
-    blend_frames, build_blur_frames, build_frame, effects_of, not_simulated, time_samples,
-    weather_frames, weather_particles,
+    blend_frames, effects_of, not_simulated, time_samples, weather_frames, weather_particles,
 };
 use splatbridge_scene::image_io::save_frame;
 use splatbridge_scene::{Camera, Frame, GaussianCloud};
@@ -172,7 +173,9 @@ pub struct Args {
 /// A loaded input, ready to build tracers for any backend.
 pub enum Loaded {
     Mesh(TriScene),
-    Gaussians(GaussianCloud),
+    /// The scene (`Prepared::effects_scene`) traced as Gaussians, with the traced frame's
+    /// weather particles when weather is declared.
+    Gaussians(Option<GaussianCloud>),
 }
 
 /// The input, the camera and the options.
@@ -284,13 +287,13 @@ impl TraceInput {
             .with_context(|| name.clone())?;
         let mut counters = EffectCounters::default();
         let loaded = match self.mode {
-            // Without weather the frame is the composite itself (bit-identical).
-            Mode::Gaussian if effects.weather.is_none() => Loaded::Gaussians(cloud),
             Mode::Gaussian => {
-                let f =
-                    build_frame(&scene, self.time, Some(&camera)).with_context(|| name.clone())?;
-                counters = f.counters;
-                Loaded::Gaussians(f.cloud)
+                let frames = mesh_weather(&scene, &effects, self.time, &camera, false)
+                    .with_context(|| name.clone())?;
+                Loaded::Gaussians(frames.map(|(mut fc, c)| {
+                    counters = c;
+                    fc.clouds.pop().expect("the traced frame's particles")
+                }))
             }
             Mode::Mesh => {
                 let mut opts = splatbridge_convert::ConvertOptions::default();
@@ -321,7 +324,15 @@ impl TraceInput {
                 "{name}: converted in memory, {} triangles",
                 s.triangle_count()
             ),
-            Loaded::Gaussians(c) => format!("{name}: {} Gaussians at t = {}", c.len(), self.time),
+            Loaded::Gaussians(particles) => format!(
+                "{name}: {} Gaussians at t = {}{}",
+                scene.gaussian_count(),
+                self.time,
+                match particles {
+                    Some(p) => format!(" and {} weather particles", p.len()),
+                    None => String::new(),
+                }
+            ),
         };
         Ok(Prepared {
             loaded,
@@ -336,8 +347,8 @@ impl TraceInput {
     }
 }
 
-/// Weather for an in-memory conversion (mode mesh): the traced frame's particles as the one
-/// frame node (always visible), or every frame's (`all`, for scanning every frame).
+/// Weather particles: the traced frame's (mode gaussian, and mode mesh's in-memory conversion
+/// as the one frame node, always visible), or every frame's (`all`, for scanning every frame).
 fn mesh_weather(
     scene: &DynamicScene,
     effects: &Effects,
@@ -377,10 +388,24 @@ impl Tracer {
     ) -> anyhow::Result<Tracer> {
         Ok(match &p.loaded {
             Loaded::Mesh(s) => Tracer::Mesh(MeshTracer::new(s.clone(), backend, preset)?),
-            Loaded::Gaussians(c) => {
-                Tracer::Gaussians(GaussianTracer::new(c.clone(), backend, preset)?)
+            Loaded::Gaussians(particles) => {
+                let scene = p
+                    .effects_scene
+                    .as_ref()
+                    .expect("a Gaussian input keeps its scene");
+                let mut g = GaussianTracer::for_scene(scene, p.time, backend, preset)?;
+                g.set_particles(particles.clone())?;
+                Tracer::Gaussians(g)
             }
         })
+    }
+
+    /// Pose the scene at `t` for the next render (mode gaussian re-poses its objects; mode
+    /// mesh takes the time per render).
+    pub fn set_time(&mut self, t: f64) {
+        if let Tracer::Gaussians(g) = self {
+            g.set_time(t);
+        }
     }
 
     pub fn build_seconds(&self) -> f64 {
@@ -528,54 +553,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let shadows = p.effects.shadows.as_ref();
     let mut counters = p.counters.clone();
     let mut build_seconds = 0.0;
-    // The tracer of the frame at t: every mesh-mode sample, LiDAR, and the unblurred image.
-    let needs_frame_tracer =
-        !blurred || p.effects.lidar.is_some() || matches!(p.loaded, Loaded::Mesh(_));
-    let tracer = if needs_frame_tracer {
-        let t = Tracer::build(&p, backend, preset).with_context(|| name.clone())?;
-        build_seconds += t.build_seconds();
-        Some(t)
-    } else {
-        None
-    };
+    // One tracer for every shutter sample: mode mesh instances its nodes at each time, mode
+    // gaussian re-poses its objects (no BVH rebuild per sample).
+    let mut tracer = Tracer::build(&p, backend, preset).with_context(|| name.clone())?;
+    build_seconds += tracer.build_seconds();
     let mut traced = Vec::with_capacity(samples.len());
     let mut stats = Stats::default();
     let mut blur_ms = 0.0;
-    match (&tracer, &p.loaded) {
-        (Some(tr), Loaded::Mesh(_)) => {
-            for (i, &(ts, _)) in samples.iter().enumerate() {
-                let start = Instant::now();
-                traced.push(trace_at(tr, &p, ts, shadows).with_context(|| name.clone())?);
-                if i > 0 {
-                    blur_ms += start.elapsed().as_secs_f64() * 1e3;
-                }
-            }
-        }
-        (Some(tr), Loaded::Gaussians(_)) if !blurred => {
-            traced.push(trace_at(tr, &p, p.time, shadows).with_context(|| name.clone())?);
-        }
-        _ => {
-            let scene = p
-                .effects_scene
-                .as_ref()
-                .expect("motion blur needs the scene");
-            let blur =
-                build_blur_frames(scene, p.time, Some(&p.camera)).with_context(|| name.clone())?;
-            // The blur build generates the frame's particles once, as build_frame did.
-            counters = blur.counters.clone();
-            for (i, sample) in blur.samples.into_iter().enumerate() {
-                let start = Instant::now();
-                let g = GaussianTracer::new(sample.cloud, backend, preset)
-                    .with_context(|| name.clone())?;
-                build_seconds += g.build_seconds;
-                let tr = Tracer::Gaussians(g);
-                traced.push(trace_at(&tr, &p, sample.time, shadows).with_context(|| name.clone())?);
-                if i > 0 {
-                    blur_ms += start.elapsed().as_secs_f64() * 1e3;
-                }
-            }
+    for (i, &(ts, _)) in samples.iter().enumerate() {
+        let start = Instant::now();
+        tracer.set_time(ts);
+        traced.push(trace_at(&tracer, &p, ts, shadows).with_context(|| name.clone())?);
+        if i > 0 {
+            blur_ms += start.elapsed().as_secs_f64() * 1e3;
         }
     }
+    tracer.set_time(p.time);
     if p.effects.motion_blur.is_some() && !counters.simulated.iter().any(|n| n == "motion_blur") {
         counters.extra_time_samples += samples.len() as u64 - 1;
         counters.simulated.push("motion_blur".into());
@@ -607,10 +600,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             _ => PathBuf::from("."),
         },
     };
-    let lidar = match &tracer {
-        Some(tr) => run_lidar(&args, &p, tr, &lidar_dir).with_context(|| name.clone())?,
-        None => None,
-    };
+    let lidar = run_lidar(&args, &p, &tracer, &lidar_dir).with_context(|| name.clone())?;
     if let (Some(run), Some(w), Loaded::Gaussians(_)) = (&lidar, &p.effects.weather, &p.loaded) {
         if args.lidar_all_frames {
             // scan_scene_gaussian generates each scanned frame's particles again (the count

@@ -40,8 +40,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let mut frames = Vec::new();
     println!(
-        "{:<8} {:>10} {:>12} {:>10} {:>10} {:>14}",
-        "backend", "build s", "trace s", "Mrays/s", "hits/ray", "traversals/ray"
+        "{:<8} {:>10} {:>12} {:>10} {:>10} {:>14} {:>14}",
+        "backend", "build s", "trace s", "Mrays/s", "hits/ray", "traversals/ray", "candidates/ray"
     );
     for b in backends {
         let tracer = Tracer::build(&p, b, args.input.preset.into())
@@ -57,13 +57,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let med = times[times.len() / 2];
         let (f, s) = last.expect("at least one repeat");
         println!(
-            "{:<8} {:>10.3} {:>12.3} {:>10.3} {:>10.2} {:>14.2}",
+            "{:<8} {:>10.3} {:>12.3} {:>10.3} {:>10.2} {:>14.2} {:>14.1}",
             b.to_string(),
             tracer.build_seconds(),
             med,
             s.rays as f64 / med / 1e6,
             s.hits_per_ray(),
-            s.traversals as f64 / s.rays.max(1) as f64
+            s.traversals as f64 / s.rays.max(1) as f64,
+            s.candidates as f64 / s.rays.max(1) as f64
         );
         frames.push((b, f));
     }
