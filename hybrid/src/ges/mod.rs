@@ -31,10 +31,10 @@ use splatbridge_scene::surfels::{
 use splatbridge_scene::{Camera, Frame, GaussianCloud};
 
 use crate::native::{RenderError, RenderOptions, MAX_PAIRS, NEAR_REFERENCE};
-use crate::project::{project_one, Extent, Projected, ViewParams};
+use crate::project::{project_one, Extent, Splat, ViewParams};
 
 use gauss_pass::{gauss_tile, FrameOut};
-use surfel_pass::{N, P_LIMIT, T};
+use surfel_pass::T;
 
 /// Knobs of the hybrid renderer.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -223,34 +223,22 @@ pub fn render_ges_with_ids(
     stats.surfel_pairs = sb.pairs;
     let t1 = Instant::now();
 
-    let proj = project_all(gaussians, &view, opts);
-    stats.projected = proj.len();
+    let (splats, rects) = project_all(gaussians, &view, opts);
+    stats.projected = splats.len();
     let t2 = Instant::now();
 
     let (gx, gy) = (view.grid[0] as usize, view.grid[1] as usize);
-    let tile_max: Vec<f32> = (0..gx * gy)
-        .into_par_iter()
-        .map(|t| match sb.tile(t) {
-            Some(p) => p[P_LIMIT * N..(P_LIMIT + 1) * N]
-                .iter()
-                .cloned()
-                .fold(f32::NEG_INFINITY, f32::max),
-            None => f32::INFINITY,
-        })
-        .collect();
-    let rects: Vec<[u32; 4]> = proj.iter().map(|p| p.rect).collect();
     let total_pairs: u64 = rects
         .iter()
         .map(|r| (r[2] - r[0]) as u64 * (r[3] - r[1]) as u64)
         .sum();
     let bins = tiles::bin_rects(&rects, view.grid, MAX_PAIRS, |i, t| {
-        proj[i].splat.depth <= tile_max[t]
+        splats[i].depth <= sb.tile_max(t)
     })
     .map_err(RenderError::TooManyPairs)?;
     stats.tile_pairs = bins.pairs() as u64;
     stats.culled_pairs = total_pairs - stats.tile_pairs;
-    let splats: Vec<_> = proj.iter().map(|p| p.splat).collect();
-    drop(proj);
+    drop(rects);
     let t3 = Instant::now();
 
     let mut order: Vec<usize> = (0..gx * gy).collect();
@@ -278,20 +266,23 @@ pub fn render_ges_with_ids(
     Ok((frame, stats, sb.ids))
 }
 
-/// Project every Gaussian with the native renderer's [`project_one`] (in parallel); the
-/// visible ones in input order.
-fn project_all(cloud: &GaussianCloud, view: &ViewParams, opts: &GesOptions) -> Vec<Projected> {
+/// Project every Gaussian with the native renderer's [`project_one`] (in parallel): the splats
+/// and tile rectangles of the visible ones, in input order.
+fn project_all(
+    cloud: &GaussianCloud,
+    view: &ViewParams,
+    opts: &GesOptions,
+) -> (Vec<Splat>, Vec<[u32; 4]>) {
     let degree = cloud.sh_degree.min(opts.sh_degree_cap);
-    let parts: Vec<Vec<Projected>> = (0..cloud.len())
+    (0..cloud.len())
         .into_par_iter()
-        .chunks(8192)
-        .map(|idx| {
-            idx.into_iter()
-                .filter_map(|i| project_one(cloud, i, view, opts.extent, degree).ok())
-                .collect()
+        .with_min_len(4096)
+        .filter_map(|i| {
+            project_one(cloud, i, view, opts.extent, degree)
+                .ok()
+                .map(|p| (p.splat, p.rect))
         })
-        .collect();
-    parts.concat()
+        .unzip()
 }
 
 /// How a cloud is turned into surfels and Gaussians.

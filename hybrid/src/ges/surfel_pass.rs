@@ -210,6 +210,9 @@ pub fn project_surfel(
 pub struct SurfelBuffer {
     pub slot: Vec<u32>,
     pub planes: Vec<f32>,
+    /// Per slot, the largest pass-2 limit over the tile's pixels (+inf when any pixel of the
+    /// tile, or any position outside the image, is uncovered).
+    pub slot_max: Vec<f32>,
     pub ids: Vec<u32>,
     /// Surfels that reached at least one tile.
     pub drawn: usize,
@@ -218,6 +221,17 @@ pub struct SurfelBuffer {
 }
 
 impl SurfelBuffer {
+    /// Largest pass-2 limit of tile t (+inf where a pixel is uncovered or there is no surfel):
+    /// a Gaussian behind it is hidden at every pixel of the tile.
+    pub fn tile_max(&self, t: usize) -> f32 {
+        let s = self.slot[t];
+        if s == u32::MAX {
+            f32::INFINITY
+        } else {
+            self.slot_max[s as usize]
+        }
+    }
+
     /// Tile t's planes, if any surfel touches it.
     pub fn tile(&self, t: usize) -> Option<&[f32]> {
         let s = self.slot[t];
@@ -278,14 +292,16 @@ pub fn surfel_pass(
     }
     let mut planes = vec![0f32; tiles_used.len() * SURFEL_PLANES * N];
     let mut tile_ids = vec![u32::MAX; tiles_used.len() * N];
+    let mut slot_max = vec![f32::INFINITY; tiles_used.len()];
     planes
         .par_chunks_mut(SURFEL_PLANES * N)
         .zip(tile_ids.par_chunks_mut(N))
+        .zip(slot_max.par_iter_mut())
         .zip(tiles_used.par_iter())
         .with_max_len(1)
-        .for_each(|((out, ids), &tile)| {
+        .for_each(|(((out, ids), m), &tile)| {
             let (px0, py0) = (((tile % gx) * T) as i32, ((tile / gx) * T) as i32);
-            raster_tile(&proj, bins.tile(tile), px0, py0, view, offs, near, out, ids);
+            *m = raster_tile(&proj, bins.tile(tile), px0, py0, view, offs, near, out, ids);
         });
     // Frame-level ids of the first sample.
     let (w, h) = (view.width as usize, view.height as usize);
@@ -305,6 +321,7 @@ pub fn surfel_pass(
     Ok(SurfelBuffer {
         slot,
         planes,
+        slot_max,
         ids,
         drawn: rects.iter().filter(|r| r[2] > r[0] && r[3] > r[1]).count(),
         pairs: bins.pairs(),
@@ -312,6 +329,7 @@ pub fn surfel_pass(
 }
 
 /// Z-buffer one tile. `ids` receives, per tile pixel, the index into `proj` that won sample 0.
+/// Returns the largest pass-2 limit of the tile.
 fn raster_tile(
     proj: &[SurfelSplat],
     list: &[u32],
@@ -322,7 +340,7 @@ fn raster_tile(
     near: f32,
     out: &mut [f32],
     ids: &mut [u32],
-) {
+) -> f32 {
     let ns = offs.len();
     let r2 = footprint_r2();
     let mut zbuf = [f32::INFINITY; 4 * N];
@@ -382,4 +400,8 @@ fn raster_tile(
             out[P_LIMIT * N + lp] = limit;
         }
     }
+    out[P_LIMIT * N..(P_LIMIT + 1) * N]
+        .iter()
+        .cloned()
+        .fold(f32::NEG_INFINITY, f32::max)
 }
