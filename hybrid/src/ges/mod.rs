@@ -165,7 +165,7 @@ pub fn render_ges(
     camera: &Camera,
     opts: &GesOptions,
 ) -> Result<(Frame, GesStats), RenderError> {
-    render_ges_with_ids(surfels, gaussians, camera, opts).map(|(f, s, _)| (f, s))
+    render_impl(surfels, gaussians, camera, opts, false).map(|(f, s, _)| (f, s))
 }
 
 /// As [`render_ges`], also returning per pixel (row-major) the index of the surfel that won the
@@ -175,6 +175,17 @@ pub fn render_ges_with_ids(
     gaussians: &GaussianCloud,
     camera: &Camera,
     opts: &GesOptions,
+) -> Result<(Frame, GesStats, Vec<u32>), RenderError> {
+    render_impl(surfels, gaussians, camera, opts, true)
+}
+
+/// The render; the per-pixel surfel ids (a full-frame buffer) only when `want_ids`.
+fn render_impl(
+    surfels: &SurfelCloud,
+    gaussians: &GaussianCloud,
+    camera: &Camera,
+    opts: &GesOptions,
+    want_ids: bool,
 ) -> Result<(Frame, GesStats, Vec<u32>), RenderError> {
     camera.validate()?;
     gaussians.check_shape()?;
@@ -208,6 +219,7 @@ pub fn render_ges_with_ids(
         opts.sh_degree_cap,
         opts.supersample,
         MAX_PAIRS,
+        want_ids,
     )
     .map_err(RenderError::TooManyPairs)?;
     if opts.blur {

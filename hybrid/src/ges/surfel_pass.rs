@@ -13,6 +13,10 @@
 //! in f64 from the camera-relative surfel (so scenes far from the origin keep their precision) and
 //! rounded to f32 once.
 //!
+//! The per-sample test runs on eight samples of a row at once (AVX2 where the CPU has it,
+//! otherwise per lane); both perform the same f32 operations in the same order as
+//! [`SurfelSplat::hit`], so the z-buffer is the same bit for bit (see the tests).
+//!
 //! Surfels are binned to tiles by the exact screen bounding box of their footprint ellipse (the
 //! extremes of `x/z` over the ellipse's rim solve `P·sin θ + Q·cos θ = K`, see [`screen_box`]), in
 //! index order, without sorting. A surfel whose footprint crosses the near plane gets the whole
@@ -206,7 +210,8 @@ pub fn project_surfel(
 /// Result of pass 1. Only tiles that some surfel touches hold planes (see `P_*`, `N` values
 /// each): `slot[t]` is tile t's index into `planes` in units of `SURFEL_PLANES·N`, `u32::MAX`
 /// for a tile without surfels (nothing covered, limit +inf). `ids` holds, per pixel (row-major),
-/// the index of the surfel that won the pixel's first sample (`u32::MAX` where none).
+/// the index of the surfel that won the pixel's first sample (`u32::MAX` where none); it is empty
+/// unless requested.
 pub struct SurfelBuffer {
     pub slot: Vec<u32>,
     pub planes: Vec<f32>,
@@ -250,7 +255,8 @@ pub fn offsets(supersample: u32) -> &'static [[f32; 2]] {
     }
 }
 
-/// Run pass 1 for `surfels` seen through `view`.
+/// Run pass 1 for `surfels` seen through `view`; the per-pixel winner ids only if `want_ids`
+/// (otherwise `ids` is empty).
 pub fn surfel_pass(
     surfels: &SurfelCloud,
     view: &ViewParams,
@@ -259,6 +265,7 @@ pub fn surfel_pass(
     sh_degree: u8,
     supersample: u32,
     max_pairs: usize,
+    want_ids: bool,
 ) -> Result<SurfelBuffer, usize> {
     let degree = surfels.sh_degree.min(sh_degree);
     let proj: Vec<SurfelSplat> = (0..surfels.len())
@@ -291,32 +298,40 @@ pub fn surfel_pass(
         }
     }
     let mut planes = vec![0f32; tiles_used.len() * SURFEL_PLANES * N];
-    let mut tile_ids = vec![u32::MAX; tiles_used.len() * N];
+    let mut tile_ids = vec![u32::MAX; if want_ids { tiles_used.len() * N } else { 0 }];
     let mut slot_max = vec![f32::INFINITY; tiles_used.len()];
-    planes
+    let tile_jobs = planes
         .par_chunks_mut(SURFEL_PLANES * N)
-        .zip(tile_ids.par_chunks_mut(N))
         .zip(slot_max.par_iter_mut())
-        .zip(tiles_used.par_iter())
-        .with_max_len(1)
-        .for_each(|(((out, ids), m), &tile)| {
-            let (px0, py0) = (((tile % gx) * T) as i32, ((tile / gx) * T) as i32);
-            *m = raster_tile(&proj, bins.tile(tile), px0, py0, view, offs, near, out, ids);
-        });
+        .zip(tiles_used.par_iter());
+    let job = |((out, m), &tile): ((&mut [f32], &mut f32), &usize), ids: Option<&mut [u32]>| {
+        let (px0, py0) = (((tile % gx) * T) as i32, ((tile / gx) * T) as i32);
+        *m = raster_tile(&proj, bins.tile(tile), px0, py0, view, offs, near, out, ids);
+    };
+    if want_ids {
+        tile_jobs
+            .zip(tile_ids.par_chunks_mut(N))
+            .with_max_len(1)
+            .for_each(|(j, ids)| job(j, Some(ids)));
+    } else {
+        tile_jobs.with_max_len(1).for_each(|j| job(j, None));
+    }
     // Frame-level ids of the first sample.
     let (w, h) = (view.width as usize, view.height as usize);
-    let mut ids = vec![u32::MAX; w * h];
-    ids.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        for (x, v) in row.iter_mut().enumerate() {
-            let sl = slot[(y / T) * gx + x / T];
-            if sl != u32::MAX {
-                let k = tile_ids[sl as usize * N + (y % T) * T + x % T];
-                if k != u32::MAX {
-                    *v = proj[k as usize].index;
+    let mut ids = vec![u32::MAX; if want_ids { w * h } else { 0 }];
+    ids.par_chunks_mut(w.max(1))
+        .enumerate()
+        .for_each(|(y, row)| {
+            for (x, v) in row.iter_mut().enumerate() {
+                let sl = slot[(y / T) * gx + x / T];
+                if sl != u32::MAX {
+                    let k = tile_ids[sl as usize * N + (y % T) * T + x % T];
+                    if k != u32::MAX {
+                        *v = proj[k as usize].index;
+                    }
                 }
             }
-        }
-    });
+        });
     let _ = gy;
     Ok(SurfelBuffer {
         slot,
@@ -328,7 +343,8 @@ pub fn surfel_pass(
     })
 }
 
-/// Z-buffer one tile. `ids` receives, per tile pixel, the index into `proj` that won sample 0.
+/// Z-buffer one tile. `ids`, if given, receives per tile pixel the index into `proj` that won
+/// sample 0.
 /// Returns the largest pass-2 limit of the tile.
 fn raster_tile(
     proj: &[SurfelSplat],
@@ -339,36 +355,19 @@ fn raster_tile(
     offs: &[[f32; 2]],
     near: f32,
     out: &mut [f32],
-    ids: &mut [u32],
+    mut ids: Option<&mut [u32]>,
 ) -> f32 {
     let ns = offs.len();
     let r2 = footprint_r2();
     let mut zbuf = [f32::INFINITY; 4 * N];
     let mut win = [u32::MAX; 4 * N];
-    let (tx1, ty1) = (px0 + T as i32 - 1, py0 + T as i32 - 1);
-    for &k in list {
-        let s = &proj[k as usize];
-        let (x0, x1) = (s.bbox[0].max(px0), s.bbox[2].min(tx1));
-        let (y0, y1) = (s.bbox[1].max(py0), s.bbox[3].min(ty1));
-        for y in y0..=y1 {
-            let ly = (y - py0) as usize;
-            for x in x0..=x1 {
-                let lp = ly * T + (x - px0) as usize;
-                for (si, o) in offs.iter().enumerate() {
-                    let (t, covered) = s.hit(x as f32 + o[0], y as f32 + o[1], near, r2);
-                    let slot = si * N + lp;
-                    if covered && t < zbuf[slot] {
-                        zbuf[slot] = t;
-                        win[slot] = k;
-                    }
-                }
-            }
-        }
-    }
+    zbuffer(proj, list, px0, py0, offs, near, r2, &mut zbuf, &mut win);
     let (w, h) = (view.width as i32, view.height as i32);
     for lp in 0..N {
         let (x, y) = (px0 + (lp % T) as i32, py0 + (lp / T) as i32);
-        ids[lp] = win[lp];
+        if let Some(ids) = ids.as_deref_mut() {
+            ids[lp] = win[lp];
+        }
         out[P_LIMIT * N + lp] = f32::INFINITY;
         if x >= w || y >= h {
             continue;
@@ -404,4 +403,316 @@ fn raster_tile(
         .iter()
         .cloned()
         .fold(f32::NEG_INFINITY, f32::max)
+}
+
+/// How many list entries ahead the z-buffer loop prefetches.
+const PREFETCH: usize = 8;
+
+#[inline(always)]
+fn prefetch(s: &SurfelSplat) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: a prefetch is a hint without architectural effect; the address is a valid reference.
+    unsafe {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        _mm_prefetch::<_MM_HINT_T0>((s as *const SurfelSplat).cast::<i8>());
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = s;
+}
+
+/// Eight adjacent samples of a row through surfel `s` (index `k`): tile positions
+/// `base..base + 8` of the sample planes `zbuf`/`win`, the first at x = `xb + ox`, row
+/// coordinate `y` (offset included); only lanes `lo..=hi` lie in the surfel's box. The portable
+/// form: [`SurfelSplat::hit`] per lane.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn row8(
+    s: &SurfelSplat,
+    k: u32,
+    xb: f32,
+    ox: f32,
+    y: f32,
+    lanes: (usize, usize),
+    near: f32,
+    r2: f32,
+    zbuf: &mut [f32; 8],
+    win: &mut [u32; 8],
+) {
+    for l in lanes.0..=lanes.1 {
+        let (t, covered) = s.hit(xb + l as f32 + ox, y, near, r2);
+        if covered && t < zbuf[l] {
+            zbuf[l] = t;
+            win[l] = k;
+        }
+    }
+}
+
+/// [`row8`] on 256-bit vectors: the same f32 operations in the same order, so the same bits.
+#[cfg(target_arch = "x86_64")]
+mod avx {
+    use std::arch::x86_64::*;
+
+    use super::SurfelSplat;
+
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    pub unsafe fn row8(
+        s: &SurfelSplat,
+        k: u32,
+        xb: f32,
+        ox: f32,
+        y: f32,
+        lanes: (usize, usize),
+        near: f32,
+        r2: f32,
+        zbuf: &mut [f32; 8],
+        win: &mut [u32; 8],
+    ) {
+        // SAFETY: AVX2 is present (caller); the loads and stores touch exactly the 8 elements
+        // of `zbuf` and `win`.
+        unsafe {
+            let v = |x: f32| _mm256_set1_ps(x);
+            let idx = _mm256_set_epi32(7, 6, 5, 4, 3, 2, 1, 0);
+            let in_box = _mm256_castsi256_ps(_mm256_and_si256(
+                _mm256_cmpgt_epi32(idx, _mm256_set1_epi32(lanes.0 as i32 - 1)),
+                _mm256_cmpgt_epi32(_mm256_set1_epi32(lanes.1 as i32 + 1), idx),
+            ));
+            // `x as f32 + o[0]` of the scalar loop: the integer pixel x is exact in f32.
+            let x = _mm256_add_ps(
+                _mm256_add_ps(v(xb), _mm256_set_ps(7.0, 6.0, 5.0, 4.0, 3.0, 2.0, 1.0, 0.0)),
+                v(ox),
+            );
+            let lin = |c: [f32; 3]| {
+                _mm256_add_ps(
+                    _mm256_add_ps(_mm256_mul_ps(v(c[0]), x), v(c[1] * y)),
+                    v(c[2]),
+                )
+            };
+            let t = _mm256_div_ps(v(s.nc), lin(s.n));
+            let u = _mm256_sub_ps(_mm256_mul_ps(t, lin(s.u)), v(s.uc));
+            let w = _mm256_sub_ps(_mm256_mul_ps(t, lin(s.v)), v(s.vc));
+            let q = _mm256_add_ps(_mm256_mul_ps(u, u), _mm256_mul_ps(w, w));
+            let covered = _mm256_and_ps(
+                _mm256_and_ps(
+                    _mm256_cmp_ps::<_CMP_GT_OQ>(t, v(near)),
+                    _mm256_cmp_ps::<_CMP_LT_OQ>(t, v(f32::MAX)),
+                ),
+                _mm256_cmp_ps::<_CMP_LE_OQ>(q, v(r2)),
+            );
+            let zp = zbuf.as_mut_ptr();
+            let wp = win.as_mut_ptr() as *mut __m256i;
+            let z = _mm256_loadu_ps(zp);
+            let take = _mm256_and_ps(
+                _mm256_and_ps(covered, in_box),
+                _mm256_cmp_ps::<_CMP_LT_OQ>(t, z),
+            );
+            _mm256_storeu_ps(zp, _mm256_blendv_ps(z, t, take));
+            let old = _mm256_castsi256_ps(_mm256_loadu_si256(wp));
+            let kk = _mm256_castsi256_ps(_mm256_set1_epi32(k as i32));
+            _mm256_storeu_si256(wp, _mm256_castps_si256(_mm256_blendv_ps(old, kk, take)));
+        }
+    }
+}
+
+/// The z-buffer loop of a tile, with the 8-sample row kernel as a parameter: for every surfel
+/// of `list` in order and every sample offset, the rows and 8-pixel groups its box reaches.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn zbuffer_with(
+    proj: &[SurfelSplat],
+    list: &[u32],
+    px0: i32,
+    py0: i32,
+    offs: &[[f32; 2]],
+    near: f32,
+    r2: f32,
+    zbuf: &mut [f32; 4 * N],
+    win: &mut [u32; 4 * N],
+    kernel: impl Fn(
+        &SurfelSplat,
+        u32,
+        f32,
+        f32,
+        f32,
+        (usize, usize),
+        f32,
+        f32,
+        &mut [f32; 8],
+        &mut [u32; 8],
+    ),
+) {
+    let (tx1, ty1) = (px0 + T as i32 - 1, py0 + T as i32 - 1);
+    for (i, &k) in list.iter().enumerate() {
+        if let Some(&ahead) = list.get(i + PREFETCH) {
+            prefetch(&proj[ahead as usize]);
+        }
+        let s = &proj[k as usize];
+        let (x0, x1) = (s.bbox[0].max(px0), s.bbox[2].min(tx1));
+        let (y0, y1) = (s.bbox[1].max(py0), s.bbox[3].min(ty1));
+        if x0 > x1 || y0 > y1 {
+            continue;
+        }
+        let (lx0, lx1) = ((x0 - px0) as usize, (x1 - px0) as usize);
+        for (si, o) in offs.iter().enumerate() {
+            for y in y0..=y1 {
+                let row = si * N + (y - py0) as usize * T;
+                let yf = y as f32 + o[1];
+                for h in lx0 / 8..=lx1 / 8 {
+                    let lanes = (lx0.max(8 * h) - 8 * h, lx1.min(8 * h + 7) - 8 * h);
+                    let base = row + 8 * h;
+                    let z: &mut [f32; 8] = (&mut zbuf[base..base + 8]).try_into().unwrap();
+                    let w: &mut [u32; 8] = (&mut win[base..base + 8]).try_into().unwrap();
+                    let xb = (px0 + 8 * h as i32) as f32;
+                    kernel(s, k, xb, o[0], yf, lanes, near, r2, z, w);
+                }
+            }
+        }
+    }
+}
+
+/// [`zbuffer_with`] compiled for AVX2 with the 256-bit kernel.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[allow(clippy::too_many_arguments)]
+unsafe fn zbuffer_avx2(
+    proj: &[SurfelSplat],
+    list: &[u32],
+    px0: i32,
+    py0: i32,
+    offs: &[[f32; 2]],
+    near: f32,
+    r2: f32,
+    zbuf: &mut [f32; 4 * N],
+    win: &mut [u32; 4 * N],
+) {
+    // SAFETY: this function only runs when AVX2 is present.
+    let k8 =
+        |s: &SurfelSplat,
+         k: u32,
+         xb: f32,
+         ox: f32,
+         y: f32,
+         lanes: (usize, usize),
+         near: f32,
+         r2: f32,
+         z: &mut [f32; 8],
+         w: &mut [u32; 8]| unsafe { avx::row8(s, k, xb, ox, y, lanes, near, r2, z, w) };
+    zbuffer_with(proj, list, px0, py0, offs, near, r2, zbuf, win, k8)
+}
+
+/// Z-buffer the surfels `list` into the sample planes of the tile at `(px0, py0)` with the
+/// fastest kernel the CPU has (both give the same bits, see the tests).
+#[allow(clippy::too_many_arguments)]
+fn zbuffer(
+    proj: &[SurfelSplat],
+    list: &[u32],
+    px0: i32,
+    py0: i32,
+    offs: &[[f32; 2]],
+    near: f32,
+    r2: f32,
+    zbuf: &mut [f32; 4 * N],
+    win: &mut [u32; 4 * N],
+) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: AVX2 is present.
+        return unsafe { zbuffer_avx2(proj, list, px0, py0, offs, near, r2, zbuf, win) };
+    }
+    zbuffer_with(proj, list, px0, py0, offs, near, r2, zbuf, win, row8)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use splatbridge_scene::rng::Rng;
+
+    /// Random surfels around a 16×16 tile at (32, 48): planes tilted a little, ellipses of a
+    /// few pixels centred near the tile, some in front of the near plane, boxes cut by the tile.
+    fn random_surfels(rng: &mut Rng, n: usize) -> Vec<SurfelSplat> {
+        (0..n)
+            .map(|i| {
+                let nrm = [
+                    rng.range(-0.02, 0.02),
+                    rng.range(-0.02, 0.02),
+                    rng.range(0.5, 1.5),
+                ];
+                let (cx, cy) = (rng.range(26.0, 70.0), rng.range(42.0, 70.0));
+                let nc = rng.range(0.0, 4.0);
+                let t0 = nc / (nrm[0] * cx + nrm[1] * cy + nrm[2]);
+                let mut axis = || {
+                    let c = [
+                        rng.range(-0.6, 0.6),
+                        rng.range(-0.6, 0.6),
+                        rng.range(-2.0, 2.0),
+                    ];
+                    let at = t0 * (c[0] * cx + c[1] * cy + c[2]);
+                    (c, at)
+                };
+                let ((u, uc), (v, vc)) = (axis(), axis());
+                let r = rng.range(1.0, 12.0);
+                let (bx, by) = (cx.round() as i32, cy.round() as i32);
+                let rr = r.ceil() as i32;
+                SurfelSplat {
+                    n: nrm,
+                    u,
+                    v,
+                    nc,
+                    uc,
+                    vc,
+                    color: [rng.f32(), rng.f32(), rng.f32()],
+                    eps: rng.range(0.0, 0.5),
+                    bbox: [bx - rr, by - rr, bx + rr, by + rr],
+                    index: i as u32,
+                }
+            })
+            .collect()
+    }
+
+    /// The z-buffer kernels (AVX2 where the CPU has it, and the portable one) give the bits of
+    /// the per-sample loop: nearest covering surfel, ties to the lower index, per sample.
+    #[test]
+    fn zbuffer_kernels_match_the_per_sample_loop() {
+        let mut rng = Rng::new(17);
+        let proj = random_surfels(&mut rng, 400);
+        let list: Vec<u32> = (0..proj.len() as u32).collect();
+        let (px0, py0, near, r2) = (32, 48, 0.2f32, footprint_r2());
+        for offs in [offsets(1), offsets(4)] {
+            let mut want_z = [f32::INFINITY; 4 * N];
+            let mut want_w = [u32::MAX; 4 * N];
+            for &k in &list {
+                let s = &proj[k as usize];
+                for y in s.bbox[1].max(py0)..=s.bbox[3].min(py0 + T as i32 - 1) {
+                    for x in s.bbox[0].max(px0)..=s.bbox[2].min(px0 + T as i32 - 1) {
+                        let lp = (y - py0) as usize * T + (x - px0) as usize;
+                        for (si, o) in offs.iter().enumerate() {
+                            let (t, c) = s.hit(x as f32 + o[0], y as f32 + o[1], near, r2);
+                            if c && t < want_z[si * N + lp] {
+                                want_z[si * N + lp] = t;
+                                want_w[si * N + lp] = k;
+                            }
+                        }
+                    }
+                }
+            }
+            let won = want_w[..offs.len() * N]
+                .iter()
+                .filter(|&&w| w != u32::MAX)
+                .count();
+            assert!(won > offs.len() * N / 2, "only {won} samples covered");
+            let (mut z, mut w) = ([f32::INFINITY; 4 * N], [u32::MAX; 4 * N]);
+            zbuffer_with(&proj, &list, px0, py0, offs, near, r2, &mut z, &mut w, row8);
+            assert_eq!(z.map(f32::to_bits), want_z.map(f32::to_bits));
+            assert_eq!(w, want_w);
+            let (mut z, mut w) = ([f32::INFINITY; 4 * N], [u32::MAX; 4 * N]);
+            zbuffer(&proj, &list, px0, py0, offs, near, r2, &mut z, &mut w);
+            assert_eq!(z.map(f32::to_bits), want_z.map(f32::to_bits));
+            assert_eq!(w, want_w);
+        }
+    }
 }
