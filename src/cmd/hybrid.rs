@@ -62,8 +62,15 @@ pub struct HybridKnobs {
     /// Surfel samples per pixel: 1 or 4.
     #[arg(long, default_value_t = 1, value_parser = parse_supersample)]
     pub supersample: u32,
-    /// GES's 3×3 surfel colour blur: on or off.
-    #[arg(long, value_parser = parse_on_off, default_value = "off")]
+    /// GES's 3×3 surfel colour blur: on or off (`--blur` alone means on).
+    #[arg(
+        long,
+        value_parser = parse_on_off,
+        default_value = "off",
+        num_args = 0..=1,
+        default_missing_value = "on",
+        action = clap::ArgAction::Set
+    )]
     pub blur: bool,
     /// Treat the input as a GES PLY (stored opacity above 1000 marks a surfel). Detected
     /// automatically when any stored opacity exceeds 1000.
