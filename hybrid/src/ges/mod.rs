@@ -5,20 +5,24 @@
 //! 1. [`surfel_pass`]: surfels through a per-sample z-buffer (ray–plane intersection, exact
 //!    ellipse coverage), optional 4× supersampling, optional 3×3 colour blur.
 //! 2. [`gauss_pass`]: Gaussians projected exactly as the native renderer does (its
-//!    [`crate::project`]), binned without sorting, accumulated additively where their depth is
-//!    within `D_S + ε` of the covering surfel (ε = F·mean scale, GES: F = 5).
+//!    [`crate::project`], through [`project_gauss`], which drops those behind the surfels of
+//!    every tile they touch before their colour is evaluated), binned without sorting,
+//!    accumulated additively where their depth is within `D_S + ε` of the covering surfel
+//!    (ε = F·mean scale, GES: F = 5).
 //! 3. [`composite`]: `C = (w_S·C_S + C_G)/(w_S + W_G)` where a surfel covers the pixel; weighted
 //!    blended transparency over the background where none does.
 //!
 //! Where the speed comes from, against the native renderer on the same cloud: no depth sort; no
 //! per-pixel transmittance chain (every Gaussian–pixel pair is independent); and, above all, the
 //! surfels occlude: a Gaussian enters a tile's list only if its depth is within the tile's
-//! largest `D_S + ε`, so the Gaussians behind the opaque surface cost nothing past projection.
+//! largest `D_S + ε`, so the Gaussians behind the opaque surface cost nothing past their tile
+//! rectangle.
 //!
 //! Surfels come from [`splatbridge_scene::surfels`] (split of a 3DGS cloud, or GES's PLY flag).
 
 pub mod composite;
 pub mod gauss_pass;
+pub mod project_gauss;
 pub mod surfel_pass;
 pub mod tiles;
 
@@ -31,9 +35,10 @@ use splatbridge_scene::surfels::{
 use splatbridge_scene::{Camera, Frame, GaussianCloud};
 
 use crate::native::{RenderError, RenderOptions, MAX_PAIRS, NEAR_REFERENCE};
-use crate::project::{project_one, Extent, Splat, ViewParams};
+use crate::project::{Extent, Splat, ViewParams};
 
 use gauss_pass::{gauss_tile, FrameOut};
+use project_gauss::{project_unhidden, Projection};
 use surfel_pass::T;
 
 /// Knobs of the hybrid renderer.
@@ -235,15 +240,18 @@ fn render_impl(
     stats.surfel_pairs = sb.pairs;
     let t1 = Instant::now();
 
-    let (splats, rects) = project_all(gaussians, &view, opts);
-    stats.projected = splats.len();
+    let (gx, gy) = (view.grid[0] as usize, view.grid[1] as usize);
+    let tile_max: Vec<f32> = (0..gx * gy).map(|t| sb.tile_max(t)).collect();
+    let Projected {
+        splats,
+        rects,
+        hidden,
+        hidden_pairs,
+    } = project_all(gaussians, &view, opts, &tile_max);
+    stats.projected = splats.len() + hidden;
     let t2 = Instant::now();
 
-    let (gx, gy) = (view.grid[0] as usize, view.grid[1] as usize);
-    let total_pairs: u64 = rects
-        .iter()
-        .map(|r| (r[2] - r[0]) as u64 * (r[3] - r[1]) as u64)
-        .sum();
+    let total_pairs: u64 = rects.iter().map(rect_pairs).sum::<u64>() + hidden_pairs;
     let bins = tiles::bin_rects(&rects, view.grid, MAX_PAIRS, |i, t| {
         splats[i].depth <= sb.tile_max(t)
     })
@@ -278,23 +286,69 @@ fn render_impl(
     Ok((frame, stats, sb.ids))
 }
 
-/// Project every Gaussian with the native renderer's [`project_one`] (in parallel): the splats
-/// and tile rectangles of the visible ones, in input order.
+/// Gaussians projected per parallel job of [`project_all`].
+const PROJECT_CHUNK: usize = 8192;
+
+/// What [`project_all`] returns: the splats and tile rectangles of the Gaussians that are
+/// visible and not behind the largest limit of every tile they touch, in input order; the
+/// Gaussians hidden that way and their tile pairs.
+#[derive(Default)]
+struct Projected {
+    splats: Vec<Splat>,
+    rects: Vec<[u32; 4]>,
+    hidden: usize,
+    hidden_pairs: u64,
+}
+
+/// Project every Gaussian as the native renderer's [`crate::project::project_one`] does (in
+/// parallel, in fixed chunks), with the depth test against `tile_max` (see [`project_gauss`]).
 fn project_all(
     cloud: &GaussianCloud,
     view: &ViewParams,
     opts: &GesOptions,
-) -> (Vec<Splat>, Vec<[u32; 4]>) {
+    tile_max: &[f32],
+) -> Projected {
     let degree = cloud.sh_degree.min(opts.sh_degree_cap);
-    (0..cloud.len())
+    let n = cloud.len();
+    let parts: Vec<Projected> = (0..n.div_ceil(PROJECT_CHUNK))
         .into_par_iter()
-        .with_min_len(4096)
-        .filter_map(|i| {
-            project_one(cloud, i, view, opts.extent, degree)
-                .ok()
-                .map(|p| (p.splat, p.rect))
+        .with_max_len(1)
+        .map(|c| {
+            let mut p = Projected::default();
+            for i in c * PROJECT_CHUNK..n.min((c + 1) * PROJECT_CHUNK) {
+                match project_unhidden(cloud, i, view, opts.extent, degree, tile_max) {
+                    Projection::Visible(s, r) => {
+                        p.splats.push(s);
+                        p.rects.push(r);
+                    }
+                    Projection::Hidden(r) => {
+                        p.hidden += 1;
+                        p.hidden_pairs += rect_pairs(&r);
+                    }
+                    Projection::Culled => {}
+                }
+            }
+            p
         })
-        .unzip()
+        .collect();
+    let total: usize = parts.iter().map(|p| p.splats.len()).sum();
+    let mut out = Projected {
+        splats: Vec::with_capacity(total),
+        rects: Vec::with_capacity(total),
+        ..Default::default()
+    };
+    for p in parts {
+        out.splats.extend_from_slice(&p.splats);
+        out.rects.extend_from_slice(&p.rects);
+        out.hidden += p.hidden;
+        out.hidden_pairs += p.hidden_pairs;
+    }
+    out
+}
+
+/// Tiles of a tile rectangle `[x0, y0, x1, y1)`.
+fn rect_pairs(r: &[u32; 4]) -> u64 {
+    (r[2] - r[0]) as u64 * (r[3] - r[1]) as u64
 }
 
 /// How a cloud is turned into surfels and Gaussians.

@@ -101,26 +101,26 @@ impl SurfelSplat {
 /// Screen bounding box (continuous pixel coordinates, pixel `i` at `i`) of the ellipse
 /// `c + cos θ·U + sin θ·W` (camera space, every rim point in front of the camera): the extremes
 /// of `X(θ)/Z(θ)` satisfy `(X'Z − XZ') = 0`, i.e. `P·sin θ + Q·cos θ = K` with
-/// `P = U.z·c.x − U.x·c.z`, `Q = W.x·c.z − W.z·c.x`, `K = U.x·W.z − W.x·U.z`.
+/// `P = U.z·c.x − U.x·c.z`, `Q = W.x·c.z − W.z·c.x`, `K = U.x·W.z − W.x·U.z`. The two solutions
+/// are where the line `P·s + Q·c = K` meets the unit circle, `(s, c) = (K·(P, Q) ± √(ρ² − K²)·(Q, −P))/ρ²`
+/// with `ρ² = P² + Q²`: no trigonometry.
 pub fn screen_box(view: &ViewParams, c: DVec3, u: DVec3, w: DVec3) -> [f64; 4] {
     let along = |ci: f64, ui: f64, wi: f64, f: f64, p0: f64| -> (f64, f64) {
         let p = u.z * ci - ui * c.z;
         let q = wi * c.z - w.z * ci;
         let k = ui * w.z - wi * u.z;
-        let rho = (p * p + q * q).sqrt();
-        let proj = |th: f64| {
-            let (s, co) = th.sin_cos();
-            f * (ci + co * ui + s * wi) / (c.z + co * u.z + s * w.z) + p0
-        };
-        if rho > 1e-300 && (k / rho).abs() <= 1.0 {
-            let phi = q.atan2(p);
-            let a = (k / rho).asin();
-            let (x0, x1) = (proj(a - phi), proj(std::f64::consts::PI - a - phi));
+        let rho2 = p * p + q * q;
+        let proj = |s: f64, co: f64| f * (ci + co * ui + s * wi) / (c.z + co * u.z + s * w.z) + p0;
+        let disc = rho2 - k * k;
+        if rho2 > 1e-300 && disc >= 0.0 {
+            let sq = disc.sqrt();
+            let x0 = proj((k * p + sq * q) / rho2, (k * q - sq * p) / rho2);
+            let x1 = proj((k * p - sq * q) / rho2, (k * q + sq * p) / rho2);
             (x0.min(x1), x0.max(x1))
         } else {
             // Degenerate (the projection is constant along the rim): the centre and four rim
             // points bound it.
-            let pts = [0.0, 0.5, 1.0, 1.5].map(|k: f64| proj(k * std::f64::consts::PI));
+            let pts = [(0.0, 1.0), (1.0, 0.0), (0.0, -1.0), (-1.0, 0.0)].map(|(s, co)| proj(s, co));
             let lo = pts.iter().cloned().fold(f64::INFINITY, f64::min);
             let hi = pts.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
             (lo, hi)
@@ -672,6 +672,51 @@ mod tests {
                 }
             })
             .collect()
+    }
+
+    /// The algebraic screen box equals the extremes of a dense sampling of the projected rim:
+    /// it contains every sample and each of its edges is reached by one (to the sampling's
+    /// resolution), for tilted ellipses in front of a camera.
+    #[test]
+    fn screen_box_matches_a_sampled_rim() {
+        let cam =
+            splatbridge_scene::Camera::look_at(DVec3::ZERO, DVec3::Z, DVec3::NEG_Y, 60.0, 640, 480)
+                .unwrap();
+        let view = ViewParams::new(&cam, 0.2);
+        let mut rng = Rng::new(23);
+        let mut r = |a: f64, b: f64| rng.range(a as f32, b as f32) as f64;
+        for case in 0..500 {
+            let c = DVec3::new(r(-3.0, 3.0), r(-2.0, 2.0), r(2.0, 8.0));
+            let u = DVec3::new(r(-1.0, 1.0), r(-1.0, 1.0), r(-1.0, 1.0));
+            let w = DVec3::new(r(-1.0, 1.0), r(-1.0, 1.0), r(-1.0, 1.0));
+            let b = screen_box(&view, c, u, w);
+            let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+            const K: usize = 20_000;
+            for j in 0..K {
+                let th = j as f64 * std::f64::consts::TAU / K as f64;
+                let p = c + th.cos() * u + th.sin() * w;
+                let px = [
+                    view.fx * p.x / p.z + view.px0,
+                    view.fy * p.y / p.z + view.py0,
+                ];
+                for a in 0..2 {
+                    lo[a] = lo[a].min(px[a]);
+                    hi[a] = hi[a].max(px[a]);
+                }
+            }
+            // Near an extreme the projection is flat in θ: the sampled extreme is within
+            // R·(π/K)² of the true one, R the screen radius (below 1000 px here): < 1e-4 px.
+            for a in 0..2 {
+                assert!(
+                    b[a] <= lo[a] + 1e-9 && lo[a] - b[a] < 1e-3,
+                    "case {case}: {b:?} {lo:?}"
+                );
+                assert!(
+                    b[a + 2] >= hi[a] - 1e-9 && b[a + 2] - hi[a] < 1e-3,
+                    "case {case}: {b:?} {hi:?}"
+                );
+            }
+        }
     }
 
     /// The z-buffer kernels (AVX2 where the CPU has it, and the portable one) give the bits of
