@@ -4,6 +4,10 @@
 //! Per ray, a k-buffer collects the k nearest hits beyond the last composited one (ordered by
 //! the key distance, Gaussian id, instance, planar group), composites them, and tracing resumes
 //! until the transmittance falls below 1e-4 (native splatting's threshold) or no hit is left.
+//! When compositing, hits are shaded as they are found and those with α = 0 (the texture
+//! profile's quad corners, fully transparent texels) are not kept: they add nothing, and in
+//! the buffer they would only cost extra rounds. Hit enumeration ([`MeshTracer::all_hits`])
+//! keeps every crossing.
 //! Ordering by the full key means hits at one distance are never lost or repeated across
 //! rounds, however many there are, and the image does not depend on traversal order.
 //!
@@ -63,6 +67,9 @@ pub struct Hit {
     pub group: u32,
     pub tri: u32,
     pub bary: [f32; 3],
+    /// Mode mesh, when shaded during collection (see [`KBuffer::shade_on_insert`]): the hit's
+    /// RGBA; unused otherwise.
+    pub rgba: Vec4,
 }
 
 /// Sort key: distance, then Gaussian id, instance, group (t ≥ 0, so its bits order like it).
@@ -82,6 +89,9 @@ pub struct KBuffer {
     pub hits: Vec<Hit>,
     /// Candidates tested since the counter was last reset (statistics only).
     pub candidates: u32,
+    /// Shade hits as they are found and keep only those with α > 0 (compositing; see
+    /// `MeshTracer::trace`). Off for hit enumeration, which reports every crossing.
+    pub shade_on_insert: bool,
 }
 
 impl KBuffer {
@@ -90,6 +100,7 @@ impl KBuffer {
             k,
             hits: Vec::with_capacity(k + 1),
             candidates: 0,
+            shade_on_insert: false,
         }
     }
 
@@ -348,6 +359,20 @@ impl MeshTracer {
                         (Some(h), None) => h.bary,
                         (None, None) => return,
                     };
+                    let rgba = if buf.shade_on_insert {
+                        let c = mesh.shade(
+                            prim as usize,
+                            bary,
+                            &self.scene.materials,
+                            &self.scene.textures,
+                        );
+                        if !(c.w > 0.0) {
+                            return;
+                        }
+                        c
+                    } else {
+                        Vec4::ZERO
+                    };
                     let hit = Hit {
                         t,
                         gaussian: key.1,
@@ -355,6 +380,7 @@ impl MeshTracer {
                         group: g,
                         tri: prim,
                         bary,
+                        rgba,
                     };
                     *cull = buf.insert(hit, tmax);
                 });
@@ -407,12 +433,13 @@ impl MeshTracer {
             Compositing::Display => (lin, false),
             Compositing::Viewer => (false, !lin),
         };
+        buf.shade_on_insert = true;
         'rounds: loop {
             self.collect(insts, o, d, 0.0, f32::INFINITY, after, buf);
             out.traversals += 1;
             for h in &buf.hits {
                 out.hits += 1;
-                let rgba = self.shade(insts, h);
+                let rgba = h.rgba;
                 let a = rgba.w;
                 if a > 0.0 {
                     let w = a * tr;
@@ -463,6 +490,7 @@ impl MeshTracer {
         out.alpha = 1.0 - tr;
         out.depth = if wsum > 0.0 { dsum / wsum } else { 0.0 };
         out.candidates = buf.candidates;
+        buf.shade_on_insert = false;
         out
     }
 

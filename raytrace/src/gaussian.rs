@@ -409,6 +409,7 @@ impl GaussianTracer {
                     group: 0,
                     tri: part.index[p],
                     bary: [alpha, 0.0, 0.0],
+                    rgba: glam::Vec4::ZERO,
                 };
                 if after.is_some_and(|a| h.key() <= a) {
                     return;

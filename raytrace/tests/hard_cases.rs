@@ -340,3 +340,69 @@ fn hits_right_at_the_origin_and_resumed_rounds_are_kept() {
         }
     }
 }
+
+#[test]
+fn invisible_layers_change_nothing_and_take_no_k_buffer_slots() {
+    // 12 visible fans stacked along z with an invisible one (α = 0 at every vertex, as the
+    // texture profile's quad corners are) between each pair. Compositing keeps only α > 0 hits
+    // in the k-buffer, so the scene renders bit-identically with and without the invisible
+    // layers, in the same number of rounds, for any k; enumeration still reports them.
+    let (mut with, mut without) = (ids(), ids());
+    for i in 0..12u32 {
+        let z = i as f32 * 0.1;
+        let rgb = Vec3::new(i as f32 / 12.0, 0.5, 1.0 - i as f32 / 12.0);
+        for m in [&mut with, &mut without] {
+            push_fan(
+                m,
+                2 * i,
+                Vec3::new(0.0, 0.0, z),
+                Vec3::X,
+                Vec3::Y,
+                8,
+                rgb,
+                0.3,
+            );
+        }
+        push_fan(
+            &mut with,
+            2 * i + 1,
+            Vec3::new(0.0, 0.0, z + 0.05),
+            Vec3::X,
+            Vec3::Y,
+            8,
+            Vec3::ONE,
+            0.0,
+        );
+    }
+    let cam = Camera::look_at(
+        DVec3::new(0.1, 0.05, -2.0),
+        DVec3::ZERO,
+        DVec3::NEG_Y,
+        40.0,
+        12,
+        9,
+    )
+    .unwrap();
+    for b in backends() {
+        let tw = MeshTracer::new(scene_of(with.clone()), b, BuildPreset::Medium).unwrap();
+        let to = MeshTracer::new(scene_of(without.clone()), b, BuildPreset::Medium).unwrap();
+        for k in [1, 3, 16] {
+            let opts = RenderOptions {
+                k,
+                ..Default::default()
+            };
+            let (fw, sw) = tw.render(&cam, 0.0, &opts).unwrap();
+            let (fo, so) = to.render(&cam, 0.0, &opts).unwrap();
+            assert_eq!(fw.rgb, fo.rgb, "{b}, k = {k}");
+            assert_eq!(fw.alpha, fo.alpha, "{b}, k = {k}");
+            assert_eq!(
+                sw.traversals, so.traversals,
+                "{b}, k = {k}: invisible hits took slots"
+            );
+            assert!(so.hits > 0);
+        }
+        let insts = tw.prepare(0.0);
+        let all = tw.all_hits(&insts, DVec3::new(0.1, 0.05, -2.0), DVec3::Z, 4);
+        assert_eq!(all.len(), 24, "{b}: enumeration reports every crossing");
+    }
+}
