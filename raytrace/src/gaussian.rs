@@ -390,6 +390,7 @@ impl GaussianTracer {
             });
             let cull0 = buf.cull(tmax);
             part.accel.traverse(ro, rd, cull0, &mut |p, _, cull| {
+                buf.candidates = buf.candidates.wrapping_add(1);
                 let p = p as usize;
                 if let Some(n) = near {
                     if (part.mean[p] - n.origin).dot(n.forward) <= n.near {
@@ -489,6 +490,7 @@ impl GaussianTracer {
         let mut tr = 1.0f32;
         let (mut c, mut dsum, mut wsum) = (Vec3::ZERO, 0.0f32, 0.0f32);
         let mut after = None;
+        buf.candidates = 0;
         'rounds: loop {
             self.collect(o, d, near, f32::INFINITY, after, buf);
             out.traversals += 1;
@@ -514,6 +516,7 @@ impl GaussianTracer {
         out.rgb = c + opts.background * tr;
         out.alpha = 1.0 - tr;
         out.depth = if wsum > 0.0 { dsum / wsum } else { 0.0 };
+        out.candidates = buf.candidates;
         out
     }
 
