@@ -1,5 +1,12 @@
 //! `splatbridge bench …`: benchmarks that report medians over repeated runs and the counters
 //! that explain them. Each target is its own module.
+//!
+//! Renderer benchmarks measure the steady state of a render loop: glibc's allocator is told to
+//! keep freed memory (no `mmap` per large buffer, no trimming), so each frame reuses the pages
+//! of the last instead of faulting in fresh ones. Without it, comparisons that alternate two
+//! renderers measure the allocator: freeing one renderer's buffers returned them to the OS and
+//! the other faulted its own back in (native splatting of the 1 M fixture took 352 ms inside
+//! `bench hybrid` against 249 ms alone; 256 ms with this setting).
 
 pub mod convert;
 pub mod effects;
@@ -30,7 +37,27 @@ pub enum Target {
     Effects(effects::Args),
 }
 
+/// Keep freed memory in the process (see the module docs). Only glibc has these knobs; elsewhere
+/// the allocator's default stands.
+fn steady_state_allocator() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: mallopt only changes allocator parameters; it is called before any worker thread
+    // exists and its result (0 on failure) only means the default stays.
+    unsafe {
+        // No mmap-backed chunks (M_MMAP_THRESHOLD cannot exceed 32 MiB, below the renderers'
+        // largest buffers), and no returning the heap's top to the OS.
+        libc::mallopt(libc::M_MMAP_MAX, 0);
+        libc::mallopt(libc::M_TRIM_THRESHOLD, i32::MAX);
+    }
+}
+
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if matches!(
+        args.target,
+        Target::Render(_) | Target::Trace(_) | Target::Hybrid(_) | Target::Effects(_)
+    ) {
+        steady_state_allocator();
+    }
     match args.target {
         Target::Ply(a) => ply::run(a),
         Target::Render(a) => render::run(a),
