@@ -28,6 +28,8 @@
 //! `D_S + ε` over covered samples (a Gaussian counts if it lies in front of the limit of any
 //! covered part of the pixel). With one sample the sample sits at the pixel's integer coordinate.
 
+use std::mem::MaybeUninit;
+
 use rayon::prelude::*;
 use splatbridge_scene::sh;
 use splatbridge_scene::surfels::{SurfelCloud, FOOTPRINT_SIGMAS};
@@ -86,6 +88,22 @@ pub struct SurfelSplat {
 }
 
 impl SurfelSplat {
+    /// The placeholder of culled surfel `i`: an empty box, in no tile list.
+    fn culled(i: usize) -> Self {
+        SurfelSplat {
+            n: [0.0; 3],
+            u: [0.0; 3],
+            v: [0.0; 3],
+            nc: 0.0,
+            uc: 0.0,
+            vc: 0.0,
+            color: [0.0; 3],
+            eps: 0.0,
+            bbox: [0, 0, -1, -1],
+            index: i as u32,
+        }
+    }
+
     /// View depth of the hit and whether the sample at (x, y) is covered.
     #[inline(always)]
     pub fn hit(&self, x: f32, y: f32, near: f32, r2: f32) -> (f32, bool) {
@@ -131,6 +149,26 @@ pub fn screen_box(view: &ViewParams, c: DVec3, u: DVec3, w: DVec3) -> [f64; 4] {
     [x0, y0, x1, y1]
 }
 
+/// `v` clamped to `[−1, m]` (`v` finite).
+#[inline(always)]
+fn clamp_box(v: f64, m: i64) -> f64 {
+    v.max(-1.0).min(m as f64)
+}
+
+/// `floor(v)` for finite `v` within `i64`'s range (the truncation, one lower below zero).
+#[inline(always)]
+fn floor_in(v: f64) -> i64 {
+    let i = v as i64;
+    i - ((i as f64) > v) as i64
+}
+
+/// `ceil(v)` for finite `v` within `i64`'s range.
+#[inline(always)]
+fn ceil_in(v: f64) -> i64 {
+    let i = v as i64;
+    i + ((i as f64) < v) as i64
+}
+
 /// Project surfel `i` for this view; `None` when entirely behind the near plane, off-screen or
 /// degenerate. The ellipse reaches `footprint` standard deviations (GES: [`FOOTPRINT_SIGMAS`]),
 /// realised by scaling both axes by `footprint / FOOTPRINT_SIGMAS` (ε is not affected).
@@ -167,9 +205,11 @@ pub fn project_surfel(
         if !b.iter().all(|v| v.is_finite()) {
             return None;
         }
-        // One pixel of margin for the supersample offsets (≤ 3/8) and f32 evaluation.
-        let lo = |v: f64, m: i64| ((v - 1.0).floor().max(-1.0) as i64).min(m) as i32;
-        let hi = |v: f64, m: i64| ((v + 1.0).ceil().min(m as f64) as i64).max(-1) as i32;
+        // One pixel of margin for the supersample offsets (≤ 3/8) and f32 evaluation. Clamping
+        // to [−1, m] commutes with floor and ceil (integer bounds), and on that range the
+        // integer forms equal them without a libm call.
+        let lo = |v: f64, m: i64| floor_in(clamp_box(v - 1.0, m)) as i32;
+        let hi = |v: f64, m: i64| ceil_in(clamp_box(v + 1.0, m)) as i32;
         [lo(b[0], wpx), lo(b[1], hpx), hi(b[2], wpx), hi(b[3], hpx)]
     } else {
         [0, 0, wpx as i32 - 1, hpx as i32 - 1]
@@ -255,6 +295,9 @@ pub fn offsets(supersample: u32) -> &'static [[f32; 2]] {
     }
 }
 
+/// Fewest surfels projected per parallel job of [`surfel_pass`].
+const PROJECT_CHUNK: usize = 8192;
+
 /// Run pass 1 for `surfels` seen through `view`; the per-pixel winner ids only if `want_ids`
 /// (otherwise `ids` is empty).
 pub fn surfel_pass(
@@ -268,23 +311,28 @@ pub fn surfel_pass(
     want_ids: bool,
 ) -> Result<SurfelBuffer, usize> {
     let degree = surfels.sh_degree.min(sh_degree);
-    let proj: Vec<SurfelSplat> = (0..surfels.len())
-        .into_par_iter()
-        .filter_map(|i| project_surfel(surfels, i, view, eps_factor, footprint, degree))
-        .collect();
+    // One entry per surfel (index = surfel index), so no compaction; a culled surfel keeps an
+    // empty tile rectangle and enters no tile list.
     let t = TILE as i32;
-    let rects: Vec<[u32; 4]> = proj
-        .iter()
-        .map(|p| {
-            let b = p.bbox;
-            [
-                (b[0] / t) as u32,
-                (b[1] / t) as u32,
-                (b[2] / t + 1) as u32,
-                (b[3] / t + 1) as u32,
-            ]
-        })
-        .collect();
+    let (proj, rects): (Vec<SurfelSplat>, Vec<[u32; 4]>) = (0..surfels.len())
+        .into_par_iter()
+        .with_min_len(PROJECT_CHUNK)
+        .map(
+            |i| match project_surfel(surfels, i, view, eps_factor, footprint, degree) {
+                Some(p) => {
+                    let b = p.bbox;
+                    let r = [
+                        (b[0] / t) as u32,
+                        (b[1] / t) as u32,
+                        (b[2] / t + 1) as u32,
+                        (b[3] / t + 1) as u32,
+                    ];
+                    (p, r)
+                }
+                None => (SurfelSplat::culled(i), [0; 4]),
+            },
+        )
+        .unzip();
     let bins = bin_rects(&rects, view.grid, max_pairs, |_, _| true)?;
     let (gx, gy) = (view.grid[0] as usize, view.grid[1] as usize);
     let offs = offsets(supersample);
@@ -297,14 +345,18 @@ pub fn surfel_pass(
             tiles_used.push(t);
         }
     }
-    let mut planes = vec![0f32; tiles_used.len() * SURFEL_PLANES * N];
+    // Every value of every tile's planes is written by its job (`raster_tile`), so the buffer
+    // is not zeroed first: that would be a serial pass over the whole buffer.
+    let len = tiles_used.len() * SURFEL_PLANES * N;
+    let mut planes: Vec<f32> = Vec::with_capacity(len);
     let mut tile_ids = vec![u32::MAX; if want_ids { tiles_used.len() * N } else { 0 }];
     let mut slot_max = vec![f32::INFINITY; tiles_used.len()];
-    let tile_jobs = planes
+    let tile_jobs = planes.spare_capacity_mut()[..len]
         .par_chunks_mut(SURFEL_PLANES * N)
         .zip(slot_max.par_iter_mut())
         .zip(tiles_used.par_iter());
-    let job = |((out, m), &tile): ((&mut [f32], &mut f32), &usize), ids: Option<&mut [u32]>| {
+    let job = |((out, m), &tile): ((&mut [MaybeUninit<f32>], &mut f32), &usize),
+               ids: Option<&mut [u32]>| {
         let (px0, py0) = (((tile % gx) * T) as i32, ((tile / gx) * T) as i32);
         *m = raster_tile(&proj, bins.tile(tile), px0, py0, view, offs, near, out, ids);
     };
@@ -316,6 +368,8 @@ pub fn surfel_pass(
     } else {
         tile_jobs.with_max_len(1).for_each(|j| job(j, None));
     }
+    // SAFETY: the chunks cover `..len` and `raster_tile` initialised every element of its chunk.
+    unsafe { planes.set_len(len) };
     // Frame-level ids of the first sample.
     let (w, h) = (view.width as usize, view.height as usize);
     let mut ids = vec![u32::MAX; if want_ids { w * h } else { 0 }];
@@ -343,9 +397,10 @@ pub fn surfel_pass(
     })
 }
 
-/// Z-buffer one tile. `ids`, if given, receives per tile pixel the index into `proj` that won
-/// sample 0.
+/// Z-buffer one tile into `out` (`SURFEL_PLANES·N` values, every one written). `ids`, if given,
+/// receives per tile pixel the index into `proj` that won sample 0.
 /// Returns the largest pass-2 limit of the tile.
+#[allow(clippy::too_many_arguments)]
 fn raster_tile(
     proj: &[SurfelSplat],
     list: &[u32],
@@ -354,55 +409,61 @@ fn raster_tile(
     view: &ViewParams,
     offs: &[[f32; 2]],
     near: f32,
-    out: &mut [f32],
+    out: &mut [MaybeUninit<f32>],
     mut ids: Option<&mut [u32]>,
 ) -> f32 {
+    assert_eq!(out.len(), SURFEL_PLANES * N);
     let ns = offs.len();
     let r2 = footprint_r2();
     let mut zbuf = [f32::INFINITY; 4 * N];
     let mut win = [u32::MAX; 4 * N];
     zbuffer(proj, list, px0, py0, offs, near, r2, &mut zbuf, &mut win);
     let (w, h) = (view.width as i32, view.height as i32);
+    let mut tile_max = f32::NEG_INFINITY;
     for lp in 0..N {
         let (x, y) = (px0 + (lp % T) as i32, py0 + (lp / T) as i32);
         if let Some(ids) = ids.as_deref_mut() {
             ids[lp] = win[lp];
         }
-        out[P_LIMIT * N + lp] = f32::INFINITY;
-        if x >= w || y >= h {
-            continue;
-        }
         let mut k = 0u32;
         let (mut r, mut g, mut b, mut d) = (0f32, 0f32, 0f32, 0f32);
         let mut limit = f32::NEG_INFINITY;
-        for si in 0..ns {
-            let wk = win[si * N + lp];
-            if wk == u32::MAX {
-                continue;
+        if x < w && y < h {
+            for si in 0..ns {
+                let wk = win[si * N + lp];
+                if wk == u32::MAX {
+                    continue;
+                }
+                let s = &proj[wk as usize];
+                let z = zbuf[si * N + lp];
+                k += 1;
+                r += s.color[0];
+                g += s.color[1];
+                b += s.color[2];
+                d += z;
+                limit = limit.max(z + s.eps);
             }
-            let s = &proj[wk as usize];
-            let z = zbuf[si * N + lp];
-            k += 1;
-            r += s.color[0];
-            g += s.color[1];
-            b += s.color[2];
-            d += z;
-            limit = limit.max(z + s.eps);
         }
-        if k > 0 {
+        // Uncovered (or outside the image): nothing, and no limit.
+        let px = if k > 0 {
             let inv = 1.0 / k as f32;
-            out[P_R * N + lp] = r * inv;
-            out[P_G * N + lp] = g * inv;
-            out[P_B * N + lp] = b * inv;
-            out[P_W * N + lp] = k as f32 / ns as f32;
-            out[P_DEPTH * N + lp] = d * inv;
-            out[P_LIMIT * N + lp] = limit;
+            [
+                r * inv,
+                g * inv,
+                b * inv,
+                k as f32 / ns as f32,
+                d * inv,
+                limit,
+            ]
+        } else {
+            [0.0, 0.0, 0.0, 0.0, 0.0, f32::INFINITY]
+        };
+        for (p, v) in px.into_iter().enumerate() {
+            out[p * N + lp].write(v);
         }
+        tile_max = tile_max.max(px[P_LIMIT]);
     }
-    out[P_LIMIT * N..(P_LIMIT + 1) * N]
-        .iter()
-        .cloned()
-        .fold(f32::NEG_INFINITY, f32::max)
+    tile_max
 }
 
 /// How many list entries ahead the z-buffer loop prefetches.
@@ -672,6 +733,33 @@ mod tests {
                 }
             })
             .collect()
+    }
+
+    /// The integer floor and ceil of the box bounds equal `f64::floor`/`f64::ceil` on the
+    /// clamped range they are used on: integers, their neighbours one ulp away, halves,
+    /// negative fractions down to −1 and random values.
+    #[test]
+    fn integer_floor_and_ceil_match_libm() {
+        let mut vals = vec![
+            -1.0, -0.75, -0.5, -1e-300, -0.0, 0.0, 1e-300, 0.5, 1919.5, 16384.0,
+        ];
+        for k in -1..=2000 {
+            let v = k as f64;
+            vals.extend([v, v.next_up(), v.next_down(), v + 0.5]);
+        }
+        let mut rng = Rng::new(5);
+        vals.extend((0..100_000).map(|_| rng.range(-1.0, 4000.0) as f64 * 1.000_123));
+        for v in vals {
+            let c = clamp_box(v, 3000);
+            assert_eq!(floor_in(c), c.floor() as i64, "floor {v:e}");
+            assert_eq!(ceil_in(c), c.ceil() as i64, "ceil {v:e}");
+        }
+        // The clamp commutes with floor/ceil at integer bounds, as the box computation assumes.
+        for v in [-1e300, -7.5, -1.5, 2999.5, 3000.5, 1e300] {
+            let c = clamp_box(v, 3000);
+            assert_eq!(floor_in(c), (v.floor().max(-1.0) as i64).min(3000), "{v}");
+            assert_eq!(ceil_in(c), (v.ceil().min(3000.0) as i64).max(-1), "{v}");
+        }
     }
 
     /// The algebraic screen box equals the extremes of a dense sampling of the projected rim:
