@@ -314,21 +314,15 @@ fn project_all(
         .into_par_iter()
         .with_max_len(1)
         .map(|c| {
-            let mut p = Projected::default();
-            for i in c * PROJECT_CHUNK..n.min((c + 1) * PROJECT_CHUNK) {
-                match project_unhidden(cloud, i, view, opts.extent, degree, tile_max) {
-                    Projection::Visible(s, r) => {
-                        p.splats.push(s);
-                        p.rects.push(r);
-                    }
-                    Projection::Hidden(r) => {
-                        p.hidden += 1;
-                        p.hidden_pairs += rect_pairs(&r);
-                    }
-                    Projection::Culled => {}
-                }
+            let range = c * PROJECT_CHUNK..n.min((c + 1) * PROJECT_CHUNK);
+            #[cfg(target_arch = "x86_64")]
+            if std::arch::is_x86_feature_detected!("sse4.1") {
+                // SAFETY: SSE4.1 is present.
+                return unsafe {
+                    project_range_sse41(cloud, range, view, opts.extent, degree, tile_max)
+                };
             }
-            p
+            project_range(cloud, range, view, opts.extent, degree, tile_max)
         })
         .collect();
     let total: usize = parts.iter().map(|p| p.splats.len()).sum();
@@ -344,6 +338,51 @@ fn project_all(
         out.hidden_pairs += p.hidden_pairs;
     }
     out
+}
+
+/// Project the Gaussians of `range` (see [`project_all`]).
+#[inline(always)]
+fn project_range(
+    cloud: &GaussianCloud,
+    range: std::ops::Range<usize>,
+    view: &ViewParams,
+    extent: Extent,
+    degree: u8,
+    tile_max: &[f32],
+) -> Projected {
+    let mut p = Projected::default();
+    for i in range {
+        match project_unhidden(cloud, i, view, extent, degree, tile_max) {
+            Projection::Visible(s, r) => {
+                p.splats.push(s);
+                p.rects.push(r);
+            }
+            Projection::Hidden(r) => {
+                p.hidden += 1;
+                p.hidden_pairs += rect_pairs(&r);
+            }
+            Projection::Culled => {}
+        }
+    }
+    p
+}
+
+/// [`project_range`] compiled with SSE4.1, whose `roundsd` does the floor and ceil of the
+/// radius and footprint box that otherwise are calls (the same IEEE results).
+///
+/// # Safety
+/// The CPU must support SSE4.1.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "sse4.1")]
+unsafe fn project_range_sse41(
+    cloud: &GaussianCloud,
+    range: std::ops::Range<usize>,
+    view: &ViewParams,
+    extent: Extent,
+    degree: u8,
+    tile_max: &[f32],
+) -> Projected {
+    project_range(cloud, range, view, extent, degree, tile_max)
 }
 
 /// Tiles of a tile rectangle `[x0, y0, x1, y1)`.
@@ -379,4 +418,65 @@ pub fn render_cloud(
     let dt = t0.elapsed();
     let (frame, stats) = render_ges(&surfels, &rest, camera, opts)?;
     Ok((frame, stats, dt))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DVec3;
+    use splatbridge_scene::rng::Rng;
+
+    /// Every field of a splat, floats as bits (so that −0 and NaN patterns count too).
+    fn bits(s: &Splat) -> Vec<u32> {
+        let mut v = [s.x, s.y, s.opacity, s.depth].map(f32::to_bits).to_vec();
+        v.extend(s.conic.map(f32::to_bits));
+        v.extend(s.color.map(f32::to_bits));
+        v.extend(s.bbox.map(|b| b as u32));
+        v
+    }
+
+    /// The SSE4.1 projection loop gives the portable loop's splats, rectangles and hidden
+    /// counts bit for bit, for both extents, on the large fixture seen from inside its region
+    /// with random tile limits.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn sse41_projection_matches_portable() {
+        if !std::arch::is_x86_feature_detected!("sse4.1") {
+            println!("SKIP sse41_projection_matches_portable: the CPU has no SSE4.1");
+            return;
+        }
+        let cloud = splatbridge_scene::fixtures::large(30_000, 3);
+        let cam = Camera::look_at(
+            DVec3::new(3.0, -2.0, -12.0),
+            DVec3::new(0.0, 0.0, 5.0),
+            DVec3::NEG_Y,
+            60.0,
+            320,
+            200,
+        )
+        .unwrap();
+        let view = ViewParams::new(&cam, 0.2);
+        let mut rng = Rng::new(4);
+        let ntiles = (view.grid[0] * view.grid[1]) as usize;
+        let limits: Vec<f32> = (0..ntiles).map(|_| rng.range(0.0, 30.0)).collect();
+        for extent in [Extent::Alpha, Extent::Sigma3] {
+            let a = project_range(&cloud, 0..cloud.len(), &view, extent, 3, &limits);
+            // SAFETY: SSE4.1 was detected above.
+            let b =
+                unsafe { project_range_sse41(&cloud, 0..cloud.len(), &view, extent, 3, &limits) };
+            assert!(
+                a.splats.len() > 1000 && a.hidden > 1000,
+                "{} {}",
+                a.splats.len(),
+                a.hidden
+            );
+            assert_eq!((a.hidden, a.hidden_pairs), (b.hidden, b.hidden_pairs));
+            assert_eq!(a.rects, b.rects);
+            let (sa, sb): (Vec<_>, Vec<_>) = (
+                a.splats.iter().map(bits).collect(),
+                b.splats.iter().map(bits).collect(),
+            );
+            assert_eq!(sa, sb);
+        }
+    }
 }
