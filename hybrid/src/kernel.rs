@@ -219,8 +219,11 @@ pub mod avx {
     // `target_feature(enable = "avx2")` after `is_x86_feature_detected!("avx2")`; memory
     // accesses are the unaligned 8-lane loads/stores noted at their pointers.
 
+    /// [`super::exp_nonpos`] on eight lanes (its constants and operation order; `n` is an
+    /// integer in [−126, 0], so truncation equals Rust's saturating cast). Shared with the GES
+    /// accumulation kernel.
     #[inline(always)]
-    fn exp8(x: __m256) -> __m256 {
+    pub(crate) fn exp8(x: __m256) -> __m256 {
         unsafe {
             let s = |v: f32| _mm256_set1_ps(v);
             let x = _mm256_min_ps(_mm256_max_ps(x, s(-87.0)), s(0.0));

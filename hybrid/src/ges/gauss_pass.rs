@@ -96,54 +96,11 @@ mod avx {
     use std::arch::x86_64::*;
 
     use super::{Acc, RowK, N};
-
-    const LOG2E: f32 = std::f32::consts::LOG2_E;
-    const C1: f32 = 0.693_359_4;
-    const C2: f32 = -2.121_944_4e-4;
-    const ROUND: f32 = 12_582_912.0;
-    const P: [f32; 6] = [
-        1.987_569_1e-4,
-        1.398_199_9e-3,
-        8.333_452e-3,
-        4.166_579_6e-2,
-        1.666_666_5e-1,
-        0.5,
-    ];
+    use crate::kernel::avx::exp8;
 
     // SAFETY (all intrinsics below): callers run these only inside a function compiled with
     // `target_feature(enable = "avx2")` after `is_x86_feature_detected!("avx2")`; the memory
     // accesses are the unaligned 8-lane loads/stores noted at their pointers.
-
-    /// [`crate::kernel::exp_nonpos`] on eight lanes (its constants and operation order;
-    /// `n` is an integer in [−126, 0], so truncation equals Rust's saturating cast).
-    #[inline(always)]
-    fn exp8(x: __m256) -> __m256 {
-        unsafe {
-            let s = |v: f32| _mm256_set1_ps(v);
-            let x = _mm256_min_ps(_mm256_max_ps(x, s(-87.0)), s(0.0));
-            let n = _mm256_sub_ps(
-                _mm256_add_ps(_mm256_mul_ps(x, s(LOG2E)), s(ROUND)),
-                s(ROUND),
-            );
-            let r = _mm256_sub_ps(
-                _mm256_sub_ps(x, _mm256_mul_ps(n, s(C1))),
-                _mm256_mul_ps(n, s(C2)),
-            );
-            let mut p = s(P[0]);
-            for c in &P[1..] {
-                p = _mm256_add_ps(_mm256_mul_ps(p, r), s(*c));
-            }
-            let y = _mm256_add_ps(
-                _mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(p, r), r), r),
-                s(1.0),
-            );
-            let e = _mm256_slli_epi32::<23>(_mm256_add_epi32(
-                _mm256_cvttps_epi32(n),
-                _mm256_set1_epi32(127),
-            ));
-            _mm256_mul_ps(y, _mm256_castsi256_ps(e))
-        }
-    }
 
     /// # Safety
     /// The CPU must support AVX2.
