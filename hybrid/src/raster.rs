@@ -36,11 +36,12 @@ pub struct BlendParams {
     pub exhaustive: bool,
 }
 
-/// How many list entries ahead [`blend_tile`] prefetches.
-const PREFETCH: usize = 8;
+/// How many list entries ahead [`blend_tile`] (and the GES accumulation) prefetches.
+pub(crate) const PREFETCH: usize = 8;
 
+/// Hint the cache to fetch a splat a tile loop will read soon.
 #[inline(always)]
-fn prefetch(s: &Splat) {
+pub(crate) fn prefetch(s: &Splat) {
     #[cfg(target_arch = "x86_64")]
     // SAFETY: a prefetch is a hint without architectural effect; the address is a valid reference.
     unsafe {

@@ -19,6 +19,7 @@ use splatbridge_scene::Frame;
 
 use crate::kernel::exp_nonpos;
 use crate::project::Splat;
+use crate::raster::{prefetch, PREFETCH};
 
 use super::composite::{composite_pixel, GaussAcc};
 use super::surfel_pass::{N, P_B, P_DEPTH, P_G, P_LIMIT, P_R, P_W, T};
@@ -149,21 +150,6 @@ mod avx {
             (_mm256_movemask_ps(add) as u32).count_ones()
         }
     }
-}
-
-/// How many list entries ahead the tile loop prefetches.
-const PREFETCH: usize = 8;
-
-#[inline(always)]
-fn prefetch(s: &Splat) {
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: a prefetch is a hint without architectural effect; the address is a valid reference.
-    unsafe {
-        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        _mm_prefetch::<_MM_HINT_T0>((s as *const Splat).cast::<i8>());
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = s;
 }
 
 /// Accumulate the Gaussians `list` into the tile whose top-left pixel is `(px0, py0)`, with the
