@@ -82,6 +82,8 @@ pub struct GaussianTracer {
     placed: Vec<Option<Placed>>,
     /// Gaussians of the scene proper (the particles' ids start here).
     scene_len: u32,
+    /// Whether the last part is a frame's particles.
+    has_particles: bool,
     time: f64,
     preset: BuildPreset,
     pub backend: BackendKind,
@@ -231,6 +233,7 @@ impl GaussianTracer {
             parts: vec![part],
             placed: vec![None],
             scene_len: n,
+            has_particles: false,
             time: 0.0,
             preset,
             backend,
@@ -270,6 +273,7 @@ impl GaussianTracer {
             placed: vec![None; parts.len()],
             parts,
             scene_len: offset,
+            has_particles: false,
             time: t,
             preset,
             backend,
@@ -295,20 +299,17 @@ impl GaussianTracer {
     /// Replace the frame's particles (world-space Gaussians after the scene's, e.g. weather):
     /// only their own small BVH is built.
     pub fn set_particles(&mut self, particles: Option<GaussianCloud>) -> Result<()> {
-        if self.parts.len() > 1
-            && self
-                .parts
-                .last()
-                .is_some_and(|p| p.id_offset == self.scene_len && p.track.is_none())
-        {
+        if self.has_particles {
             self.parts.pop();
             self.placed.pop();
+            self.has_particles = false;
         }
         if let Some(p) = particles.filter(|p| !p.is_empty()) {
             let start = Instant::now();
             let part = Part::build(p, self.scene_len, None, self.backend, self.preset)?;
             self.parts.push(part);
             self.placed.push(None);
+            self.has_particles = true;
             self.build_seconds += start.elapsed().as_secs_f64();
         }
         Ok(())
