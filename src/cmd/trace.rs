@@ -15,7 +15,8 @@
 //! a part of their own; mode mesh: converted in memory with the scene as one frame node),
 //! motion blur (every shutter sample traced at its time and averaged), sun shadows
 //! (`splatbridge_raytrace::shadows`) and LiDAR (one PLY per frame, `lidar_NNNN.ply` with NNNN
-//! the frame index, in `--lidar-out`, by default the output image's directory). An exported file's weather is drawn as exported (its per-frame particle nodes).
+//! the frame index, in `--lidar-out`, by default the output image's directory). An exported
+//! file's weather is drawn as exported (its per-frame particle nodes).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -288,7 +289,7 @@ impl TraceInput {
         let mut counters = EffectCounters::default();
         let loaded = match self.mode {
             Mode::Gaussian => {
-                let frames = mesh_weather(&scene, &effects, self.time, &camera, false)
+                let frames = frame_weather(&scene, &effects, self.time, &camera, false)
                     .with_context(|| name.clone())?;
                 Loaded::Gaussians(frames.map(|(mut fc, c)| {
                     counters = c;
@@ -304,8 +305,9 @@ impl TraceInput {
                         ProfileArg::Texture => splatbridge_convert::Profile::Texture,
                     };
                 }
-                let frames = mesh_weather(&scene, &effects, self.time, &camera, all_weather_frames)
-                    .with_context(|| name.clone())?;
+                let frames =
+                    frame_weather(&scene, &effects, self.time, &camera, all_weather_frames)
+                        .with_context(|| name.clone())?;
                 if let Some((fc, c)) = &frames {
                     counters = c.clone();
                     debug_assert!(fc.times.len() == fc.clouds.len());
@@ -349,7 +351,7 @@ impl TraceInput {
 
 /// Weather particles: the traced frame's (mode gaussian, and mode mesh's in-memory conversion
 /// as the one frame node, always visible), or every frame's (`all`, for scanning every frame).
-fn mesh_weather(
+fn frame_weather(
     scene: &DynamicScene,
     effects: &Effects,
     t: f64,
