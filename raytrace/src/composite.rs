@@ -34,7 +34,9 @@ use glam::{DAffine3, DVec3, Vec3, Vec4};
 use crate::backend::{build_triangles, Accel, BackendKind, BuildPreset};
 use crate::error::Result;
 use crate::model::{linear_to_srgb, srgb_to_linear, TriScene};
-use crate::render::{ray_box, render_frame, Compositing, PixelOut, RenderOptions, Stats};
+use crate::render::{
+    ray_box, render_frame, transformed_box, Compositing, PixelOut, RenderOptions, Stats,
+};
 use crate::tri::WRay;
 use splatbridge_scene::{Camera, Frame};
 
@@ -264,26 +266,12 @@ impl MeshTracer {
             .filter(|i| !self.scene.meshes[i.mesh].tris.is_empty())
             .map(|i| {
                 let b = &self.blas[i.mesh];
-                let (mut lo, mut hi) =
-                    (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-                for c in 0..8 {
-                    let p = DVec3::new(
-                        if c & 1 == 0 { b.lo.x } else { b.hi.x },
-                        if c & 2 == 0 { b.lo.y } else { b.hi.y },
-                        if c & 4 == 0 { b.lo.z } else { b.hi.z },
-                    );
-                    let w = i.to_world.transform_point3(p);
-                    lo = lo.min(w);
-                    hi = hi.max(w);
-                }
-                // Pad by a relative 1e-6 so rounding in the f64 transform cannot clip a hit.
-                let pad =
-                    (hi - lo).max_element() * 1e-6 + 1e-9 * hi.abs().max(lo.abs()).max_element();
+                let (lo, hi) = transformed_box(&i.to_world, b.lo, b.hi);
                 PreparedInstance {
                     mesh: i.mesh,
                     to_local: i.to_world.inverse(),
-                    lo: lo - DVec3::splat(pad),
-                    hi: hi + DVec3::splat(pad),
+                    lo,
+                    hi,
                 }
             })
             .collect()

@@ -34,7 +34,7 @@ use splatbridge_scene::{sh, Camera, Frame, GaussianCloud};
 use crate::backend::{build_boxes, Accel, BackendKind, BuildPreset, EmptyAccel};
 use crate::composite::{Hit, KBuffer, Key};
 use crate::error::Result;
-use crate::render::{ray_box, render_frame, PixelOut, RenderOptions, Stats};
+use crate::render::{ray_box, render_frame, transformed_box, PixelOut, RenderOptions, Stats};
 
 /// The rasterizer's near cull (default of `RenderOptions::near`): view-space depth of the
 /// mean must exceed this.
@@ -84,7 +84,6 @@ pub struct GaussianTracer {
     scene_len: u32,
     /// Whether the last part is a frame's particles.
     has_particles: bool,
-    time: f64,
     preset: BuildPreset,
     pub backend: BackendKind,
     /// Seconds spent building every part's BVH so far.
@@ -173,28 +172,16 @@ impl Part {
             pose.rotation.as_dquat(),
             pose.translation.as_dvec3(),
         );
-        let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-        if self.index.is_empty() {
-            (lo, hi) = (DVec3::ZERO, DVec3::ZERO);
+        let (lo, hi) = if self.index.is_empty() {
+            (DVec3::ZERO, DVec3::ZERO)
         } else {
-            for c in 0..8 {
-                let p = DVec3::new(
-                    if c & 1 == 0 { self.lo.x } else { self.hi.x },
-                    if c & 2 == 0 { self.lo.y } else { self.hi.y },
-                    if c & 4 == 0 { self.lo.z } else { self.hi.z },
-                );
-                let w = to_world.transform_point3(p);
-                lo = lo.min(w);
-                hi = hi.max(w);
-            }
-        }
-        // Pad by a relative 1e-6 so rounding in the f64 transform cannot clip a hit.
-        let pad = (hi - lo).max_element() * 1e-6 + 1e-9 * hi.abs().max(lo.abs()).max_element();
+            transformed_box(&to_world, self.lo, self.hi)
+        };
         Some(Placed {
             to_local: DAffine3::from_translation(-self.anchor) * to_world.inverse(),
             to_world,
-            lo: lo - DVec3::splat(pad),
-            hi: hi + DVec3::splat(pad),
+            lo,
+            hi,
         })
     }
 
@@ -234,7 +221,6 @@ impl GaussianTracer {
             placed: vec![None],
             scene_len: n,
             has_particles: false,
-            time: 0.0,
             preset,
             backend,
             build_seconds: start.elapsed().as_secs_f64(),
@@ -274,7 +260,6 @@ impl GaussianTracer {
             parts,
             scene_len: offset,
             has_particles: false,
-            time: t,
             preset,
             backend,
             build_seconds: start.elapsed().as_secs_f64(),
@@ -285,15 +270,9 @@ impl GaussianTracer {
 
     /// Pose every object at time `t` (no BVH is rebuilt).
     pub fn set_time(&mut self, t: f64) {
-        self.time = t;
         for (slot, part) in self.placed.iter_mut().zip(&self.parts) {
             *slot = part.place(t);
         }
-    }
-
-    /// The time the objects are posed at.
-    pub fn time(&self) -> f64 {
-        self.time
     }
 
     /// Replace the frame's particles (world-space Gaussians after the scene's, e.g. weather):
@@ -345,15 +324,21 @@ impl GaussianTracer {
         out
     }
 
-    /// The ray in part `i`'s anchor-relative frame (f32) and the local direction (f64).
+    /// A world point in part `i`'s anchor-relative frame (f32).
     #[inline]
-    fn local_ray(&self, i: usize, o: DVec3, d: DVec3) -> (Vec3, Vec3) {
+    fn local_point(&self, i: usize, o: DVec3) -> Vec3 {
         match &self.placed[i] {
-            None => ((o - self.parts[i].anchor).as_vec3(), d.as_vec3()),
-            Some(p) => (
-                p.to_local.transform_point3(o).as_vec3(),
-                p.to_local.transform_vector3(d).as_vec3(),
-            ),
+            None => (o - self.parts[i].anchor).as_vec3(),
+            Some(p) => p.to_local.transform_point3(o).as_vec3(),
+        }
+    }
+
+    /// A world direction in part `i`'s frame (f32); unchanged for a part fixed in the world.
+    #[inline]
+    fn local_dir(&self, i: usize, d: DVec3) -> Vec3 {
+        match &self.placed[i] {
+            None => d.as_vec3(),
+            Some(p) => p.to_local.transform_vector3(d).as_vec3(),
         }
     }
 
@@ -380,13 +365,10 @@ impl GaussianTracer {
                     _ => continue,
                 }
             }
-            let (ro, rd) = self.local_ray(pi, o, d);
+            let (ro, rd) = (self.local_point(pi, o), self.local_dir(pi, d));
             let near = near.map(|(f, near)| Near {
                 origin: ro,
-                forward: match &self.placed[pi] {
-                    None => f.as_vec3(),
-                    Some(p) => p.to_local.transform_vector3(f).as_vec3(),
-                },
+                forward: self.local_dir(pi, f),
                 near,
             });
             let cull0 = buf.cull(tmax);
@@ -426,11 +408,11 @@ impl GaussianTracer {
     pub fn hit_color(&self, h: &Hit, d: DVec3) -> Vec3 {
         let i = h.instance as usize;
         let part = &self.parts[i];
-        let dir = match &self.placed[i] {
-            None => d.as_vec3(),
-            Some(p) => p.to_local.transform_vector3(d).as_vec3(),
-        };
-        sh::eval_color(part.cloud.sh_degree, part.cloud.sh_of(h.tri as usize), dir)
+        sh::eval_color(
+            part.cloud.sh_degree,
+            part.cloud.sh_of(h.tri as usize),
+            self.local_dir(i, d),
+        )
     }
 
     /// World normal of a hit Gaussian: its shortest axis.

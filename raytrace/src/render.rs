@@ -176,3 +176,21 @@ pub fn ray_box(o: DVec3, d: DVec3, lo: DVec3, hi: DVec3) -> Option<(f64, f64)> {
     }
     (t0 <= t1).then_some((t0, t1))
 }
+
+/// World bounds of the box `lo..hi` under `to_world` (its eight corners), padded by a relative
+/// 1e-6 so rounding in the f64 transform cannot clip a hit at the box's surface.
+pub fn transformed_box(to_world: &glam::DAffine3, lo: DVec3, hi: DVec3) -> (DVec3, DVec3) {
+    let (mut wlo, mut whi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+    for c in 0..8 {
+        let p = DVec3::new(
+            if c & 1 == 0 { lo.x } else { hi.x },
+            if c & 2 == 0 { lo.y } else { hi.y },
+            if c & 4 == 0 { lo.z } else { hi.z },
+        );
+        let w = to_world.transform_point3(p);
+        wlo = wlo.min(w);
+        whi = whi.max(w);
+    }
+    let pad = (whi - wlo).max_element() * 1e-6 + 1e-9 * whi.abs().max(wlo.abs()).max_element();
+    (wlo - DVec3::splat(pad), whi + DVec3::splat(pad))
+}

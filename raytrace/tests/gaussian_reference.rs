@@ -12,6 +12,11 @@ use splatbridge_raytrace::{BackendKind, BuildPreset, GaussianTracer, RenderOptio
 use splatbridge_scene::dynamic::{DynamicScene, PoseKey, SceneObject, TimeRange, Track};
 use splatbridge_scene::{sh, Camera, GaussianCloud};
 
+/// A y-down camera with a 55° field of view.
+fn look(eye: DVec3, target: DVec3, w: u32, h: u32) -> Camera {
+    Camera::look_at(eye, target, DVec3::NEG_Y, 55.0, w, h).unwrap()
+}
+
 fn backends() -> Vec<BackendKind> {
     common::backends()
 }
@@ -210,15 +215,7 @@ fn check_tracer(tracer: &GaussianTracer, cloud: &[RefGauss], cam: &Camera, b: Ba
 #[test]
 fn random_gaussians_match_reference() {
     let cloud = random_cloud(7, 400, Vec3::ZERO);
-    let cam = Camera::look_at(
-        DVec3::new(0.2, -0.3, -3.5),
-        DVec3::ZERO,
-        DVec3::NEG_Y,
-        55.0,
-        40,
-        30,
-    )
-    .unwrap();
+    let cam = look(DVec3::new(0.2, -0.3, -3.5), DVec3::ZERO, 40, 30);
     for b in backends() {
         check(&cloud, &cam, b);
     }
@@ -229,15 +226,7 @@ fn far_from_origin_gaussians_match_reference() {
     let off = Vec3::new(-1e5, 1e5, 1e5);
     let cloud = random_cloud(8, 200, off);
     let c = off.as_dvec3();
-    let cam = Camera::look_at(
-        c + DVec3::new(0.2, -0.3, -3.5),
-        c,
-        DVec3::NEG_Y,
-        55.0,
-        32,
-        24,
-    )
-    .unwrap();
+    let cam = look(c + DVec3::new(0.2, -0.3, -3.5), c, 32, 24);
     for b in backends() {
         check(&cloud, &cam, b);
     }
@@ -337,15 +326,7 @@ fn dynamic_scene(centre: Vec3) -> DynamicScene {
 fn check_dynamic(centre: Vec3) {
     let scene = dynamic_scene(centre);
     let c = centre.as_dvec3();
-    let cam = Camera::look_at(
-        c + DVec3::new(0.3, -0.4, -3.5),
-        c,
-        DVec3::NEG_Y,
-        55.0,
-        32,
-        24,
-    )
-    .unwrap();
+    let cam = look(c + DVec3::new(0.3, -0.4, -3.5), c, 32, 24);
     for b in backends() {
         let mut tracer = GaussianTracer::for_scene(&scene, 0.0, b, BuildPreset::Medium).unwrap();
         let built = tracer.build_seconds;
@@ -371,15 +352,7 @@ fn instanced_objects_far_from_origin_match_reference() {
 fn static_scene_traces_bit_identically_with_or_without_parts() {
     let cloud = random_cloud(14, 300, Vec3::ZERO);
     let scene = DynamicScene::from_static(cloud.clone());
-    let cam = Camera::look_at(
-        DVec3::new(0.2, -0.3, -3.5),
-        DVec3::ZERO,
-        DVec3::NEG_Y,
-        55.0,
-        40,
-        30,
-    )
-    .unwrap();
+    let cam = look(DVec3::new(0.2, -0.3, -3.5), DVec3::ZERO, 40, 30);
     let opts = RenderOptions::default();
     for b in backends() {
         let a = GaussianTracer::new(cloud.clone(), b, BuildPreset::Medium).unwrap();
