@@ -1,6 +1,7 @@
-//! The splatbridge library face of the CLI crate: the parity pipeline and the reports that
-//! combine the stage crates (`scene` ← `convert`, `hybrid`, `raytrace`). End-to-end tests and
-//! the `compare`, `accuracy` and `demo` commands share it.
+//! The splatbridge library face of the CLI crate: what combines the stage crates (`scene` ←
+//! `convert`, `hybrid`, `raytrace`): the frame pipeline every command renders through, the
+//! parity pipeline and the reports. End-to-end tests and the commands share it.
 
 pub mod parity;
+pub mod pipeline;
 pub mod report;

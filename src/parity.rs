@@ -10,8 +10,8 @@ use std::time::Instant;
 
 use anyhow::Context;
 use splatbridge_convert::{ConvertOptions, Profile};
-use splatbridge_hybrid::ges::{self, GesOptions, SplitMode};
-use splatbridge_hybrid::native::{self, RenderOptions as NativeOptions};
+use splatbridge_hybrid::ges::GesOptions;
+use splatbridge_hybrid::native::RenderOptions as NativeOptions;
 use splatbridge_raytrace::{
     BackendKind, BuildPreset, GaussianTracer, MeshTracer, RenderOptions as TraceOptions,
 };
@@ -19,6 +19,7 @@ use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::surfels::SplitParams;
 use splatbridge_scene::{metrics, Camera, Frame, GaussianCloud};
 
+use crate::pipeline::{Renderer, SurfelSplit};
 use crate::report::Record;
 
 /// Which renderers and profiles a comparison runs, and how.
@@ -66,23 +67,30 @@ pub fn render_native(
     cam: &Camera,
     opts: &NativeOptions,
 ) -> anyhow::Result<Rendered> {
+    let mut r = Renderer::native(opts.clone())?;
     let t0 = Instant::now();
-    let (frame, _) = native::render(cloud, cam, opts)?;
+    let (frame, _) = r.render_cloud(cloud, cam)?;
     Ok(Rendered {
         frame,
         ms: t0.elapsed().as_secs_f64() * 1e3,
     })
 }
 
-/// The GES hybrid with a threshold split.
+/// The GES hybrid with a threshold split (timed with the split, as a viewer would pay it).
 pub fn render_hybrid(
     cloud: &GaussianCloud,
     cam: &Camera,
     split: SplitParams,
     opts: &GesOptions,
 ) -> anyhow::Result<Rendered> {
+    let split = SurfelSplit {
+        params: split,
+        ges_ply: false,
+        detect_ges: false,
+    };
+    let mut r = Renderer::hybrid(opts.clone(), split)?;
     let t0 = Instant::now();
-    let (frame, _, _) = ges::render_cloud(cloud, SplitMode::Thresholds(split), cam, opts)?;
+    let (frame, _) = r.render_cloud(cloud, cam)?;
     Ok(Rendered {
         frame,
         ms: t0.elapsed().as_secs_f64() * 1e3,
@@ -91,7 +99,8 @@ pub fn render_hybrid(
 
 /// A converted file loaded back for tracing.
 pub struct TracedMesh {
-    pub tracer: MeshTracer,
+    /// A mesh tracer (`Renderer::Mesh`).
+    pub tracer: Renderer,
     pub path: PathBuf,
     pub triangles: u64,
     pub bytes: u64,
@@ -119,7 +128,10 @@ pub fn export_and_load(
         .unwrap_or(report.bytes);
     let triangles = tri.triangle_count() as u64;
     let t1 = Instant::now();
-    let tracer = MeshTracer::new(tri, backend, preset)?;
+    let tracer = Renderer::Mesh {
+        tracer: MeshTracer::new(tri, backend, preset)?,
+        options: TraceOptions::default(),
+    };
     Ok(TracedMesh {
         tracer,
         path: load,
@@ -130,36 +142,36 @@ pub fn export_and_load(
     })
 }
 
-/// Trace a loaded mesh at (camera, time).
-pub fn render_mesh(m: &TracedMesh, cam: &Camera, time: f64, k: usize) -> anyhow::Result<Rendered> {
-    let opts = TraceOptions {
-        k,
-        ..TraceOptions::default()
-    };
+/// Trace a renderer's prebuilt scene at (camera, time) with a k-buffer of `k` hits.
+fn render_traced(r: &mut Renderer, cam: &Camera, time: f64, k: usize) -> anyhow::Result<Rendered> {
+    if let Some(o) = r.trace_options_mut() {
+        *o = TraceOptions {
+            k,
+            ..TraceOptions::default()
+        };
+    }
     let t0 = Instant::now();
-    let (frame, _) = m.tracer.render(cam, time, &opts)?;
+    let (frame, _) = r.render_traced(cam, time)?;
     Ok(Rendered {
         frame,
         ms: t0.elapsed().as_secs_f64() * 1e3,
     })
 }
 
-/// Ray-trace the Gaussians themselves (3DGRT-style) with a tracer built once per time.
-pub fn render_gaussians(
-    tracer: &GaussianTracer,
+/// Trace a loaded mesh at (camera, time).
+pub fn render_mesh(
+    m: &mut TracedMesh,
     cam: &Camera,
+    time: f64,
     k: usize,
 ) -> anyhow::Result<Rendered> {
-    let opts = TraceOptions {
-        k,
-        ..TraceOptions::default()
-    };
-    let t0 = Instant::now();
-    let (frame, _) = tracer.render(cam, &opts)?;
-    Ok(Rendered {
-        frame,
-        ms: t0.elapsed().as_secs_f64() * 1e3,
-    })
+    render_traced(&mut m.tracer, cam, time, k)
+}
+
+/// Ray-trace the Gaussians themselves (3DGRT-style) with a tracer built once and posed at
+/// each time (`Renderer::set_time`).
+pub fn render_gaussians(tracer: &mut Renderer, cam: &Camera, k: usize) -> anyhow::Result<Rendered> {
+    render_traced(tracer, cam, 0.0, k)
 }
 
 /// Fill the metric fields of `r` from `img` against `reference`.
@@ -237,6 +249,10 @@ pub fn compare(
                 cfg.backend,
                 cfg.preset,
             )
+            .map(|tracer| Renderer::Gaussian {
+                tracer,
+                options: TraceOptions::default(),
+            })
         })
         .transpose()?;
     for &t in times {
@@ -278,7 +294,7 @@ pub fn compare(
                 let h = render_hybrid(&cloud, cam, cfg.split, &cfg.ges)?;
                 emit(format!("hybrid_{tag}"), &h.frame, named("hybrid", h.ms))?;
             }
-            if let Some(tracer) = &gaussians {
+            if let Some(tracer) = &mut gaussians {
                 progress(&format!("trace gaussians {tag}"));
                 let g = render_gaussians(tracer, cam, cfg.k)?;
                 emit(
@@ -294,7 +310,7 @@ pub fn compare(
                 bytes: m.bytes,
                 ..named("trace-mesh", ms)
             };
-            for (profile, format, m) in &meshes {
+            for (profile, format, m) in &mut meshes {
                 progress(&format!("trace {profile}.{format} {tag}"));
                 let img = render_mesh(m, cam, t, cfg.k)?;
                 let r = mesh_record(profile, format, img.ms, m);
@@ -308,8 +324,8 @@ pub fn compare(
                 };
                 let frame_scene = DynamicScene::from_static(cloud.clone());
                 let obj = dir.join(format!("mesh_{}_{tag}.obj", p.name()));
-                let m = export_and_load(&frame_scene, &opts, &obj, cfg.backend, cfg.preset)?;
-                let img = render_mesh(&m, cam, 0.0, cfg.k)?;
+                let mut m = export_and_load(&frame_scene, &opts, &obj, cfg.backend, cfg.preset)?;
+                let img = render_mesh(&mut m, cam, 0.0, cfg.k)?;
                 let r = mesh_record(p.name(), "obj", img.ms, &m);
                 emit(format!("mesh_{}_obj_{tag}", p.name()), &img.frame, r)?;
                 // Per-frame OBJs are intermediates of the measurement (one per camera × time);

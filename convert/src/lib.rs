@@ -197,7 +197,7 @@ pub fn prepare_split<'a>(
     let mut offset = 0u64;
     for (e, part) in entries.iter_mut().zip(&split.parts) {
         let n = (part.residual_ids.len() + part.surfel_ids.len()) as u64;
-        e.mesher.set_id_map(&part.residual_ids, offset);
+        e.mesher.set_id_map(&part.residual_ids, offset)?;
         let mut sm = surfels::SurfelMesher::new(part, so, opts, n);
         sm.set_frame_reach(e.mesher.frame_reach());
         sr.add(sm.counts.clone());

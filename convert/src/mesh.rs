@@ -242,10 +242,18 @@ impl<'a> Mesher<'a> {
     }
 
     /// Use `ids[i]` as Gaussian `i`'s `_GAUSSIAN_ID` instead of `id_offset + i`.
-    pub fn set_id_map(&mut self, ids: &'a [u32], id_offset: u64) {
-        assert_eq!(ids.len(), self.cloud.len(), "one id per Gaussian");
+    /// Fails (and keeps the default ids) unless there is one id per Gaussian.
+    pub fn set_id_map(&mut self, ids: &'a [u32], id_offset: u64) -> crate::Result<()> {
+        if ids.len() != self.cloud.len() {
+            return Err(crate::ConvertError::Invalid(format!(
+                "{} Gaussian ids for {} Gaussians",
+                ids.len(),
+                self.cloud.len()
+            )));
+        }
         self.id_map = Some(ids);
         self.counts.id_offset = id_offset;
+        Ok(())
     }
 
     /// The cloud is in a frame that sits up to `reach` from the world origin (an object's

@@ -158,8 +158,8 @@ mod sse {
     /// Blend into pixels `base..base + 4` (pixel x of the first is `x0`). Returns (blends, stops).
     #[inline(always)]
     pub fn blend4(st: &mut TileState, base: usize, x0: f32, k: &SplatRow) -> (u32, u32) {
-        // Each pointer comes from a bounds-checked 4-element subslice of a tile plane, and every
-        // load/store below touches exactly those 4 lanes.
+        // SAFETY: each pointer comes from a bounds-checked 4-element subslice of a tile plane,
+        // and every load/store below touches exactly those 4 lanes; SSE2 is x86_64 baseline.
         let lanes = |a: &mut [f32; N]| -> *mut f32 { a[base..base + 4].as_mut_ptr() };
         let tp = lanes(&mut st.t);
         let rp = lanes(&mut st.r);
@@ -224,6 +224,8 @@ pub mod avx {
     /// accumulation kernel.
     #[inline(always)]
     pub(crate) fn exp8(x: __m256) -> __m256 {
+        // SAFETY: register-only AVX2 intrinsics (no memory access), run only where AVX2 is
+        // present (see the note above).
         unsafe {
             let s = |v: f32| _mm256_set1_ps(v);
             let x = _mm256_min_ps(_mm256_max_ps(x, s(-87.0)), s(0.0));
@@ -257,8 +259,9 @@ pub mod avx {
     /// The CPU must support AVX2.
     #[inline(always)]
     pub unsafe fn blend8(st: &mut TileState, base: usize, x0: f32, k: &SplatRow) -> (u32, u32) {
-        // Each pointer comes from a bounds-checked 8-element subslice of a tile plane, and every
-        // load/store below touches exactly those 8 lanes.
+        // SAFETY: each pointer comes from a bounds-checked 8-element subslice of a tile plane,
+        // and every load/store below touches exactly those 8 lanes; AVX2 is present (the
+        // caller's contract).
         let lanes = |a: &mut [f32; N]| -> *mut f32 { a[base..base + 8].as_mut_ptr() };
         let tp = lanes(&mut st.t);
         let rp = lanes(&mut st.r);

@@ -29,16 +29,21 @@ use crate::backend::{Accel, BuildPreset};
 use crate::error::{Result, TraceError};
 
 struct Device(sys::RTCDevice);
-// An Embree device is thread-safe (Embree's API contract for devices and committed scenes).
+// SAFETY: an Embree device is thread-safe (Embree's API contract: device calls may be made
+// from any thread); the handle is never released, so it stays valid for the process.
 unsafe impl Send for Device {}
+// SAFETY: as for `Send`; shared references only pass the handle to thread-safe API calls.
 unsafe impl Sync for Device {}
 
 fn device() -> Result<&'static Device> {
     static DEV: OnceLock<std::result::Result<Device, String>> = OnceLock::new();
     DEV.get_or_init(|| {
         // A null config: embree4-rs passes configs without a NUL terminator.
+        // SAFETY: a null config pointer is allowed (Embree's defaults); no other argument.
         let d = unsafe { sys::rtcNewDevice(std::ptr::null()) };
         if d.is_null() {
+            // SAFETY: a null device asks for the error of the failed device creation, which
+            // Embree documents as allowed.
             let e = unsafe { sys::rtcGetDeviceError(std::ptr::null_mut()) };
             Err(format!("Embree device creation failed: {e:?}"))
         } else {
@@ -50,6 +55,7 @@ fn device() -> Result<&'static Device> {
 }
 
 fn check(dev: &Device, what: &str) -> Result<()> {
+    // SAFETY: `dev.0` is a live device (created by `device()`, never released).
     let e = unsafe { sys::rtcGetDeviceError(dev.0) };
     if e == sys::RTCError::NONE {
         Ok(())
@@ -134,17 +140,22 @@ pub struct EmbreeAccel {
     triangles: bool,
 }
 
-// Committed Embree scenes may be queried from many threads at once.
+// SAFETY: the scene handle is owned by this value (released once, in Drop), and the box
+// data its callbacks read moves with it (a Vec's heap buffer does not move).
 unsafe impl Send for EmbreeAccel {}
+// SAFETY: a committed Embree scene may be queried from many threads at once (Embree's API
+// contract); `&self` methods only query, and the box data is read-only after the build.
 unsafe impl Sync for EmbreeAccel {}
 
 impl Drop for EmbreeAccel {
     fn drop(&mut self) {
+        // SAFETY: `self.scene` is the live scene this value owns; it is released once, here.
         unsafe { sys::rtcReleaseScene(self.scene) };
     }
 }
 
 fn new_scene(dev: &Device, preset: BuildPreset) -> Result<sys::RTCScene> {
+    // SAFETY: `dev.0` is a live device.
     let scene = unsafe { sys::rtcNewScene(dev.0) };
     if scene.is_null() {
         check(dev, "rtcNewScene")?;
@@ -152,6 +163,8 @@ fn new_scene(dev: &Device, preset: BuildPreset) -> Result<sys::RTCScene> {
             "Embree: rtcNewScene returned null".into(),
         ));
     }
+    // SAFETY: `scene` was just created and checked non-null; flags and quality are valid
+    // enum values.
     unsafe {
         sys::rtcSetSceneFlags(
             scene,
@@ -172,6 +185,11 @@ impl EmbreeAccel {
             _boxes: None,
             triangles: true,
         };
+        // SAFETY: `dev.0` is live and `scene` non-null (owned by `out`, released on every
+        // return). Each buffer is allocated by Embree for `len` items of 12 bytes (checked
+        // non-null before writing), so the copies below write `len × 3` f32/u32 in bounds;
+        // `Vec3` and `[u32; 3]` are three packed 4-byte values. The geometry is released
+        // after attaching (the scene keeps its own reference).
         unsafe {
             let g = sys::rtcNewGeometry(dev.0, sys::RTCGeometryType::TRIANGLE);
             check(dev, "rtcNewGeometry")?;
@@ -198,7 +216,7 @@ impl EmbreeAccel {
                     "Embree: geometry buffer allocation failed".into(),
                 ));
             }
-            // SAFETY: Embree allocated `len × 12` bytes for each buffer.
+            // Embree allocated `len × 12` bytes for each buffer (see the SAFETY note above).
             std::ptr::copy_nonoverlapping(verts.as_ptr() as *const f32, vb, verts.len() * 3);
             std::ptr::copy_nonoverlapping(tris.as_ptr() as *const u32, ib, tris.len() * 3);
             sys::rtcSetGeometryEnableFilterFunctionFromArguments(g, true);
@@ -215,6 +233,9 @@ impl EmbreeAccel {
         let dev = device()?;
         let scene = new_scene(dev, preset)?;
         let data = boxes.to_vec();
+        // SAFETY: `dev.0` is live and `scene` non-null. The user pointer is `data`'s heap
+        // buffer, which the returned accel owns (`_boxes`) for as long as the scene exists, and
+        // `box_bounds`/`box_intersect` read at most `boxes.len()` entries (the primitive count).
         unsafe {
             let g = sys::rtcNewGeometry(dev.0, sys::RTCGeometryType::USER);
             check(dev, "rtcNewGeometry")?;
@@ -324,6 +345,9 @@ impl EmbreeAccel {
                 instID: [u32::MAX],
             },
         };
+        // SAFETY: `self.scene` is a committed live scene; `rh`, `args` and `ctx` (which
+        // `args.context` points to) live on this stack frame for the whole call, and the
+        // filter/intersect callbacks read `ctx.visit` only during it.
         unsafe { sys::rtcIntersect1(self.scene, &mut rh, &mut args) };
     }
 }

@@ -230,6 +230,11 @@ pub fn load_cameras_json(path: &Path) -> Result<Vec<Camera>> {
         .enumerate()
         .map(|(i, e)| {
             let c = e.to_camera();
+            crate::camera_spec::check_side("width", c.width)
+                .and_then(|()| crate::camera_spec::check_side("height", c.height))
+                .map_err(|what| {
+                    SceneError::format(path, format!("camera {i} ('{}'): {what}", e.img_name))
+                })?;
             c.validate().map_err(|err| {
                 SceneError::format(path, format!("camera {i} ('{}'): {err}", e.img_name))
             })?;
@@ -290,6 +295,23 @@ impl OrbitRig {
 
     /// Orbit around explicit bounds.
     pub fn cameras_around(&self, lo: DVec3, hi: DVec3, n: usize) -> Result<Vec<Camera>> {
+        (0..n.max(1))
+            .map(|i| self.camera_around(lo, hi, n, i))
+            .collect()
+    }
+
+    /// Camera `index` of the `n`-camera orbit around the robust bounds of `cloud`, built alone
+    /// (no other camera of the rig is allocated, so `n` may be huge).
+    pub fn camera(&self, cloud: &crate::GaussianCloud, n: usize, index: usize) -> Result<Camera> {
+        let (lo, hi) = cloud.robust_bounds(self.percentile).ok_or_else(|| {
+            SceneError::Invalid("cannot place an orbit around an empty scene".into())
+        })?;
+        self.camera_around(lo.as_dvec3(), hi.as_dvec3(), n, index)
+    }
+
+    /// Camera `i` of the `n`-camera orbit around explicit bounds; `cameras_around` is this for
+    /// every `i`, so one camera and the whole rig agree bit for bit.
+    pub fn camera_around(&self, lo: DVec3, hi: DVec3, n: usize, i: usize) -> Result<Camera> {
         let centre = 0.5 * (lo + hi);
         let radius = (0.5 * (hi - lo).length()).max(1e-6);
         let up = self.up.as_dvec3().normalize();
@@ -299,72 +321,22 @@ impl OrbitRig {
         let e1 = (a - up * a.dot(up)).normalize();
         let e2 = up.cross(e1);
         let el = self.elevation_deg.to_radians();
-        (0..n.max(1))
-            .map(|i| {
-                let az = std::f64::consts::TAU * i as f64 / n.max(1) as f64;
-                let dir = (e1 * az.cos() + e2 * az.sin()) * el.cos() + up * el.sin();
-                let mut cam = Camera::look_at(
-                    centre + dir * dist,
-                    centre,
-                    up,
-                    self.fov_y_deg,
-                    self.width,
-                    self.height,
-                )?;
-                cam.name = format!("orbit {i}/{n}");
-                Ok(cam)
-            })
-            .collect()
+        let az = std::f64::consts::TAU * i as f64 / n.max(1) as f64;
+        let dir = (e1 * az.cos() + e2 * az.sin()) * el.cos() + up * el.sin();
+        let mut cam = Camera::look_at(
+            centre + dir * dist,
+            centre,
+            up,
+            self.fov_y_deg,
+            self.width,
+            self.height,
+        )?;
+        cam.name = format!("orbit {i}/{n}");
+        Ok(cam)
     }
 }
 
-/// A camera as named on the command line.
-#[derive(Clone, Debug, PartialEq)]
-pub enum CameraSpec {
-    /// `orbit:N:I`: camera I of an N-camera orbit rig around the scene.
-    Orbit { n: usize, index: usize },
-    /// `scene:I`: camera I of the scene's own cameras.
-    Scene(usize),
-    /// `PATH.json:I`: camera I of a 3DGS `cameras.json`.
-    Json {
-        path: std::path::PathBuf,
-        index: usize,
-    },
-}
-
-impl std::str::FromStr for CameraSpec {
-    type Err = SceneError;
-
-    fn from_str(s: &str) -> Result<Self> {
-        let bad = || {
-            SceneError::Invalid(format!(
-                "camera spec '{s}' is not orbit:N:I, scene:I or PATH.json:I"
-            ))
-        };
-        let num = |t: &str| t.parse::<usize>().map_err(|_| bad());
-        if let Some(rest) = s.strip_prefix("orbit:") {
-            let (n, i) = rest.split_once(':').ok_or_else(bad)?;
-            let (n, index) = (num(n)?, num(i)?);
-            if n == 0 || index >= n {
-                return Err(SceneError::Invalid(format!(
-                    "camera spec '{s}': index must be below N > 0"
-                )));
-            }
-            return Ok(CameraSpec::Orbit { n, index });
-        }
-        if let Some(rest) = s.strip_prefix("scene:") {
-            return Ok(CameraSpec::Scene(num(rest)?));
-        }
-        let (path, i) = s.rsplit_once(':').ok_or_else(bad)?;
-        if !path.ends_with(".json") {
-            return Err(bad());
-        }
-        Ok(CameraSpec::Json {
-            path: path.into(),
-            index: num(i)?,
-        })
-    }
-}
+pub use crate::camera_spec::CameraSpec;
 
 #[cfg(test)]
 mod tests {

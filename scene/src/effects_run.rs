@@ -244,7 +244,9 @@ pub fn build_blur_frames(
                 Some(i) => {
                     let posed = singles[i]
                         .as_ref()
-                        .expect("a single-object scene for every moving object")
+                        .ok_or_else(|| {
+                            SceneError::Invalid(format!("moving object {i} has no posed copy"))
+                        })?
                         .composite(ts);
                     c.extend_from(&posed, Some(i as u32 + 1));
                 }

@@ -47,9 +47,12 @@ impl Frame {
             .all(|v| v.is_finite())
     }
 
-    /// Largest absolute per-channel RGB difference to `other` (same size required).
+    /// Largest absolute per-channel RGB difference to `other`; frames of different sizes
+    /// differ without bound (+inf).
     pub fn max_rgb_diff(&self, other: &Frame) -> f32 {
-        assert_eq!((self.width, self.height), (other.width, other.height));
+        if (self.width, self.height) != (other.width, other.height) {
+            return f32::INFINITY;
+        }
         self.rgb
             .iter()
             .zip(&other.rgb)

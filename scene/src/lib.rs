@@ -7,6 +7,7 @@
 //! coefficient), cameras use the OpenCV frame (x right, y down, z forward).
 
 pub mod camera;
+pub mod camera_spec;
 pub mod dynamic;
 pub mod effects;
 pub mod effects_run;

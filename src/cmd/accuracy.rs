@@ -40,7 +40,7 @@ pub struct Args {
     /// Re-draw the plots and table from OUT/accuracy.json without measuring again.
     #[arg(long)]
     pub replot: bool,
-    #[arg(short, long)]
+    #[arg(short, long, alias = "output")]
     pub out: PathBuf,
 }
 
@@ -306,7 +306,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let renderer = match &setting {
             Setting::Mesh(opts, k) => {
                 let path = args.out.join(format!("sweep_{}.glb", records.len()));
-                let m = parity::export_and_load(
+                let mut m = parity::export_and_load(
                     &splatbridge_scene::dynamic::DynamicScene::from_static(cloud.clone()),
                     opts,
                     &path,
@@ -314,7 +314,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     cfg.preset,
                 )?;
                 for (c, reference) in cams.iter().zip(&refs) {
-                    let img = parity::render_mesh(&m, c, 0.0, *k)?;
+                    let img = parity::render_mesh(&mut m, c, 0.0, *k)?;
                     push(&img.frame, reference, img.ms, c, m.triangles, m.bytes)?;
                 }
                 let _ = std::fs::remove_file(&path);

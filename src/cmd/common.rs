@@ -4,13 +4,14 @@
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Context};
+use anyhow::Context;
 use glam::DVec3;
 use indicatif::{ProgressBar, ProgressStyle};
-use splatbridge_scene::camera::{load_cameras_json, CameraSpec, OrbitRig};
+use splatbridge_scene::camera_spec::{
+    CameraRequest, CameraSource, CameraSpec, DEFAULT_PIXEL_BUDGET,
+};
 use splatbridge_scene::dynamic::DynamicScene;
-use splatbridge_scene::manifest::load_scene;
-use splatbridge_scene::ply::ReadOptions;
+use splatbridge::pipeline::load_scene_warn;
 use splatbridge_scene::{Camera, GaussianCloud};
 
 /// A progress bar on a terminal, a hidden one otherwise (pipes, CI, tests).
@@ -29,15 +30,16 @@ pub fn progress(len: u64, what: &str) -> ProgressBar {
 
 /// Load a scene (PLY or manifest), printing the reader's warnings to stderr.
 pub fn load(path: &Path, drop_invalid: bool) -> anyhow::Result<DynamicScene> {
-    let (scene, warnings) = load_scene(path, &ReadOptions { drop_invalid })?;
-    for w in warnings {
-        eprintln!("warning: {}: {w}", path.display());
-    }
-    Ok(scene)
+    load_scene_warn(path, drop_invalid, &print_warning)
+}
+
+/// Print a library warning as `warning: …` on stderr.
+pub fn print_warning(w: &str) {
+    eprintln!("warning: {w}");
 }
 
 /// Camera selection shared by `render`, `trace`, `hybrid`.
-#[derive(clap::Args, Clone, Debug, Default)]
+#[derive(clap::Args, Clone, Debug)]
 pub struct CameraArgs {
     /// Camera: `orbit:N:I`, `scene:I` (the scene's or file's own cameras) or `PATH.json:I`
     /// (a 3DGS cameras.json). Default `orbit:8:0` unless --eye is given.
@@ -61,6 +63,9 @@ pub struct CameraArgs {
     /// Output height in pixels (default: the camera's own, or 480 for orbit/explicit cameras).
     #[arg(long)]
     pub height: Option<u32>,
+    /// Largest frame in pixels (width × height), at most 16384².
+    #[arg(long, default_value_t = DEFAULT_PIXEL_BUDGET)]
+    pub max_pixels: u64,
 }
 
 /// Parse `X,Y,Z`.
@@ -76,62 +81,46 @@ pub fn parse_vec3(s: &str) -> Result<DVec3, String> {
     }
 }
 
+impl Default for CameraArgs {
+    /// The options' defaults (as clap fills them in).
+    fn default() -> Self {
+        CameraArgs {
+            camera: None,
+            eye: None,
+            target: None,
+            up: DVec3::NEG_Y,
+            fov: 50.0,
+            width: None,
+            height: None,
+            max_pixels: DEFAULT_PIXEL_BUDGET,
+        }
+    }
+}
+
 impl CameraArgs {
+    /// The request these options make (`--eye` needs `--target`; no spec means `orbit:8:0`).
+    pub fn request(&self) -> anyhow::Result<CameraRequest> {
+        let spec = match self.eye {
+            Some(eye) => CameraSpec::LookAt {
+                eye,
+                target: self.target.context("--eye needs --target")?,
+            },
+            None => self.camera.as_deref().unwrap_or("orbit:8:0").parse()?,
+        };
+        Ok(CameraRequest {
+            spec,
+            up: self.up,
+            fov_y_deg: self.fov,
+            width: self.width,
+            height: self.height,
+            max_pixels: self.max_pixels,
+        })
+    }
+
     /// Resolve to a camera. `cloud` frames orbit rigs; `own` are the input's own cameras
     /// (a manifest's cameras.json or a glTF file's camera nodes) for `scene:I`.
     pub fn resolve(&self, cloud: &GaussianCloud, own: &[Camera]) -> anyhow::Result<Camera> {
-        let (w, h) = (self.width.unwrap_or(640), self.height.unwrap_or(480));
-        if let Some(eye) = self.eye {
-            let target = self.target.context("--eye needs --target")?;
-            return Ok(Camera::look_at(eye, target, self.up, self.fov, w, h)?);
-        }
-        let spec: CameraSpec = self.camera.as_deref().unwrap_or("orbit:8:0").parse()?;
-        let cam = match spec {
-            CameraSpec::Orbit { n, index } => {
-                let rig = OrbitRig {
-                    up: self.up.as_vec3(),
-                    fov_y_deg: self.fov,
-                    width: w,
-                    height: h,
-                    ..OrbitRig::default()
-                };
-                return Ok(rig.cameras(cloud, n)?.swap_remove(index));
-            }
-            CameraSpec::Scene(i) => {
-                if own.is_empty() {
-                    bail!("scene:{i}: the input has no cameras of its own (use orbit:N:I or PATH.json:I)");
-                }
-                own.get(i)
-                    .with_context(|| {
-                        format!("scene:{i}: the input has only {} cameras", own.len())
-                    })?
-                    .clone()
-            }
-            CameraSpec::Json { path, index } => {
-                let cams = load_cameras_json(&path)?;
-                cams.get(index)
-                    .with_context(|| {
-                        format!(
-                            "{}: camera {index} requested, file has {}",
-                            path.display(),
-                            cams.len()
-                        )
-                    })?
-                    .clone()
-            }
-        };
-        Ok(match (self.width, self.height) {
-            (None, None) => cam,
-            (Some(w), None) => {
-                let h = ((w as f64 * cam.height as f64 / cam.width as f64).round() as u32).max(1);
-                cam.resized(w, h)
-            }
-            (None, Some(h)) => {
-                let w = ((h as f64 * cam.width as f64 / cam.height as f64).round() as u32).max(1);
-                cam.resized(w, h)
-            }
-            (Some(w), Some(h)) => cam.resized(w, h),
-        })
+        Ok(self.request()?.resolve(CameraSource { cloud, own })?)
     }
 }
 

@@ -9,7 +9,9 @@ use splatbridge_convert::Profile;
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::{Camera, GaussianCloud};
 
-use super::common::{self, CameraArgs};
+use splatbridge_scene::camera_spec::{parse_camera_list, CameraRequest, CameraSource, CameraSpec};
+
+use super::common;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -49,11 +51,12 @@ pub struct Args {
     #[arg(long)]
     pub drop_invalid: bool,
     /// Output folder.
-    #[arg(short, long)]
+    #[arg(short, long, alias = "output")]
     pub out: PathBuf,
 }
 
 /// Resolve a comma-separated camera list.
+/// The cameras of a `--cameras` list at `width`×`height` (orbit rigs frame `cloud`).
 pub fn resolve_cameras(
     spec: &str,
     cloud: &GaussianCloud,
@@ -61,38 +64,23 @@ pub fn resolve_cameras(
     width: u32,
     height: u32,
 ) -> anyhow::Result<Vec<Camera>> {
-    let mut cams = Vec::new();
-    for item in spec.split(',').map(str::trim).filter(|s| !s.is_empty()) {
-        let args = |camera: String| CameraArgs {
-            camera: Some(camera),
-            up: glam::DVec3::NEG_Y,
-            fov: 50.0,
-            width: Some(width),
-            height: Some(height),
-            ..CameraArgs::default()
-        };
-        if let Some(n) = item.strip_prefix("orbit:").filter(|r| !r.contains(':')) {
-            let n: usize = n
-                .parse()
-                .with_context(|| format!("camera list item '{item}' is not orbit:N"))?;
-            for i in 0..n {
-                cams.push(args(format!("orbit:{n}:{i}")).resolve(cloud, &scene.cameras)?);
-            }
-        } else if item == "scene" {
-            for i in 0..scene.cameras.len() {
-                cams.push(args(format!("scene:{i}")).resolve(cloud, &scene.cameras)?);
-            }
-        } else {
-            cams.push(args(item.to_string()).resolve(cloud, &scene.cameras)?);
-        }
-    }
+    let items = parse_camera_list(spec).with_context(|| format!("--cameras '{spec}'"))?;
+    let mut request = CameraRequest::new(CameraSpec::Scene(0));
+    request.width = Some(width);
+    request.height = Some(height);
+    let cams = request.resolve_list(
+        &items,
+        CameraSource {
+            cloud,
+            own: &scene.cameras,
+        },
+    )?;
     if cams.is_empty() {
         anyhow::bail!("--cameras '{spec}' names no camera");
     }
     Ok(cams)
 }
 
-/// Default times: start, middle and end of a dynamic scene, else 0.
 pub fn default_times(scene: &DynamicScene) -> Vec<f64> {
     if scene.objects.is_empty() {
         vec![scene.time.start]

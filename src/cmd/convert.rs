@@ -64,7 +64,7 @@ pub struct Args {
     /// Input scene: a 3DGS PLY, a splatbridge-scene/1 manifest, or a KHR_gaussian_splatting glTF.
     pub scene: PathBuf,
     /// Output file: .glb, .gltf, .obj or .ply.
-    #[arg(short, long)]
+    #[arg(short, long = "out", alias = "output")]
     pub output: PathBuf,
     /// Meshing profile (default: texture for glTF, rings for OBJ/PLY, which carry no texture).
     #[arg(long, value_enum)]

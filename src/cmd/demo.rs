@@ -15,7 +15,7 @@ use super::compare::print_summary;
 #[derive(clap::Args)]
 pub struct Args {
     /// Output folder.
-    #[arg(short, long, default_value = "out/demo")]
+    #[arg(short, long, alias = "output", default_value = "out/demo")]
     pub out: PathBuf,
     /// Seed of the street scene.
     #[arg(long, default_value_t = 1)]

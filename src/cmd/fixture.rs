@@ -22,7 +22,7 @@ pub struct Args {
     /// street (a dynamic manifest scene), large (one big PLY) or hard (one PLY per hard case).
     pub name: String,
     /// Output directory (created if needed).
-    #[arg(short, long)]
+    #[arg(short, long, alias = "output")]
     pub out: PathBuf,
     /// Number of Gaussians: total for street (default 16000), exact for large (default 1000000).
     #[arg(long)]

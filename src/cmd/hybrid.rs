@@ -2,27 +2,26 @@
 //! then the residual Gaussians unsorted; `splatbridge_hybrid::ges`). Surfels come from a split
 //! of the trained cloud by opacity and flatness, or from a GES PLY's own flags.
 //!
-//! The frame's content comes from `splatbridge_scene::effects_run::build_blur_frames` (the
-//! composite plus declared weather particles; with `motion_blur`, one cloud per shutter sample,
-//! each split and rendered, then averaged). With no effects declared the one sample is the
-//! composite itself. Shadows and LiDAR are ray-traced effects, listed as not simulated.
+//! The frame comes from `splatbridge::pipeline::render_frame` (the composite plus declared
+//! weather particles; with `motion_blur`, one cloud per shutter sample, each split and
+//! rendered, then averaged; shadows and LiDAR listed as not simulated). This module parses the
+//! options and prints.
 
 use std::path::PathBuf;
-use std::time::Instant;
 
 use anyhow::{bail, Context};
 use serde_json::json;
-use splatbridge_hybrid::ges::{render_ges, GesOptions, GesStats};
-use splatbridge_scene::effects_run::{blend_frames, build_blur_frames, effects_of, not_simulated};
+use splatbridge::pipeline::{render_frame, FrameRequest, FrameStats, Renderer, SurfelSplit};
+use splatbridge_hybrid::ges::{GesOptions, GesStats};
+use splatbridge_scene::effects_run::effects_of;
 use splatbridge_scene::image_io::save_frame;
 use splatbridge_scene::surfels::{
-    looks_like_ges, split, split_ges, SplitParams, SurfelCloud, DEFAULT_MAX_FLATNESS,
-    DEFAULT_MIN_OPACITY, FOOTPRINT_SIGMAS, GES_EPSILON_FACTOR,
+    SplitParams, DEFAULT_MAX_FLATNESS, DEFAULT_MIN_OPACITY, FOOTPRINT_SIGMAS, GES_EPSILON_FACTOR,
 };
-use splatbridge_scene::{Camera, Frame, GaussianCloud};
+use splatbridge_scene::Camera;
 
 use crate::cmd::common::{load, parse_rgb, CameraArgs};
-use crate::cmd::render::{short, SIMULATES};
+use crate::cmd::render::short;
 
 /// `on` or `off`.
 pub fn parse_on_off(s: &str) -> Result<bool, String> {
@@ -101,51 +100,16 @@ impl HybridKnobs {
         }
     }
 
-    pub fn split_params(&self) -> anyhow::Result<SplitParams> {
-        if !(self.surfel_opacity >= 0.0 && self.surfel_opacity.is_finite()) {
-            bail!(
-                "--surfel-opacity {} must be finite and ≥ 0 (above 1: no surfels)",
-                self.surfel_opacity
-            );
+    /// How surfels are found (the thresholds are checked when a split uses them).
+    pub fn surfel_split(&self) -> SurfelSplit {
+        SurfelSplit {
+            params: SplitParams {
+                min_opacity: self.surfel_opacity,
+                max_flatness: self.surfel_flatness,
+            },
+            ges_ply: self.ges_ply,
+            detect_ges: true,
         }
-        if !(self.surfel_flatness >= 0.0 && self.surfel_flatness.is_finite()) {
-            bail!(
-                "--surfel-flatness {} must be finite and ≥ 0",
-                self.surfel_flatness
-            );
-        }
-        Ok(SplitParams {
-            min_opacity: self.surfel_opacity,
-            max_flatness: self.surfel_flatness,
-        })
-    }
-
-    /// Split `cloud` into surfels and residual Gaussians; the text says how.
-    pub fn split(
-        &self,
-        cloud: &GaussianCloud,
-    ) -> anyhow::Result<(SurfelCloud, GaussianCloud, String)> {
-        if self.ges_ply || looks_like_ges(cloud) {
-            let (s, g, rep) = split_ges(cloud);
-            let mut how = format!(
-                "GES PLY flags{}",
-                if self.ges_ply { "" } else { " (detected)" }
-            );
-            if rep.clamped_opacity > 0 {
-                how += &format!(
-                    ", {} Gaussian opacities above 1 clamped",
-                    rep.clamped_opacity
-                );
-            }
-            return Ok((s, g, how));
-        }
-        let p = self.split_params()?;
-        let (s, g) = split(cloud, &p);
-        Ok((
-            s,
-            g,
-            format!("opacity ≥ {}, flatness ≤ {}", p.min_opacity, p.max_flatness),
-        ))
     }
 
     /// The knobs as JSON (for `--json` reports).
@@ -192,7 +156,7 @@ pub struct Args {
     #[arg(long)]
     pub drop_invalid: bool,
     /// Output image: .png (8-bit RGB) or .exr (float RGBA and Z depth).
-    #[arg(short, long)]
+    #[arg(short, long, alias = "output")]
     pub out: PathBuf,
     /// Print one JSON object (knobs, stats, effect counters) instead of the summary.
     #[arg(long)]
@@ -263,58 +227,52 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .camera
         .resolve(&scene.composite(t), &scene.cameras)
         .with_context(|| name.clone())?;
-    let opts = args.knobs.options();
-    opts.validate()?;
-    let blur = build_blur_frames(&scene, t, Some(&cam)).with_context(|| name.clone())?;
-    let mut counters = blur.counters.clone();
-    counters.not_simulated = not_simulated(&effects, SIMULATES);
-    let mut rendered: Vec<Frame> = Vec::with_capacity(blur.samples.len());
-    let mut stats = GesStats::default();
-    let mut split_ms = 0.0;
-    let mut how = String::new();
-    for s in &blur.samples {
-        let t0 = Instant::now();
-        let (surfels, rest, h) = args.knobs.split(&s.cloud)?;
-        split_ms += t0.elapsed().as_secs_f64() * 1e3;
-        how = h;
-        let (f, st) = render_ges(&surfels, &rest, &cam, &opts).with_context(|| name.clone())?;
-        rendered.push(f);
-        stats += &st;
-    }
-    let frame = if rendered.len() == 1 {
-        rendered.pop().expect("one sample")
-    } else {
-        let weights: Vec<f32> = blur.samples.iter().map(|s| s.weight).collect();
-        blend_frames(&rendered, &weights).with_context(|| name.clone())?
+    let mut renderer = Renderer::hybrid(args.knobs.options(), args.knobs.surfel_split())?;
+    let req = FrameRequest {
+        scene: Some(&scene),
+        effects: &effects,
+        camera: &cam,
+        time: t,
+        content: Default::default(),
+        lidar: None,
     };
-    save_frame(&args.out, &frame)?;
+    let r = render_frame(&mut renderer, &req).with_context(|| name.clone())?;
+    let FrameStats::Hybrid {
+        stats,
+        split_ms,
+        surfels_by: how,
+    } = &r.stats
+    else {
+        bail!("{name}: the hybrid returned another renderer's stats");
+    };
+    save_frame(&args.out, &r.frame)?;
     if args.json {
         let report = json!({
             "command": "hybrid",
             "scene": name,
             "output": args.out.display().to_string(),
             "time": t,
-            "time_samples": blur.samples.len(),
+            "time_samples": r.time_samples,
             "surfels_by": how,
             "camera": {"name": cam.name, "width": cam.width, "height": cam.height},
             "knobs": args.knobs.to_json(),
-            "stats": stats_json(&stats, split_ms),
-            "effects": serde_json::to_value(&counters)?,
+            "stats": stats_json(stats, *split_ms),
+            "effects": serde_json::to_value(&r.counters)?,
         });
         println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
     }
     println!("hybrid {name}: surfels by {how}; {}", args.knobs.describe());
-    if blur.samples.len() > 1 {
+    if r.time_samples > 1 {
         println!(
             "{} (t = {t}, {} motion-blur samples blended; stats summed over them)",
             args.out.display(),
-            blur.samples.len()
+            r.time_samples
         );
     } else {
         println!("{} (t = {t})", args.out.display());
     }
-    print_summary(&cam, &stats, split_ms);
-    println!("{}", counters.summary());
+    print_summary(&cam, stats, *split_ms);
+    println!("{}", r.counters.summary());
     Ok(())
 }

@@ -1,21 +1,20 @@
 //! `splatbridge render`: render a scene with the native 3DGS splatting renderer (the reference
 //! forward pass; knobs and their reference defaults in `splatbridge_hybrid::native`).
 //!
-//! Each frame's content comes from `splatbridge_scene::effects_run::build_blur_frames`: the
-//! composite plus declared weather particles, as one sample or, with `motion_blur`, one cloud
-//! per shutter sample rendered and averaged (`blend_frames`). With no effects declared the one
-//! sample is the composite itself, so the image is the plain composite render bit for bit.
-//! Shadows and LiDAR are ray-traced effects: this renderer lists them as not simulated.
+//! Frames come from `splatbridge::pipeline::render_frame` (the composite plus declared weather
+//! particles, one cloud per motion-blur sample, averaged; shadows and LiDAR are ray-traced
+//! effects, listed as not simulated). This module parses the options and prints.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use serde_json::json;
-use splatbridge_hybrid::{Extent, RenderOptions, RenderStats, Renderer};
+use splatbridge::pipeline::{render_frame, FrameRequest, FrameStats, Renderer};
+use splatbridge_hybrid::{Extent, RenderOptions, RenderStats};
 use splatbridge_scene::effects::EffectCounters;
-use splatbridge_scene::effects_run::{blend_frames, build_blur_frames, effects_of, not_simulated};
+use splatbridge_scene::effects_run::effects_of;
 use splatbridge_scene::image_io::save_frame;
-use splatbridge_scene::{Camera, Frame};
+use splatbridge_scene::Camera;
 
 use crate::cmd::common::{load, parse_rgb, with_suffix, CameraArgs};
 
@@ -130,7 +129,7 @@ pub struct Args {
     #[arg(long)]
     pub drop_invalid: bool,
     /// Output image: .png (8-bit RGB) or .exr (float RGBA and Z depth).
-    #[arg(short, long)]
+    #[arg(short, long, alias = "output")]
     pub out: PathBuf,
     /// Print one JSON object (knobs, per-frame stats, effect counters) instead of the summary.
     #[arg(long)]
@@ -141,9 +140,6 @@ pub struct Args {
 pub fn short(x: f32) -> f64 {
     x.to_string().parse().unwrap_or(x as f64)
 }
-
-/// Effects this renderer simulates (the others are reported as not simulated).
-pub const SIMULATES: &[&str] = &["weather", "motion_blur"];
 
 /// The stats of a render as JSON (times in milliseconds).
 pub fn stats_json(s: &RenderStats) -> serde_json::Value {
@@ -226,8 +222,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let name = args.scene.display().to_string();
     let scene = load(&args.scene, args.drop_invalid)?;
     let effects = effects_of(&scene).with_context(|| name.clone())?;
-    let opts = args.knobs.options();
-    opts.validate()?;
+    let mut renderer = Renderer::native(args.knobs.options())?;
+    let near = args.knobs.near;
     let times = if args.frames {
         scene.frame_times()
     } else {
@@ -242,55 +238,49 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if !args.json {
         println!("render {name}: {}", args.knobs.describe());
     }
-    let mut renderer = Renderer::new();
     let mut counters = EffectCounters::default();
     let mut frames_json = Vec::with_capacity(times.len());
     for (i, &t) in times.iter().enumerate() {
-        let blur = build_blur_frames(&scene, t, Some(&cam)).with_context(|| name.clone())?;
-        counters.add(&blur.counters);
-        let mut rendered: Vec<Frame> = Vec::with_capacity(blur.samples.len());
-        let mut stats = RenderStats::default();
-        for s in &blur.samples {
-            let (f, st) = renderer
-                .render(&s.cloud, &cam, &opts)
-                .with_context(|| name.clone())?;
-            rendered.push(f);
-            stats += &st;
-        }
-        let frame = if rendered.len() == 1 {
-            rendered.pop().expect("one sample")
-        } else {
-            let weights: Vec<f32> = blur.samples.iter().map(|s| s.weight).collect();
-            blend_frames(&rendered, &weights).with_context(|| name.clone())?
+        let req = FrameRequest {
+            scene: Some(&scene),
+            effects: &effects,
+            camera: &cam,
+            time: t,
+            content: EffectCounters::default(),
+            lidar: None,
+        };
+        let r = render_frame(&mut renderer, &req).with_context(|| name.clone())?;
+        counters.add(&r.counters);
+        let FrameStats::Native(stats) = &r.stats else {
+            bail!("{name}: native splatting returned another renderer's stats");
         };
         let out = if args.frames {
             with_suffix(&args.out, &format!("{i:04}"))
         } else {
             args.out.clone()
         };
-        save_frame(&out, &frame)?;
+        save_frame(&out, &r.frame)?;
         if args.json {
             frames_json.push(json!({
                 "output": out.display().to_string(),
                 "time": t,
-                "time_samples": blur.samples.len(),
-                "stats": stats_json(&stats),
+                "time_samples": r.time_samples,
+                "stats": stats_json(stats),
             }));
-            warn_near(&stats, opts.near);
+            warn_near(stats, near);
         } else {
-            if blur.samples.len() > 1 {
+            if r.time_samples > 1 {
                 println!(
                     "{} (t = {t}, {} motion-blur samples blended; stats summed over them)",
                     out.display(),
-                    blur.samples.len()
+                    r.time_samples
                 );
             } else {
                 println!("{} (t = {t})", out.display());
             }
-            print_summary(&cam, &stats, opts.near);
+            print_summary(&cam, stats, near);
         }
     }
-    counters.not_simulated = not_simulated(&effects, SIMULATES);
     if args.json {
         let report = json!({
             "command": "render",

@@ -107,8 +107,9 @@ mod avx {
     /// The CPU must support AVX2.
     #[inline(always)]
     pub unsafe fn lanes8(acc: &mut Acc, base: usize, limit: &[f32; 8], xb: f32, k: &RowK) -> u32 {
-        // Each pointer comes from a bounds-checked 8-element subslice of a tile plane, and every
-        // load/store below touches exactly those 8 lanes.
+        // SAFETY: each pointer comes from a bounds-checked 8-element subslice of a tile plane,
+        // and every load/store below touches exactly those 8 lanes; AVX2 is present (the
+        // caller's contract).
         let lanes = |a: &mut [f32; N]| -> *mut f32 { a[base..base + 8].as_mut_ptr() };
         let rp = lanes(&mut acc.r);
         let gp = lanes(&mut acc.g);

@@ -24,6 +24,7 @@ pub mod composite;
 pub mod gauss_pass;
 pub mod project_gauss;
 pub mod surfel_pass;
+pub mod surfel_project;
 pub mod tiles;
 
 use std::time::{Duration, Instant};

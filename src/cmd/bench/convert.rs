@@ -28,7 +28,7 @@ pub struct Args {
     #[arg(long, default_value_t = 8)]
     pub segments: usize,
     /// Timed repeats (the median is reported).
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, alias = "repeats", default_value_t = 5)]
     pub repeat: usize,
     /// Also time writing to this file.
     #[arg(long)]

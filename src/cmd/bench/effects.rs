@@ -33,7 +33,7 @@ pub struct Args {
     #[arg(long, default_value_t = 1.0)]
     pub time: f64,
     /// Timed runs per effect (the median is reported).
-    #[arg(long, default_value_t = 3)]
+    #[arg(long = "repeat", alias = "repeats", default_value_t = 3)]
     pub repeats: usize,
 }
 

@@ -33,7 +33,7 @@ pub struct Args {
     #[command(flatten)]
     pub knobs: HybridKnobs,
     /// Timed renders per configuration (after one warm-up).
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, alias = "repeats", default_value_t = 5)]
     pub repeat: usize,
     /// Timed renders per sweep setting.
     #[arg(long, default_value_t = 3)]
@@ -147,7 +147,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.repeat
     );
 
-    let p = args.knobs.split_params()?;
+    let p = args.knobs.surfel_split().checked_params()?;
     let t0 = Instant::now();
     let (s, g) = split(&cloud, &p);
     let split_time = t0.elapsed();

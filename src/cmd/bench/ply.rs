@@ -18,7 +18,7 @@ pub struct Args {
     /// A 3DGS PLY file.
     pub file: PathBuf,
     /// Timed loads (after one warm-up load).
-    #[arg(long, default_value_t = 10)]
+    #[arg(long, alias = "repeats", default_value_t = 10)]
     pub repeat: usize,
     /// Drop invalid Gaussians instead of failing.
     #[arg(long)]

@@ -29,7 +29,7 @@ pub struct Args {
     #[command(flatten)]
     pub knobs: RenderKnobs,
     /// Timed renders (after one warm-up render).
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, alias = "repeats", default_value_t = 5)]
     pub repeat: usize,
     /// Worker threads (default: all cores).
     #[arg(long)]

@@ -7,14 +7,16 @@ use anyhow::Context;
 use splatbridge_raytrace::backend::EMBREE_AVAILABLE;
 use splatbridge_raytrace::BackendKind;
 
-use crate::cmd::trace::{TraceInput, Tracer};
+use splatbridge::pipeline::Renderer;
+
+use crate::cmd::trace::TraceInput;
 
 #[derive(clap::Args)]
 pub struct Args {
     #[command(flatten)]
     pub input: TraceInput,
     /// Timed renders per backend (the median is reported).
-    #[arg(long, default_value_t = 3)]
+    #[arg(long = "repeat", alias = "repeats", default_value_t = 3)]
     pub repeats: usize,
 }
 
@@ -44,12 +46,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "backend", "build s", "trace s", "Mrays/s", "hits/ray", "traversals/ray", "candidates/ray"
     );
     for b in backends {
-        let tracer = Tracer::build(&p, b, args.input.preset.into())
+        let tracer = Renderer::tracer(&p, b, args.input.preset.into())
             .with_context(|| format!("backend {b}"))?;
         let mut times = Vec::new();
         let mut last = None;
         for _ in 0..args.repeats.max(1) {
-            let (f, s) = tracer.render(&p)?;
+            let (f, s) = tracer.render_traced(&p.camera, p.time)?;
             times.push(s.seconds);
             last = Some((f, s));
         }

@@ -1,0 +1,20 @@
+//! The frame pipeline: from an input file to a rendered frame, for every renderer, with the
+//! scene's declared effects. Commands, benchmarks, the parity pipeline and the tests call it;
+//! the CLI only parses arguments and prints.
+//!
+//! - [`source`]: load a scene (PLY or manifest), or prepare what the ray tracer traces (an
+//!   exported file, a scene converted in memory, or the Gaussians) with its camera and effects.
+//! - [`renderer`]: [`Renderer`], one type over native splatting, the GES hybrid, the mesh
+//!   tracer and the Gaussian tracer.
+//! - [`frame`]: [`render_frame`], one frame with its time samples, motion-blur samples, weather
+//!   particles, shadows, LiDAR and effect counters.
+//!
+//! Cameras are chosen with `splatbridge_scene::camera_spec`.
+
+pub mod frame;
+pub mod renderer;
+pub mod source;
+
+pub use frame::{render_frame, FrameRequest, LidarRequest, RenderedFrame};
+pub use renderer::{FrameStats, Renderer, SurfelSplit};
+pub use source::{load_scene_warn, Loaded, Prepared, TraceMode, TraceSource};

@@ -1,0 +1,280 @@
+//! The four ways a frame is drawn, behind one type: native splatting (the reference forward
+//! pass, `splatbridge_hybrid::native`), the GES hybrid (`splatbridge_hybrid::ges`: a surfel
+//! split of the frame's cloud, then opaque surfels and unsorted Gaussians), the mesh tracer
+//! (`splatbridge_raytrace::MeshTracer`, an exported or in-memory converted file) and the
+//! Gaussian tracer (`splatbridge_raytrace::GaussianTracer`, 3DGRT-style).
+//!
+//! Native and hybrid draw a cloud: each frame's content (composite, particles, shutter
+//! samples) is built for them by [`super::frame::render_frame`]. The tracers hold a BVH built
+//! once and are posed at each time sample (instancing, no rebuild).
+
+use std::time::Instant;
+
+use anyhow::bail;
+use splatbridge_hybrid::ges::{render_ges, GesOptions, GesStats};
+use splatbridge_hybrid::{RenderOptions as NativeOptions, RenderStats};
+use splatbridge_raytrace::{
+    BackendKind, BuildPreset, GaussianTracer, MeshTracer, RenderOptions as TraceOptions, Stats,
+};
+use splatbridge_scene::surfels::{looks_like_ges, split, split_ges, SplitParams, SurfelCloud};
+use splatbridge_scene::{Camera, Frame, GaussianCloud};
+
+use super::source::{Loaded, Prepared};
+
+/// How the hybrid finds its surfels.
+#[derive(Clone, Debug)]
+pub struct SurfelSplit {
+    /// Thresholds of the trained-cloud split.
+    pub params: SplitParams,
+    /// Read a GES PLY's own flags.
+    pub ges_ply: bool,
+    /// Also read them when the cloud looks like a GES PLY (the CLI's default; the parity
+    /// pipeline always splits by thresholds).
+    pub detect_ges: bool,
+}
+
+impl SurfelSplit {
+    /// The thresholds, checked (finite and non-negative).
+    pub fn checked_params(&self) -> anyhow::Result<SplitParams> {
+        let p = &self.params;
+        if !(p.min_opacity >= 0.0 && p.min_opacity.is_finite()) {
+            bail!(
+                "--surfel-opacity {} must be finite and ≥ 0 (above 1: no surfels)",
+                p.min_opacity
+            );
+        }
+        if !(p.max_flatness >= 0.0 && p.max_flatness.is_finite()) {
+            bail!("--surfel-flatness {} must be finite and ≥ 0", p.max_flatness);
+        }
+        Ok(p.clone())
+    }
+
+    /// Split `cloud` into surfels and residual Gaussians; the string says how (for reports).
+    pub fn split(&self, cloud: &GaussianCloud) -> anyhow::Result<(SurfelCloud, GaussianCloud, String)> {
+        if self.ges_ply || (self.detect_ges && looks_like_ges(cloud)) {
+            let (s, g, rep) = split_ges(cloud);
+            let mut how = format!(
+                "GES PLY flags{}",
+                if self.ges_ply { "" } else { " (detected)" }
+            );
+            if rep.clamped_opacity > 0 {
+                how += &format!(
+                    ", {} Gaussian opacities above 1 clamped",
+                    rep.clamped_opacity
+                );
+            }
+            return Ok((s, g, how));
+        }
+        let p = &self.checked_params()?;
+        let (s, g) = split(cloud, p);
+        Ok((
+            s,
+            g,
+            format!("opacity ≥ {}, flatness ≤ {}", p.min_opacity, p.max_flatness),
+        ))
+    }
+}
+
+/// A renderer with its options (and, for the tracers, its BVHs).
+pub enum Renderer {
+    /// Native splatting; the renderer keeps its buffers across frames.
+    Native {
+        renderer: splatbridge_hybrid::Renderer,
+        options: NativeOptions,
+    },
+    /// The GES hybrid.
+    Hybrid {
+        options: GesOptions,
+        split: SurfelSplit,
+    },
+    /// Triangles composited hit by hit.
+    Mesh {
+        tracer: MeshTracer,
+        options: TraceOptions,
+    },
+    /// The Gaussians ray-traced.
+    Gaussian {
+        tracer: GaussianTracer,
+        options: TraceOptions,
+    },
+}
+
+/// What one drawing of a frame (or one shutter sample of it) did.
+#[derive(Clone, Debug)]
+pub enum FrameStats {
+    Native(RenderStats),
+    Hybrid {
+        stats: GesStats,
+        /// Milliseconds spent splitting surfels from the cloud.
+        split_ms: f64,
+        /// How surfels were found.
+        surfels_by: String,
+    },
+    Trace(Stats),
+}
+
+impl Renderer {
+    /// Native splatting with `options` (checked).
+    pub fn native(options: NativeOptions) -> anyhow::Result<Renderer> {
+        options.validate()?;
+        Ok(Renderer::Native {
+            renderer: splatbridge_hybrid::Renderer::new(),
+            options,
+        })
+    }
+
+    /// The GES hybrid with `options` (checked).
+    pub fn hybrid(options: GesOptions, split: SurfelSplit) -> anyhow::Result<Renderer> {
+        options.validate()?;
+        Ok(Renderer::Hybrid { options, split })
+    }
+
+    /// A tracer for a prepared input on one backend.
+    pub fn tracer(
+        p: &Prepared,
+        backend: BackendKind,
+        preset: BuildPreset,
+    ) -> anyhow::Result<Renderer> {
+        Ok(match &p.loaded {
+            Loaded::Mesh(s) => Renderer::Mesh {
+                tracer: MeshTracer::new(s.clone(), backend, preset)?,
+                options: p.options.clone(),
+            },
+            Loaded::Gaussians(particles) => {
+                let Some(scene) = p.effects_scene.as_ref() else {
+                    bail!("a Gaussian input keeps its scene");
+                };
+                let mut g = GaussianTracer::for_scene(scene, p.time, backend, preset)?;
+                g.set_particles(particles.clone())?;
+                Renderer::Gaussian {
+                    tracer: g,
+                    options: p.options.clone(),
+                }
+            }
+        })
+    }
+
+    /// Whether this renderer draws a cloud built per frame (native, hybrid) rather than a
+    /// prebuilt BVH (the tracers).
+    pub fn draws_clouds(&self) -> bool {
+        matches!(self, Renderer::Native { .. } | Renderer::Hybrid { .. })
+    }
+
+    /// Seconds spent building BVHs (0 for native and hybrid).
+    pub fn build_seconds(&self) -> f64 {
+        match self {
+            Renderer::Mesh { tracer, .. } => tracer.build_seconds,
+            Renderer::Gaussian { tracer, .. } => tracer.build_seconds,
+            _ => 0.0,
+        }
+    }
+
+    /// The tracers' options (None for native and hybrid).
+    pub fn trace_options_mut(&mut self) -> Option<&mut TraceOptions> {
+        match self {
+            Renderer::Mesh { options, .. } | Renderer::Gaussian { options, .. } => Some(options),
+            _ => None,
+        }
+    }
+
+    /// Pose the tracers' scene at `t` for the next render (mode gaussian re-poses its
+    /// objects; mode mesh takes the time per render).
+    pub fn set_time(&mut self, t: f64) {
+        if let Renderer::Gaussian { tracer, .. } = self {
+            tracer.set_time(t);
+        }
+    }
+
+    /// Draw `cloud` (native, hybrid) at `cam`.
+    pub fn render_cloud(
+        &mut self,
+        cloud: &GaussianCloud,
+        cam: &Camera,
+    ) -> anyhow::Result<(Frame, FrameStats)> {
+        match self {
+            Renderer::Native { renderer, options } => {
+                let (f, st) = renderer.render(cloud, cam, options)?;
+                Ok((f, FrameStats::Native(st)))
+            }
+            Renderer::Hybrid { options, split } => {
+                let t0 = Instant::now();
+                let (surfels, rest, how) = split.split(cloud)?;
+                let split_ms = t0.elapsed().as_secs_f64() * 1e3;
+                let (f, st) = render_ges(&surfels, &rest, cam, options)?;
+                Ok((
+                    f,
+                    FrameStats::Hybrid {
+                        stats: st,
+                        split_ms,
+                        surfels_by: how,
+                    },
+                ))
+            }
+            _ => bail!("a tracer draws its own BVH, not a cloud"),
+        }
+    }
+
+    /// Trace the prebuilt scene at `cam` and `time` (the tracers; mode gaussian draws the
+    /// pose of its last [`Renderer::set_time`]).
+    pub fn render_traced(&self, cam: &Camera, time: f64) -> anyhow::Result<(Frame, Stats)> {
+        match self {
+            Renderer::Mesh { tracer, options } => Ok(tracer.render(cam, time, options)?),
+            Renderer::Gaussian { tracer, options } => Ok(tracer.render(cam, options)?),
+            _ => bail!("native splatting and the hybrid draw a cloud"),
+        }
+    }
+}
+
+impl FrameStats {
+    /// Sum another sample's stats into these (same renderer).
+    pub fn add(&mut self, other: &FrameStats) -> anyhow::Result<()> {
+        match (self, other) {
+            (FrameStats::Native(a), FrameStats::Native(b)) => *a += b,
+            (
+                FrameStats::Hybrid {
+                    stats,
+                    split_ms,
+                    surfels_by,
+                },
+                FrameStats::Hybrid {
+                    stats: s,
+                    split_ms: ms,
+                    surfels_by: how,
+                },
+            ) => {
+                *stats += s;
+                *split_ms += ms;
+                surfels_by.clone_from(how);
+            }
+            (FrameStats::Trace(a), FrameStats::Trace(b)) => {
+                a.rays += b.rays;
+                a.hits += b.hits;
+                a.traversals += b.traversals;
+                a.seconds += b.seconds;
+            }
+            _ => bail!("stats of different renderers cannot be summed"),
+        }
+        Ok(())
+    }
+
+    /// Empty stats of the kind `r` produces.
+    pub fn zero_for(r: &Renderer) -> FrameStats {
+        match r {
+            Renderer::Native { .. } => FrameStats::Native(RenderStats::default()),
+            Renderer::Hybrid { .. } => FrameStats::Hybrid {
+                stats: GesStats::default(),
+                split_ms: 0.0,
+                surfels_by: String::new(),
+            },
+            _ => FrameStats::Trace(Stats::default()),
+        }
+    }
+
+    /// The tracers' stats (None for native and hybrid).
+    pub fn trace(&self) -> Option<&Stats> {
+        match self {
+            FrameStats::Trace(s) => Some(s),
+            _ => None,
+        }
+    }
+}
