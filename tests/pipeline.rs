@@ -79,7 +79,9 @@ fn without_effects_every_renderer_draws_the_plain_composite() {
     let cloud = scene.composite(T);
 
     let mut r = Renderer::native(NativeOptions::default()).unwrap();
-    let want = native::render(&cloud, &cam, &NativeOptions::default()).unwrap().0;
+    let want = native::render(&cloud, &cam, &NativeOptions::default())
+        .unwrap()
+        .0;
     assert!(same_bits(&frame(&mut r, &scene, &effects, &cam), &want));
 
     let split = SurfelSplit {
@@ -98,8 +100,8 @@ fn without_effects_every_renderer_draws_the_plain_composite() {
     .0;
     assert!(same_bits(&frame(&mut r, &scene, &effects, &cam), &want));
 
-    let tracer = GaussianTracer::for_scene(&scene, T, BackendKind::Obvhs, BuildPreset::Medium)
-        .unwrap();
+    let tracer =
+        GaussianTracer::for_scene(&scene, T, BackendKind::Obvhs, BuildPreset::Medium).unwrap();
     let want = tracer.render(&cam, &TraceOptions::default()).unwrap().0;
     let mut r = Renderer::Gaussian {
         tracer,
@@ -152,10 +154,7 @@ fn motion_blur_is_the_average_of_plain_renders_at_the_shutter_samples() {
     };
     let got = render_frame(&mut r, &req).unwrap();
     assert!(same_bits(&got.frame, &want));
-    assert_eq!(
-        got.counters.extra_time_samples,
-        samples.len() as u64 - 1
-    );
+    assert_eq!(got.counters.extra_time_samples, samples.len() as u64 - 1);
 }
 
 #[test]

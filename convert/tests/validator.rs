@@ -1,7 +1,8 @@
 //! Every export of the synthetic street scene passes the Khronos glTF-Validator: mesh exports
 //! (every profile, and with `--surfels`) with 0 errors and 0 warnings, splat exports with only the validator's known lag
-//! (MESH_PRIMITIVE_INVALID_ATTRIBUTE). Runs `scripts/validate-exports.sh`; skips with a
-//! printed reason when node or the validator are not available.
+//! (MESH_PRIMITIVE_INVALID_ATTRIBUTE). Runs `scripts/validate-exports.sh`; ignored (with
+//! the reason) when the validator wrapper is absent (`build.rs` sets `cfg(gltf_tools)`), and
+//! says so when the wrapper reports that node cannot run it (exit status 3).
 
 mod common;
 
@@ -11,8 +12,12 @@ use std::process::Command;
 use splatbridge_convert::{convert_to_file, ConvertOptions, FrameClouds, Profile, VolumetricMode};
 
 #[test]
+#[cfg_attr(
+    not(gltf_tools),
+    ignore = "needs the glTF validator wrapper (../shared/tools)"
+)]
 fn street_exports_are_validator_clean() {
-    let Some(_) = common::tools() else { return };
+    assert!(common::tools().join("gltf-validate.sh").is_file());
     let dir = tempfile::tempdir().unwrap();
     let scene = common::street(600);
     let frames = FrameClouds {
@@ -121,18 +126,14 @@ fn street_exports_are_validator_clean() {
 }
 
 #[test]
+#[cfg_attr(
+    not(all(gltf_tools, real_data)),
+    ignore = "needs the glTF validator wrapper (../shared/tools) and the shared real scenes"
+)]
 fn fourth_st_exports_are_validator_clean() {
-    let Some(_) = common::tools() else { return };
-    let Some(ply) = common::real("fourth_st.ply") else {
-        return;
-    };
-    let (cloud, _) = match splatbridge_scene::ply::read_ply(&ply, &Default::default()) {
-        Ok(c) => c,
-        Err(e) => {
-            println!("skipped: cannot read {}: {e}", ply.display());
-            return;
-        }
-    };
+    let ply = common::real("fourth_st.ply");
+    let (cloud, _) = splatbridge_scene::ply::read_ply(&ply, &Default::default())
+        .unwrap_or_else(|e| panic!("{}: {e}", ply.display()));
     let scene = splatbridge_scene::dynamic::DynamicScene::from_static(cloud);
     let dir = tempfile::tempdir().unwrap();
     let mut mesh = Vec::new();

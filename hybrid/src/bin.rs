@@ -84,19 +84,20 @@ pub fn depth_order(keys: &mut [u64], cloud: &GaussianCloud, order: &mut Vec<u32>
 
 /// A slice written from several threads at positions proven disjoint by the caller.
 struct Scatter(*mut u32);
-// SAFETY: only used by `bin_tiles`, where every position is written by exactly one chunk.
+// SAFETY: only used by `bin_filtered`, where every position is written by exactly one chunk.
 unsafe impl Sync for Scatter {}
 
-/// Gaussians per chunk of the counting sort (fixed, so the split never depends on threads;
+/// Items per chunk of the counting sort (fixed, so the split never depends on threads;
 /// the result would not either: counting sorts are exact).
-const CHUNK: usize = 16_384;
+pub(crate) const CHUNK: usize = 16_384;
 
+/// Calls `f(t)` for every tile `t` of rectangle `r` (`[x0, y0, x1, y1)` in tiles), row-major.
 #[inline(always)]
 fn for_tiles(r: &[u32; 4], gx: usize, mut f: impl FnMut(usize)) {
-    for ty in r[1]..r[3] {
-        let row = ty as usize * gx;
-        for tx in r[0]..r[2] {
-            f(row + tx as usize);
+    for ty in r[1] as usize..r[3] as usize {
+        let row = ty * gx;
+        for tx in r[0] as usize..r[2] as usize {
+            f(row + tx);
         }
     }
 }
@@ -110,29 +111,52 @@ pub fn bin_tiles(
     max_pairs: usize,
     bins: &mut Bins,
 ) -> Result<(), usize> {
+    bin_filtered(rects, grid, max_pairs, |_, _| true, bins)
+}
+
+/// The one counting sort of items by the tiles their rectangles touch, shared by the native
+/// renderer and the GES passes (`ges::tiles`): item `k` (its index in `rects`) enters tile `t`
+/// only if `keep(k, t)`, and every tile's list is in item order whatever the thread count.
+///
+/// The items are cut into chunks of a fixed size; pass 1 counts each chunk's kept entries per
+/// tile, the offsets reserve each (tile, chunk) its own range (tile-major, then chunk), and
+/// pass 2 lets every chunk write its items, in order, into its ranges. `bins` keeps its
+/// allocations across calls. Fails (returning the pair count) beyond `max_pairs`.
+pub fn bin_filtered<F>(
+    rects: &[[u32; 4]],
+    grid: [u32; 2],
+    max_pairs: usize,
+    keep: F,
+    bins: &mut Bins,
+) -> Result<(), usize>
+where
+    F: Fn(usize, usize) -> bool + Sync,
+{
     let gx = grid[0] as usize;
     let ntiles = gx * grid[1] as usize;
-    // Pass 1: per-chunk, per-tile counts.
+    // Pass 1: per-chunk, per-tile counts of kept entries.
     let chunks = rects.len().div_ceil(CHUNK).max(1);
     let mut counts = vec![0u32; chunks * ntiles];
     counts
         .par_chunks_mut(ntiles)
-        .zip(rects.par_chunks(CHUNK.max(1)))
-        .for_each(|(c, rs)| {
-            for r in rs {
-                for_tiles(r, gx, |t| c[t] += 1);
+        .zip(rects.par_chunks(CHUNK))
+        .enumerate()
+        .for_each(|(c, (n, rs))| {
+            for (j, r) in rs.iter().enumerate() {
+                let k = c * CHUNK + j;
+                for_tiles(r, gx, |t| n[t] += keep(k, t) as u32);
             }
         });
-    // Offsets: tile-major, then chunk, so chunk k's entries of a tile follow chunk k−1's.
+    // Offsets: tile-major, then chunk, so chunk c's entries of a tile follow chunk c−1's.
     bins.offsets.clear();
     bins.offsets.reserve(ntiles + 1);
     let mut total = 0usize;
     let mut starts = vec![0usize; chunks * ntiles];
     for t in 0..ntiles {
         bins.offsets.push(total);
-        for k in 0..chunks {
-            starts[k * ntiles + t] = total;
-            total += counts[k * ntiles + t] as usize;
+        for c in 0..chunks {
+            starts[c * ntiles + t] = total;
+            total += counts[c * ntiles + t] as usize;
         }
     }
     bins.offsets.push(total);
@@ -140,23 +164,26 @@ pub fn bin_tiles(
         return Err(total);
     }
     drop(counts);
-    // Pass 2: every chunk scatters its ranks into its own reserved positions.
+    // Pass 2: every chunk writes its items into its own reserved ranges.
     bins.list.clear();
     bins.list.resize(total, 0);
     let out = Scatter(bins.list.as_mut_ptr());
     starts
         .par_chunks_mut(ntiles)
-        .zip(rects.par_chunks(CHUNK.max(1)))
+        .zip(rects.par_chunks(CHUNK))
         .enumerate()
-        .for_each(|(k, (cur, rs))| {
+        .for_each(|(c, (cur, rs))| {
             let out = &out;
             for (j, r) in rs.iter().enumerate() {
-                let rank = (k * CHUNK + j) as u32;
+                let k = c * CHUNK + j;
                 for_tiles(r, gx, |t| {
-                    // SAFETY: `cur[t]` runs over the range reserved for (tile t, chunk k), which
-                    // no other chunk touches and which lies inside `list` (its length is the total).
-                    unsafe { out.0.add(cur[t]).write(rank) };
-                    cur[t] += 1;
+                    if keep(k, t) {
+                        // SAFETY: `cur[t]` runs over the range reserved for (tile t, chunk c),
+                        // which no other chunk touches and which lies inside `list` (pass 1
+                        // counted exactly these entries, `keep` being a pure function).
+                        unsafe { out.0.add(cur[t]).write(k as u32) };
+                        cur[t] += 1;
+                    }
                 });
             }
         });

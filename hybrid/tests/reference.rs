@@ -127,22 +127,14 @@ fn knobs_match_reference() {
 }
 
 #[test]
+#[cfg_attr(
+    not(real_data),
+    ignore = "needs the shared real scenes (../shared/data/real)"
+)]
 fn fourth_st_matches_reference() {
     let path = real_data("fourth_st.ply");
-    if !path.exists() {
-        println!(
-            "SKIP fourth_st_matches_reference: {} not found",
-            path.display()
-        );
-        return;
-    }
-    let cloud = match splatbridge_scene::ply::read_ply(&path, &Default::default()) {
-        Ok((c, _)) => c,
-        Err(e) => {
-            println!("SKIP fourth_st_matches_reference: PLY reader failed: {e}");
-            return;
-        }
-    };
+    let (cloud, _) = splatbridge_scene::ply::read_ply(&path, &Default::default())
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     let rig = OrbitRig {
         width: 64,
         height: 48,

@@ -130,9 +130,7 @@ pub fn parse_camera_list(s: &str) -> Result<Vec<CameraListItem>> {
 /// Check one image side named `what` (`width`, `height`) is in 1..=[`MAX_IMAGE_SIDE`].
 pub fn check_side(what: &str, v: u32) -> std::result::Result<(), String> {
     if v == 0 || v > MAX_IMAGE_SIDE {
-        return Err(format!(
-            "{what} {v} is outside 1..={MAX_IMAGE_SIDE} pixels"
-        ));
+        return Err(format!("{what} {v} is outside 1..={MAX_IMAGE_SIDE} pixels"));
     }
     Ok(())
 }
@@ -265,9 +263,14 @@ impl CameraRequest {
             match item {
                 CameraListItem::Orbit(n) => {
                     check_orbit_n(&format!("orbit:{n}"), *n)?;
-                    let (lo, hi) = src.cloud.robust_bounds(self.rig().percentile).ok_or_else(
-                        || SceneError::Invalid("cannot place an orbit around an empty scene".into()),
-                    )?;
+                    let (lo, hi) =
+                        src.cloud
+                            .robust_bounds(self.rig().percentile)
+                            .ok_or_else(|| {
+                                SceneError::Invalid(
+                                    "cannot place an orbit around an empty scene".into(),
+                                )
+                            })?;
                     let rig = self.rig();
                     for cam in rig.cameras_around(lo.as_dvec3(), hi.as_dvec3(), *n)? {
                         self.check_budget(&cam)?;

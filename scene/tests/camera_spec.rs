@@ -39,7 +39,12 @@ fn one_orbit_camera_is_the_rigs_camera_bit_for_bit() {
         assert_eq!(&rig.camera(&c, 7, i).unwrap(), cam);
         let req = CameraRequest::new(CameraSpec::Orbit { n: 7, index: i });
         let own = own();
-        let got = req.resolve(CameraSource { cloud: &c, own: &own }).unwrap();
+        let got = req
+            .resolve(CameraSource {
+                cloud: &c,
+                own: &own,
+            })
+            .unwrap();
         assert_eq!(&got, cam);
     }
 }
@@ -50,7 +55,10 @@ fn a_huge_orbit_builds_one_camera_and_an_oversized_one_is_refused() {
     // At the cap, camera I alone is built (a whole rig of this size would be 100,000 cameras).
     let spec: CameraSpec = format!("orbit:{MAX_ORBIT_CAMERAS}:12345").parse().unwrap();
     let cam = CameraRequest::new(spec)
-        .resolve(CameraSource { cloud: &c, own: &[] })
+        .resolve(CameraSource {
+            cloud: &c,
+            own: &[],
+        })
         .unwrap();
     assert_eq!(cam.name, format!("orbit 12345/{MAX_ORBIT_CAMERAS}"));
     let e = "orbit:1000000000:5".parse::<CameraSpec>().unwrap_err();
@@ -63,13 +71,20 @@ fn a_huge_orbit_builds_one_camera_and_an_oversized_one_is_refused() {
 fn sizes_are_bounded_and_errors_name_the_option() {
     let c = cloud();
     let own = own();
-    let src = CameraSource { cloud: &c, own: &own };
+    let src = CameraSource {
+        cloud: &c,
+        own: &own,
+    };
     let mut req = CameraRequest::new(CameraSpec::Orbit { n: 4, index: 0 });
     req.width = Some(MAX_IMAGE_SIDE + 1);
     let e = req.resolve(src).unwrap_err().to_string();
     assert!(e.contains("--width"), "{e}");
     req.width = Some(0);
-    assert!(req.resolve(src).unwrap_err().to_string().contains("--width"));
+    assert!(req
+        .resolve(src)
+        .unwrap_err()
+        .to_string()
+        .contains("--width"));
     // Within the side limit but above the default budget: refused until the budget is raised.
     req.width = Some(MAX_IMAGE_SIDE);
     req.height = Some(MAX_IMAGE_SIDE / 2);
@@ -78,13 +93,18 @@ fn sizes_are_bounded_and_errors_name_the_option() {
     assert!(u64::from(MAX_IMAGE_SIDE) * u64::from(MAX_IMAGE_SIDE / 2) > DEFAULT_PIXEL_BUDGET);
     req.max_pixels = u64::from(MAX_IMAGE_SIDE) * u64::from(MAX_IMAGE_SIDE / 2);
     let cam = req.resolve(src).unwrap();
-    assert_eq!((cam.width, cam.height), (MAX_IMAGE_SIDE, MAX_IMAGE_SIDE / 2));
+    assert_eq!(
+        (cam.width, cam.height),
+        (MAX_IMAGE_SIDE, MAX_IMAGE_SIDE / 2)
+    );
     // The scene's own camera, resized by one side, keeps its aspect.
     let mut req = CameraRequest::new(CameraSpec::Scene(0));
     req.width = Some(100);
     let cam = req.resolve(src).unwrap();
     assert_eq!((cam.width, cam.height), (100, 50));
-    assert!(CameraRequest::new(CameraSpec::Scene(1)).resolve(src).is_err());
+    assert!(CameraRequest::new(CameraSpec::Scene(1))
+        .resolve(src)
+        .is_err());
 }
 
 #[test]
@@ -97,7 +117,10 @@ fn an_oversized_cameras_json_is_refused_naming_the_file() {
     let c = cloud();
     let spec: CameraSpec = format!("{}:0", path.display()).parse().unwrap();
     let e = CameraRequest::new(spec)
-        .resolve(CameraSource { cloud: &c, own: &[] })
+        .resolve(CameraSource {
+            cloud: &c,
+            own: &[],
+        })
         .unwrap_err()
         .to_string();
     assert!(e.contains("cameras.json") && e.contains("width"), "{e}");
@@ -120,14 +143,23 @@ fn camera_lists_expand_in_order() {
     req.width = Some(64);
     req.height = Some(48);
     let cams = req
-        .resolve_list(&items, CameraSource { cloud: &c, own: &own })
+        .resolve_list(
+            &items,
+            CameraSource {
+                cloud: &c,
+                own: &own,
+            },
+        )
         .unwrap();
     assert_eq!(cams.len(), 5);
     // Each expanded camera is what its single spec resolves to.
     for (i, cam) in cams[..3].iter().enumerate() {
         let one = req
             .with_spec(CameraSpec::Orbit { n: 3, index: i })
-            .resolve(CameraSource { cloud: &c, own: &own })
+            .resolve(CameraSource {
+                cloud: &c,
+                own: &own,
+            })
             .unwrap();
         assert_eq!(&one, cam);
     }

@@ -1,22 +1,16 @@
 //! The real trained scenes in `../shared/data/real` load with the counts and SH degrees their
-//! README lists, and contain the values the README says they contain. Skips (with a printed
-//! reason) when the folder is absent.
+//! README lists, and contain the values the README says they contain. Ignored (with the
+//! reason) when the folder is absent (`build.rs` sets `cfg(real_data)`).
 
 use std::path::PathBuf;
 
 use splatbridge_scene::ply::{read_ply, write_ply, PlyFormat, ReadOptions};
 
-fn real_dir() -> Option<PathBuf> {
-    let dir = PathBuf::from(concat!(
+fn real_dir() -> PathBuf {
+    PathBuf::from(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../../shared/data/real"
-    ));
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        println!("skipping: real data folder {} not found", dir.display());
-        None
-    }
+    ))
 }
 
 /// (file, Gaussians, SH degree) from `shared/data/real/README.md`.
@@ -29,8 +23,12 @@ const TABLE: [(&str, usize, u8); 5] = [
 ];
 
 #[test]
+#[cfg_attr(
+    not(real_data),
+    ignore = "needs the shared real scenes (../shared/data/real)"
+)]
 fn real_files_load_with_readme_counts_and_degrees() {
-    let Some(dir) = real_dir() else { return };
+    let dir = real_dir();
     for (name, count, degree) in TABLE {
         let path = dir.join(name);
         let (cloud, report) =
@@ -51,8 +49,12 @@ fn real_files_load_with_readme_counts_and_degrees() {
 }
 
 #[test]
+#[cfg_attr(
+    not(real_data),
+    ignore = "needs the shared real scenes (../shared/data/real)"
+)]
 fn fourth_st_has_positive_infinite_opacity_logits() {
-    let Some(dir) = real_dir() else { return };
+    let dir = real_dir();
     let (cloud, _) = read_ply(&dir.join("fourth_st.ply"), &ReadOptions::default()).unwrap();
     let n_inf = cloud
         .opacity_logits
@@ -70,8 +72,12 @@ fn fourth_st_has_positive_infinite_opacity_logits() {
 }
 
 #[test]
+#[cfg_attr(
+    not(real_data),
+    ignore = "needs the shared real scenes (../shared/data/real)"
+)]
 fn unnormalised_quaternions_and_tiny_log_scales_are_kept_as_stored() {
-    let Some(dir) = real_dir() else { return };
+    let dir = real_dir();
     for name in ["pc_short.ply", "donut.ply", "tile_lod1.ply"] {
         let (cloud, _) = read_ply(&dir.join(name), &ReadOptions::default()).unwrap();
         let (lo, hi) = cloud
@@ -100,8 +106,12 @@ fn unnormalised_quaternions_and_tiny_log_scales_are_kept_as_stored() {
 }
 
 #[test]
+#[cfg_attr(
+    not(real_data),
+    ignore = "needs the shared real scenes (../shared/data/real)"
+)]
 fn real_file_rewrites_bit_exactly_in_every_format() {
-    let Some(dir) = real_dir() else { return };
+    let dir = real_dir();
     let (cloud, _) = read_ply(&dir.join("pc_short.ply"), &ReadOptions::default()).unwrap();
     let tmp = tempfile::tempdir().unwrap();
     for format in [

@@ -7,11 +7,11 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use glam::DVec3;
 use indicatif::{ProgressBar, ProgressStyle};
+use splatbridge::pipeline::load_scene_warn;
 use splatbridge_scene::camera_spec::{
     CameraRequest, CameraSource, CameraSpec, DEFAULT_PIXEL_BUDGET,
 };
 use splatbridge_scene::dynamic::DynamicScene;
-use splatbridge::pipeline::load_scene_warn;
 use splatbridge_scene::{Camera, GaussianCloud};
 
 /// A progress bar on a terminal, a hidden one otherwise (pipes, CI, tests).

@@ -22,7 +22,9 @@ use splatbridge_raytrace::shadows::{
 use splatbridge_raytrace::{BackendKind, BuildPreset, Stats};
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::effects::{EffectCounters, Effects};
-use splatbridge_scene::effects_run::{blend_frames, build_blur_frames, not_simulated, time_samples};
+use splatbridge_scene::effects_run::{
+    blend_frames, build_blur_frames, not_simulated, time_samples,
+};
 use splatbridge_scene::{Camera, Frame};
 
 use super::renderer::{FrameStats, Renderer};
@@ -121,7 +123,12 @@ struct Traced {
     shadow_ms: f64,
 }
 
-fn trace_sample(r: &Renderer, cam: &Camera, time: f64, effects: &Effects) -> anyhow::Result<Traced> {
+fn trace_sample(
+    r: &Renderer,
+    cam: &Camera,
+    time: f64,
+    effects: &Effects,
+) -> anyhow::Result<Traced> {
     let Some(s) = &effects.shadows else {
         let (frame, stats) = r.render_traced(cam, time)?;
         return Ok(Traced {
@@ -171,8 +178,7 @@ fn render_traced_frame(r: &mut Renderer, req: &FrameRequest) -> anyhow::Result<R
         }
     }
     r.set_time(req.time);
-    if req.effects.motion_blur.is_some() && !counters.simulated.iter().any(|n| n == "motion_blur")
-    {
+    if req.effects.motion_blur.is_some() && !counters.simulated.iter().any(|n| n == "motion_blur") {
         counters.extra_time_samples += samples.len() as u64 - 1;
         counters.simulated.push("motion_blur".into());
     }

@@ -44,13 +44,19 @@ impl SurfelSplit {
             );
         }
         if !(p.max_flatness >= 0.0 && p.max_flatness.is_finite()) {
-            bail!("--surfel-flatness {} must be finite and ≥ 0", p.max_flatness);
+            bail!(
+                "--surfel-flatness {} must be finite and ≥ 0",
+                p.max_flatness
+            );
         }
         Ok(p.clone())
     }
 
     /// Split `cloud` into surfels and residual Gaussians; the string says how (for reports).
-    pub fn split(&self, cloud: &GaussianCloud) -> anyhow::Result<(SurfelCloud, GaussianCloud, String)> {
+    pub fn split(
+        &self,
+        cloud: &GaussianCloud,
+    ) -> anyhow::Result<(SurfelCloud, GaussianCloud, String)> {
         if self.ges_ply || (self.detect_ges && looks_like_ges(cloud)) {
             let (s, g, rep) = split_ges(cloud);
             let mut how = format!(

@@ -88,26 +88,16 @@ pub fn street(n_static: usize) -> DynamicScene {
 }
 
 /// The shared tools folder, or `None` with a printed reason.
-pub fn tools() -> Option<std::path::PathBuf> {
-    let d = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/tools"));
-    if d.join("gltf-validate.sh").exists() {
-        Some(d.to_path_buf())
-    } else {
-        println!("skipped: {} not found", d.display());
-        None
-    }
+pub fn tools() -> std::path::PathBuf {
+    // Tests that call this are ignored unless `build.rs` found the wrapper (`cfg(gltf_tools)`).
+    std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/tools")).to_path_buf()
 }
 
-pub fn real(name: &str) -> Option<std::path::PathBuf> {
-    let p = std::path::Path::new(concat!(
+pub fn real(name: &str) -> std::path::PathBuf {
+    // Tests that call this are ignored unless `build.rs` found the folder (`cfg(real_data)`).
+    std::path::Path::new(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../../shared/data/real"
     ))
-    .join(name);
-    if p.exists() {
-        Some(p)
-    } else {
-        println!("skipped: {} not found", p.display());
-        None
-    }
+    .join(name)
 }

@@ -33,7 +33,6 @@ use std::mem::MaybeUninit;
 use rayon::prelude::*;
 use splatbridge_scene::surfels::SurfelCloud;
 
-
 use crate::project::{ViewParams, TILE};
 
 use super::tiles::bin_rects;

@@ -6,32 +6,10 @@
 //! Every tile's list is in item order, whatever the thread count: the items are cut into chunks
 //! of a fixed size; pass 1 counts each chunk's kept entries per tile, the offsets reserve each
 //! (tile, chunk) its own range (tile-major, then chunk), and pass 2 lets every chunk write its
-//! items, in order, into its ranges: the native renderer's counting sort ([`crate::bin`]) with
-//! the filter.
+//! items, in order, into its ranges. The sort is the native renderer's
+//! ([`crate::bin::bin_filtered`]); this module gives it a fresh `Bins` per frame.
 
-use rayon::prelude::*;
-
-use crate::bin::Bins;
-
-/// Items per chunk of the counting sort (fixed, so the split never depends on threads; the
-/// result would not either: counting sorts are exact).
-const CHUNK: usize = 16_384;
-
-/// A slice written from several threads at positions proven disjoint by the caller.
-struct Scatter(*mut u32);
-// SAFETY: only used by `bin_rects`, where every position is written by exactly one chunk.
-unsafe impl Sync for Scatter {}
-
-/// Calls `f(t)` for every tile `t` of rectangle `r` (`[x0, y0, x1, y1)` in tiles), row-major.
-#[inline(always)]
-fn for_tiles(r: &[u32; 4], gx: usize, mut f: impl FnMut(usize)) {
-    for ty in r[1] as usize..r[3] as usize {
-        let row = ty * gx;
-        for tx in r[0] as usize..r[2] as usize {
-            f(row + tx);
-        }
-    }
-}
+use crate::bin::{bin_filtered, Bins};
 
 /// Tile lists of `rects` (`[x0, y0, x1, y1)` in tiles) on a `grid[0] × grid[1]` grid; item `k`
 /// enters tile `t` only if `keep(k, t)`. Fails (returns the pair count) above `max_pairs`.
@@ -44,65 +22,15 @@ pub fn bin_rects<F>(
 where
     F: Fn(usize, usize) -> bool + Sync,
 {
-    let gx = grid[0] as usize;
-    let ntiles = gx * grid[1] as usize;
-    let chunks = rects.len().div_ceil(CHUNK).max(1);
-    // Pass 1: per-chunk, per-tile counts of kept entries.
-    let mut counts = vec![0u32; chunks * ntiles];
-    counts
-        .par_chunks_mut(ntiles)
-        .zip(rects.par_chunks(CHUNK))
-        .enumerate()
-        .for_each(|(c, (n, rs))| {
-            for (j, r) in rs.iter().enumerate() {
-                let k = c * CHUNK + j;
-                for_tiles(r, gx, |t| n[t] += keep(k, t) as u32);
-            }
-        });
-    // Offsets: tile-major, then chunk, so chunk c's entries of a tile follow chunk c−1's.
-    let mut offsets = Vec::with_capacity(ntiles + 1);
-    let mut starts = vec![0usize; chunks * ntiles];
-    let mut total = 0usize;
-    for t in 0..ntiles {
-        offsets.push(total);
-        for c in 0..chunks {
-            starts[c * ntiles + t] = total;
-            total += counts[c * ntiles + t] as usize;
-        }
-    }
-    offsets.push(total);
-    if total > max_pairs {
-        return Err(total);
-    }
-    drop(counts);
-    // Pass 2: every chunk writes its items into its own reserved ranges.
-    let mut list = vec![0u32; total];
-    let out = Scatter(list.as_mut_ptr());
-    starts
-        .par_chunks_mut(ntiles)
-        .zip(rects.par_chunks(CHUNK))
-        .enumerate()
-        .for_each(|(c, (cur, rs))| {
-            let out = &out;
-            for (j, r) in rs.iter().enumerate() {
-                let k = c * CHUNK + j;
-                for_tiles(r, gx, |t| {
-                    if keep(k, t) {
-                        // SAFETY: `cur[t]` runs over the range reserved for (tile t, chunk c),
-                        // which no other chunk touches and which lies inside `list` (pass 1
-                        // counted exactly these entries, `keep` being a pure function).
-                        unsafe { out.0.add(cur[t]).write(k as u32) };
-                        cur[t] += 1;
-                    }
-                });
-            }
-        });
-    Ok(Bins { offsets, list })
+    let mut bins = Bins::default();
+    bin_filtered(rects, grid, max_pairs, keep, &mut bins)?;
+    Ok(bins)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bin::CHUNK;
     use splatbridge_scene::rng::Rng;
 
     /// The chunked counting sort equals the obvious per-tile filter, across chunk boundaries.

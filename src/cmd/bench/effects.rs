@@ -12,8 +12,8 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context;
+use splatbridge::pipeline::{render_frame, FrameRequest, Renderer};
 use splatbridge_raytrace::lidar::{scan, LidarSensor};
-use splatbridge_raytrace::shadows::{gaussian_bounds, render_gaussian_shadowed, SunShadows};
 use splatbridge_raytrace::{BackendKind, BuildPreset, GaussianTracer, RenderOptions};
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::effects::EffectCounters;
@@ -56,9 +56,10 @@ fn run_once(scene: &DynamicScene, t: f64, cam: &Camera) -> anyhow::Result<(Times
     let mut counters = blur.counters.clone();
 
     let start = Instant::now();
+    let mut native = Renderer::native(Default::default())?;
     let mut frames: Vec<Frame> = Vec::with_capacity(blur.samples.len());
     for s in &blur.samples {
-        frames.push(splatbridge_hybrid::native::render(&s.cloud, cam, &Default::default())?.0);
+        frames.push(native.render_cloud(&s.cloud, cam)?.0);
     }
     let weights: Vec<f32> = blur.samples.iter().map(|s| s.weight).collect();
     blend_frames(&frames, &weights)?;
@@ -66,33 +67,47 @@ fn run_once(scene: &DynamicScene, t: f64, cam: &Camera) -> anyhow::Result<(Times
 
     // The tracer sees the frame at t: the first sample's content when nothing is blurred.
     let cloud = if blur.samples.len() == 1 {
-        blur.samples.into_iter().next().expect("one sample").cloud
+        match blur.samples.into_iter().next() {
+            Some(s) => s.cloud,
+            None => splatbridge_scene::effects_run::build_frame(scene, t, Some(cam))?.cloud,
+        }
     } else {
         splatbridge_scene::effects_run::build_frame(scene, t, Some(cam))?.cloud
     };
     let start = Instant::now();
     let tracer = GaussianTracer::new(cloud, BackendKind::Obvhs, BuildPreset::Medium)?;
     times.bvh = start.elapsed().as_secs_f64() * 1e3;
+    let mut tracer = Renderer::Gaussian {
+        tracer,
+        options: RenderOptions::default(),
+    };
+    // One traced frame with the declared shadows: no scene, so one time sample (the frame's
+    // content is already in the BVH) and no LiDAR (timed on its own below).
     let start = Instant::now();
-    let opts = RenderOptions::default();
-    match &effects.shadows {
-        Some(s) => {
-            let (lo, hi) = gaussian_bounds(&tracer);
-            let sun = SunShadows::from_effect(s, lo, hi)?;
-            let (_, _, st) = render_gaussian_shadowed(&tracer, cam, &opts, &sun)?;
-            counters.shadow_rays += st.shadow_rays;
-            counters.simulated.push("shadows".into());
-        }
-        None => {
-            tracer.render(cam, &opts)?;
-        }
-    }
+    let traced = render_frame(
+        &mut tracer,
+        &FrameRequest {
+            scene: None,
+            effects: &effects,
+            camera: cam,
+            time: t,
+            content: Default::default(),
+            lidar: None,
+        },
+    )?;
     times.trace = start.elapsed().as_secs_f64() * 1e3;
+    counters.shadow_rays += traced.counters.shadow_rays;
+    if effects.shadows.is_some() {
+        counters.simulated.push("shadows".into());
+    }
 
     if let Some(l) = &effects.lidar {
         let start = Instant::now();
         let sensor = LidarSensor::from_effect(l, &scene.cameras)?;
-        let s = scan(&tracer, &sensor, t);
+        let Renderer::Gaussian { tracer, .. } = &tracer else {
+            anyhow::bail!("the effects benchmark traces Gaussians");
+        };
+        let s = scan(tracer, &sensor, t);
         times.lidar = start.elapsed().as_secs_f64() * 1e3;
         counters.lidar_points += s.points.len() as u64;
         counters.lidar_rays += s.rays;
@@ -145,7 +160,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     ] {
         let value = match declared.get(name) {
             Some(v) => v.clone(),
-            None => street_effect(default_name, 1).expect("a street default").1,
+            None => {
+                street_effect(default_name, 1)
+                    .with_context(|| format!("no street default for effect {name}"))?
+                    .1
+            }
         };
         let mut s = plain.clone();
         s.effects.insert(name.into(), value);
