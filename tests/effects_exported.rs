@@ -7,8 +7,8 @@ use std::path::Path;
 
 use glam::{DVec3, Vec3};
 use splatbridge_convert::ConvertOptions;
+use splatbridge_raytrace::geom::ray_box;
 use splatbridge_raytrace::lidar::{scan, LidarSensor, OpacityMarch};
-use splatbridge_raytrace::render::ray_box;
 use splatbridge_raytrace::shadows::{mesh_bounds, render_mesh_shadowed, SunShadows};
 use splatbridge_raytrace::{BackendKind, BuildPreset, GaussianTracer, MeshTracer, RenderOptions};
 use splatbridge_scene::dynamic::{DynamicScene, Pose};

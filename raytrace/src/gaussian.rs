@@ -32,9 +32,10 @@ use splatbridge_scene::dynamic::{DynamicScene, Track};
 use splatbridge_scene::{sh, Camera, Frame, GaussianCloud};
 
 use crate::backend::{build_boxes, Accel, BackendKind, BuildPreset, EmptyAccel};
-use crate::composite::{Hit, KBuffer, Key};
 use crate::error::Result;
-use crate::render::{ray_box, render_frame, transformed_box, PixelOut, RenderOptions, Stats};
+use crate::geom::{ray_box, transformed_box};
+use crate::kbuffer::{Hit, KBuffer, Key};
+use crate::render::{render_frame, PixelOut, RenderOptions, Stats};
 
 /// The rasterizer's near cull (default of `RenderOptions::near`): view-space depth of the
 /// mean must exceed this.

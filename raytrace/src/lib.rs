@@ -4,15 +4,19 @@
 //! `embree` feature).
 //!
 //! Entry points: [`scene_load::load_path`] / [`scene_load::load_glb_bytes`] give a
-//! [`model::TriScene`]; [`composite::MeshTracer`] renders it; [`gaussian::GaussianTracer`]
+//! [`model::TriScene`]; [`mesh_tracer::MeshTracer`] renders it; [`gaussian::GaussianTracer`]
 //! renders a `GaussianCloud`; [`secondary`] answers transmittance and closest-opaque queries.
 
 pub mod backend;
-pub mod composite;
+pub mod mesh_tracer;
+/// The mesh tracer under its former name.
+pub use mesh_tracer as composite;
 #[cfg(feature = "embree")]
 pub mod embree_backend;
 pub mod error;
 pub mod gaussian;
+pub mod geom;
+pub mod kbuffer;
 pub mod lidar;
 pub mod model;
 pub mod obvhs_backend;
@@ -23,8 +27,8 @@ pub mod shadows;
 pub mod tri;
 
 pub use backend::{BackendKind, BuildPreset};
-pub use composite::MeshTracer;
 pub use error::{Result, TraceError};
 pub use gaussian::GaussianTracer;
+pub use mesh_tracer::MeshTracer;
 pub use model::{AlphaMode, TriScene};
 pub use render::{Compositing, RenderOptions, Stats};

@@ -33,9 +33,10 @@ use splatbridge_scene::effects::{Lidar, LidarMount};
 use splatbridge_scene::Camera;
 
 use crate::backend::{BackendKind, BuildPreset};
-use crate::composite::{Hit, KBuffer, MeshTracer};
 use crate::error::{Result, TraceError};
 use crate::gaussian::GaussianTracer;
+use crate::kbuffer::{Hit, KBuffer};
+use crate::mesh_tracer::MeshTracer;
 use crate::secondary::MeshAt;
 
 /// A LiDAR head at a fixed pose.

@@ -4,8 +4,9 @@
 
 use glam::{DVec3, Vec3};
 
-use crate::composite::{Hit, KBuffer, MeshTracer, PreparedInstance};
 use crate::gaussian::GaussianTracer;
+use crate::kbuffer::{Hit, KBuffer};
+use crate::mesh_tracer::{MeshTracer, PreparedInstance};
 
 /// A closest opaque hit: world distance along the unit direction and the hit's colour.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -31,9 +31,10 @@ use glam::{DVec3, Vec3};
 use splatbridge_scene::effects::Shadows;
 use splatbridge_scene::{Camera, Frame};
 
-use crate::composite::{KBuffer, MeshTracer};
 use crate::error::{Result, TraceError};
 use crate::gaussian::GaussianTracer;
+use crate::kbuffer::KBuffer;
+use crate::mesh_tracer::MeshTracer;
 use crate::render::{render_frame, PixelOut, RenderOptions, Stats};
 use crate::secondary::SecondaryRays;
 

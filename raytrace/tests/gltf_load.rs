@@ -374,7 +374,7 @@ fn obj_vertex_colours_are_opaque() {
     let tr =
         splatbridge_raytrace::MeshTracer::new(s, Default::default(), Default::default()).unwrap();
     let insts = tr.prepare(0.0);
-    let mut buf = splatbridge_raytrace::composite::KBuffer::new(16);
+    let mut buf = splatbridge_raytrace::kbuffer::KBuffer::new(16);
     // Seen from −z: the red triangle at z = 0 is in front and opaque.
     let px = tr.trace(
         &insts,

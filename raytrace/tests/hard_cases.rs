@@ -7,7 +7,7 @@ mod common;
 
 use common::*;
 use glam::{DVec3, Vec3};
-use splatbridge_raytrace::composite::KBuffer;
+use splatbridge_raytrace::kbuffer::KBuffer;
 use splatbridge_raytrace::model::{Mesh, TriScene};
 use splatbridge_raytrace::{BackendKind, BuildPreset, MeshTracer, RenderOptions};
 use splatbridge_scene::Camera;

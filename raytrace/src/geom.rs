@@ -1,0 +1,44 @@
+//! Ray and box helpers shared by the tracers: the f64 slab test and the world bounds of a
+//! transformed box (instanced meshes and Gaussian parts).
+
+use glam::DVec3;
+
+/// Slab test of a ray against a box in f64: the parameter interval inside, if any.
+pub fn ray_box(o: DVec3, d: DVec3, lo: DVec3, hi: DVec3) -> Option<(f64, f64)> {
+    let mut t0 = f64::NEG_INFINITY;
+    let mut t1 = f64::INFINITY;
+    for a in 0..3 {
+        if d[a] == 0.0 {
+            if o[a] < lo[a] || o[a] > hi[a] {
+                return None;
+            }
+            continue;
+        }
+        let inv = 1.0 / d[a];
+        let (mut ta, mut tb) = ((lo[a] - o[a]) * inv, (hi[a] - o[a]) * inv);
+        if ta > tb {
+            std::mem::swap(&mut ta, &mut tb);
+        }
+        t0 = t0.max(ta);
+        t1 = t1.min(tb);
+    }
+    (t0 <= t1).then_some((t0, t1))
+}
+
+/// World bounds of the box `lo..hi` under `to_world` (its eight corners), padded by a relative
+/// 1e-6 so rounding in the f64 transform cannot clip a hit at the box's surface.
+pub fn transformed_box(to_world: &glam::DAffine3, lo: DVec3, hi: DVec3) -> (DVec3, DVec3) {
+    let (mut wlo, mut whi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+    for c in 0..8 {
+        let p = DVec3::new(
+            if c & 1 == 0 { lo.x } else { hi.x },
+            if c & 2 == 0 { lo.y } else { hi.y },
+            if c & 4 == 0 { lo.z } else { hi.z },
+        );
+        let w = to_world.transform_point3(p);
+        wlo = wlo.min(w);
+        whi = whi.max(w);
+    }
+    let pad = (whi - wlo).max_element() * 1e-6 + 1e-9 * whi.abs().max(wlo.abs()).max_element();
+    (wlo - DVec3::splat(pad), whi + DVec3::splat(pad))
+}
