@@ -130,7 +130,10 @@ fn parse_header(bytes: &[u8], path: &Path) -> Result<(Vec<Element>, usize)> {
             ["comment", ..] | ["obj_info", ..] | [] | ["end_header"] => {}
             ["element", name, count] => {
                 let count = count.parse::<u64>().map_err(|_| {
-                    bad(format!("header line {}: element count '{count}' is not a number", ln + 1))
+                    bad(format!(
+                        "header line {}: element count '{count}' is not a number",
+                        ln + 1
+                    ))
                 })?;
                 elements.push(Element {
                     name: name.to_string(),
@@ -146,14 +149,25 @@ fn parse_header(bytes: &[u8], path: &Path) -> Result<(Vec<Element>, usize)> {
             }
             ["property", ty, name] => {
                 let (size, kind) = scalar(ty).ok_or_else(|| {
-                    bad(format!("header line {}: unknown property type '{ty}'", ln + 1))
+                    bad(format!(
+                        "header line {}: unknown property type '{ty}'",
+                        ln + 1
+                    ))
                 })?;
                 let el = elements.last_mut().ok_or_else(|| {
-                    bad(format!("header line {}: property before any element", ln + 1))
+                    bad(format!(
+                        "header line {}: property before any element",
+                        ln + 1
+                    ))
                 })?;
                 el.props.push((name.to_string(), size, kind));
             }
-            _ => return Err(bad(format!("header line {}: cannot parse '{line}'", ln + 1))),
+            _ => {
+                return Err(bad(format!(
+                    "header line {}: cannot parse '{line}'",
+                    ln + 1
+                )))
+            }
         }
     }
     if !format_ok {
@@ -256,11 +270,11 @@ pub fn decode_compressed_ply(bytes: &[u8], path: &Path) -> Result<GaussianCloud>
     let prop = |e: &Element, name: &str, ty: &str| -> Result<usize> {
         match e.offset(name) {
             Some((off, t)) if t == ty => Ok(off),
-            Some((_, t)) => Err(bad(format!(
-                "{}.{name} is {t}, expected {ty}",
+            Some((_, t)) => Err(bad(format!("{}.{name} is {t}, expected {ty}", e.name))),
+            None => Err(bad(format!(
+                "element '{}' has no property '{name}'",
                 e.name
             ))),
-            None => Err(bad(format!("element '{}' has no property '{name}'", e.name))),
         }
     };
     let chunk_offs: Vec<usize> = CHUNK_REQUIRED
@@ -327,8 +341,15 @@ pub fn decode_compressed_ply(bytes: &[u8], path: &Path) -> Result<GaussianCloud>
             None => b[12..].copy_from_slice(&[0.0, 0.0, 0.0, 1.0, 1.0, 1.0]),
         }
         if let Some(j) = b.iter().position(|v| !v.is_finite()) {
-            let name = if j < 12 { CHUNK_REQUIRED[j] } else { CHUNK_COLOUR[j - 12] };
-            return Err(bad(format!("chunk {c}: {name} is {} (bounds must be finite)", b[j])));
+            let name = if j < 12 {
+                CHUNK_REQUIRED[j]
+            } else {
+                CHUNK_COLOUR[j - 12]
+            };
+            return Err(bad(format!(
+                "chunk {c}: {name} is {} (bounds must be finite)",
+                b[j]
+            )));
         }
         bounds.push(b);
     }
@@ -405,7 +426,8 @@ pub fn encode_compressed_ply(cloud: &GaussianCloud) -> Result<Vec<u8>> {
     let k = cloud.coeffs();
     let kr = k - 1;
     let mut out = Vec::with_capacity(1024 + chunks * 72 + n * (16 + 3 * kr));
-    let mut h = String::from("ply\nformat binary_little_endian 1.0\ncomment splatbridge compressed PLY\n");
+    let mut h =
+        String::from("ply\nformat binary_little_endian 1.0\ncomment splatbridge compressed PLY\n");
     h += &format!("element chunk {chunks}\n");
     for name in CHUNK_REQUIRED.iter().chain(CHUNK_COLOUR.iter()) {
         h += &format!("property float {name}\n");
@@ -446,10 +468,14 @@ pub fn encode_compressed_ply(cloud: &GaussianCloud) -> Result<Vec<u8>> {
                 )));
             }
         }
-        for v in [pmin.x, pmin.y, pmin.z, pmax.x, pmax.y, pmax.z, smin.x, smin.y, smin.z] {
+        for v in [
+            pmin.x, pmin.y, pmin.z, pmax.x, pmax.y, pmax.z, smin.x, smin.y, smin.z,
+        ] {
             out.extend_from_slice(&v.to_le_bytes());
         }
-        for v in [smax.x, smax.y, smax.z, cmin.x, cmin.y, cmin.z, cmax.x, cmax.y, cmax.z] {
+        for v in [
+            smax.x, smax.y, smax.z, cmin.x, cmin.y, cmin.z, cmax.x, cmax.y, cmax.z,
+        ] {
             out.extend_from_slice(&v.to_le_bytes());
         }
         all_bounds.push([pmin, pmax, smin, smax, cmin, cmax]);

@@ -74,7 +74,9 @@ pub fn decode_splat(bytes: &[u8], path: &Path) -> Result<GaussianCloud> {
         cloud
             .log_scales
             .push(Vec3::new(scale.x.ln(), scale.y.ln(), scale.z.ln()));
-        cloud.rotations.push(Quat::from_xyzw(q(1), q(2), q(3), q(0)));
+        cloud
+            .rotations
+            .push(Quat::from_xyzw(q(1), q(2), q(3), q(0)));
         cloud.opacity_logits.push(logit(byte(3) / 255.0));
         cloud.sh.push((rgb - Vec3::splat(0.5)) / SH_C0);
     }
@@ -120,6 +122,7 @@ pub fn encode_splat(cloud: &GaussianCloud) -> Result<Vec<u8>> {
 
 /// Write a `.splat` file atomically.
 pub fn write_splat(path: &Path, cloud: &GaussianCloud) -> Result<()> {
-    let bytes = encode_splat(cloud).map_err(|e| SceneError::format(path, format!("cannot write: {e}")))?;
+    let bytes =
+        encode_splat(cloud).map_err(|e| SceneError::format(path, format!("cannot write: {e}")))?;
     crate::image_io::with_atomic_writer(path, |w| w.write_all(&bytes))
 }

@@ -63,6 +63,24 @@ pub const SH_FLIP: [f32; 15] = [
     -1.0, 1.0, -1.0, -1.0, 1.0, -1.0, 1.0, // degree 3
 ];
 
+/// The axis convention of the SPZ data relative to the cloud.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SpzAxes {
+    /// The `.spz` file convention: RUB in the stream, the PLY's RDF in the cloud (y and z
+    /// flipped on read and write).
+    #[default]
+    Rub,
+    /// No conversion: the stream holds the cloud's own frame (`KHR_gaussian_splatting`'s SPZ
+    /// variant, whose node transforms carry the axes).
+    AsStored,
+}
+
+impl SpzAxes {
+    fn flip(self) -> bool {
+        self == SpzAxes::Rub
+    }
+}
+
 /// Options for [`encode_spz`].
 #[derive(Clone, Copy, Debug)]
 pub struct SpzOptions {
@@ -73,6 +91,8 @@ pub struct SpzOptions {
     pub fractional_bits: Option<u8>,
     /// gzip level 0–9.
     pub level: u32,
+    /// Axis convention of the written stream.
+    pub axes: SpzAxes,
 }
 
 impl Default for SpzOptions {
@@ -81,6 +101,7 @@ impl Default for SpzOptions {
             version: WRITE_VERSION,
             fractional_bits: None,
             level: 6,
+            axes: SpzAxes::Rub,
         }
     }
 }
@@ -189,7 +210,10 @@ impl SpzHeader {
 pub(crate) fn gzip_header_version(path: &Path, head: &[u8]) -> Result<u32> {
     let mut b = [0u8; 8];
     GzDecoder::new(head).read_exact(&mut b).map_err(|e| {
-        SceneError::format(path, format!("gzip file whose start does not decompress: {e}"))
+        SceneError::format(
+            path,
+            format!("gzip file whose start does not decompress: {e}"),
+        )
     })?;
     let magic = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
     if magic != MAGIC {
@@ -201,33 +225,64 @@ pub(crate) fn gzip_header_version(path: &Path, head: &[u8]) -> Result<u32> {
     Ok(u32::from_le_bytes([b[4], b[5], b[6], b[7]]))
 }
 
-/// Decode an SPZ stream (gzip-compressed bytes); `path` names the source in errors.
+/// Decode an SPZ stream (gzip-compressed bytes, the `.spz` file convention); `path` names the
+/// source in errors.
 pub fn decode_spz(bytes: &[u8], path: &Path) -> Result<GaussianCloud> {
-    decode_gzip(bytes, bytes.len() as u64, path).map(|(c, _)| c)
+    decode_spz_with(bytes, path, SpzAxes::Rub)
+}
+
+/// [`decode_spz`] with an explicit axis convention.
+pub fn decode_spz_with(bytes: &[u8], path: &Path, axes: SpzAxes) -> Result<GaussianCloud> {
+    decode_gzip(bytes, bytes.len() as u64, path, axes).map(|(c, _)| c)
 }
 
 /// Decode SPZ bytes without the gzip layer (header + attributes).
 pub fn decode_spz_raw(bytes: &[u8], path: &Path) -> Result<GaussianCloud> {
-    decode_stream(bytes, u64::MAX, path).map(|(c, _)| c)
+    decode_spz_raw_with(bytes, path, SpzAxes::Rub)
+}
+
+/// [`decode_spz_raw`] with an explicit axis convention.
+pub fn decode_spz_raw_with(bytes: &[u8], path: &Path, axes: SpzAxes) -> Result<GaussianCloud> {
+    decode_stream(bytes, bytes.len() as u64, path, axes).map(|(c, _)| c)
 }
 
 /// Read an `.spz` file; also returns warnings (SH degree cut, extension records skipped).
 pub fn read_spz(path: &Path) -> Result<(GaussianCloud, Vec<String>)> {
     let len = regular_file_len(path)?;
     let file = std::fs::File::open(path).map_err(|e| SceneError::io(path, e))?;
-    decode_gzip(BufReader::with_capacity(1 << 16, file.take(len)), len, path)
+    decode_gzip(
+        BufReader::with_capacity(1 << 16, file.take(len)),
+        len,
+        path,
+        SpzAxes::Rub,
+    )
 }
 
-fn decode_gzip<R: Read>(r: R, compressed_len: u64, path: &Path) -> Result<(GaussianCloud, Vec<String>)> {
+fn decode_gzip<R: Read>(
+    r: R,
+    compressed_len: u64,
+    path: &Path,
+    axes: SpzAxes,
+) -> Result<(GaussianCloud, Vec<String>)> {
     // Deflate cannot expand beyond MAX_DEFLATE_RATIO (plus the header's few bytes).
-    let cap = compressed_len.saturating_mul(MAX_DEFLATE_RATIO).saturating_add(64);
-    decode_stream(GzDecoder::new(r), cap, path)
+    let cap = compressed_len
+        .saturating_mul(MAX_DEFLATE_RATIO)
+        .saturating_add(64);
+    decode_stream(GzDecoder::new(r), cap, path, axes)
 }
 
-fn decode_stream<R: Read>(mut r: R, max_payload: u64, path: &Path) -> Result<(GaussianCloud, Vec<String>)> {
+fn decode_stream<R: Read>(
+    mut r: R,
+    max_payload: u64,
+    path: &Path,
+    axes: SpzAxes,
+) -> Result<(GaussianCloud, Vec<String>)> {
     let gz_err = |e: std::io::Error| -> SceneError {
         if e.kind() == std::io::ErrorKind::UnexpectedEof {
-            SceneError::format(path, "SPZ stream ends inside the 16-byte header (truncated)")
+            SceneError::format(
+                path,
+                "SPZ stream ends inside the 16-byte header (truncated)",
+            )
         } else {
             SceneError::format(path, format!("SPZ stream does not decompress: {e}"))
         }
@@ -246,9 +301,12 @@ fn decode_stream<R: Read>(mut r: R, max_payload: u64, path: &Path) -> Result<(Ga
         ));
     }
     let mut payload = Vec::new();
-    payload
-        .try_reserve_exact(need as usize)
-        .map_err(|_| SceneError::format(path, format!("cannot allocate {need} bytes for {} Gaussians", h.count)))?;
+    payload.try_reserve_exact(need as usize).map_err(|_| {
+        SceneError::format(
+            path,
+            format!("cannot allocate {need} bytes for {} Gaussians", h.count),
+        )
+    })?;
     let got = (&mut r)
         .take(need)
         .read_to_end(&mut payload)
@@ -274,7 +332,9 @@ fn decode_stream<R: Read>(mut r: R, max_payload: u64, path: &Path) -> Result<(Ga
     (&mut r)
         .take(allowed + 1)
         .read_to_end(&mut rest)
-        .map_err(|e| SceneError::format(path, format!("SPZ stream is corrupt after the data: {e}")))?;
+        .map_err(|e| {
+            SceneError::format(path, format!("SPZ stream is corrupt after the data: {e}"))
+        })?;
     if rest.len() as u64 > allowed {
         return Err(SceneError::format(
             path,
@@ -285,9 +345,12 @@ fn decode_stream<R: Read>(mut r: R, max_payload: u64, path: &Path) -> Result<(Ga
         ));
     }
     if !rest.is_empty() {
-        warnings.push(format!("{} bytes of SPZ extension records skipped", rest.len()));
+        warnings.push(format!(
+            "{} bytes of SPZ extension records skipped",
+            rest.len()
+        ));
     }
-    let cloud = unpack(&h, &payload, &mut warnings);
+    let cloud = unpack(&h, &payload, axes.flip(), &mut warnings);
     Ok((cloud, warnings))
 }
 
@@ -305,7 +368,9 @@ fn half_to_f32(h: u16) -> f32 {
 }
 
 /// Unpack the attribute planes (sizes already checked) into a cloud in the PLY's RDF frame.
-fn unpack(h: &SpzHeader, p: &[u8], warnings: &mut Vec<String>) -> GaussianCloud {
+fn unpack(h: &SpzHeader, p: &[u8], flip: bool, warnings: &mut Vec<String>) -> GaussianCloud {
+    let f = if flip { -1.0 } else { 1.0 };
+    let sh_flip = |j: usize| if flip { SH_FLIP[j] } else { 1.0 };
     let n = h.count as usize;
     let pos_len = n * h.position_bytes() as usize;
     let (positions, p) = p.split_at(pos_len);
@@ -337,7 +402,7 @@ fn unpack(h: &SpzHeader, p: &[u8], warnings: &mut Vec<String>) -> GaussianCloud 
             };
             Vec3::new(c(0), c(1), c(2))
         };
-        cloud.means.push(Vec3::new(pos.x, -pos.y, -pos.z));
+        cloud.means.push(Vec3::new(pos.x, f * pos.y, f * pos.z));
         let s = |j: usize| scales[3 * i + j] as f32 / 16.0 - 10.0;
         cloud.log_scales.push(Vec3::new(s(0), s(1), s(2)));
         let q = if h.version >= 3 {
@@ -351,17 +416,24 @@ fn unpack(h: &SpzHeader, p: &[u8], warnings: &mut Vec<String>) -> GaussianCloud 
         } else {
             let c = |j: usize| rotations[3 * i + j] as f32 / 127.5 - 1.0;
             let xyz = Vec3::new(c(0), c(1), c(2));
-            [xyz.x, xyz.y, xyz.z, (1.0 - xyz.length_squared()).max(0.0).sqrt()]
+            [
+                xyz.x,
+                xyz.y,
+                xyz.z,
+                (1.0 - xyz.length_squared()).max(0.0).sqrt(),
+            ]
         };
         // RUB → RDF: conjugating by a half turn about x negates the quaternion's y and z.
-        cloud.rotations.push(Quat::from_xyzw(q[0], -q[1], -q[2], q[3]));
+        cloud
+            .rotations
+            .push(Quat::from_xyzw(q[0], f * q[1], f * q[2], q[3]));
         cloud.opacity_logits.push(logit(alphas[i] as f32 / 255.0));
         let c = |j: usize| (colors[3 * i + j] as f32 / 255.0 - 0.5) / COLOR_SCALE;
         cloud.sh.push(Vec3::new(c(0), c(1), c(2)));
         let base = i * file_rest * 3;
         for j in 0..k - 1 {
             let v = |ch: usize| (sh[base + 3 * j + ch] as f32 - 128.0) / 128.0;
-            cloud.sh.push(Vec3::new(v(0), v(1), v(2)) * SH_FLIP[j]);
+            cloud.sh.push(Vec3::new(v(0), v(1), v(2)) * sh_flip(j));
         }
     }
     cloud
@@ -403,7 +475,8 @@ fn pack_smallest_three(q: [f32; 4]) -> u32 {
             continue;
         }
         let neg = ((c < 0.0) ^ negate) as u32;
-        let mag = (((1u32 << 9) - 1) as f32 * (c.abs() / std::f32::consts::FRAC_1_SQRT_2) + 0.5) as u32;
+        let mag =
+            (((1u32 << 9) - 1) as f32 * (c.abs() / std::f32::consts::FRAC_1_SQRT_2) + 0.5) as u32;
         comp = (comp << 10) | (neg << 9) | mag.min(511);
     }
     comp
@@ -469,13 +542,20 @@ pub fn encode_spz_raw(cloud: &GaussianCloud, opts: &SpzOptions) -> Result<Vec<u8
     let mut out = Vec::with_capacity(HEADER + h.payload_len() as usize);
     out.extend_from_slice(&h.to_bytes());
     let scale = (1u32 << fb) as f32;
+    let flip = opts.axes.flip();
+    let f = if flip { -1.0 } else { 1.0 };
     for m in &cloud.means {
-        for v in [m.x, -m.y, -m.z] {
+        for v in [m.x, f * m.y, f * m.z] {
             let fixed = (v * scale).round() as i32;
             out.extend_from_slice(&fixed.to_le_bytes()[..3]);
         }
     }
-    out.extend(cloud.opacity_logits.iter().map(|&o| to_u8(sigmoid(o) * 255.0)));
+    out.extend(
+        cloud
+            .opacity_logits
+            .iter()
+            .map(|&o| to_u8(sigmoid(o) * 255.0)),
+    );
     let k = cloud.coeffs();
     for i in 0..n {
         let dc = cloud.sh[i * k];
@@ -491,7 +571,7 @@ pub fn encode_spz_raw(cloud: &GaussianCloud, opts: &SpzOptions) -> Result<Vec<u8
     for i in 0..n {
         let u = cloud.unit_rotation(i);
         // RDF → RUB, x, y, z, w order as in load-spz.cc.
-        let q = [u.x, -u.y, -u.z, u.w];
+        let q = [u.x, f * u.y, f * u.z, u.w];
         if opts.version >= 3 {
             out.extend_from_slice(&pack_smallest_three(q).to_le_bytes());
         } else {
@@ -505,7 +585,7 @@ pub fn encode_spz_raw(cloud: &GaussianCloud, opts: &SpzOptions) -> Result<Vec<u8
         for (j, c) in cloud.sh[i * k + 1..(i + 1) * k].iter().enumerate() {
             // 5 bits for degree 1, 4 bits beyond (the reference encoder's defaults).
             let bucket = if j < 3 { 8 } else { 16 };
-            let c = *c * SH_FLIP[j];
+            let c = if flip { *c * SH_FLIP[j] } else { *c };
             for v in [c.x, c.y, c.z] {
                 out.push(quantize_sh(v, bucket));
             }
@@ -518,7 +598,10 @@ pub fn encode_spz_raw(cloud: &GaussianCloud, opts: &SpzOptions) -> Result<Vec<u8
 /// Encode a cloud as a gzip-compressed SPZ stream (an `.spz` file's bytes).
 pub fn encode_spz(cloud: &GaussianCloud, opts: &SpzOptions) -> Result<Vec<u8>> {
     let raw = encode_spz_raw(cloud, opts)?;
-    let mut enc = GzEncoder::new(Vec::with_capacity(raw.len() / 3), Compression::new(opts.level.min(9)));
+    let mut enc = GzEncoder::new(
+        Vec::with_capacity(raw.len() / 3),
+        Compression::new(opts.level.min(9)),
+    );
     enc.write_all(&raw)
         .and_then(|_| enc.finish())
         .map_err(|e| SceneError::Invalid(format!("SPZ: gzip failed: {e}")))
@@ -526,7 +609,8 @@ pub fn encode_spz(cloud: &GaussianCloud, opts: &SpzOptions) -> Result<Vec<u8>> {
 
 /// Write an `.spz` file atomically.
 pub fn write_spz(path: &Path, cloud: &GaussianCloud, opts: &SpzOptions) -> Result<()> {
-    let bytes = encode_spz(cloud, opts).map_err(|e| SceneError::format(path, format!("cannot write: {e}")))?;
+    let bytes = encode_spz(cloud, opts)
+        .map_err(|e| SceneError::format(path, format!("cannot write: {e}")))?;
     crate::image_io::with_atomic_writer(path, |w| w.write_all(&bytes))
 }
 
@@ -556,7 +640,11 @@ mod tests {
             let q = q.map(|c| c / n);
             let d = unpack_smallest_three(pack_smallest_three(q));
             // Same rotation up to sign; 9-bit magnitudes over [0, 1/√2] give steps of 1.4e-3.
-            let s = if (0..4).map(|i| q[i] * d[i]).sum::<f32>() < 0.0 { -1.0 } else { 1.0 };
+            let s = if (0..4).map(|i| q[i] * d[i]).sum::<f32>() < 0.0 {
+                -1.0
+            } else {
+                1.0
+            };
             for i in 0..4 {
                 assert!((q[i] - s * d[i]).abs() < 2e-3, "{q:?} -> {d:?}");
             }
