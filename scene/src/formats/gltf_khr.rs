@@ -5,9 +5,13 @@
 //! `KHR_gaussian_splatting:ROTATION` (x, y, z, w), `…:SCALE` (linear), `…:OPACITY` (after the
 //! sigmoid; without it, `COLOR_0`'s alpha), `…:SH_DEGREE_l_COEF_n`. Nodes without animation
 //! are baked into one static cloud with their world transforms (uniform scale only; SH are
-//! not rotated by a baked node, as before); animated nodes (LINEAR translation/rotation)
+//! rotated with the Gaussians); animated nodes (LINEAR translation/rotation)
 //! become objects of a dynamic scene with tracks; a `splatbridge_root` node written by
 //! `splatbridge convert --splats` is undone, so a round trip returns the input frame.
+//! Other files are in glTF's frame (+y up, +z front, +x left: LUF), which is a half turn
+//! about z from the 3DGS PLY's RDF; the reader turns them back (positions, rotations, SH,
+//! object tracks and cameras), the same relation splat-transform's GLB writer and the SPZ
+//! variant's LUF rule use, so a PLY converted by either lines up with the PLY.
 //! Camera nodes become cameras (with `extras.opencv` intrinsics when present).
 //!
 //! Hostile input: the node graph must be a tree (each node visited once), accessors are
@@ -27,6 +31,7 @@ use crate::camera::Camera;
 use crate::dynamic::{DynamicScene, Pose, PoseKey, SceneObject, TimeRange, Track};
 use crate::error::{Result, SceneError};
 use crate::gaussians::{logit, sh_coeffs, GaussianCloud};
+use crate::sh_rotate::ShRotation;
 use document::Document;
 
 /// The extension's name (and its attribute prefix).
@@ -82,8 +87,21 @@ pub fn read_gltf_splats(path: &Path) -> Result<DynamicScene> {
                 .collect()
         })
         .unwrap_or_else(|| (0..nodes.len()).collect());
-    let mut stack: Vec<(usize, Affine3A)> =
-        roots.into_iter().map(|r| (r, Affine3A::IDENTITY)).collect();
+    let ours = roots.iter().any(|&r| {
+        nodes
+            .get(r)
+            .is_some_and(|n| n["name"] == "splatbridge_root" && n["extras"]["inputUp"].is_string())
+    });
+    // glTF's LUF to the PLY's RDF: a half turn about z.
+    let to_ply = if ours {
+        Quat::IDENTITY
+    } else {
+        Quat::from_rotation_z(std::f32::consts::PI)
+    };
+    let mut stack: Vec<(usize, Affine3A)> = roots
+        .into_iter()
+        .map(|r| (r, Affine3A::from_quat(to_ply)))
+        .collect();
     let mut visited = vec![false; nodes.len()];
     while let Some((ni, parent)) = stack.pop() {
         let n = nodes
@@ -134,12 +152,13 @@ pub fn read_gltf_splats(path: &Path) -> Result<DynamicScene> {
                 .map(|(i, &t)| PoseKey {
                     t: t as f64,
                     pose: Pose {
-                        translation: tr
-                            .as_ref()
-                            .map_or(Vec3::ZERO, |x| Vec3::from_slice(&x[3 * i..3 * i + 3])),
-                        rotation: rot.as_ref().map_or(Quat::IDENTITY, |x| {
-                            Quat::from_slice(&x[4 * i..4 * i + 4]).normalize()
-                        }),
+                        translation: to_ply
+                            * tr.as_ref()
+                                .map_or(Vec3::ZERO, |x| Vec3::from_slice(&x[3 * i..3 * i + 3])),
+                        rotation: to_ply
+                            * rot.as_ref().map_or(Quat::IDENTITY, |x| {
+                                Quat::from_slice(&x[4 * i..4 * i + 4]).normalize()
+                            }),
                     },
                 })
                 .collect::<Vec<_>>();
@@ -303,10 +322,17 @@ fn read_primitive(
     }
     if xf != Affine3A::IDENTITY {
         let ls = s.x.ln();
+        let k = part.coeffs();
         for i in 0..part.len() {
             part.means[i] = xf.transform_point3(part.means[i]);
             part.log_scales[i] += Vec3::splat(ls);
             part.rotations[i] = r * part.rotations[i];
+        }
+        if k > 1 && r != Quat::IDENTITY {
+            let (degree, rot) = (part.sh_degree, ShRotation::from_quat(r));
+            for g in part.sh.chunks_mut(k) {
+                rot.apply(degree, g);
+            }
         }
     }
     if cloud.is_empty() && cloud.sh_degree < part.sh_degree {
