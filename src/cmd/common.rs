@@ -9,6 +9,7 @@ use glam::DVec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use splatbridge_scene::camera::{load_cameras_json, CameraSpec, OrbitRig};
 use splatbridge_scene::dynamic::DynamicScene;
+use splatbridge_scene::formats::LoadInfo;
 use splatbridge_scene::manifest::load_scene;
 use splatbridge_scene::ply::ReadOptions;
 use splatbridge_scene::{Camera, GaussianCloud};
@@ -27,13 +28,22 @@ pub fn progress(len: u64, what: &str) -> ProgressBar {
     pb
 }
 
-/// Load a scene (PLY or manifest), printing the reader's warnings to stderr.
+/// Load a scene (any splat format or a manifest), printing the reader's warnings to stderr.
 pub fn load(path: &Path, drop_invalid: bool) -> anyhow::Result<DynamicScene> {
     let (scene, warnings) = load_scene(path, &ReadOptions { drop_invalid })?;
     for w in warnings {
         eprintln!("warning: {}: {w}", path.display());
     }
     Ok(scene)
+}
+
+/// [`load`], also saying which format was read.
+pub fn load_with_info(path: &Path, drop_invalid: bool) -> anyhow::Result<(DynamicScene, LoadInfo)> {
+    let (scene, info) = splatbridge_scene::formats::load(path, &ReadOptions { drop_invalid })?;
+    for w in &info.warnings {
+        eprintln!("warning: {}: {w}", path.display());
+    }
+    Ok((scene, info))
 }
 
 /// Camera selection shared by `render`, `trace`, `hybrid`.

@@ -20,11 +20,13 @@
 //! ([`ReadOptions::drop_invalid`]).
 
 pub mod compressed_ply;
-#[cfg(any())]
 pub mod gltf_khr;
 pub mod sog;
 pub mod splat;
 pub mod spz;
+pub mod write;
+
+pub use write::{write_cloud, CloudFormat};
 
 use std::fmt;
 use std::io::Read;
@@ -283,7 +285,12 @@ fn detect_bytes(path: &Path, buf: &[u8], len: u64) -> Result<SplatFormat> {
             _ => Ok(SplatFormat::Manifest),
         };
     }
-    if splat::plausible(buf, len) {
+    // `.splat` has no magic: records that look like Gaussians, or the extension (so that a
+    // damaged `.splat` gets the reader's precise error rather than "unknown format").
+    let is_splat_ext = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("splat"));
+    if splat::plausible(buf, len) || is_splat_ext {
         return Ok(SplatFormat::Splat);
     }
     let shown: String = buf
@@ -343,7 +350,7 @@ pub fn load(path: &Path, opts: &ReadOptions) -> Result<(DynamicScene, LoadInfo)>
         }
         SplatFormat::Gltf { .. } => read_gltf(path)?,
         _ => {
-            let (cloud, warnings) = read_single(path, format, opts)?;
+            let (cloud, warnings) = read_single(path, &mut info.format, opts)?;
             info.warnings = warnings;
             DynamicScene::from_static(cloud)
         }
@@ -376,7 +383,7 @@ pub fn load_cloud(path: &Path, opts: &ReadOptions) -> Result<(GaussianCloud, Loa
             scene.composite(scene.time.start)
         }
         _ => {
-            let (cloud, warnings) = read_single(path, format, opts)?;
+            let (cloud, warnings) = read_single(path, &mut info.format, opts)?;
             info.warnings = warnings;
             cloud
         }
@@ -384,13 +391,14 @@ pub fn load_cloud(path: &Path, opts: &ReadOptions) -> Result<(GaussianCloud, Loa
     Ok((cloud, info))
 }
 
-/// Read a single-cloud format and apply the invalid-Gaussian policy.
+/// Read a single-cloud format and apply the invalid-Gaussian policy. `format` is completed
+/// where reading tells more than detection (a bundled SOG's version).
 fn read_single(
     path: &Path,
-    format: SplatFormat,
+    format: &mut SplatFormat,
     opts: &ReadOptions,
 ) -> Result<(GaussianCloud, Vec<String>)> {
-    let (mut cloud, mut warnings) = match format {
+    let (mut cloud, mut warnings) = match *format {
         SplatFormat::Ply => {
             let (cloud, report) = read_ply(path, opts)?;
             return Ok((cloud, report.warnings));
@@ -398,7 +406,14 @@ fn read_single(
         SplatFormat::CompressedPly => (compressed_ply::read_compressed_ply(path)?, Vec::new()),
         SplatFormat::Splat => (splat::read_splat(path)?, Vec::new()),
         SplatFormat::Spz { .. } => spz::read_spz(path)?,
-        SplatFormat::Sog { .. } => (read_sog(path)?, Vec::new()),
+        SplatFormat::Sog { .. } => {
+            let (cloud, summary) = sog::read_sog_with_summary(path)?;
+            *format = SplatFormat::Sog {
+                version: Some(summary.version),
+                bundled: summary.bundled,
+            };
+            (cloud, Vec::new())
+        }
         SplatFormat::Gltf { .. } | SplatFormat::Manifest => {
             return Err(SceneError::format(path, "not a single-cloud format"))
         }
@@ -409,21 +424,8 @@ fn read_single(
     Ok((cloud, warnings))
 }
 
-fn read_sog(path: &Path) -> Result<GaussianCloud> {
-    sog::read_sog(path)
-}
-
-#[cfg(any())]
 fn read_gltf(path: &Path) -> Result<DynamicScene> {
     gltf_khr::read_gltf_splats(path)
-}
-
-#[cfg(not(any()))]
-fn read_gltf(path: &Path) -> Result<DynamicScene> {
-    Err(SceneError::format(
-        path,
-        "glTF splat files are recognised but this build has no glTF splat reader",
-    ))
 }
 
 #[cfg(test)]

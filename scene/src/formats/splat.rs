@@ -86,6 +86,9 @@ pub fn decode_splat(bytes: &[u8], path: &Path) -> Result<GaussianCloud> {
 /// Read a `.splat` file.
 pub fn read_splat(path: &Path) -> Result<GaussianCloud> {
     let bytes = read_file_capped(path, MAX_FILE)?;
+    if bytes.is_empty() {
+        return Err(SceneError::format(path, ".splat file is empty (no records)"));
+    }
     decode_splat(&bytes, path)
 }
 
