@@ -103,4 +103,36 @@ for f in "$real/plant.splat:splat" "$real/fourth_st.spz:spz"; do
   echo "== $(basename "$file") (other encoders)"
   check "$fmt" "$file"
 done
+
+# ---- SOG unbundled (meta.json + WebP) and glTF KHR_gaussian_splatting
+# splat-transform's SOG encoder runs its k-means on the GPU unless told `-g cpu`.
+# KHR: splat-transform writes KHR_gaussian_splatting GLB but reads no glTF, so the plain GLB is
+# checked by reading it back against the PLY it came from (float32 attributes: the `splat`
+# steps, which are float-exact for positions and scales); splat-transform writes no
+# SPZ-compressed glTF, so KHR-SPZ encoding (`examples/khr_encode.rs`) is timed against its
+# `.spz` writer (the same SPZ v3 work plus a GLB container), target: at least as fast.
+(cd "$repo" && cargo build --release --example khr_encode >&2)
+khr=$repo/target/release/examples/khr_encode
+for ply in "${plys[@]}"; do
+  name=$(basename "$ply" .ply)
+  echo "== $name: SOG unbundled, KHR glTF"
+  mkdir -p "$out/$name.unbundled"
+  if "$st" -q -g cpu -w "$ply" "$out/$name.unbundled/meta.json"; then
+    check sog "$out/$name.unbundled/meta.json"
+  else
+    echo "  splat-transform cannot write meta.json"; fail=1
+  fi
+  if "$st" -q -w "$ply" "$out/$name.st.glb"; then
+    "$sb" convert "$out/$name.st.glb" --splats -o "$out/$name.st.glb.sb.ply" >/dev/null 2>&1 \
+      && "$diff" splat "$ply" "$out/$name.st.glb.sb.ply" >/dev/null \
+      && echo "  splat-transform's GLB reads back as the PLY: ok" \
+      || { echo "  splat-transform's GLB does not read back as the PLY"; fail=1; }
+  fi
+  t_sb=$(timeit "$khr" "$ply" "$out/$name.khr-spz.glb" spz)
+  t_st=$(timeit "$st" -q -w "$ply" --spz-version 3 "$out/$name.st3.spz")
+  printf '  encode KHR-SPZ glb      splatbridge %7.3f s  splat-transform .spz %7.3f s  %5s×  (%s / %s bytes)\n' \
+    "$t_sb" "$t_st" "$(python3 -c "print(f'{$t_st / $t_sb:.1f}')")" \
+    "$(stat -c %s "$out/$name.khr-spz.glb")" "$(stat -c %s "$out/$name.st3.spz")"
+  python3 -c "import sys; sys.exit(0 if $t_st >= $t_sb else 1)" || { echo "  ^ KHR-SPZ encoding slower than splat-transform's SPZ"; fail=1; }
+done
 exit $fail

@@ -203,8 +203,7 @@ pub fn write_file_with(
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
-        let (json, small, plans, _bin_len, mut report) =
-            plan(scene, opts, Some(uri), compression)?;
+        let (json, small, plans, _bin_len, mut report) = plan(scene, opts, Some(uri), compression)?;
         let mut n = 0;
         splatbridge_scene::image_io::with_atomic_writer(&bin_path, |w| {
             n = stream(w, &small, &plans)?;
@@ -303,7 +302,8 @@ fn plan<'a>(
                 .map_err(crate::scene_err)?;
                 let len = bytes.len() as u64;
                 bytes.resize(bytes.len().next_multiple_of(4), 0);
-                d.views.push(json!({"buffer": 0, "byteOffset": offset, "byteLength": len}));
+                d.views
+                    .push(json!({"buffer": 0, "byteOffset": offset, "byteLength": len}));
                 let view = d.views.len() - 1;
                 offset += bytes.len() as u64;
                 Some((bytes, view))

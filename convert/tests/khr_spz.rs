@@ -19,7 +19,10 @@ fn assert_within_spz(a: &GaussianCloud, b: &GaussianCloud) {
     assert_eq!(a.sh_degree, b.sh_degree);
     for i in 0..a.len() {
         let e = (a.means[i] - b.means[i]).abs().max_element();
-        assert!(e <= 0.5 / 4096.0 + 1e-6 * a.means[i].abs().max_element(), "mean {i}: {e}");
+        assert!(
+            e <= 0.5 / 4096.0 + 1e-6 * a.means[i].abs().max_element(),
+            "mean {i}: {e}"
+        );
         let e = ((b.scale(i) - a.scale(i)) / a.scale(i)).abs().max_element();
         assert!(e < 0.032, "scale {i}: {e}");
         let e = (a.opacity(i) - b.opacity(i)).abs();
@@ -46,8 +49,16 @@ fn dynamic_scene_round_trips_through_khr_spz() {
             for k in 0..=8 {
                 let t = scene.time.start + (scene.time.end - scene.time.start) * k as f64 / 8.0;
                 let (pa, pb) = (a.track.sample(t), b.track.sample(t));
-                assert!((pa.translation - pb.translation).length() < 1e-5, "{} at {t}", a.name);
-                assert!(pa.rotation.dot(pb.rotation).abs() > 1.0 - 1e-6, "{} at {t}", a.name);
+                assert!(
+                    (pa.translation - pb.translation).length() < 1e-5,
+                    "{} at {t}",
+                    a.name
+                );
+                assert!(
+                    pa.rotation.dot(pb.rotation).abs() > 1.0 - 1e-6,
+                    "{} at {t}",
+                    a.name
+                );
             }
         }
         assert_eq!(scene.cameras.len(), back.cameras.len());
@@ -60,7 +71,13 @@ fn khr_spz_declares_the_extension_and_is_smaller() {
     let dir = tempfile::tempdir().unwrap();
     let (plain, spz) = (dir.path().join("p.glb"), dir.path().join("z.glb"));
     write_file(&plain, &scene, &ConvertOptions::default()).unwrap();
-    write_file_with(&spz, &scene, &ConvertOptions::default(), KhrCompression::Spz).unwrap();
+    write_file_with(
+        &spz,
+        &scene,
+        &ConvertOptions::default(),
+        KhrCompression::Spz,
+    )
+    .unwrap();
     let bytes = std::fs::read(&spz).unwrap();
     let jlen = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
     let json: serde_json::Value = serde_json::from_slice(&bytes[20..20 + jlen]).unwrap();
@@ -71,7 +88,9 @@ fn khr_spz_declares_the_extension_and_is_smaller() {
         .iter()
         .any(|e| e == name));
     let prim = &json["meshes"][0]["primitives"][0];
-    assert!(prim["extensions"]["KHR_gaussian_splatting"]["extensions"][name]["bufferView"].is_u64());
+    assert!(
+        prim["extensions"]["KHR_gaussian_splatting"]["extensions"][name]["bufferView"].is_u64()
+    );
     // Accessors describe the decoded attributes and have no buffer views of their own.
     let pos = prim["attributes"]["POSITION"].as_u64().unwrap() as usize;
     assert!(json["accessors"][pos]["bufferView"].is_null());

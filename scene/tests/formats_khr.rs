@@ -15,7 +15,9 @@ use splatbridge_scene::ply::{read_ply, ReadOptions};
 use splatbridge_scene::GaussianCloud;
 
 fn fx(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/formats").join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../fixtures/formats")
+        .join(name)
 }
 
 fn source() -> GaussianCloud {
@@ -42,8 +44,15 @@ fn assert_close(a: &GaussianCloud, b: &GaussianCloud, tol: f32, what: &str) {
         // S·R·Sᵀ (both give S·Σ·Sᵀ for a diagonal scale), so quaternions need not agree.
         let (ca, cb) = (a.covariance(i), b.covariance(i));
         let big = cb.to_cols_array().iter().fold(0f32, |m, x| m.max(x.abs()));
-        let e = (ca - cb).to_cols_array().iter().fold(0f32, |m, x| m.max(x.abs())) / big;
-        assert!(e <= 10.0 * tol, "{what}: covariance {i} off by {e} relative");
+        let e = (ca - cb)
+            .to_cols_array()
+            .iter()
+            .fold(0f32, |m, x| m.max(x.abs()))
+            / big;
+        assert!(
+            e <= 10.0 * tol,
+            "{what}: covariance {i} off by {e} relative"
+        );
         for (j, (x, y)) in a.sh_of(i).iter().zip(b.sh_of(i)).enumerate() {
             let e = (*x - *y).abs().max_element();
             assert!(e <= tol, "{what}: SH {i}.{j} off by {e}");
@@ -216,7 +225,11 @@ fn cases() -> Vec<Case> {
         },
         Case {
             name: "spz_not_spz.glb",
-            bytes: spz_glb(&[0x1f, 0x8b, 8, 0, 0, 0, 0, 0, 0, 3, 1, 2, 3, 4], 300, |_| {}),
+            bytes: spz_glb(
+                &[0x1f, 0x8b, 8, 0, 0, 0, 0, 0, 0, 3, 1, 2, 3, 4],
+                300,
+                |_| {},
+            ),
             expect: "spz_not_spz.glb",
         },
     ]
@@ -236,8 +249,17 @@ fn malformed_gltf_files_fail_naming_the_file() {
             Ok(Ok(s)) => panic!("{}: read {} Gaussians", c.name, s.gaussian_count()),
             Err(_) => panic!("{}: panicked", c.name),
         };
-        assert!(err.contains(c.name), "{}: error does not name the file: {err}", c.name);
-        assert!(err.contains(c.expect), "{}: expected {:?} in: {err}", c.name, c.expect);
+        assert!(
+            err.contains(c.name),
+            "{}: error does not name the file: {err}",
+            c.name
+        );
+        assert!(
+            err.contains(c.expect),
+            "{}: expected {:?} in: {err}",
+            c.name,
+            c.expect
+        );
     }
 }
 

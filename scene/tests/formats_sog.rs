@@ -66,7 +66,10 @@ fn assert_matches_reference(ours: &GaussianCloud, reference: &GaussianCloud) {
 #[test]
 fn v2_bundled_matches_reference_decoder() {
     let (c, s) = read_sog_with_summary(&dir().join("v2.sog")).unwrap();
-    assert_eq!((s.version, s.bundled, s.count, s.sh_degree), (2, true, 300, 3));
+    assert_eq!(
+        (s.version, s.bundled, s.count, s.sh_degree),
+        (2, true, 300, 3)
+    );
     assert_matches_reference(&c, &ply(&dir().join("v2.sog.ref.ply")));
 }
 
@@ -173,7 +176,11 @@ fn v2_round_trip_within_quantisation() {
     let mut scales: Vec<f32> = flat3(&dec.log_scales).collect();
     scales.sort_by(f32::total_cmp);
     scales.dedup();
-    assert!(scales.len() <= 256, "scales use {} codebook values", scales.len());
+    assert!(
+        scales.len() <= 256,
+        "scales use {} codebook values",
+        scales.len()
+    );
     let k = sh_coeffs(3);
     let mut dc: Vec<f32> = (0..dec.len())
         .flat_map(|i| dec.sh[i * k].to_array())
@@ -553,9 +560,10 @@ fn cases() -> Vec<Case> {
         name: "nan_text.json.sog",
         bytes: {
             let (meta, mut entries) = v2_entries();
-            let text = serde_json::to_string(&meta)
-                .unwrap()
-                .replacen("\"mins\":[", "\"mins\":[NaN,", 1);
+            let text =
+                serde_json::to_string(&meta)
+                    .unwrap()
+                    .replacen("\"mins\":[", "\"mins\":[NaN,", 1);
             entries.push(("meta.json".into(), text.into_bytes()));
             zip_bytes(&entries, false)
         },
@@ -578,8 +586,17 @@ fn malformed_sog_files_fail_naming_the_file() {
             Ok(Ok(cloud)) => panic!("{}: read {} Gaussians", c.name, cloud.len()),
             Err(_) => panic!("{}: panicked", c.name),
         };
-        assert!(err.contains(c.name), "{}: error does not name the file: {err}", c.name);
-        assert!(err.contains(c.expect), "{}: expected {:?} in: {err}", c.name, c.expect);
+        assert!(
+            err.contains(c.name),
+            "{}: error does not name the file: {err}",
+            c.name
+        );
+        assert!(
+            err.contains(c.expect),
+            "{}: expected {:?} in: {err}",
+            c.name,
+            c.expect
+        );
     }
 }
 
@@ -597,7 +614,10 @@ fn unbundled_meta_cannot_name_files_outside_its_folder() {
     let p = tmp.path().join("meta.json");
     std::fs::write(&p, serde_json::to_vec(&meta).unwrap()).unwrap();
     let err = read_sog(&p).unwrap_err().to_string();
-    assert!(err.contains("meta.json") && err.contains("plain relative path"), "{err}");
+    assert!(
+        err.contains("meta.json") && err.contains("plain relative path"),
+        "{err}"
+    );
 }
 
 #[cfg(unix)]

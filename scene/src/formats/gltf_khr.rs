@@ -123,9 +123,12 @@ pub fn read_gltf_splats(path: &Path) -> Result<DynamicScene> {
             stack.push((c.as_u64().map_or(usize::MAX, |c| c as usize), world));
         }
         if let Some(ci) = n["camera"].as_u64() {
-            if let Some(cam) =
-                read_camera(v, ci as usize, world, n["name"].as_str().unwrap_or("camera"))
-            {
+            if let Some(cam) = read_camera(
+                v,
+                ci as usize,
+                world,
+                n["name"].as_str().unwrap_or("camera"),
+            ) {
                 scene.cameras.push(cam);
             }
         }

@@ -108,7 +108,11 @@ pub fn read_sog_with_summary(path: &Path) -> Result<(GaussianCloud, SogSummary)>
         .zip(names.par_iter())
         .enumerate()
         .map(|(k, (bytes, name))| {
-            let expect = if k == 5 { Expect::Centroids } else { Expect::Count(m.count) };
+            let expect = if k == 5 {
+                Expect::Centroids
+            } else {
+                Expect::Count(m.count)
+            };
             decode_webp(path, name, bytes, expect)
         })
         .collect::<Result<_>>()?;
@@ -137,7 +141,12 @@ impl Image {
     fn px(&self, i: usize) -> [u8; 4] {
         let o = i * self.channels;
         let d = &self.data[o..o + self.channels];
-        [d[0], d[1], d[2], if self.channels == 4 { d[3] } else { 255 }]
+        [
+            d[0],
+            d[1],
+            d[2],
+            if self.channels == 4 { d[3] } else { 255 },
+        ]
     }
 }
 
@@ -376,8 +385,8 @@ fn assemble(path: &Path, m: &Meta, img: &[Image]) -> Result<GaussianCloud> {
             Ok(())
         })?;
     cloud.sh = sh;
-    debug_assert!(img.iter().all(|im| im.data.len() == im.width as usize
-        * im.height as usize
-        * im.channels));
+    debug_assert!(img
+        .iter()
+        .all(|im| im.data.len() == im.width as usize * im.height as usize * im.channels));
     Ok(cloud)
 }

@@ -33,7 +33,9 @@ pub(super) fn load(path: &Path) -> Result<Document> {
         };
         let version = u32at(4)?;
         if version != 2 {
-            return Err(bad(format!("GLB version {version}; glTF 2.0 GLB is version 2")));
+            return Err(bad(format!(
+                "GLB version {version}; glTF 2.0 GLB is version 2"
+            )));
         }
         let mut o = 12usize;
         let (mut json, mut bin) = (None, None);
@@ -66,7 +68,9 @@ pub(super) fn load(path: &Path) -> Result<Document> {
         let declared = b["byteLength"].as_u64().unwrap_or(0);
         match b["uri"].as_str() {
             None => buffers.push(bin.take().ok_or_else(|| {
-                bad(format!("buffer {i} has no uri and there is no (unused) GLB BIN chunk"))
+                bad(format!(
+                    "buffer {i} has no uri and there is no (unused) GLB BIN chunk"
+                ))
             })?),
             Some(uri) if uri.starts_with("data:") => {
                 return Err(bad(format!("buffer {i}: data URIs are not supported")))

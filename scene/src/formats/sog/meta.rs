@@ -62,7 +62,9 @@ pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<Meta> {
         // Python-written files carry the bare tokens; name them rather than a parse position.
         let text = String::from_utf8_lossy(bytes);
         if text.contains("NaN") || text.contains("Infinity") {
-            bad(format!("holds NaN or Infinity, which no range may be ({e})"))
+            bad(format!(
+                "holds NaN or Infinity, which no range may be ({e})"
+            ))
         } else {
             bad(format!("not JSON: {e}"))
         }
@@ -74,7 +76,11 @@ pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<Meta> {
         Value::Null => 1,
         x => match x.as_u64() {
             Some(2) => 2,
-            _ => return Err(bad(format!("version {x} is not a SOG version this reads (1, 2)"))),
+            _ => {
+                return Err(bad(format!(
+                    "version {x} is not a SOG version this reads (1, 2)"
+                )))
+            }
         },
     };
     let count = if version == 1 {
@@ -218,12 +224,20 @@ fn codebook(bad: &dyn Fn(String) -> SceneError, g: &Value, name: &str) -> Result
     Ok(Dequant::Codebook(c.into_iter().map(|x| x as f32).collect()))
 }
 
-fn files(bad: &dyn Fn(String) -> SceneError, g: &Value, name: &str, n: usize) -> Result<Vec<String>> {
+fn files(
+    bad: &dyn Fn(String) -> SceneError,
+    g: &Value,
+    name: &str,
+    n: usize,
+) -> Result<Vec<String>> {
     let a = g["files"]
         .as_array()
         .ok_or_else(|| bad(format!("{name}.files is missing")))?;
     if a.len() < n {
-        return Err(bad(format!("{name}.files lists {} files, needs {n}", a.len())));
+        return Err(bad(format!(
+            "{name}.files lists {} files, needs {n}",
+            a.len()
+        )));
     }
     a.iter()
         .take(n)
