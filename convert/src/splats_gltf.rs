@@ -22,11 +22,13 @@
 use std::io::{self, Write};
 use std::path::Path;
 
-use glam::{Affine3A, DMat3, DQuat, DVec3, Quat, Vec3};
+use glam::Quat;
 use serde_json::{json, Value};
-use splatbridge_scene::dynamic::{DynamicScene, Pose, PoseKey, SceneObject, TimeRange, Track};
-use splatbridge_scene::gaussians::{logit, sh_coeffs};
-use splatbridge_scene::{sh, Camera, GaussianCloud};
+use splatbridge_scene::dynamic::DynamicScene;
+use splatbridge_scene::formats::gltf_khr::spz::{encode_khr_spz, SPZ_EXTENSIONS};
+use splatbridge_scene::formats::spz::SpzOptions;
+use splatbridge_scene::gaussians::sh_coeffs;
+use splatbridge_scene::{sh, GaussianCloud};
 
 use crate::gltf_writer::{
     camera_node, glb_container, track_keys, typed_json, DocBuilder, ARRAY_BUFFER, FLOAT,
@@ -36,6 +38,27 @@ use crate::ConvertError;
 
 const EXT: &str = "KHR_gaussian_splatting";
 const UNSIGNED_BYTE: u32 = 5121;
+
+/// How the Gaussians of a `--splats` file are stored.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum KhrCompression {
+    /// Float attribute accessors (lossless).
+    #[default]
+    None,
+    /// One SPZ stream per primitive (`KHR_gaussian_splatting_compression_spz_2`): SPZ v3's
+    /// quantisation (24-bit fixed-point positions, 8-bit log-scales, colours and opacity,
+    /// 10-bit smallest-three rotations, 5/4-bit SH), about 10× smaller.
+    Spz,
+}
+
+impl KhrCompression {
+    pub fn name(self) -> &'static str {
+        match self {
+            KhrCompression::None => "none",
+            KhrCompression::Spz => "spz",
+        }
+    }
+}
 
 /// Attribute names: the placeholder used while typing the document, and the real name.
 fn attribute_names(degree: u8) -> Vec<(String, String)> {
@@ -107,6 +130,8 @@ struct CloudPlan<'a> {
     cloud: &'a GaussianCloud,
     keep: Vec<u32>,
     streams: Vec<(Stream, u64)>,
+    /// The SPZ stream (padded to 4 bytes) that replaces `streams` under SPZ compression.
+    spz: Option<Vec<u8>>,
 }
 
 /// Write native splats as GLB into any writer. Returns the report (bytes filled in).
@@ -115,7 +140,17 @@ pub fn write_glb<W: Write>(
     scene: &DynamicScene,
     opts: &ConvertOptions,
 ) -> crate::Result<ConvertReport> {
-    let (json, small, plans, bin_len, mut report) = plan(scene, opts, None)?;
+    write_glb_with(w, scene, opts, KhrCompression::None)
+}
+
+/// [`write_glb`] with a choice of attribute compression.
+pub fn write_glb_with<W: Write>(
+    w: &mut W,
+    scene: &DynamicScene,
+    opts: &ConvertOptions,
+    compression: KhrCompression,
+) -> crate::Result<ConvertReport> {
+    let (json, small, plans, bin_len, mut report) = plan(scene, opts, None, compression)?;
     let bytes = glb_container(w, &json, bin_len, |w| stream(w, &small, &plans)).map_err(|e| {
         ConvertError::Io {
             path: "<memory>".into(),
@@ -132,6 +167,16 @@ pub fn write_file(
     scene: &DynamicScene,
     opts: &ConvertOptions,
 ) -> crate::Result<ConvertReport> {
+    write_file_with(path, scene, opts, KhrCompression::None)
+}
+
+/// [`write_file`] with a choice of attribute compression.
+pub fn write_file_with(
+    path: &Path,
+    scene: &DynamicScene,
+    opts: &ConvertOptions,
+    compression: KhrCompression,
+) -> crate::Result<ConvertReport> {
     let glb = match crate::Format::from_path(path)? {
         crate::Format::Glb => true,
         crate::Format::Gltf => false,
@@ -145,7 +190,7 @@ pub fn write_file(
     if glb {
         let mut rep = None;
         splatbridge_scene::image_io::with_atomic_writer(path, |w| {
-            rep = Some(write_glb(w, scene, opts).map_err(io::Error::other)?);
+            rep = Some(write_glb_with(w, scene, opts, compression).map_err(io::Error::other)?);
             Ok(())
         })
         .map_err(crate::scene_err)?;
@@ -158,7 +203,7 @@ pub fn write_file(
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
-        let (json, small, plans, _bin_len, mut report) = plan(scene, opts, Some(uri))?;
+        let (json, small, plans, _bin_len, mut report) = plan(scene, opts, Some(uri), compression)?;
         let mut n = 0;
         splatbridge_scene::image_io::with_atomic_writer(&bin_path, |w| {
             n = stream(w, &small, &plans)?;
@@ -178,6 +223,7 @@ fn plan<'a>(
     scene: &'a DynamicScene,
     opts: &ConvertOptions,
     bin_uri: Option<String>,
+    compression: KhrCompression,
 ) -> crate::Result<Planned<'a>> {
     let mut report = ConvertReport::new("splats", opts);
     report.profile = "splats".into();
@@ -239,13 +285,41 @@ fn plan<'a>(
         }
         streams.push((Stream::Color, 0));
         let mut attrs = serde_json::Map::new();
+        // Under SPZ compression one buffer view holds the whole stream and the accessors
+        // describe the decoded attributes without views of their own.
+        let spz = match compression {
+            KhrCompression::None => None,
+            KhrCompression::Spz => {
+                let mut bytes = if keep.len() == cloud.len() {
+                    encode_khr_spz(cloud, &SpzOptions::default())
+                } else {
+                    let mut sub = cloud.clone();
+                    let mut mask = vec![false; cloud.len()];
+                    keep.iter().for_each(|&i| mask[i as usize] = true);
+                    sub.retain_indices(|i| mask[i]);
+                    encode_khr_spz(&sub, &SpzOptions::default())
+                }
+                .map_err(crate::scene_err)?;
+                let len = bytes.len() as u64;
+                bytes.resize(bytes.len().next_multiple_of(4), 0);
+                d.views
+                    .push(json!({"buffer": 0, "byteOffset": offset, "byteLength": len}));
+                let view = d.views.len() - 1;
+                offset += bytes.len() as u64;
+                Some((bytes, view))
+            }
+        };
         for (si, (s, off)) in streams.iter_mut().enumerate() {
             *off = offset;
-            let len = s.bytes_per() * n;
-            d.views.push(json!({"buffer": 0, "byteOffset": offset, "byteLength": len, "target": ARRAY_BUFFER}));
-            let view = d.views.len() - 1;
-            offset += len;
-            let acc = match s {
+            let view = if spz.is_some() {
+                Value::Null
+            } else {
+                let len = s.bytes_per() * n;
+                d.views.push(json!({"buffer": 0, "byteOffset": offset, "byteLength": len, "target": ARRAY_BUFFER}));
+                offset += len;
+                json!(d.views.len() - 1)
+            };
+            let mut acc = match s {
                 Stream::Position => {
                     let (lo, hi) = keep.iter().fold(
                         ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
@@ -273,6 +347,9 @@ fn plan<'a>(
                     json!({"bufferView": view, "componentType": UNSIGNED_BYTE, "normalized": true, "count": n, "type": "VEC4"})
                 }
             };
+            if view.is_null() {
+                acc.as_object_mut().map(|o| o.remove("bufferView"));
+            }
             let a = d.accessor(acc);
             let key = match si {
                 0 => "POSITION".to_string(),
@@ -281,9 +358,14 @@ fn plan<'a>(
             };
             attrs.insert(key, json!(a));
         }
+        let mut ext = json!({"kernel": "ellipse", "colorSpace": "srgb_rec709_display", "projection": "perspective", "sortingMethod": "cameraDistance"});
+        if let Some((_, view)) = &spz {
+            let spz_ext = SPZ_EXTENSIONS[0];
+            ext["extensions"] = json!({spz_ext: {"bufferView": view}});
+        }
         meshes.push(json!({
             "name": name,
-            "primitives": [{"attributes": attrs, "mode": 0, "extensions": {EXT: {"kernel": "ellipse", "colorSpace": "srgb_rec709_display", "projection": "perspective", "sortingMethod": "cameraDistance"}}}],
+            "primitives": [{"attributes": attrs, "mode": 0, "extensions": {EXT: ext}}],
             "extras": {"role": if obj.is_some() { "object" } else { "static" }, "idOffset": report.meshes.last().map(|m| m.id_offset)}
         }));
         let mut node = json!({"name": name, "mesh": meshes.len() - 1});
@@ -301,6 +383,7 @@ fn plan<'a>(
             cloud,
             keep,
             streams,
+            spz: spz.map(|s| s.0),
         });
     }
     let mut cameras = Vec::new();
@@ -321,7 +404,7 @@ fn plan<'a>(
     let bin_len = offset;
     let mut doc = json!({
         "asset": {"version": "2.0", "generator": concat!("splatbridge ", env!("CARGO_PKG_VERSION")), "extras": {"splatbridge": report.metadata(opts)}},
-        "extensionsUsed": [EXT],
+        "extensionsUsed": if compression == KhrCompression::Spz { json!([EXT, SPZ_EXTENSIONS[0]]) } else { json!([EXT]) },
         "scene": 0,
         "scenes": [{"nodes": [0]}],
         "nodes": nodes,
@@ -330,6 +413,11 @@ fn plan<'a>(
         "bufferViews": d.views,
         "accessors": d.accessors,
     });
+    if compression == KhrCompression::Spz {
+        // No float fallback is written, so a reader must understand the compression.
+        doc["extensionsRequired"] = json!([EXT, SPZ_EXTENSIONS[0]]);
+        doc["asset"]["extras"]["splatbridge"]["khrCompression"] = json!(compression.name());
+    }
     if !channels.is_empty() {
         doc["animations"] = json!([{"name": "scene", "samplers": samplers, "channels": channels}]);
     }
@@ -371,6 +459,11 @@ fn stream<W: Write>(w: &mut W, small: &[u8], plans: &[CloudPlan<'_>]) -> io::Res
     // Each attribute is encoded in parallel chunks and written in order.
     let batch = 2 * rayon::current_num_threads().max(1);
     for p in plans {
+        if let Some(bytes) = &p.spz {
+            w.write_all(bytes)?;
+            n += bytes.len() as u64;
+            continue;
+        }
         for &(s, off) in &p.streams {
             debug_assert_eq!(off, n);
             let chunks: Vec<&[u32]> = p.keep.chunks(1 << 15).collect();
@@ -395,411 +488,8 @@ fn stream<W: Write>(w: &mut W, small: &[u8], plans: &[CloudPlan<'_>]) -> io::Res
 
 // ---------------------------------------------------------------- reader
 
-/// Split a GLB into its JSON and BIN chunks, or read a `.gltf` and its buffers.
-fn load_document(path: &Path) -> crate::Result<(Value, Vec<Vec<u8>>)> {
-    let bad = |what: String| ConvertError::Format {
-        path: path.into(),
-        what,
-    };
-    let data = std::fs::read(path).map_err(crate::io_err(path))?;
-    let (json, bin) = if data.starts_with(b"glTF") {
-        let u32at = |o: usize| -> crate::Result<u32> {
-            data.get(o..o + 4)
-                .map(|b| u32::from_le_bytes(b.try_into().unwrap()))
-                .ok_or_else(|| bad(format!("GLB truncated at byte {o}")))
-        };
-        let mut o = 12;
-        let (mut json, mut bin) = (None, None);
-        while o + 8 <= data.len() {
-            let len = u32at(o)? as usize;
-            let ty = &data[o + 4..o + 8];
-            let body = data
-                .get(o + 8..o + 8 + len)
-                .ok_or_else(|| bad(format!("GLB chunk at byte {o} runs past the end")))?;
-            match ty {
-                b"JSON" => json = Some(body.to_vec()),
-                b"BIN\0" => bin = Some(body.to_vec()),
-                _ => {}
-            }
-            o += 8 + len;
-        }
-        (
-            json.ok_or_else(|| bad("GLB has no JSON chunk".into()))?,
-            bin,
-        )
-    } else {
-        (data, None)
-    };
-    let v: Value = serde_json::from_slice(&json).map_err(|e| bad(format!("glTF JSON: {e}")))?;
-    let mut buffers = Vec::new();
-    for (i, b) in v["buffers"].as_array().into_iter().flatten().enumerate() {
-        match b["uri"].as_str() {
-            None => buffers.push(bin.clone().ok_or_else(|| {
-                bad(format!(
-                    "buffer {i} has no uri and there is no GLB BIN chunk"
-                ))
-            })?),
-            Some(uri) if uri.starts_with("data:") => {
-                return Err(bad(format!("buffer {i}: data URIs are not supported")))
-            }
-            Some(uri) => {
-                let p = path.parent().unwrap_or(Path::new(".")).join(uri);
-                buffers.push(std::fs::read(&p).map_err(crate::io_err(&p))?);
-            }
-        }
-    }
-    Ok((v, buffers))
-}
-
-/// Read accessor `a` as f32 tuples of `comps` (FLOAT, or normalized u8/u16).
-fn read_accessor(
-    path: &Path,
-    v: &Value,
-    bufs: &[Vec<u8>],
-    a: usize,
-    comps: usize,
-) -> crate::Result<Vec<f32>> {
-    let bad = |what: String| ConvertError::Format {
-        path: path.into(),
-        what,
-    };
-    let acc = &v["accessors"][a];
-    let count = acc["count"]
-        .as_u64()
-        .ok_or_else(|| bad(format!("accessor {a} has no count")))? as usize;
-    let ct = acc["componentType"].as_u64().unwrap_or(0) as u32;
-    let size = match ct {
-        FLOAT => 4,
-        UNSIGNED_BYTE => 1,
-        5123 => 2,
-        _ => {
-            return Err(bad(format!(
-                "accessor {a}: component type {ct} is not read (FLOAT, normalized u8/u16)"
-            )))
-        }
-    };
-    let view = &v["bufferViews"][acc["bufferView"]
-        .as_u64()
-        .ok_or_else(|| bad(format!("accessor {a} has no bufferView")))?
-        as usize];
-    let buf = &bufs[view["buffer"].as_u64().unwrap_or(0) as usize];
-    let base = view["byteOffset"].as_u64().unwrap_or(0) as usize
-        + acc["byteOffset"].as_u64().unwrap_or(0) as usize;
-    let stride = view["byteStride"]
-        .as_u64()
-        .map(|s| s as usize)
-        .unwrap_or(size * comps);
-    let mut out = Vec::with_capacity(count * comps);
-    for i in 0..count {
-        for c in 0..comps {
-            let o = base + i * stride + c * size;
-            let b = buf
-                .get(o..o + size)
-                .ok_or_else(|| bad(format!("accessor {a} element {i} lies outside its buffer")))?;
-            out.push(match size {
-                4 => f32::from_le_bytes(b.try_into().unwrap()),
-                1 => b[0] as f32 / 255.0,
-                _ => u16::from_le_bytes(b.try_into().unwrap()) as f32 / 65535.0,
-            });
-        }
-    }
-    Ok(out)
-}
-
-fn node_local(n: &Value) -> Affine3A {
-    let arr = |k: &str, d: &[f32]| -> Vec<f32> {
-        n[k].as_array()
-            .map(|a| a.iter().map(|x| x.as_f64().unwrap_or(0.0) as f32).collect())
-            .unwrap_or_else(|| d.to_vec())
-    };
-    if let Some(m) = n["matrix"].as_array() {
-        let m: Vec<f32> = m.iter().map(|x| x.as_f64().unwrap_or(0.0) as f32).collect();
-        if m.len() == 16 {
-            return Affine3A::from_mat4(glam::Mat4::from_cols_slice(&m));
-        }
-    }
-    let t = arr("translation", &[0.0; 3]);
-    let r = arr("rotation", &[0.0, 0.0, 0.0, 1.0]);
-    let s = arr("scale", &[1.0; 3]);
-    Affine3A::from_scale_rotation_translation(
-        Vec3::new(s[0], s[1], s[2]),
-        Quat::from_xyzw(r[0], r[1], r[2], r[3]).normalize(),
-        Vec3::new(t[0], t[1], t[2]),
-    )
-}
-
-/// Read the Gaussians of one splat primitive into `cloud` (transformed by `xf`).
-fn read_primitive(
-    path: &Path,
-    v: &Value,
-    bufs: &[Vec<u8>],
-    prim: &Value,
-    xf: Affine3A,
-    cloud: &mut GaussianCloud,
-) -> crate::Result<()> {
-    let bad = |what: String| ConvertError::Format {
-        path: path.into(),
-        what,
-    };
-    let attrs = &prim["attributes"];
-    let get = |name: &str, comps: usize| -> crate::Result<Option<Vec<f32>>> {
-        match attrs[name].as_u64() {
-            Some(a) => Ok(Some(read_accessor(path, v, bufs, a as usize, comps)?)),
-            None => Ok(None),
-        }
-    };
-    let need = |name: &str, comps: usize| -> crate::Result<Vec<f32>> {
-        get(name, comps)?.ok_or_else(|| bad(format!("splat primitive lacks {name}")))
-    };
-    let pos = need("POSITION", 3)?;
-    let rot = need(&format!("{EXT}:ROTATION"), 4)?;
-    let scale = need(&format!("{EXT}:SCALE"), 3)?;
-    let opac = need(&format!("{EXT}:OPACITY"), 1)?;
-    let n = pos.len() / 3;
-    let mut degree = 0u8;
-    while degree < 3 && attrs[format!("{EXT}:SH_DEGREE_{}_COEF_0", degree + 1)].is_u64() {
-        degree += 1;
-    }
-    let mut sh_cols = Vec::new();
-    for l in 0..=degree as usize {
-        for c in 0..2 * l + 1 {
-            sh_cols.push(need(&format!("{EXT}:SH_DEGREE_{l}_COEF_{c}"), 3)?);
-        }
-    }
-    if rot.len() != 4 * n
-        || scale.len() != 3 * n
-        || opac.len() != n
-        || sh_cols.iter().any(|c| c.len() != 3 * n)
-    {
-        return Err(bad("splat attributes have different counts".into()));
-    }
-    if cloud.is_empty() && cloud.sh_degree < degree {
-        cloud.sh_degree = degree;
-    }
-    let (s, r, _) = xf.to_scale_rotation_translation();
-    if (s.x - s.y).abs() > 1e-4 * s.x.abs() || (s.x - s.z).abs() > 1e-4 * s.x.abs() {
-        return Err(bad(format!(
-            "node scale {s} is not uniform; splats cannot be baked through it"
-        )));
-    }
-    let k = sh_coeffs(cloud.sh_degree);
-    let mut part = GaussianCloud::with_capacity(cloud.sh_degree, n);
-    for i in 0..n {
-        let q = Quat::from_xyzw(rot[4 * i], rot[4 * i + 1], rot[4 * i + 2], rot[4 * i + 3]);
-        let mean = xf.transform_point3(Vec3::new(pos[3 * i], pos[3 * i + 1], pos[3 * i + 2]));
-        let sc = Vec3::new(scale[3 * i], scale[3 * i + 1], scale[3 * i + 2]) * s.x;
-        let coeffs: Vec<Vec3> = (0..k)
-            .map(|j| {
-                sh_cols
-                    .get(j)
-                    .map(|c| Vec3::new(c[3 * i], c[3 * i + 1], c[3 * i + 2]))
-                    .unwrap_or(Vec3::ZERO)
-            })
-            .collect();
-        let q = if r == Quat::IDENTITY { q } else { r * q };
-        part.push(
-            mean,
-            Vec3::new(sc.x.ln(), sc.y.ln(), sc.z.ln()),
-            q,
-            logit(opac[i]),
-            &coeffs,
-        );
-    }
-    cloud.extend_from(&part, None);
-    Ok(())
-}
-
-/// Key times, translations and rotations of one animated node.
-type NodeAnimation = (Vec<f32>, Option<Vec<f32>>, Option<Vec<f32>>);
-
-/// Read a `KHR_gaussian_splatting` glTF/GLB back into a scene.
+/// Read a `KHR_gaussian_splatting` glTF/GLB back into a scene (the scene crate's reader,
+/// which every command uses through its format detection).
 pub fn read_file(path: &Path) -> crate::Result<DynamicScene> {
-    let bad = |what: String| ConvertError::Format {
-        path: path.into(),
-        what,
-    };
-    let (v, bufs) = load_document(path)?;
-    let nodes = v["nodes"].as_array().cloned().unwrap_or_default();
-    // Animated nodes: node -> (times, translations, rotations).
-    let mut animated: std::collections::HashMap<usize, NodeAnimation> = Default::default();
-    for a in v["animations"].as_array().into_iter().flatten() {
-        for ch in a["channels"].as_array().into_iter().flatten() {
-            let node = ch["target"]["node"]
-                .as_u64()
-                .ok_or_else(|| bad("animation channel without node".into()))?
-                as usize;
-            let s = &a["samplers"][ch["sampler"].as_u64().unwrap_or(0) as usize];
-            let times = read_accessor(
-                path,
-                &v,
-                &bufs,
-                s["input"].as_u64().unwrap_or(0) as usize,
-                1,
-            )?;
-            let path_name = ch["target"]["path"].as_str().unwrap_or("");
-            let comps = if path_name == "rotation" { 4 } else { 3 };
-            let out = read_accessor(
-                path,
-                &v,
-                &bufs,
-                s["output"].as_u64().unwrap_or(0) as usize,
-                comps,
-            )?;
-            let e = animated.entry(node).or_insert((times, None, None));
-            match path_name {
-                "translation" => e.1 = Some(out),
-                "rotation" => e.2 = Some(out),
-                _ => {}
-            }
-        }
-    }
-    let mut scene = DynamicScene::from_static(GaussianCloud::new(0));
-    let mut t_range: Option<(f64, f64)> = None;
-    let roots: Vec<usize> = v["scenes"][v["scene"].as_u64().unwrap_or(0) as usize]["nodes"]
-        .as_array()
-        .map(|a| {
-            a.iter()
-                .filter_map(|x| x.as_u64().map(|x| x as usize))
-                .collect()
-        })
-        .unwrap_or_else(|| (0..nodes.len()).collect());
-    let mut stack: Vec<(usize, Affine3A)> =
-        roots.into_iter().map(|r| (r, Affine3A::IDENTITY)).collect();
-    let mut guard = 0;
-    while let Some((ni, parent)) = stack.pop() {
-        guard += 1;
-        if guard > 1_000_000 {
-            return Err(bad("node hierarchy has a cycle".into()));
-        }
-        let n = nodes
-            .get(ni)
-            .ok_or_else(|| bad(format!("node {ni} does not exist")))?;
-        let ours = n["name"] == "splatbridge_root" && n["extras"]["inputUp"].is_string();
-        let local = if ours {
-            Affine3A::IDENTITY
-        } else {
-            node_local(n)
-        };
-        let world = parent * local;
-        for c in n["children"].as_array().into_iter().flatten() {
-            stack.push((c.as_u64().unwrap_or(u64::MAX) as usize, world));
-        }
-        if let (Some(ci), Some(o)) = (
-            n["camera"].as_u64(),
-            n["extras"].as_object().or(Some(&serde_json::Map::new())),
-        ) {
-            let _ = o;
-            if let Some(cam) = read_camera(
-                &v,
-                ci as usize,
-                world,
-                n["name"].as_str().unwrap_or("camera"),
-            ) {
-                scene.cameras.push(cam);
-            }
-        }
-        let Some(mi) = n["mesh"].as_u64() else {
-            continue;
-        };
-        let mesh = &v["meshes"][mi as usize];
-        let prims: Vec<&Value> = mesh["primitives"]
-            .as_array()
-            .into_iter()
-            .flatten()
-            .filter(|p| p["extensions"][EXT].is_object())
-            .collect();
-        if prims.is_empty() {
-            continue;
-        }
-        if let Some((times, tr, rot)) = animated.get(&ni) {
-            let mut cloud = GaussianCloud::new(0);
-            for p in prims {
-                read_primitive(path, &v, &bufs, p, Affine3A::IDENTITY, &mut cloud)?;
-            }
-            let keys = times
-                .iter()
-                .enumerate()
-                .map(|(i, &t)| {
-                    let translation = tr
-                        .as_ref()
-                        .map(|x| Vec3::new(x[3 * i], x[3 * i + 1], x[3 * i + 2]))
-                        .unwrap_or(Vec3::ZERO);
-                    let rotation = rot
-                        .as_ref()
-                        .map(|x| {
-                            Quat::from_xyzw(x[4 * i], x[4 * i + 1], x[4 * i + 2], x[4 * i + 3])
-                                .normalize()
-                        })
-                        .unwrap_or(Quat::IDENTITY);
-                    PoseKey {
-                        t: t as f64,
-                        pose: Pose {
-                            translation,
-                            rotation,
-                        },
-                    }
-                })
-                .collect::<Vec<_>>();
-            if let (Some(f), Some(l)) = (keys.first(), keys.last()) {
-                t_range = Some(t_range.map_or((f.t, l.t), |(a, b)| (a.min(f.t), b.max(l.t))));
-            }
-            scene.objects.push(SceneObject {
-                name: n["name"].as_str().unwrap_or("object").to_string(),
-                gaussians: cloud,
-                track: Track { keys },
-            });
-        } else {
-            for p in prims {
-                read_primitive(path, &v, &bufs, p, world, &mut scene.static_gaussians)?;
-            }
-        }
-    }
-    if let Some((a, b)) = t_range {
-        scene.time = TimeRange {
-            start: a,
-            end: b,
-            fps: scene.time.fps.max(30.0),
-        };
-    }
-    // Objects in file order (the stack visits children last-first).
-    scene.objects.reverse();
-    scene.cameras.reverse();
-    Ok(scene)
-}
-
-fn read_camera(v: &Value, ci: usize, world: Affine3A, name: &str) -> Option<Camera> {
-    let c = &v["cameras"][ci];
-    let cv = &c["extras"]["opencv"];
-    let p = &c["perspective"];
-    let yfov = p["yfov"].as_f64()?;
-    let (w, h, fx, fy, cx, cy) = if cv.is_object() {
-        (
-            cv["width"].as_u64()? as u32,
-            cv["height"].as_u64()? as u32,
-            cv["fx"].as_f64()?,
-            cv["fy"].as_f64()?,
-            cv["cx"].as_f64()?,
-            cv["cy"].as_f64()?,
-        )
-    } else {
-        let aspect = p["aspectRatio"].as_f64().unwrap_or(1.0);
-        let h = 1000u32;
-        let w = (h as f64 * aspect).round() as u32;
-        let f = h as f64 / (2.0 * (yfov / 2.0).tan());
-        (w, h, f, f, w as f64 / 2.0, h as f64 / 2.0)
-    };
-    let (_, r, t) = world.to_scale_rotation_translation();
-    let r = DQuat::from_xyzw(r.x as f64, r.y as f64, r.z as f64, r.w as f64);
-    let c2w = DMat3::from_quat(r) * DMat3::from_diagonal(DVec3::new(1.0, -1.0, -1.0));
-    Some(Camera {
-        width: w,
-        height: h,
-        fx,
-        fy,
-        cx,
-        cy,
-        centre: t.as_dvec3(),
-        world_to_cam: c2w.transpose(),
-        name: name.to_string(),
-    })
+    splatbridge_scene::formats::gltf_khr::read_gltf_splats(path).map_err(crate::scene_err)
 }

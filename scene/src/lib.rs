@@ -13,6 +13,7 @@ pub mod effects;
 pub mod effects_run;
 pub mod error;
 pub mod fixtures;
+pub mod formats;
 pub mod frame;
 pub mod gaussians;
 pub mod image_io;

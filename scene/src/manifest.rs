@@ -31,7 +31,7 @@ use crate::dynamic::{
     quat_from_wxyz, quat_wxyz, DynamicScene, PoseKey, SceneObject, TimeRange, Track,
 };
 use crate::error::{Result, SceneError};
-use crate::ply::{read_ply, write_ply, PlyFormat, ReadOptions};
+use crate::ply::{write_ply, PlyFormat, ReadOptions};
 use crate::trajectory::{Retime, TrajectoryRule};
 use crate::GaussianCloud;
 
@@ -105,18 +105,14 @@ fn bad(path: &Path, what: impl Into<String>) -> SceneError {
     SceneError::format(path, what)
 }
 
-/// Load anything accepted where a scene is expected: a 3DGS PLY (a static scene) or a
-/// `splatbridge-scene/1` manifest (by the `.json` extension). Warnings are returned for the
-/// caller to print; those from files a manifest refers to start with that file's name.
+/// Load anything accepted where a scene is expected: any splat file [`crate::formats`]
+/// recognises by content (3DGS or compressed PLY, `.splat`, SPZ, SOG, glTF/GLB) or a
+/// `splatbridge-scene/1` manifest. Warnings are returned for the caller to print; those from
+/// files a manifest refers to start with that file's name. [`crate::formats::load`] also says
+/// which format was read.
 pub fn load_scene(path: &Path, opts: &ReadOptions) -> Result<(DynamicScene, Vec<String>)> {
-    let is_json = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
-    if is_json {
-        return load_manifest(path, opts);
-    }
-    let (cloud, report) = read_ply(path, opts)?;
-    Ok((DynamicScene::from_static(cloud), report.warnings))
+    let (scene, info) = crate::formats::load(path, opts)?;
+    Ok((scene, info.warnings))
 }
 
 /// Parse and validate a manifest's text (no files are touched). `path` names it in errors.
@@ -295,9 +291,9 @@ pub fn load_manifest(path: &Path, opts: &ReadOptions) -> Result<(DynamicScene, V
 
     let mut warnings = Vec::new();
     let mut read = |field: &str, rel: &str| -> Result<GaussianCloud> {
-        let (cloud, report) =
-            read_ply(&resolve(rel), opts).map_err(|e| bad(path, format!("{field}: {e}")))?;
-        warnings.extend(report.warnings.into_iter().map(|w| format!("{rel}: {w}")));
+        let (cloud, info) = crate::formats::load_cloud(&resolve(rel), opts)
+            .map_err(|e| bad(path, format!("{field}: {e}")))?;
+        warnings.extend(info.warnings.into_iter().map(|w| format!("{rel}: {w}")));
         Ok(cloud)
     };
     let static_gaussians = match &m.static_gaussians {

@@ -12,6 +12,8 @@ use splatbridge_scene::camera_spec::{
     CameraRequest, CameraSource, CameraSpec, DEFAULT_PIXEL_BUDGET,
 };
 use splatbridge_scene::dynamic::DynamicScene;
+use splatbridge_scene::formats::LoadInfo;
+use splatbridge_scene::ply::ReadOptions;
 use splatbridge_scene::{Camera, GaussianCloud};
 
 /// A progress bar on a terminal, a hidden one otherwise (pipes, CI, tests).
@@ -28,7 +30,7 @@ pub fn progress(len: u64, what: &str) -> ProgressBar {
     pb
 }
 
-/// Load a scene (PLY or manifest), printing the reader's warnings to stderr.
+/// Load a scene (any splat format or a manifest), printing the reader's warnings to stderr.
 pub fn load(path: &Path, drop_invalid: bool) -> anyhow::Result<DynamicScene> {
     load_scene_warn(path, drop_invalid, &print_warning)
 }
@@ -36,6 +38,15 @@ pub fn load(path: &Path, drop_invalid: bool) -> anyhow::Result<DynamicScene> {
 /// Print a library warning as `warning: …` on stderr.
 pub fn print_warning(w: &str) {
     eprintln!("warning: {w}");
+}
+
+/// [`load`], also saying which format was read.
+pub fn load_with_info(path: &Path, drop_invalid: bool) -> anyhow::Result<(DynamicScene, LoadInfo)> {
+    let (scene, info) = splatbridge_scene::formats::load(path, &ReadOptions { drop_invalid })?;
+    for w in &info.warnings {
+        eprintln!("warning: {}: {w}", path.display());
+    }
+    Ok((scene, info))
 }
 
 /// Camera selection shared by `render`, `trace`, `hybrid`.

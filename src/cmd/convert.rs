@@ -1,6 +1,8 @@
-//! `splatbridge convert`: Gaussians to triangle meshes (GLB/glTF/OBJ/PLY) or native glTF
-//! splats (`KHR_gaussian_splatting`). The work is done by `splatbridge-convert`; this module
-//! parses the command line, loads the scene, shows progress and prints the summary.
+//! `splatbridge convert`: Gaussians to triangle meshes (GLB/glTF/OBJ/PLY), native glTF
+//! splats (`KHR_gaussian_splatting`) or single-cloud splat files (3DGS PLY, compressed PLY,
+//! `.splat`, `.spz`). The work is done by `splatbridge-convert` and
+//! `splatbridge_scene::formats`; this module parses the command line, loads the scene, shows
+//! progress and prints the summary.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -12,6 +14,8 @@ use splatbridge_convert::{
 };
 use splatbridge_scene::effects::EffectCounters;
 use splatbridge_scene::effects_run::{effects_of, not_simulated, weather_frames};
+use splatbridge_scene::formats::spz::SpzOptions;
+use splatbridge_scene::formats::{write_cloud, CloudFormat};
 
 use crate::cmd::common::{self, CameraArgs};
 
@@ -44,6 +48,27 @@ pub enum UpArg {
     NegY,
 }
 
+/// Output formats for `--format` (overriding the extension of -o).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum FormatArg {
+    /// Mesh PLY (or the 3DGS PLY with --splats).
+    Ply,
+    /// The standard 3DGS PLY (lossless splats).
+    SplatPly,
+    /// SuperSplat/PlayCanvas compressed PLY.
+    CompressedPly,
+    /// antimatter15 .splat.
+    Splat,
+    /// Niantic SPZ (--spz-version).
+    Spz,
+    /// Binary glTF (mesh, or KHR_gaussian_splatting with --splats).
+    Glb,
+    /// glTF JSON + .bin (mesh, or KHR_gaussian_splatting with --splats).
+    Gltf,
+    /// Wavefront OBJ mesh.
+    Obj,
+}
+
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum ColorArg {
     /// glTF's linear COLOR_0 (display colours sRGB-decoded).
@@ -54,7 +79,12 @@ pub enum ColorArg {
 
 #[derive(clap::Args)]
 #[command(
-    after_long_help = "Formats follow the extension of -o: .glb, .gltf (+ .bin), .obj (+ .mtl), .ply.\n\
+    after_long_help = "Formats follow the extension of -o, or --format:\n\
+  meshes: .glb, .gltf (+ .bin), .obj (+ .mtl), .ply;\n\
+  splats: .splat and .spz always; *.compressed.ply always (compressed PLY); .ply with --splats\n\
+  (3DGS PLY); .glb/.gltf with --splats (KHR_gaussian_splatting, dynamic objects as animated nodes).\n\
+Single-cloud splat files (.ply, .compressed.ply, .splat, .spz) hold one cloud: a dynamic scene\n\
+is composited at --time (default: the scene's start). .splat keeps SH degree 0 only.\n\
 OBJ cannot carry per-vertex alpha: every OBJ triangle is opaque, so soft splat edges and\n\
 translucent Gaussians are lost. OBJ and PLY have no node hierarchy: the up rotation and the\n\
 objects' poses (at the scene's start, or per frame with --frames) are baked into vertices.\n\
@@ -63,9 +93,24 @@ glTF COLOR_0 is linear: display colours are sRGB-decoded unless --color-encoding
 pub struct Args {
     /// Input scene: a 3DGS PLY, a splatbridge-scene/1 manifest, or a KHR_gaussian_splatting glTF.
     pub scene: PathBuf,
-    /// Output file: .glb, .gltf, .obj or .ply.
+    /// Output file: .glb, .gltf, .obj, .ply, .compressed.ply, .splat or .spz.
     #[arg(short, long = "out", alias = "output")]
     pub output: PathBuf,
+    /// Output format, instead of the one -o's extension implies. Mesh and glTF formats must
+    /// agree with the extension; splat formats may be written under any name.
+    #[arg(long, value_enum)]
+    pub format: Option<FormatArg>,
+    /// Time at which a dynamic scene is composited for single-cloud splat outputs (default:
+    /// the scene's start).
+    #[arg(long)]
+    pub time: Option<f64>,
+    /// SPZ version written (3: smallest-three rotations; 2: for older readers).
+    #[arg(long, default_value_t = splatbridge_scene::formats::spz::WRITE_VERSION, value_parser = clap::value_parser!(u32).range(2..=3))]
+    pub spz_version: u32,
+    /// Single-cloud splat outputs: keep only the first N Gaussians of the composite (small
+    /// test files cut from a real scene).
+    #[arg(long, value_name = "N")]
+    pub first: Option<usize>,
     /// Meshing profile (default: texture for glTF, rings for OBJ/PLY, which carry no texture).
     #[arg(long, value_enum)]
     pub profile: Option<ProfileArg>,
@@ -139,8 +184,112 @@ fn is_gltf(p: &std::path::Path) -> bool {
         .unwrap_or(false)
 }
 
+/// The single-cloud splat format the arguments ask for, if any; an error when --format names
+/// a mesh/glTF format that disagrees with the output's extension.
+fn cloud_format(args: &Args) -> anyhow::Result<Option<CloudFormat>> {
+    let spz = CloudFormat::Spz(SpzOptions {
+        version: args.spz_version,
+        ..SpzOptions::default()
+    });
+    let ext = args
+        .output
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    Ok(match args.format {
+        Some(FormatArg::SplatPly) => Some(CloudFormat::Ply),
+        Some(FormatArg::Ply) if args.splats => Some(CloudFormat::Ply),
+        Some(FormatArg::CompressedPly) => Some(CloudFormat::CompressedPly),
+        Some(FormatArg::Splat) => Some(CloudFormat::Splat),
+        Some(FormatArg::Spz) => Some(spz),
+        Some(f) => {
+            let want = match f {
+                FormatArg::Ply => "ply",
+                FormatArg::Glb => "glb",
+                FormatArg::Gltf => "gltf",
+                _ => "obj",
+            };
+            if ext != want || CloudFormat::for_path(&args.output, false).is_some() {
+                bail!(
+                    "{}: --format {want} writes a .{want} file; name the output so",
+                    args.output.display()
+                );
+            }
+            None
+        }
+        None => match CloudFormat::for_path(&args.output, args.splats) {
+            Some(CloudFormat::Spz(_)) => Some(spz),
+            other => other,
+        },
+    })
+}
+
+/// Write a single-cloud splat file: the scene composited at --time.
+fn write_cloud_output(
+    args: &Args,
+    scene: &splatbridge_scene::dynamic::DynamicScene,
+    format: CloudFormat,
+    t0: Instant,
+) -> anyhow::Result<()> {
+    for (set, name) in [
+        (args.surfels, "--surfels"),
+        (args.frames, "--frames"),
+        (args.bake_view.is_some(), "--bake-view"),
+        (args.max_triangles.is_some(), "--max-triangles"),
+    ] {
+        if set {
+            bail!(
+                "{}: {name} applies to meshes, not to a {} output",
+                args.output.display(),
+                format.name()
+            );
+        }
+    }
+    let t = args.time.unwrap_or(scene.time.start);
+    if !t.is_finite() {
+        bail!("--time {t} is not a finite time");
+    }
+    let mut cloud = scene.composite(t);
+    if let Some(n) = args.first {
+        cloud.retain_indices(|i| i < n);
+    }
+    let bytes = write_cloud(&args.output, &cloud, format)?;
+    let seconds = t0.elapsed().as_secs_f64();
+    if args.json {
+        let v = serde_json::json!({
+            "input": args.scene.display().to_string(),
+            "output": args.output.display().to_string(),
+            "format": format.name(),
+            "gaussians": cloud.len(),
+            "sh_degree": cloud.sh_degree,
+            "time": t,
+            "bytes": bytes,
+            "seconds": seconds,
+        });
+        println!("{}", serde_json::to_string_pretty(&v)?);
+    } else {
+        eprintln!(
+            "{} → {} ({}, {} Gaussians, SH degree {}{})",
+            args.scene.display(),
+            args.output.display(),
+            format.name(),
+            cloud.len(),
+            cloud.sh_degree,
+            if scene.objects.is_empty() {
+                String::new()
+            } else {
+                format!(", composited at t = {t}")
+            }
+        );
+        eprintln!("  bytes          {bytes:>12}  ({:.1} MB)", bytes as f64 / 1e6);
+        eprintln!("  time           {seconds:>12.3} s");
+    }
+    Ok(())
+}
+
 pub fn run(args: Args) -> anyhow::Result<()> {
     let t0 = Instant::now();
+    let cloud_out = cloud_format(&args)?;
     let pb = common::progress(3, "loading");
     let scene = if is_gltf(&args.scene) {
         splatbridge_convert::splats_gltf::read_file(&args.scene)?
@@ -148,6 +297,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         common::load(&args.scene, args.drop_invalid)?
     };
     pb.inc(1);
+    if args.first.is_some() && cloud_out.is_none() {
+        bail!("--first applies to single-cloud splat outputs (.ply with --splats, .splat, .spz, .compressed.ply)");
+    }
+    if let Some(format) = cloud_out {
+        pb.finish_and_clear();
+        return write_cloud_output(&args, &scene, format, t0);
+    }
     let mut opts = ConvertOptions {
         profile: match args.profile {
             Some(ProfileArg::Meshsplats) => Profile::MeshSplats,

@@ -1,4 +1,5 @@
-//! `splatbridge info`: describe a PLY or manifest: counts, SH degree, bounds (full and robust),
+//! `splatbridge info`: describe any scene file (every splat format, or a manifest): the format
+//! and version read and what its quantisation costs, counts, SH degree, bounds (full and robust),
 //! distributions of activated opacities and scales, counts of the unusual values real files
 //! hold, and for a manifest its objects, track spans and frames.
 //!
@@ -11,11 +12,14 @@ use serde_json::{json, Value};
 use splatbridge_scene::gaussians::sigmoid;
 use splatbridge_scene::GaussianCloud;
 
-use crate::cmd::common::load;
+use splatbridge_scene::formats::SplatFormat;
+
+use crate::cmd::common::load_with_info;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// A 3DGS PLY or a splatbridge-scene/1 manifest.
+    /// A splat file (3DGS or compressed PLY, .splat, .spz, .sog/meta.json, glTF/GLB) or a
+    /// splatbridge-scene/1 manifest; the format is recognised by content.
     pub file: PathBuf,
     /// Print one JSON object instead of text.
     #[arg(long)]
@@ -103,20 +107,23 @@ fn cloud_stats(c: &GaussianCloud) -> Value {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let scene = load(&args.file, args.drop_invalid)?;
-    let is_manifest = args
-        .file
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    let (scene, info) = load_with_info(&args.file, args.drop_invalid)?;
+    let is_manifest = info.format == SplatFormat::Manifest;
     let composite = scene.composite(scene.time.start);
     let mut out = cloud_stats(&composite);
     let obj = out.as_object_mut().expect("stats are an object");
     obj.insert("file".into(), json!(args.file.display().to_string()));
+    obj.insert("kind".into(), json!(info.format.name()));
     obj.insert(
-        "kind".into(),
-        json!(if is_manifest { "manifest" } else { "ply" }),
+        "format".into(),
+        json!({
+            "name": info.format.name(),
+            "description": info.format.to_string(),
+            "version": info.format.version(),
+            "quantisation": info.quantisation(),
+        }),
     );
-    if is_manifest {
+    if is_manifest || !scene.objects.is_empty() {
         let objects: Vec<Value> = scene
             .objects
             .iter()
@@ -187,6 +194,14 @@ fn print_text(v: &Value) {
         "file        {} ({})",
         v["file"].as_str().unwrap_or("?"),
         v["kind"].as_str().unwrap_or("?")
+    );
+    println!(
+        "format      {}",
+        v["format"]["description"].as_str().unwrap_or("?")
+    );
+    println!(
+        "quantised   {}",
+        v["format"]["quantisation"].as_str().unwrap_or("?")
     );
     println!("gaussians   {}", v["gaussians"]);
     println!("SH degree   {}", v["sh_degree"]);

@@ -169,7 +169,7 @@ pub fn read_ply(path: &Path, opts: &ReadOptions) -> Result<(GaussianCloud, ReadR
 /// Apply the invalid-Gaussian policy. `suspect` is the decoder's conservative flag: when it is
 /// false no Gaussian can be invalid and the per-Gaussian pass is skipped (debug builds run it
 /// anyway and check that nothing was missed).
-fn validate(
+pub(crate) fn validate(
     cloud: &mut GaussianCloud,
     suspect: bool,
     path: &Path,

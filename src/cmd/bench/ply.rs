@@ -1,4 +1,6 @@
-//! `splatbridge bench ply`: PLY load throughput and peak memory.
+//! `splatbridge bench ply`: load throughput and peak memory of any splat file (every format
+//! [`splatbridge_scene::formats`] reads, detected by content; the name is historical), and
+//! with `--encode` the time to encode the loaded cloud as SPZ, `.splat` or compressed PLY.
 //!
 //! One untimed load warms the page cache, then `--repeat` timed loads; reported: the median
 //! wall time, file MB/s at the median (MB = 10⁶ bytes), and the process's peak resident memory
@@ -10,13 +12,17 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context;
-use splatbridge_scene::ply::{read_ply, ReadOptions};
+use splatbridge_scene::formats::{compressed_ply, load_cloud, splat, spz};
+use splatbridge_scene::ply::ReadOptions;
 use splatbridge_scene::GaussianCloud;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// A 3DGS PLY file.
+    /// A splat file in any supported format (3DGS or compressed PLY, .splat, .spz, .sog, glTF).
     pub file: PathBuf,
+    /// Also time encoding the loaded cloud (in memory) in this format.
+    #[arg(long, value_enum)]
+    pub encode: Option<EncodeArg>,
     /// Timed loads (after one warm-up load).
     #[arg(long, alias = "repeats", default_value_t = 10)]
     pub repeat: usize,
@@ -26,6 +32,24 @@ pub struct Args {
     /// Print one JSON object instead of text.
     #[arg(long)]
     pub json: bool,
+}
+
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub enum EncodeArg {
+    /// SPZ v3, gzip level 6.
+    Spz,
+    /// antimatter15 .splat.
+    Splat,
+    /// Compressed PLY.
+    CompressedPly,
+}
+
+fn encode(c: &GaussianCloud, e: EncodeArg) -> anyhow::Result<usize> {
+    Ok(match e {
+        EncodeArg::Spz => spz::encode_spz(c, &spz::SpzOptions::default())?.len(),
+        EncodeArg::Splat => splat::encode_splat(c)?.len(),
+        EncodeArg::CompressedPly => compressed_ply::encode_compressed_ply(c)?.len(),
+    })
 }
 
 /// A `kB` field of `/proc/self/status`, in bytes (None off Linux).
@@ -62,13 +86,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .with_context(|| args.file.display().to_string())?
         .len();
     let rss_before = proc_status_bytes("VmRSS:");
-    let (cloud, _) = read_ply(&args.file, &opts)?;
+    let (cloud, info) = load_cloud(&args.file, &opts)?;
     let (n, degree, data) = (cloud.len(), cloud.sh_degree, cloud_bytes(&cloud));
     drop(cloud);
     let mut times = Vec::with_capacity(args.repeat.max(1));
     for _ in 0..args.repeat.max(1) {
         let t = Instant::now();
-        let loaded = read_ply(&args.file, &opts)?;
+        let loaded = load_cloud(&args.file, &opts)?;
         times.push(t.elapsed().as_secs_f64());
         drop(loaded);
     }
@@ -81,9 +105,26 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         _ => None,
     };
     let ratio = above.map(|a| a as f64 / data.max(1) as f64);
+    // Encoding after the load measurements, so its buffers do not count in the load's peak.
+    let encoded = match args.encode {
+        Some(e) => {
+            let (cloud, _) = load_cloud(&args.file, &opts)?;
+            let mut t_enc = Vec::with_capacity(args.repeat.max(1));
+            let mut bytes = 0;
+            for _ in 0..args.repeat.max(1) {
+                let t = Instant::now();
+                bytes = encode(&cloud, e)?;
+                t_enc.push(t.elapsed().as_secs_f64());
+            }
+            t_enc.sort_by(f64::total_cmp);
+            Some((format!("{e:?}").to_lowercase(), t_enc[t_enc.len() / 2], bytes))
+        }
+        None => None,
+    };
     if args.json {
         let v = serde_json::json!({
             "file": args.file.display().to_string(),
+            "format": info.format.to_string(),
             "gaussians": n,
             "sh_degree": degree,
             "file_bytes": file_bytes,
@@ -97,6 +138,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "peak_rss_bytes": peak,
             "peak_above_start_bytes": above,
             "peak_over_cloud": ratio,
+            "encode": encoded.as_ref().map(|(f, s, b)| serde_json::json!({"format": f, "median_s": s, "bytes": b})),
         });
         println!("{v}");
         return Ok(());
@@ -107,6 +149,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.file.display(),
         mib(file_bytes)
     );
+    println!("format        {}", info.format);
     println!(
         "gaussians     {n} (SH degree {degree}), cloud arrays {:.1} MiB",
         mib(data)
@@ -126,6 +169,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             mib(p.saturating_sub(b))
         ),
         _ => println!("peak memory   unavailable (no /proc/self/status)"),
+    }
+    if let Some((f, s, b)) = encoded {
+        println!("encode {f:<6} median {:.2} ms, {b} bytes", s * 1e3);
     }
     Ok(())
 }

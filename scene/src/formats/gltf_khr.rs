@@ -1,0 +1,403 @@
+//! Reader of glTF/GLB files with `KHR_gaussian_splatting` (Khronos, ratified), including the
+//! SPZ-compressed variant ([`spz`]).
+//!
+//! Every primitive carrying the extension becomes Gaussians. Attributes: `POSITION`,
+//! `KHR_gaussian_splatting:ROTATION` (x, y, z, w), `…:SCALE` (linear), `…:OPACITY` (after the
+//! sigmoid; without it, `COLOR_0`'s alpha), `…:SH_DEGREE_l_COEF_n`. Nodes without animation
+//! are baked into one static cloud with their world transforms (uniform scale only; SH are
+//! rotated with the Gaussians); animated nodes (LINEAR translation/rotation)
+//! become objects of a dynamic scene with tracks; a `splatbridge_root` node written by
+//! `splatbridge convert --splats` is undone, so a round trip returns the input frame.
+//! Other files are in glTF's frame (+y up, +z front, +x left: LUF), which is a half turn
+//! about z from the 3DGS PLY's RDF; the reader turns them back (positions, rotations, SH,
+//! object tracks and cameras), the same relation splat-transform's GLB writer and the SPZ
+//! variant's LUF rule use, so a PLY converted by either lines up with the PLY.
+//! Camera nodes become cameras (with `extras.opencv` intrinsics when present).
+//!
+//! Hostile input: the node graph must be a tree (each node visited once), accessors are
+//! checked against their buffer views before allocation, SPZ buffer views against their
+//! buffers, and accessor counts against the SPZ stream's count.
+
+mod document;
+pub mod spz;
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use glam::{Affine3A, DMat3, DQuat, DVec3, Quat, Vec3};
+use serde_json::Value;
+
+use crate::camera::Camera;
+use crate::dynamic::{DynamicScene, Pose, PoseKey, SceneObject, TimeRange, Track};
+use crate::error::{Result, SceneError};
+use crate::gaussians::{logit, sh_coeffs, GaussianCloud};
+use crate::sh_rotate::ShRotation;
+use document::Document;
+
+/// The extension's name (and its attribute prefix).
+pub const EXT: &str = "KHR_gaussian_splatting";
+
+/// Key times, translations and rotations of one animated node.
+type NodeAnimation = (Vec<f32>, Option<Vec<f32>>, Option<Vec<f32>>);
+
+/// Read a `KHR_gaussian_splatting` glTF/GLB as a scene.
+pub fn read_gltf_splats(path: &Path) -> Result<DynamicScene> {
+    let bad = |what: String| SceneError::format(path, what);
+    let doc = document::load(path)?;
+    let v = &doc.json;
+    let nodes: &[Value] = v["nodes"].as_array().map_or(&[], |a| a.as_slice());
+    let mut animated: HashMap<usize, NodeAnimation> = HashMap::new();
+    for a in v["animations"].as_array().into_iter().flatten() {
+        for ch in a["channels"].as_array().into_iter().flatten() {
+            let node = ch["target"]["node"]
+                .as_u64()
+                .ok_or_else(|| bad("animation channel without node".into()))?
+                as usize;
+            let s = &a["samplers"][ch["sampler"].as_u64().unwrap_or(u64::MAX) as usize];
+            let acc = |k: &str| {
+                s[k].as_u64()
+                    .ok_or_else(|| bad(format!("animation sampler without {k}")))
+            };
+            let times = doc.read_accessor(path, acc("input")?, 1)?;
+            let path_name = ch["target"]["path"].as_str().unwrap_or("");
+            let comps = if path_name == "rotation" { 4 } else { 3 };
+            let out = doc.read_accessor(path, acc("output")?, comps)?;
+            if out.len() != times.len() * comps {
+                return Err(bad(format!(
+                    "animation of node {node}: {} key times but {} {path_name} values",
+                    times.len(),
+                    out.len() / comps
+                )));
+            }
+            let e = animated.entry(node).or_insert((times, None, None));
+            match path_name {
+                "translation" => e.1 = Some(out),
+                "rotation" => e.2 = Some(out),
+                _ => {}
+            }
+        }
+    }
+    let mut scene = DynamicScene::from_static(GaussianCloud::new(0));
+    let mut t_range: Option<(f64, f64)> = None;
+    let roots: Vec<usize> = v["scenes"][v["scene"].as_u64().unwrap_or(0) as usize]["nodes"]
+        .as_array()
+        .map(|a| {
+            a.iter()
+                .map(|x| x.as_u64().map_or(usize::MAX, |x| x as usize))
+                .collect()
+        })
+        .unwrap_or_else(|| (0..nodes.len()).collect());
+    let ours = roots.iter().any(|&r| {
+        nodes
+            .get(r)
+            .is_some_and(|n| n["name"] == "splatbridge_root" && n["extras"]["inputUp"].is_string())
+    });
+    // glTF's LUF to the PLY's RDF: a half turn about z.
+    let to_ply = if ours {
+        Quat::IDENTITY
+    } else {
+        Quat::from_rotation_z(std::f32::consts::PI)
+    };
+    let mut stack: Vec<(usize, Affine3A)> = roots
+        .into_iter()
+        .map(|r| (r, Affine3A::from_quat(to_ply)))
+        .collect();
+    let mut visited = vec![false; nodes.len()];
+    while let Some((ni, parent)) = stack.pop() {
+        let n = nodes
+            .get(ni)
+            .ok_or_else(|| bad(format!("node {ni} does not exist")))?;
+        if std::mem::replace(&mut visited[ni], true) {
+            return Err(bad(format!(
+                "node {ni} is reached twice; the node hierarchy must be a tree"
+            )));
+        }
+        let ours = n["name"] == "splatbridge_root" && n["extras"]["inputUp"].is_string();
+        let local = if ours {
+            Affine3A::IDENTITY
+        } else {
+            node_local(n)
+        };
+        let world = parent * local;
+        for c in n["children"].as_array().into_iter().flatten() {
+            stack.push((c.as_u64().map_or(usize::MAX, |c| c as usize), world));
+        }
+        if let Some(ci) = n["camera"].as_u64() {
+            if let Some(cam) = read_camera(
+                v,
+                ci as usize,
+                world,
+                n["name"].as_str().unwrap_or("camera"),
+            ) {
+                scene.cameras.push(cam);
+            }
+        }
+        let Some(mi) = n["mesh"].as_u64() else {
+            continue;
+        };
+        let prims: Vec<&Value> = v["meshes"][mi as usize]["primitives"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .filter(|p| p["extensions"][EXT].is_object())
+            .collect();
+        if prims.is_empty() {
+            continue;
+        }
+        if let Some((times, tr, rot)) = animated.get(&ni) {
+            let mut cloud = GaussianCloud::new(0);
+            for p in prims {
+                read_primitive(path, &doc, p, Affine3A::IDENTITY, &mut cloud)?;
+            }
+            let keys = times
+                .iter()
+                .enumerate()
+                .map(|(i, &t)| PoseKey {
+                    t: t as f64,
+                    pose: Pose {
+                        translation: to_ply
+                            * tr.as_ref()
+                                .map_or(Vec3::ZERO, |x| Vec3::from_slice(&x[3 * i..3 * i + 3])),
+                        rotation: to_ply
+                            * rot.as_ref().map_or(Quat::IDENTITY, |x| {
+                                Quat::from_slice(&x[4 * i..4 * i + 4]).normalize()
+                            }),
+                    },
+                })
+                .collect::<Vec<_>>();
+            if let (Some(f), Some(l)) = (keys.first(), keys.last()) {
+                t_range = Some(t_range.map_or((f.t, l.t), |(a, b)| (a.min(f.t), b.max(l.t))));
+            }
+            scene.objects.push(SceneObject {
+                name: n["name"].as_str().unwrap_or("object").to_string(),
+                gaussians: cloud,
+                track: Track { keys },
+            });
+        } else {
+            for p in prims {
+                read_primitive(path, &doc, p, world, &mut scene.static_gaussians)?;
+            }
+        }
+    }
+    if let Some((a, b)) = t_range {
+        scene.time = TimeRange {
+            start: a,
+            end: b,
+            fps: scene.time.fps.max(30.0),
+        };
+    }
+    // Objects in file order (the stack visits children last-first).
+    scene.objects.reverse();
+    scene.cameras.reverse();
+    Ok(scene)
+}
+
+/// Whether any splat primitive of the file's JSON uses the SPZ variant (for `info`).
+pub fn uses_spz(json: &Value) -> bool {
+    json["extensionsUsed"].as_array().is_some_and(|a| {
+        a.iter()
+            .any(|e| spz::SPZ_EXTENSIONS.iter().any(|n| e.as_str() == Some(n)))
+    })
+}
+
+fn node_local(n: &Value) -> Affine3A {
+    let arr = |k: &str, d: &[f32]| -> Vec<f32> {
+        n[k].as_array()
+            .filter(|a| a.len() == d.len())
+            .map(|a| a.iter().map(|x| x.as_f64().unwrap_or(0.0) as f32).collect())
+            .unwrap_or_else(|| d.to_vec())
+    };
+    if let Some(m) = n["matrix"].as_array() {
+        let m: Vec<f32> = m.iter().map(|x| x.as_f64().unwrap_or(0.0) as f32).collect();
+        if m.len() == 16 {
+            return Affine3A::from_mat4(glam::Mat4::from_cols_slice(&m));
+        }
+    }
+    let t = arr("translation", &[0.0; 3]);
+    let r = arr("rotation", &[0.0, 0.0, 0.0, 1.0]);
+    let s = arr("scale", &[1.0; 3]);
+    Affine3A::from_scale_rotation_translation(
+        Vec3::from_slice(&s),
+        Quat::from_slice(&r).normalize(),
+        Vec3::from_slice(&t),
+    )
+}
+
+/// The SPZ buffer view of a compressed primitive, if it is one.
+fn spz_view(prim: &Value) -> Option<u64> {
+    let nested = &prim["extensions"][EXT]["extensions"];
+    spz::SPZ_EXTENSIONS
+        .iter()
+        .find_map(|name| nested[*name]["bufferView"].as_u64())
+}
+
+/// The Gaussians of one primitive in its mesh's local frame.
+fn primitive_cloud(path: &Path, doc: &Document, prim: &Value) -> Result<GaussianCloud> {
+    let bad = |what: String| SceneError::format(path, what);
+    let attrs = &prim["attributes"];
+    if let Some(view) = spz_view(prim) {
+        let bytes = doc.view_bytes(path, view)?;
+        let cloud = spz::decode_khr_spz(bytes, path)?;
+        // The extension requires every accessor's count to match the stream's.
+        for (name, a) in attrs.as_object().into_iter().flatten() {
+            if let Some(a) = a.as_u64() {
+                let n = doc.accessor_count(path, a)?;
+                if n != cloud.len() as u64 {
+                    return Err(bad(format!(
+                        "accessor {a} ({name}) has count {n}, the SPZ stream holds {} Gaussians",
+                        cloud.len()
+                    )));
+                }
+            }
+        }
+        return Ok(cloud);
+    }
+    let get = |name: &str, comps: usize| -> Result<Option<Vec<f32>>> {
+        attrs[name]
+            .as_u64()
+            .map(|a| doc.read_accessor(path, a, comps))
+            .transpose()
+    };
+    let need = |name: &str, comps: usize| -> Result<Vec<f32>> {
+        get(name, comps)?.ok_or_else(|| bad(format!("splat primitive lacks {name}")))
+    };
+    let pos = need("POSITION", 3)?;
+    let n = pos.len() / 3;
+    let rot = need(&format!("{EXT}:ROTATION"), 4)?;
+    let scale = need(&format!("{EXT}:SCALE"), 3)?;
+    let opac = match get(&format!("{EXT}:OPACITY"), 1)? {
+        Some(o) => o,
+        None => need("COLOR_0", 4)?.chunks(4).map(|c| c[3]).collect(),
+    };
+    let mut degree = 0u8;
+    while degree < 3 && attrs[format!("{EXT}:SH_DEGREE_{}_COEF_0", degree + 1)].is_u64() {
+        degree += 1;
+    }
+    let mut sh_cols = Vec::new();
+    for l in 0..=degree as usize {
+        for c in 0..2 * l + 1 {
+            sh_cols.push(need(&format!("{EXT}:SH_DEGREE_{l}_COEF_{c}"), 3)?);
+        }
+    }
+    if rot.len() != 4 * n
+        || scale.len() != 3 * n
+        || opac.len() != n
+        || sh_cols.iter().any(|c| c.len() != 3 * n)
+    {
+        return Err(bad(format!(
+            "splat attributes have different counts (POSITION has {n})"
+        )));
+    }
+    let k = sh_coeffs(degree);
+    let mut part = GaussianCloud::with_capacity(degree, n);
+    let mut coeffs = vec![Vec3::ZERO; k];
+    for i in 0..n {
+        for (j, c) in sh_cols.iter().enumerate() {
+            coeffs[j] = Vec3::from_slice(&c[3 * i..3 * i + 3]);
+        }
+        let sc = Vec3::from_slice(&scale[3 * i..3 * i + 3]);
+        part.push(
+            Vec3::from_slice(&pos[3 * i..3 * i + 3]),
+            Vec3::new(sc.x.ln(), sc.y.ln(), sc.z.ln()),
+            Quat::from_slice(&rot[4 * i..4 * i + 4]),
+            logit(opac[i]),
+            &coeffs,
+        );
+    }
+    Ok(part)
+}
+
+/// Read the Gaussians of one splat primitive into `cloud`, transformed by `xf`.
+fn read_primitive(
+    path: &Path,
+    doc: &Document,
+    prim: &Value,
+    xf: Affine3A,
+    cloud: &mut GaussianCloud,
+) -> Result<()> {
+    let mut part = primitive_cloud(path, doc, prim)?;
+    let (s, r, _) = xf.to_scale_rotation_translation();
+    if (s.x - s.y).abs() > 1e-4 * s.x.abs() || (s.x - s.z).abs() > 1e-4 * s.x.abs() {
+        return Err(SceneError::format(
+            path,
+            format!("node scale {s} is not uniform; splats cannot be baked through it"),
+        ));
+    }
+    if xf != Affine3A::IDENTITY {
+        let ls = s.x.ln();
+        let k = part.coeffs();
+        for i in 0..part.len() {
+            part.means[i] = xf.transform_point3(part.means[i]);
+            part.log_scales[i] += Vec3::splat(ls);
+            part.rotations[i] = r * part.rotations[i];
+        }
+        if k > 1 && r != Quat::IDENTITY {
+            let (degree, rot) = (part.sh_degree, ShRotation::from_quat(r));
+            for g in part.sh.chunks_mut(k) {
+                rot.apply(degree, g);
+            }
+        }
+    }
+    if cloud.is_empty() && cloud.sh_degree < part.sh_degree {
+        cloud.sh_degree = part.sh_degree;
+    }
+    if part.sh_degree != cloud.sh_degree {
+        // Bring the part to the cloud's degree (truncate, or pad with zeros).
+        let mut p = GaussianCloud::with_capacity(cloud.sh_degree, part.len());
+        let k = cloud.coeffs();
+        let mut coeffs = vec![Vec3::ZERO; k];
+        for i in 0..part.len() {
+            let src = part.sh_of(i);
+            for (j, c) in coeffs.iter_mut().enumerate() {
+                *c = src.get(j).copied().unwrap_or(Vec3::ZERO);
+            }
+            p.push(
+                part.means[i],
+                part.log_scales[i],
+                part.rotations[i],
+                part.opacity_logits[i],
+                &coeffs,
+            );
+        }
+        part = p;
+    }
+    cloud.extend_from(&part, None);
+    Ok(())
+}
+
+fn read_camera(v: &Value, ci: usize, world: Affine3A, name: &str) -> Option<Camera> {
+    let c = &v["cameras"][ci];
+    let cv = &c["extras"]["opencv"];
+    let p = &c["perspective"];
+    let yfov = p["yfov"].as_f64()?;
+    let (w, h, fx, fy, cx, cy) = if cv.is_object() {
+        (
+            u32::try_from(cv["width"].as_u64()?).ok()?,
+            u32::try_from(cv["height"].as_u64()?).ok()?,
+            cv["fx"].as_f64()?,
+            cv["fy"].as_f64()?,
+            cv["cx"].as_f64()?,
+            cv["cy"].as_f64()?,
+        )
+    } else {
+        let aspect = p["aspectRatio"].as_f64().unwrap_or(1.0);
+        let h = 1000u32;
+        let w = (h as f64 * aspect).round().clamp(1.0, 1e5) as u32;
+        let f = h as f64 / (2.0 * (yfov / 2.0).tan());
+        (w, h, f, f, w as f64 / 2.0, h as f64 / 2.0)
+    };
+    let (_, r, t) = world.to_scale_rotation_translation();
+    let r = DQuat::from_xyzw(r.x as f64, r.y as f64, r.z as f64, r.w as f64);
+    let c2w = DMat3::from_quat(r) * DMat3::from_diagonal(DVec3::new(1.0, -1.0, -1.0));
+    Some(Camera {
+        width: w,
+        height: h,
+        fx,
+        fy,
+        cx,
+        cy,
+        centre: t.as_dvec3(),
+        world_to_cam: c2w.transpose(),
+        name: name.to_string(),
+    })
+}
