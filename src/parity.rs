@@ -67,7 +67,7 @@ pub fn render_native(
     cam: &Camera,
     opts: &NativeOptions,
 ) -> anyhow::Result<Rendered> {
-    let mut r = Renderer::native(opts.clone())?;
+    let mut r = Renderer::native(*opts)?;
     let t0 = Instant::now();
     let (frame, _) = r.render_cloud(cloud, cam)?;
     Ok(Rendered {
@@ -88,7 +88,7 @@ pub fn render_hybrid(
         ges_ply: false,
         detect_ges: false,
     };
-    let mut r = Renderer::hybrid(opts.clone(), split)?;
+    let mut r = Renderer::hybrid(*opts, split)?;
     let t0 = Instant::now();
     let (frame, _) = r.render_cloud(cloud, cam)?;
     Ok(Rendered {

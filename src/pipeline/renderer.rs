@@ -49,7 +49,7 @@ impl SurfelSplit {
                 p.max_flatness
             );
         }
-        Ok(p.clone())
+        Ok(*p)
     }
 
     /// Split `cloud` into surfels and residual Gaussians; the string says how (for reports).

@@ -506,6 +506,7 @@ fn zbuffer(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::ges::surfel_project::{ceil_in, clamp_box, floor_in};
     use glam::DVec3;
     use splatbridge_scene::rng::Rng;
 

@@ -97,20 +97,20 @@ pub fn screen_box(view: &ViewParams, c: DVec3, u: DVec3, w: DVec3) -> [f64; 4] {
 
 /// `v` clamped to `[−1, m]` (`v` finite).
 #[inline(always)]
-fn clamp_box(v: f64, m: i64) -> f64 {
+pub(crate) fn clamp_box(v: f64, m: i64) -> f64 {
     v.max(-1.0).min(m as f64)
 }
 
 /// `floor(v)` for finite `v` within `i64`'s range (the truncation, one lower below zero).
 #[inline(always)]
-fn floor_in(v: f64) -> i64 {
+pub(crate) fn floor_in(v: f64) -> i64 {
     let i = v as i64;
     i - ((i as f64) > v) as i64
 }
 
 /// `ceil(v)` for finite `v` within `i64`'s range.
 #[inline(always)]
-fn ceil_in(v: f64) -> i64 {
+pub(crate) fn ceil_in(v: f64) -> i64 {
     let i = v as i64;
     i + ((i as f64) < v) as i64
 }
