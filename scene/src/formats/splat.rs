@@ -87,7 +87,10 @@ pub fn decode_splat(bytes: &[u8], path: &Path) -> Result<GaussianCloud> {
 pub fn read_splat(path: &Path) -> Result<GaussianCloud> {
     let bytes = read_file_capped(path, MAX_FILE)?;
     if bytes.is_empty() {
-        return Err(SceneError::format(path, ".splat file is empty (no records)"));
+        return Err(SceneError::format(
+            path,
+            ".splat file is empty (no records)",
+        ));
     }
     decode_splat(&bytes, path)
 }
