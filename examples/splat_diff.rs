@@ -13,7 +13,7 @@
 //! An example rather than a CLI subcommand: it is a test instrument of the comparison script,
 //! not something users run, and it needs nothing but the library's loader.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use splatbridge_scene::formats::load_cloud;
@@ -87,7 +87,7 @@ fn steps(format: &str) -> Option<Steps> {
     })
 }
 
-fn load(p: &PathBuf) -> Result<GaussianCloud, String> {
+fn load(p: &Path) -> Result<GaussianCloud, String> {
     load_cloud(p, &ReadOptions::default())
         .map(|(c, _)| c)
         .map_err(|e| e.to_string())
@@ -105,7 +105,10 @@ fn main() -> ExitCode {
         eprintln!("error: FORMAT must be spz, compressed-ply, sog or splat");
         return ExitCode::from(2);
     };
-    let (ca, mut cb) = match (load(&PathBuf::from(a)), load(&PathBuf::from(b))) {
+    let (ca, mut cb) = match (
+        load(&PathBuf::from(a.as_str())),
+        load(&PathBuf::from(b.as_str())),
+    ) {
         (Ok(x), Ok(y)) => (x, y),
         (Err(e), _) | (_, Err(e)) => {
             eprintln!("error: {e}");
