@@ -3,14 +3,17 @@
 //! `@playcanvas/splat-transform`'s: both decode one file to a float 3DGS PLY, and this program
 //! reports the largest difference per attribute and whether it stays within one step.
 //!
-//! `cargo run --release --example splat_diff -- FORMAT A B`, FORMAT one of `spz`,
+//! `cargo run --release --example splat_diff -- FORMAT A B [--flip-yz]`, FORMAT one of `spz`,
 //! `compressed-ply`, `sog`, `splat`; A and B in any format the loader reads (usually PLYs).
+//! `--flip-yz` turns B half a turn about x first: splat-transform reads and writes SPZ data
+//! without nianticlabs/spz's RUB ↔ RDF conversion, which we apply (so `fourth_st.spz` lines up
+//! with `fourth_st.ply`); its SPZ decodings differ from ours by exactly that turn.
 //! Exit status 0 when every attribute is within its step, 1 otherwise, 2 on a load error.
 //!
 //! An example rather than a CLI subcommand: it is a test instrument of the comparison script,
 //! not something users run, and it needs nothing but the library's loader.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use splatbridge_scene::formats::load_cloud;
@@ -84,7 +87,7 @@ fn steps(format: &str) -> Option<Steps> {
     })
 }
 
-fn load(p: &PathBuf) -> Result<GaussianCloud, String> {
+fn load(p: &Path) -> Result<GaussianCloud, String> {
     load_cloud(p, &ReadOptions::default())
         .map(|(c, _)| c)
         .map_err(|e| e.to_string())
@@ -92,21 +95,29 @@ fn load(p: &PathBuf) -> Result<GaussianCloud, String> {
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
+    let flip = args.iter().any(|a| a == "--flip-yz");
+    let args: Vec<&String> = args.iter().filter(|a| *a != "--flip-yz").collect();
     let [format, a, b] = args.as_slice() else {
-        eprintln!("usage: splat_diff FORMAT A B");
+        eprintln!("usage: splat_diff FORMAT A B [--flip-yz]");
         return ExitCode::from(2);
     };
-    let Some(st) = steps(format) else {
+    let Some(st) = steps(format.as_str()) else {
         eprintln!("error: FORMAT must be spz, compressed-ply, sog or splat");
         return ExitCode::from(2);
     };
-    let (ca, cb) = match (load(&PathBuf::from(a)), load(&PathBuf::from(b))) {
+    let (ca, mut cb) = match (
+        load(&PathBuf::from(a.as_str())),
+        load(&PathBuf::from(b.as_str())),
+    ) {
         (Ok(x), Ok(y)) => (x, y),
         (Err(e), _) | (_, Err(e)) => {
             eprintln!("error: {e}");
             return ExitCode::from(2);
         }
     };
+    if flip {
+        splatbridge_scene::formats::spz::flip_yz(&mut cb);
+    }
     if ca.len() != cb.len() {
         eprintln!("counts differ: {} vs {}", ca.len(), cb.len());
         return ExitCode::from(1);
@@ -126,19 +137,33 @@ fn main() -> ExitCode {
     };
     for i in 0..ca.len() {
         up(&mut m[0], (ca.means[i] - cb.means[i]).abs().max_element());
-        up(&mut m[1], (ca.log_scales[i] - cb.log_scales[i]).abs().max_element());
+        up(
+            &mut m[1],
+            (ca.log_scales[i] - cb.log_scales[i]).abs().max_element(),
+        );
         let (qa, mut qb) = (ca.unit_rotation(i), cb.unit_rotation(i));
         if qa.dot(qb) < 0.0 {
             qb = -qb;
         }
-        up(&mut m[2], (glam::Vec4::from(qa) - glam::Vec4::from(qb)).abs().max_element());
+        up(
+            &mut m[2],
+            (glam::Vec4::from(qa) - glam::Vec4::from(qb))
+                .abs()
+                .max_element(),
+        );
         up(
             &mut m[3],
             (sigmoid(ca.opacity_logits[i]) - sigmoid(cb.opacity_logits[i])).abs(),
         );
-        up(&mut m[4], (ca.sh[i * ka] - cb.sh[i * kb]).abs().max_element() * SH_C0);
+        up(
+            &mut m[4],
+            (ca.sh[i * ka] - cb.sh[i * kb]).abs().max_element() * SH_C0,
+        );
         for c in 1..k {
-            up(&mut m[5], (ca.sh[i * ka + c] - cb.sh[i * kb + c]).abs().max_element());
+            up(
+                &mut m[5],
+                (ca.sh[i * ka + c] - cb.sh[i * kb + c]).abs().max_element(),
+            );
         }
     }
     let limits = [
@@ -149,8 +174,20 @@ fn main() -> ExitCode {
         st.colour,
         st.sh,
     ];
-    let names = ["position", "log-scale", "rotation", "opacity", "colour", "SH rest"];
-    println!("{format}: {} Gaussians, SH degrees {} / {}", ca.len(), ca.sh_degree, cb.sh_degree);
+    let names = [
+        "position",
+        "log-scale",
+        "rotation",
+        "opacity",
+        "colour",
+        "SH rest",
+    ];
+    println!(
+        "{format}: {} Gaussians, SH degrees {} / {}",
+        ca.len(),
+        ca.sh_degree,
+        cb.sh_degree
+    );
     let mut ok = true;
     for j in 0..6 {
         if j == 5 && k <= 1 {

@@ -7,7 +7,6 @@
 mod formats_common;
 
 use std::io::Write;
-use std::path::Path;
 
 use flate2::write::GzEncoder;
 use flate2::Compression;
@@ -47,8 +46,15 @@ fn splat_record(pos: [f32; 3], scale: [f32; 3], rot: [u8; 4]) -> Vec<u8> {
 /// text and data.
 fn cply() -> (String, Vec<u8>) {
     let bytes = encode_compressed_ply(&random_cloud(3, 300, 1, 1.0)).unwrap();
-    let end = bytes.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
-    (String::from_utf8(bytes[..end].to_vec()).unwrap(), bytes[end..].to_vec())
+    let end = bytes
+        .windows(11)
+        .position(|w| w == b"end_header\n")
+        .unwrap()
+        + 11;
+    (
+        String::from_utf8(bytes[..end].to_vec()).unwrap(),
+        bytes[end..].to_vec(),
+    )
 }
 
 fn cat(h: &str, d: &[u8]) -> Vec<u8> {
@@ -60,12 +66,17 @@ fn cat(h: &str, d: &[u8]) -> Vec<u8> {
 /// (file name, content, what the error must mention).
 fn cases() -> Vec<(String, Vec<u8>, &'static str)> {
     let mut v: Vec<(String, Vec<u8>, &'static str)> = Vec::new();
-    let mut add = |name: &str, bytes: Vec<u8>, want: &'static str| v.push((name.to_string(), bytes, want));
+    let mut add =
+        |name: &str, bytes: Vec<u8>, want: &'static str| v.push((name.to_string(), bytes, want));
 
     // --- SPZ ---
     let good = encode_spz(&random_cloud(1, 200, 1, 1.0), &SpzOptions::default()).unwrap();
     let raw = encode_spz_raw(&random_cloud(1, 200, 1, 1.0), &SpzOptions::default()).unwrap();
-    add("spz_truncated_gzip.spz", good[..good.len() / 2].to_vec(), "SPZ");
+    add(
+        "spz_truncated_gzip.spz",
+        good[..good.len() / 2].to_vec(),
+        "SPZ",
+    );
     let mut bad_magic = raw.clone();
     bad_magic[0] = b'X';
     add("spz_bad_magic.spz", gzip(&bad_magic), "not SPZ");
@@ -82,7 +93,11 @@ fn cases() -> Vec<(String, Vec<u8>, &'static str)> {
     fewer[8..12].copy_from_slice(&100u32.to_le_bytes());
     add("spz_count_too_small.spz", gzip(&fewer), "more data");
     // Declared size far beyond what a 40-byte stream can inflate to.
-    add("spz_bomb_declared.spz", gzip(&spz_header(3, u32::MAX, 3, 12, 0)), "can hold at most");
+    add(
+        "spz_bomb_declared.spz",
+        gzip(&spz_header(3, u32::MAX, 3, 12, 0)),
+        "can hold at most",
+    );
     // Real bomb: 10 Gaussians declared, 64 MiB of zeros actually inside (~65 KB on disk).
     let mut bomb = spz_header(3, 10, 0, 12, 0);
     bomb.resize(64 << 20, 0);
@@ -98,6 +113,27 @@ fn cases() -> Vec<(String, Vec<u8>, &'static str)> {
     crc[n - 8] ^= 0xff;
     add("spz_bad_crc.spz", crc, "SPZ");
     add("spz_header_only_truncated.spz", gzip(&raw[..10]), "header");
+    // Version 4 (zstd streams), from splat-transform's committed fixture.
+    let v4 = std::fs::read(fixtures().join("cut300.spz")).unwrap();
+    add(
+        "spz_v4_truncated.spz",
+        v4[..v4.len() - 50].to_vec(),
+        "truncated",
+    );
+    let mut v4_streams = v4.clone();
+    v4_streams[15] = 5;
+    add("spz_v4_stream_count.spz", v4_streams, "streams");
+    let mut v4_bomb = v4[..32].to_vec();
+    v4_bomb[8..12].copy_from_slice(&u32::MAX.to_le_bytes());
+    add(
+        "spz_v4_bomb_declared.spz",
+        v4_bomb,
+        "more than a 32-byte file",
+    );
+    let mut v4_size = v4.clone();
+    // The first table entry's uncompressed size (bytes 40..48): 300·9 = 2700 → 2701.
+    v4_size[40..48].copy_from_slice(&2701u64.to_le_bytes());
+    add("spz_v4_stream_size.spz", v4_size, "need 2700");
 
     // --- .splat ---
     let ok = splat_record([0.1, 0.2, 0.3], [0.01, 0.02, 0.03], [255, 128, 128, 128]);
@@ -106,10 +142,18 @@ fn cases() -> Vec<(String, Vec<u8>, &'static str)> {
     trunc.truncate(80);
     add("splat_truncated_record.splat", trunc, "whole number");
     let mut nan = ok.clone();
-    nan.extend(splat_record([f32::NAN, 0.0, 0.0], [0.01; 3], [255, 128, 128, 128]));
+    nan.extend(splat_record(
+        [f32::NAN, 0.0, 0.0],
+        [0.01; 3],
+        [255, 128, 128, 128],
+    ));
     add("splat_nan_position.splat", nan, "vertex 1");
     let mut inf = ok.clone();
-    inf.extend(splat_record([0.0; 3], [f32::INFINITY, 0.01, 0.01], [255, 128, 128, 128]));
+    inf.extend(splat_record(
+        [0.0; 3],
+        [f32::INFINITY, 0.01, 0.01],
+        [255, 128, 128, 128],
+    ));
     add("splat_inf_scale.splat", inf, "vertex 1");
     add(
         "splat_negative_scale.splat",
@@ -126,14 +170,25 @@ fn cases() -> Vec<(String, Vec<u8>, &'static str)> {
         splat_record([0.0; 3], [0.01; 3], [128, 128, 128, 128]),
         "zero quaternion",
     );
-    add("splat_text.splat", b"this is not a splat file at all!".repeat(2)[..63].to_vec(), "whole number");
+    add(
+        "splat_text.splat",
+        b"this is not a splat file at all!".repeat(2)[..63].to_vec(),
+        "whole number",
+    );
 
     // --- compressed PLY ---
     let (h, d) = cply();
-    add("cply_truncated.compressed.ply", cat(&h, &d[..d.len() - 100]), "truncated");
+    add(
+        "cply_truncated.compressed.ply",
+        cat(&h, &d[..d.len() - 100]),
+        "truncated",
+    );
     add(
         "cply_count_huge.compressed.ply",
-        cat(&h.replace("element vertex 300", "element vertex 1099511627776"), &d),
+        cat(
+            &h.replace("element vertex 300", "element vertex 1099511627776"),
+            &d,
+        ),
         "element 'vertex'",
     );
     add(
@@ -143,19 +198,36 @@ fn cases() -> Vec<(String, Vec<u8>, &'static str)> {
     );
     let mut nan_d = d.clone();
     nan_d[0..4].copy_from_slice(&f32::NAN.to_le_bytes());
-    add("cply_nan_bounds.compressed.ply", cat(&h, &nan_d), "min_x is NaN");
+    add(
+        "cply_nan_bounds.compressed.ply",
+        cat(&h, &nan_d),
+        "min_x is NaN",
+    );
     let mut inf_d = d.clone();
     // max_scale_x is the tenth float of chunk 1 (chunks are 18 floats).
     inf_d[(18 + 9) * 4..(18 + 10) * 4].copy_from_slice(&f32::INFINITY.to_le_bytes());
-    add("cply_inf_scale_bounds.compressed.ply", cat(&h, &inf_d), "chunk 1: max_scale_x");
+    add(
+        "cply_inf_scale_bounds.compressed.ply",
+        cat(&h, &inf_d),
+        "chunk 1: max_scale_x",
+    );
     add(
         "cply_float_packed.compressed.ply",
-        cat(&h.replace("property uint packed_position", "property float packed_position"), &d),
+        cat(
+            &h.replace(
+                "property uint packed_position",
+                "property float packed_position",
+            ),
+            &d,
+        ),
         "packed_position is f32",
     );
     add(
         "cply_missing_color.compressed.ply",
-        cat(&h.replace("property uint packed_color", "property uint packed_colour"), &d),
+        cat(
+            &h.replace("property uint packed_color", "property uint packed_colour"),
+            &d,
+        ),
         "packed_color",
     );
     add(
@@ -175,7 +247,13 @@ fn cases() -> Vec<(String, Vec<u8>, &'static str)> {
     );
     add(
         "cply_sh_10_props.compressed.ply",
-        cat(&h.replace("property uchar f_rest_8\n", "property uchar f_rest_8\nproperty uchar f_rest_9\n"), &d),
+        cat(
+            &h.replace(
+                "property uchar f_rest_8\n",
+                "property uchar f_rest_8\nproperty uchar f_rest_9\n",
+            ),
+            &d,
+        ),
         "element 'sh'",
     );
     v
@@ -197,9 +275,15 @@ fn every_malformed_file_is_a_clean_error_naming_it() {
             Ok(_) => panic!("{name}: loaded"),
             Err(e) => e.to_string(),
         };
-        assert!(err.contains(&name), "{name}: error does not name the file: {err}");
+        assert!(
+            err.contains(&name),
+            "{name}: error does not name the file: {err}"
+        );
         assert!(err.contains(want), "{name}: expected '{want}' in: {err}");
-        per_format[["spz_", "splat_", "cply_"].iter().position(|p| name.starts_with(p)).unwrap()] += 1;
+        per_format[["spz_", "splat_", "cply_"]
+            .iter()
+            .position(|p| name.starts_with(p))
+            .unwrap()] += 1;
     }
     assert!(per_format.iter().all(|&n| n >= 8), "{per_format:?}");
 }
@@ -216,12 +300,21 @@ fn committed_malformed_fixtures_fail_and_are_documented() {
         if name == "README.md" {
             continue;
         }
-        assert!(readme.contains(&format!("`{name}`")), "{name} is not in the README");
-        let err = load(&path, &ReadOptions::default()).err().unwrap_or_else(|| panic!("{name} loaded"));
+        assert!(
+            readme.contains(&format!("`{name}`")),
+            "{name} is not in the README"
+        );
+        let err = load(&path, &ReadOptions::default())
+            .err()
+            .unwrap_or_else(|| panic!("{name} loaded"));
         assert!(err.to_string().contains(&name), "{name}: {err}");
         seen += 1;
     }
-    assert_eq!(seen, cases().len(), "fixtures and definitions differ; regenerate them");
+    assert_eq!(
+        seen,
+        cases().len(),
+        "fixtures and definitions differ; regenerate them"
+    );
 }
 
 #[cfg(unix)]
@@ -231,7 +324,10 @@ fn fifo_and_directory_are_refused_without_blocking() {
     let d = dir.path().join("folder.splat");
     std::fs::create_dir(&d).unwrap();
     let err = load(&d, &ReadOptions::default()).unwrap_err().to_string();
-    assert!(err.contains("folder.splat") && err.contains("not a regular file"), "{err}");
+    assert!(
+        err.contains("folder.splat") && err.contains("not a regular file"),
+        "{err}"
+    );
     let fifo = dir.path().join("pipe.spz");
     let status = std::process::Command::new("mkfifo").arg(&fifo).status();
     if !status.is_ok_and(|s| s.success()) {
@@ -239,7 +335,11 @@ fn fifo_and_directory_are_refused_without_blocking() {
         return;
     }
     // Opening a FIFO for reading would block until a writer appears; the loader must not.
-    let err = load(&fifo, &ReadOptions::default()).unwrap_err().to_string();
-    assert!(err.contains("pipe.spz") && err.contains("not a regular file"), "{err}");
-    let _ = Path::new("");
+    let err = load(&fifo, &ReadOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("pipe.spz") && err.contains("not a regular file"),
+        "{err}"
+    );
 }

@@ -74,7 +74,10 @@ fn formats_are_detected_by_content_not_extension() {
     let junk = dir.path().join("junk.bin");
     std::fs::write(&junk, b"\x00\x01\x02 not a splat").unwrap();
     let err = detect(&junk).unwrap_err().to_string();
-    assert!(err.contains("junk.bin") && err.contains("not a splat file"), "{err}");
+    assert!(
+        err.contains("junk.bin") && err.contains("not a splat file"),
+        "{err}"
+    );
 }
 
 /// plant.ply was decoded from plant.splat; ours must give the same Gaussians.
@@ -94,5 +97,8 @@ fn real_plant_splat_matches_its_decoded_ply() {
     assert!(e.log_scale <= 1e-5, "{e:?}");
     assert!(e.colour <= 1e-5, "{e:?}");
     assert!(e.opacity <= 1e-5, "{e:?}");
-    assert!(e.rot_angle <= 1e-3, "{e:?}");
+    // The decoder that made plant.ply maps rotation bytes with /127.5 − 1 where we (like the
+    // antimatter15 viewer, whose writer stores q·128 + 128) use (b − 128)/128: the two differ
+    // by less than one quantisation step, whose bound is 0.0234 rad (see the round trip above).
+    assert!(e.rot_angle <= 0.0234, "{e:?}");
 }

@@ -78,8 +78,7 @@ pub enum ColorArg {
 }
 
 #[derive(clap::Args)]
-#[command(
-    after_long_help = "Formats follow the extension of -o, or --format:\n\
+#[command(after_long_help = "Formats follow the extension of -o, or --format:\n\
   meshes: .glb, .gltf (+ .bin), .obj (+ .mtl), .ply;\n\
   splats: .splat and .spz always; *.compressed.ply always (compressed PLY); .ply with --splats\n\
   (3DGS PLY); .glb/.gltf with --splats (KHR_gaussian_splatting, dynamic objects as animated nodes).\n\
@@ -88,8 +87,7 @@ is composited at --time (default: the scene's start). .splat keeps SH degree 0 o
 OBJ cannot carry per-vertex alpha: every OBJ triangle is opaque, so soft splat edges and\n\
 translucent Gaussians are lost. OBJ and PLY have no node hierarchy: the up rotation and the\n\
 objects' poses (at the scene's start, or per frame with --frames) are baked into vertices.\n\
-glTF COLOR_0 is linear: display colours are sRGB-decoded unless --color-encoding display."
-)]
+glTF COLOR_0 is linear: display colours are sRGB-decoded unless --color-encoding display.")]
 pub struct Args {
     /// Input scene: a 3DGS PLY, a splatbridge-scene/1 manifest, or a KHR_gaussian_splatting glTF.
     pub scene: PathBuf,
@@ -281,7 +279,10 @@ fn write_cloud_output(
                 format!(", composited at t = {t}")
             }
         );
-        eprintln!("  bytes          {bytes:>12}  ({:.1} MB)", bytes as f64 / 1e6);
+        eprintln!(
+            "  bytes          {bytes:>12}  ({:.1} MB)",
+            bytes as f64 / 1e6
+        );
         eprintln!("  time           {seconds:>12.3} s");
     }
     Ok(())

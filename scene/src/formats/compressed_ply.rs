@@ -65,7 +65,7 @@ pub(crate) fn looks_compressed(head: &[u8]) -> bool {
 struct Element {
     name: String,
     count: u64,
-    /// (name, size in bytes, is float, is unsigned int)
+    /// (name, size in bytes, kind: "f32", "u32", "u8", "f64" or "int")
     props: Vec<(String, usize, &'static str)>,
 }
 

@@ -261,48 +261,62 @@ fn primitive_cloud(path: &Path, doc: &Document, prim: &Value) -> Result<Gaussian
     let need = |name: &str, comps: usize| -> Result<Vec<f32>> {
         get(name, comps)?.ok_or_else(|| bad(format!("splat primitive lacks {name}")))
     };
+    // One attribute at a time straight into the cloud, so the peak is the cloud plus one
+    // attribute's floats (not every attribute's).
     let pos = need("POSITION", 3)?;
     let n = pos.len() / 3;
-    let rot = need(&format!("{EXT}:ROTATION"), 4)?;
-    let scale = need(&format!("{EXT}:SCALE"), 3)?;
-    let opac = match get(&format!("{EXT}:OPACITY"), 1)? {
-        Some(o) => o,
-        None => need("COLOR_0", 4)?.chunks(4).map(|c| c[3]).collect(),
-    };
     let mut degree = 0u8;
     while degree < 3 && attrs[format!("{EXT}:SH_DEGREE_{}_COEF_0", degree + 1)].is_u64() {
         degree += 1;
     }
-    let mut sh_cols = Vec::new();
+    let mismatch = |name: &str| {
+        bad(format!(
+            "splat attributes have different counts ({name} vs POSITION's {n})"
+        ))
+    };
+    let mut part = GaussianCloud::new(degree);
+    part.means = pos.chunks_exact(3).map(Vec3::from_slice).collect();
+    drop(pos);
+    let name = format!("{EXT}:ROTATION");
+    let rot = need(&name, 4)?;
+    if rot.len() != 4 * n {
+        return Err(mismatch(&name));
+    }
+    part.rotations = rot.chunks_exact(4).map(Quat::from_slice).collect();
+    drop(rot);
+    let name = format!("{EXT}:SCALE");
+    let scale = need(&name, 3)?;
+    if scale.len() != 3 * n {
+        return Err(mismatch(&name));
+    }
+    part.log_scales = scale
+        .chunks_exact(3)
+        .map(|c| Vec3::new(c[0].ln(), c[1].ln(), c[2].ln()))
+        .collect();
+    drop(scale);
+    let opac = match get(&format!("{EXT}:OPACITY"), 1)? {
+        Some(o) => o,
+        None => need("COLOR_0", 4)?.chunks(4).map(|c| c[3]).collect(),
+    };
+    if opac.len() != n {
+        return Err(mismatch("OPACITY"));
+    }
+    part.opacity_logits = opac.into_iter().map(logit).collect();
+    let k = sh_coeffs(degree);
+    part.sh = vec![Vec3::ZERO; n * k];
+    let mut j = 0;
     for l in 0..=degree as usize {
         for c in 0..2 * l + 1 {
-            sh_cols.push(need(&format!("{EXT}:SH_DEGREE_{l}_COEF_{c}"), 3)?);
+            let name = format!("{EXT}:SH_DEGREE_{l}_COEF_{c}");
+            let col = need(&name, 3)?;
+            if col.len() != 3 * n {
+                return Err(mismatch(&name));
+            }
+            for (i, v) in col.chunks_exact(3).enumerate() {
+                part.sh[i * k + j] = Vec3::from_slice(v);
+            }
+            j += 1;
         }
-    }
-    if rot.len() != 4 * n
-        || scale.len() != 3 * n
-        || opac.len() != n
-        || sh_cols.iter().any(|c| c.len() != 3 * n)
-    {
-        return Err(bad(format!(
-            "splat attributes have different counts (POSITION has {n})"
-        )));
-    }
-    let k = sh_coeffs(degree);
-    let mut part = GaussianCloud::with_capacity(degree, n);
-    let mut coeffs = vec![Vec3::ZERO; k];
-    for i in 0..n {
-        for (j, c) in sh_cols.iter().enumerate() {
-            coeffs[j] = Vec3::from_slice(&c[3 * i..3 * i + 3]);
-        }
-        let sc = Vec3::from_slice(&scale[3 * i..3 * i + 3]);
-        part.push(
-            Vec3::from_slice(&pos[3 * i..3 * i + 3]),
-            Vec3::new(sc.x.ln(), sc.y.ln(), sc.z.ln()),
-            Quat::from_slice(&rot[4 * i..4 * i + 4]),
-            logit(opac[i]),
-            &coeffs,
-        );
     }
     Ok(part)
 }
@@ -361,7 +375,11 @@ fn read_primitive(
         }
         part = p;
     }
-    cloud.extend_from(&part, None);
+    if cloud.is_empty() && cloud.sh_degree == part.sh_degree && cloud.object_ids.is_none() {
+        *cloud = part;
+    } else {
+        cloud.extend_from(&part, None);
+    }
     Ok(())
 }
 

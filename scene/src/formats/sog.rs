@@ -103,8 +103,9 @@ pub fn read_sog_with_summary(path: &Path) -> Result<(GaussianCloud, SogSummary)>
     let bundled = c.is_bundled();
     drop(c);
     // Decode the images in parallel: WebP decoding is most of the time.
+    // Each compressed image is dropped as soon as it is decoded.
     let images: Vec<Image> = raw
-        .par_iter()
+        .into_par_iter()
         .zip(names.par_iter())
         .enumerate()
         .map(|(k, (bytes, name))| {
@@ -113,11 +114,10 @@ pub fn read_sog_with_summary(path: &Path) -> Result<(GaussianCloud, SogSummary)>
             } else {
                 Expect::Count(m.count)
             };
-            decode_webp(path, name, bytes, expect)
+            decode_webp(path, name, &bytes, expect)
         })
         .collect::<Result<_>>()?;
-    drop(raw);
-    let cloud = assemble(path, &m, &images)?;
+    let cloud = assemble(path, &m, images)?;
     let summary = SogSummary {
         version: m.version,
         bundled,
@@ -137,6 +137,15 @@ struct Image {
 }
 
 impl Image {
+    fn empty() -> Image {
+        Image {
+            width: 0,
+            height: 0,
+            channels: 4,
+            data: Vec::new(),
+        }
+    }
+
     #[inline]
     fn px(&self, i: usize) -> [u8; 4] {
         let o = i * self.channels;
@@ -257,7 +266,9 @@ fn opacity_logit(a: u8) -> f32 {
     (e / (1.0 - e)).ln() as f32
 }
 
-fn assemble(path: &Path, m: &Meta, img: &[Image]) -> Result<GaussianCloud> {
+/// Build the cloud, freeing each image once its attributes are out (peak: the cloud plus the
+/// images not yet used).
+fn assemble(path: &Path, m: &Meta, mut img: Vec<Image>) -> Result<GaussianCloud> {
     let n = m.count as usize;
     let bad = |what: String| SceneError::format(path, what);
     // SH palette geometry and band count.
@@ -326,10 +337,13 @@ fn assemble(path: &Path, m: &Meta, img: &[Image]) -> Result<GaussianCloud> {
             Vec3::new(v(0), v(1), v(2))
         })
         .collect();
+    img[0] = Image::empty();
+    img[1] = Image::empty();
     cloud.rotations = (0..n)
         .into_par_iter()
         .map(|i| unpack_quat(img[2].px(i)))
         .collect();
+    img[2] = Image::empty();
     cloud.log_scales = (0..n)
         .into_par_iter()
         .map(|i| {
@@ -341,6 +355,7 @@ fn assemble(path: &Path, m: &Meta, img: &[Image]) -> Result<GaussianCloud> {
             )
         })
         .collect();
+    img[3] = Image::empty();
     let sh0 = &img[4];
     cloud.opacity_logits = (0..n)
         .into_par_iter()
@@ -385,8 +400,5 @@ fn assemble(path: &Path, m: &Meta, img: &[Image]) -> Result<GaussianCloud> {
             Ok(())
         })?;
     cloud.sh = sh;
-    debug_assert!(img
-        .iter()
-        .all(|im| im.data.len() == im.width as usize * im.height as usize * im.channels));
     Ok(cloud)
 }

@@ -12,12 +12,12 @@
 //! viewer loads `.splat` files converted from PLYs unchanged). Decoding inverts each step
 //! exactly: alpha 255 becomes an opacity logit of +inf, which the cloud accepts.
 
-use std::io::Write;
+use std::io::{Read, Write};
 use std::path::Path;
 
 use glam::{Quat, Vec3};
 
-use super::read_file_capped;
+use super::regular_file_len;
 use crate::error::{Result, SceneError};
 use crate::gaussians::{logit, sigmoid};
 use crate::sh::SH_C0;
@@ -52,18 +52,38 @@ pub(crate) fn plausible(head: &[u8], file_len: u64) -> bool {
 
 /// Decode `.splat` bytes (a whole number of records); `path` names the file in errors.
 pub fn decode_splat(bytes: &[u8], path: &Path) -> Result<GaussianCloud> {
-    if bytes.len() % RECORD != 0 {
+    check_len(bytes.len() as u64, path)?;
+    let mut cloud = GaussianCloud::with_capacity(0, bytes.len() / RECORD);
+    push_records(&mut cloud, bytes);
+    Ok(cloud)
+}
+
+fn check_len(len: u64, path: &Path) -> Result<()> {
+    if len == 0 {
+        return Err(SceneError::format(
+            path,
+            ".splat file is empty (no records)",
+        ));
+    }
+    if len % RECORD as u64 != 0 {
         return Err(SceneError::format(
             path,
             format!(
-                ".splat data is {} bytes, not a whole number of {RECORD}-byte records ({} bytes left over)",
-                bytes.len(),
-                bytes.len() % RECORD
+                ".splat data is {len} bytes, not a whole number of {RECORD}-byte records ({} bytes left over)",
+                len % RECORD as u64
             ),
         ));
     }
-    let n = bytes.len() / RECORD;
-    let mut cloud = GaussianCloud::with_capacity(0, n);
+    if len > MAX_FILE {
+        return Err(SceneError::format(
+            path,
+            format!(".splat file of {len} bytes is too large"),
+        ));
+    }
+    Ok(())
+}
+
+fn push_records(cloud: &mut GaussianCloud, bytes: &[u8]) {
     for r in bytes.chunks_exact(RECORD) {
         let f = |k: usize| f32::from_le_bytes([r[4 * k], r[4 * k + 1], r[4 * k + 2], r[4 * k + 3]]);
         let scale = Vec3::new(f(3), f(4), f(5));
@@ -80,21 +100,36 @@ pub fn decode_splat(bytes: &[u8], path: &Path) -> Result<GaussianCloud> {
         cloud.opacity_logits.push(logit(byte(3) / 255.0));
         cloud.sh.push((rgb - Vec3::splat(0.5)) / SH_C0);
     }
-    Ok(cloud)
 }
 
-/// Read a `.splat` file.
+/// Read a `.splat` file, streaming 64 KiB of records at a time into the cloud (sized once
+/// from the file's length), so the peak memory is the cloud plus one chunk.
 pub fn read_splat(path: &Path) -> Result<GaussianCloud> {
-    let bytes = read_file_capped(path, MAX_FILE)?;
-    if bytes.is_empty() {
-        return Err(SceneError::format(path, ".splat file is empty (no records)"));
+    let len = regular_file_len(path)?;
+    check_len(len, path)?;
+    let n = (len / RECORD as u64) as usize;
+    let file = std::fs::File::open(path).map_err(|e| SceneError::io(path, e))?;
+    let mut r = file.take(len);
+    let mut cloud = GaussianCloud::with_capacity(0, n);
+    let mut buf = vec![0u8; 2048 * RECORD];
+    let mut left = n;
+    while left > 0 {
+        let k = left.min(2048);
+        r.read_exact(&mut buf[..k * RECORD]).map_err(|e| {
+            SceneError::format(
+                path,
+                format!(".splat file shorter than its length says: {e}"),
+            )
+        })?;
+        push_records(&mut cloud, &buf[..k * RECORD]);
+        left -= k;
     }
-    decode_splat(&bytes, path)
+    Ok(cloud)
 }
 
 fn to_u8(x: f32) -> u8 {
     // NaN maps to 0 (`as` saturates and sends NaN to 0).
-    (x.round()).clamp(0.0, 255.0) as u8
+    x.round().clamp(0.0, 255.0) as u8
 }
 
 /// Encode a cloud as `.splat` records (higher SH dropped). The cloud must be valid (finite

@@ -14,8 +14,12 @@
 //! | rotations | 3 (v1, v2) / 4 (v3+) | v1/v2: x, y, z of the unit quaternion with w ≥ 0, `q·127.5 + 127.5`; v3: "smallest three", 2 bits for the largest component's index and 10 bits (sign + 9-bit magnitude / √½) for each other |
 //! | SH | 3·((d+1)²−1) | coefficient-major RGB, `x·128 + 128`, rounded to 5 bits (degree 1) and 4 bits (higher) |
 //!
-//! Version 4 (`NGSP` uncompressed 32-byte header, zstd streams) is recognised and reported as
-//! not supported. SPZ stores the RUB axis convention (x right, y up, z back; OpenGL, three.js),
+//! Version 4 (nianticlabs/spz "SPZ 4", what splat-transform 3.x writes) drops the gzip layer:
+//! an uncompressed 32-byte header (the fields above, then u8 stream count, u32 offset of the
+//! table of contents, 12 reserved bytes), optional extension records, the table of contents
+//! (per stream: compressed and uncompressed size, u64 each) and the same six attribute planes
+//! as separate zstd streams (empty planes, such as SH at degree 0, are left out). It is read
+//! (pure-Rust `ruzstd`), not written: version 3 is what every reader decodes. SPZ stores the RUB axis convention (x right, y up, z back; OpenGL, three.js),
 //! the 3DGS PLY RDF (x right, y down, z forward): reading and writing flip y and z — positions,
 //! the quaternion's y and z parts, and every SH coefficient odd in y·z ([`SH_FLIP`]) — so a
 //! scene read from SPZ lines up with the PLY it came from. SH degree 4 (allowed by v3) is cut
@@ -42,6 +46,11 @@ use crate::GaussianCloud;
 pub const MAGIC: u32 = 0x5053_474e;
 /// Bytes in the (pre-v4) header.
 pub const HEADER: usize = 16;
+/// Bytes in the version-4 header.
+pub const HEADER_V4: usize = 32;
+/// Version 4's bound on uncompressed/compressed size (load-spz.cc `kMaxCompressionRatio`):
+/// a header claiming more data than this is refused before anything is allocated.
+const MAX_ZSTD_RATIO: u64 = 1024;
 /// The version [`encode_spz`] writes by default: the newest that both nianticlabs/spz and
 /// splat-transform decode.
 pub const WRITE_VERSION: u32 = 3;
@@ -140,7 +149,7 @@ impl SpzHeader {
             4 => {
                 return Err(SceneError::format(
                     path,
-                    "SPZ version 4 (zstd streams) is not supported; write it as version 3",
+                    "SPZ version 4 inside a gzip stream (version 4 files are not gzipped)",
                 ))
             }
             v => {
@@ -233,6 +242,9 @@ pub fn decode_spz(bytes: &[u8], path: &Path) -> Result<GaussianCloud> {
 
 /// [`decode_spz`] with an explicit axis convention.
 pub fn decode_spz_with(bytes: &[u8], path: &Path, axes: SpzAxes) -> Result<GaussianCloud> {
+    if bytes.starts_with(&MAGIC.to_le_bytes()) {
+        return decode_v4(bytes, path, axes).map(|(c, _)| c);
+    }
     decode_gzip(bytes, bytes.len() as u64, path, axes).map(|(c, _)| c)
 }
 
@@ -249,6 +261,16 @@ pub fn decode_spz_raw_with(bytes: &[u8], path: &Path, axes: SpzAxes) -> Result<G
 /// Read an `.spz` file; also returns warnings (SH degree cut, extension records skipped).
 pub fn read_spz(path: &Path) -> Result<(GaussianCloud, Vec<String>)> {
     let len = regular_file_len(path)?;
+    let mut file = std::fs::File::open(path).map_err(|e| SceneError::io(path, e))?;
+    let mut magic = [0u8; 4];
+    let n = (&mut file)
+        .take(4)
+        .read(&mut magic)
+        .map_err(|e| SceneError::io(path, e))?;
+    if n == 4 && magic == MAGIC.to_le_bytes() {
+        let bytes = super::read_file_capped(path, len)?;
+        return decode_v4(&bytes, path, SpzAxes::Rub);
+    }
     let file = std::fs::File::open(path).map_err(|e| SceneError::io(path, e))?;
     decode_gzip(
         BufReader::with_capacity(1 << 16, file.take(len)),
@@ -256,6 +278,121 @@ pub fn read_spz(path: &Path) -> Result<(GaussianCloud, Vec<String>)> {
         path,
         SpzAxes::Rub,
     )
+}
+
+/// Decode a version-4 file (uncompressed header, zstd attribute streams).
+fn decode_v4(bytes: &[u8], path: &Path, axes: SpzAxes) -> Result<(GaussianCloud, Vec<String>)> {
+    let bad = |what: String| SceneError::format(path, what);
+    if bytes.len() < HEADER_V4 {
+        return Err(bad(format!(
+            "SPZ file of {} bytes ends inside the {HEADER_V4}-byte version-4 header",
+            bytes.len()
+        )));
+    }
+    let version = u32::from_le_bytes([bytes[4], bytes[5], bytes[6], bytes[7]]);
+    if version != 4 {
+        return Err(bad(format!(
+            "uncompressed SPZ header says version {version}; only version 4 is stored without gzip"
+        )));
+    }
+    // The shared fields mean what they mean in version 3: parse them with its rules.
+    let mut legacy = [0u8; HEADER];
+    legacy.copy_from_slice(&bytes[..HEADER]);
+    legacy[4..8].copy_from_slice(&3u32.to_le_bytes());
+    legacy[15] = 0;
+    let mut h = SpzHeader::parse(&legacy, path)?;
+    h.version = 4;
+    let streams = bytes[15] as usize;
+    let toc = u32::from_le_bytes([bytes[16], bytes[17], bytes[18], bytes[19]]) as u64;
+    let n = h.count as u64;
+    let planes = [9 * n, n, 3 * n, 3 * n, 4 * n, h.sh_bytes() * n];
+    let expected: Vec<u64> = planes.iter().copied().filter(|&s| s > 0).collect();
+    if streams != expected.len() {
+        return Err(bad(format!(
+            "SPZ v4 header declares {streams} streams; {} Gaussians of SH degree {} need {}",
+            h.count,
+            h.sh_degree,
+            expected.len()
+        )));
+    }
+    let file_len = bytes.len() as u64;
+    let need = h.payload_len();
+    if need > file_len.saturating_mul(MAX_ZSTD_RATIO) {
+        return Err(bad(format!(
+            "SPZ header declares {} Gaussians ({need} bytes of data), more than a {file_len}-byte file can hold",
+            h.count
+        )));
+    }
+    let toc_end = toc.saturating_add(16 * streams as u64);
+    if toc < HEADER_V4 as u64 || toc_end > file_len {
+        return Err(bad(format!(
+            "SPZ v4 table of contents at byte {toc} ({streams} entries) is outside the {file_len}-byte file"
+        )));
+    }
+    let mut warnings = Vec::new();
+    if toc > HEADER_V4 as u64 {
+        warnings.push(format!(
+            "{} bytes of SPZ extension records skipped",
+            toc - HEADER_V4 as u64
+        ));
+    }
+    let u64_at = |o: usize| {
+        let mut b = [0u8; 8];
+        b.copy_from_slice(&bytes[o..o + 8]);
+        u64::from_le_bytes(b)
+    };
+    let mut payload = Vec::new();
+    payload.try_reserve_exact(need as usize + 1).map_err(|_| {
+        bad(format!(
+            "cannot allocate {need} bytes for {} Gaussians",
+            h.count
+        ))
+    })?;
+    let mut at = toc_end;
+    for (k, &want) in expected.iter().enumerate() {
+        let e = (toc + 16 * k as u64) as usize;
+        let (csize, usize_) = (u64_at(e), u64_at(e + 8));
+        if usize_ != want {
+            return Err(bad(format!(
+                "SPZ v4 stream {k} declares {usize_} bytes; {} Gaussians need {want}",
+                h.count
+            )));
+        }
+        let end = at
+            .checked_add(csize)
+            .filter(|&v| v <= file_len)
+            .ok_or_else(|| {
+                bad(format!(
+                    "SPZ v4 stream {k} ({csize} bytes at {at}) runs past the end of the {file_len}-byte file (truncated)"
+                ))
+            })?;
+        let src = &bytes[at as usize..end as usize];
+        let before = payload.len();
+        let mut dec = ruzstd::decoding::StreamingDecoder::new(src)
+            .map_err(|e| bad(format!("SPZ v4 stream {k} is not zstd: {e}")))?;
+        // One byte beyond the declared size is enough to tell a lying stream (a bomb).
+        (&mut dec)
+            .take(want + 1)
+            .read_to_end(&mut payload)
+            .map_err(|e| bad(format!("SPZ v4 stream {k} does not decompress: {e}")))?;
+        let got = (payload.len() - before) as u64;
+        if got != want {
+            return Err(bad(format!(
+                "SPZ v4 stream {k} decompresses to {}{got} bytes; {} Gaussians need {want}",
+                if got > want { "more than " } else { "" },
+                h.count
+            )));
+        }
+        at = end;
+    }
+    if at != file_len {
+        return Err(bad(format!(
+            "{} bytes after the last SPZ v4 stream",
+            file_len - at
+        )));
+    }
+    let cloud = unpack(&h, &payload, axes.flip(), &mut warnings);
+    Ok((cloud, warnings))
 }
 
 fn decode_gzip<R: Read>(
@@ -437,6 +574,24 @@ fn unpack(h: &SpzHeader, p: &[u8], flip: bool, warnings: &mut Vec<String>) -> Ga
         }
     }
     cloud
+}
+
+/// Turn a cloud half a turn about x (y and z negated: positions, the quaternions' y and z
+/// parts, the SH coefficients odd in y·z): the RUB ↔ RDF conversion applied on SPZ IO, for
+/// comparing with tools that skip it (splat-transform reads and writes SPZ data unconverted).
+pub fn flip_yz(cloud: &mut GaussianCloud) {
+    let k = cloud.coeffs();
+    for m in &mut cloud.means {
+        *m = Vec3::new(m.x, -m.y, -m.z);
+    }
+    for q in &mut cloud.rotations {
+        *q = Quat::from_xyzw(q.x, -q.y, -q.z, q.w);
+    }
+    for i in 0..cloud.len() {
+        for (j, c) in cloud.sh[i * k + 1..(i + 1) * k].iter_mut().enumerate() {
+            *c *= SH_FLIP[j];
+        }
+    }
 }
 
 /// Decode v3's "smallest three" quaternion to x, y, z, w.

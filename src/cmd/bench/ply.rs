@@ -117,7 +117,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 t_enc.push(t.elapsed().as_secs_f64());
             }
             t_enc.sort_by(f64::total_cmp);
-            Some((format!("{e:?}").to_lowercase(), t_enc[t_enc.len() / 2], bytes))
+            Some((
+                format!("{e:?}").to_lowercase(),
+                t_enc[t_enc.len() / 2],
+                bytes,
+            ))
         }
         None => None,
     };

@@ -156,7 +156,7 @@ impl Document {
                 "accessor {a}: byteStride {stride} is shorter than an element ({elem} bytes)"
             )));
         }
-        let end = count
+        count
             .checked_sub(1)
             .map_or(Some(0), |last| {
                 last.checked_mul(stride)
@@ -170,7 +170,6 @@ impl Document {
                     bytes.len()
                 ))
             })?;
-        let _ = end;
         let (base, stride) = (base as usize, stride as usize);
         let mut out = Vec::with_capacity(count as usize * comps);
         for i in 0..count as usize {
