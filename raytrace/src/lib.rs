@@ -13,6 +13,7 @@ pub mod composite;
 pub mod embree_backend;
 pub mod error;
 pub mod gaussian;
+pub mod gltf_check;
 pub mod lidar;
 pub mod model;
 pub mod obvhs_backend;

@@ -15,6 +15,7 @@ pub mod fixtures;
 pub mod frame;
 pub mod gaussians;
 pub mod image_io;
+pub mod input;
 pub mod manifest;
 pub mod metrics;
 pub mod ply;
