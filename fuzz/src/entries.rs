@@ -198,7 +198,7 @@ fn manifest_structured(data: &[u8]) {
         .map(|(k, v)| match k % 4 {
             0 => (
                 "weather".to_string(),
-                json!({ "kind": ["rain", "snow"][*k as usize / 4 % 2], "count": *v as u32,
+                json!({ "kind": (["rain", "snow"][*k as usize / 4 % 2]), "count": *v as u32,
                         "fall_speed": num(*v), "size": num(*v), "wind": [num(*v), 0, 0] }),
             ),
             1 => (
@@ -388,7 +388,7 @@ fn gltf_structured(data: &[u8]) {
             json!({
                 "channels": [{ "sampler": 0, "target": { "node": node % 17, "path": paths[*path as usize % 5] } }],
                 "samplers": [{ "input": input % 17, "output": output % 17,
-                    "interpolation": ["LINEAR", "STEP", "CUBICSPLINE"][*interp as usize % 3] }],
+                    "interpolation": (["LINEAR", "STEP", "CUBICSPLINE"][*interp as usize % 3]) }],
             })
         })
         .collect();

@@ -162,9 +162,18 @@ pub fn build_triangles(
         )));
     }
     match kind {
-        BackendKind::Obvhs => Ok(Box::new(crate::obvhs_backend::ObvhsAccel::triangles(
-            preset, verts, tris,
-        ))),
+        BackendKind::Obvhs => {
+            // Many copies of one triangle would make the PLOC build quadratic (see `dedup`).
+            let boxes = crate::dedup::triangle_boxes(verts, tris);
+            if let Some(a) = crate::dedup::FoldedAccel::build(&boxes, |d| {
+                Ok(Box::new(crate::obvhs_backend::ObvhsAccel::boxes(preset, d)))
+            })? {
+                return Ok(a);
+            }
+            Ok(Box::new(crate::obvhs_backend::ObvhsAccel::triangles(
+                preset, verts, tris,
+            )))
+        }
         BackendKind::Embree => embree_triangles(preset, verts, tris),
     }
 }
@@ -180,9 +189,16 @@ pub fn build_boxes(
     }
     check_extent(boxes.iter().flat_map(|(lo, hi)| [*lo, *hi]), "box corner")?;
     match kind {
-        BackendKind::Obvhs => Ok(Box::new(crate::obvhs_backend::ObvhsAccel::boxes(
-            preset, boxes,
-        ))),
+        BackendKind::Obvhs => {
+            if let Some(a) = crate::dedup::FoldedAccel::build(boxes, |d| {
+                Ok(Box::new(crate::obvhs_backend::ObvhsAccel::boxes(preset, d)))
+            })? {
+                return Ok(a);
+            }
+            Ok(Box::new(crate::obvhs_backend::ObvhsAccel::boxes(
+                preset, boxes,
+            )))
+        }
         BackendKind::Embree => embree_boxes(preset, boxes),
     }
 }

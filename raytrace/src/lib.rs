@@ -9,6 +9,7 @@
 
 pub mod backend;
 pub mod composite;
+pub mod dedup;
 #[cfg(feature = "embree")]
 pub mod embree_backend;
 pub mod error;
