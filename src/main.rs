@@ -56,7 +56,39 @@ enum Command {
     Demo(cmd::demo::Args),
 }
 
+/// Subcommands print with `println!`, which panics when stdout cannot be written (a full
+/// disk, `> /dev/full`; a closed pipe, `| head -c1`). This hook turns exactly that failure into
+/// the CLI's convention: a closed pipe ends the run quietly (the reader wanted no more), any
+/// other write error is `error: stdout: …` with exit status 2. Every other panic keeps the
+/// default report.
+fn install_stdout_hook() {
+    let default = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let msg = info
+            .payload()
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| info.payload().downcast_ref::<&str>().copied())
+            .unwrap_or("");
+        if let Some(err) = msg.strip_prefix("failed printing to stdout: ") {
+            std::process::exit(stdout_failure(err));
+        }
+        default(info);
+    }));
+}
+
+/// Exit status for a failed write to stdout, printing the error unless the pipe was closed.
+fn stdout_failure(err: &str) -> i32 {
+    if err.contains("Broken pipe") || err.contains("os error 32") {
+        0
+    } else {
+        eprintln!("error: stdout: {err}");
+        2
+    }
+}
+
 fn main() {
+    install_stdout_hook();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Info(a) => cmd::info::run(a),
@@ -70,5 +102,12 @@ fn main() {
         Command::Bench(a) => cmd::bench::run(a),
         Command::Demo(a) => cmd::demo::run(a),
     };
-    std::process::exit(cmd::exit_code(result));
+    let mut code = cmd::exit_code(result);
+    // `print!` output still buffered is flushed here so its write error is seen, not dropped.
+    if let Err(e) = std::io::Write::flush(&mut std::io::stdout()) {
+        if code == 0 {
+            code = stdout_failure(&e.to_string());
+        }
+    }
+    std::process::exit(code);
 }

@@ -118,6 +118,29 @@ impl Accel for EmptyAccel {
     fn traverse(&self, _: Vec3, _: Vec3, _: f32, _: &mut dyn FnMut(u32, bool, &mut f32)) {}
 }
 
+/// Largest coordinate magnitude a BVH build accepts (scene units, metres in captures). BVH
+/// builders compute surface areas (extent²) times primitive counts in f32, which must stay
+/// below f32::MAX ≈ 3.4e38: at ±1e12 an extent² is ~4e24, leaving 1e14 for counts and sums.
+/// Real captures span kilometres; 1e12 m is about seven astronomical units.
+pub const MAX_BVH_COORD: f32 = 1e12;
+
+/// Whether a point is finite and within ±[`MAX_BVH_COORD`] on every axis.
+pub fn fits_bvh(p: Vec3) -> bool {
+    // `max_element` skips NaN, hence the explicit finiteness test.
+    p.is_finite() && p.abs().max_element() <= MAX_BVH_COORD
+}
+
+fn check_extent(points: impl Iterator<Item = Vec3>, what: &str) -> Result<()> {
+    for (i, p) in points.enumerate() {
+        if !fits_bvh(p) {
+            return Err(TraceError::Invalid(format!(
+                "{what} {i} has coordinates {p}, beyond the ±{MAX_BVH_COORD} an f32 BVH holds"
+            )));
+        }
+    }
+    Ok(())
+}
+
 /// Build a structure over triangles (`tris` index `verts`).
 pub fn build_triangles(
     kind: BackendKind,
@@ -128,10 +151,29 @@ pub fn build_triangles(
     if tris.is_empty() {
         return Ok(Box::new(EmptyAccel));
     }
+    check_extent(verts.iter().copied(), "vertex")?;
+    if let Some(t) = tris
+        .iter()
+        .position(|t| t.iter().any(|&i| i as usize >= verts.len()))
+    {
+        return Err(TraceError::Invalid(format!(
+            "triangle {t} indexes past {} vertices",
+            verts.len()
+        )));
+    }
     match kind {
-        BackendKind::Obvhs => Ok(Box::new(crate::obvhs_backend::ObvhsAccel::triangles(
-            preset, verts, tris,
-        ))),
+        BackendKind::Obvhs => {
+            // Many copies of one triangle would make the PLOC build quadratic (see `dedup`).
+            let boxes = crate::dedup::triangle_boxes(verts, tris);
+            if let Some(a) = crate::dedup::FoldedAccel::build(&boxes, |d| {
+                Ok(Box::new(crate::obvhs_backend::ObvhsAccel::boxes(preset, d)))
+            })? {
+                return Ok(a);
+            }
+            Ok(Box::new(crate::obvhs_backend::ObvhsAccel::triangles(
+                preset, verts, tris,
+            )))
+        }
         BackendKind::Embree => embree_triangles(preset, verts, tris),
     }
 }
@@ -145,10 +187,18 @@ pub fn build_boxes(
     if boxes.is_empty() {
         return Ok(Box::new(EmptyAccel));
     }
+    check_extent(boxes.iter().flat_map(|(lo, hi)| [*lo, *hi]), "box corner")?;
     match kind {
-        BackendKind::Obvhs => Ok(Box::new(crate::obvhs_backend::ObvhsAccel::boxes(
-            preset, boxes,
-        ))),
+        BackendKind::Obvhs => {
+            if let Some(a) = crate::dedup::FoldedAccel::build(boxes, |d| {
+                Ok(Box::new(crate::obvhs_backend::ObvhsAccel::boxes(preset, d)))
+            })? {
+                return Ok(a);
+            }
+            Ok(Box::new(crate::obvhs_backend::ObvhsAccel::boxes(
+                preset, boxes,
+            )))
+        }
         BackendKind::Embree => embree_boxes(preset, boxes),
     }
 }

@@ -31,7 +31,7 @@ use glam::{DAffine3, DVec3, Mat3, Vec3};
 use splatbridge_scene::dynamic::{DynamicScene, Track};
 use splatbridge_scene::{sh, Camera, Frame, GaussianCloud};
 
-use crate::backend::{build_boxes, Accel, BackendKind, BuildPreset, EmptyAccel};
+use crate::backend::{build_boxes, fits_bvh, Accel, BackendKind, BuildPreset, EmptyAccel};
 use crate::error::Result;
 use crate::geom::{ray_box, transformed_box};
 use crate::kbuffer::{Hit, KBuffer, Key};
@@ -108,7 +108,16 @@ impl Part {
         preset: BuildPreset,
     ) -> Result<Self> {
         cloud.check_shape()?;
-        let (lo, hi) = cloud.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
+        // The anchor is the centre of the means a BVH can hold (the others are culled below),
+        // so one far-away Gaussian does not move every other one out of f32 range.
+        let (lo, hi) = cloud
+            .means
+            .iter()
+            .filter(|m| fits_bvh(**m))
+            .fold(None, |acc: Option<(Vec3, Vec3)>, &m| {
+                Some(acc.map_or((m, m), |(lo, hi)| (lo.min(m), hi.max(m))))
+            })
+            .unwrap_or((Vec3::ZERO, Vec3::ZERO));
         let anchor = (0.5 * (lo.as_dvec3() + hi.as_dvec3())).as_vec3().as_dvec3();
         let mut t = Part {
             cloud: GaussianCloud::new(0),
@@ -151,6 +160,11 @@ impl Part {
             let half = Vec3::new(m.row(0).length(), m.row(1).length(), m.row(2).length());
             let pad = half * 1e-5 + Vec3::splat(mu.abs().max_element() * 1.2e-7);
             let (blo, bhi) = (mu - half - pad, mu + half + pad);
+            // Culled: boxes an f32 BVH cannot hold (positions ~1e26, log-scales ~45); see
+            // `backend::MAX_BVH_COORD`.
+            if !(fits_bvh(blo) && fits_bvh(bhi) && fits_bvh(cloud.means[i])) {
+                continue;
+            }
             t.lo = t.lo.min(blo.as_dvec3() + anchor);
             t.hi = t.hi.max(bhi.as_dvec3() + anchor);
             boxes.push((blo, bhi));

@@ -11,11 +11,13 @@ pub mod backend;
 pub mod mesh_tracer;
 /// The mesh tracer under its former name.
 pub use mesh_tracer as composite;
+pub mod dedup;
 #[cfg(feature = "embree")]
 pub mod embree_backend;
 pub mod error;
 pub mod gaussian;
 pub mod geom;
+pub mod gltf_check;
 pub mod kbuffer;
 pub mod lidar;
 pub mod model;

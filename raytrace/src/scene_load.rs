@@ -18,6 +18,7 @@ use std::path::Path;
 
 use glam::{DAffine3, DMat4, DQuat, DVec3, Vec2, Vec3, Vec4};
 
+use crate::backend::{fits_bvh, MAX_BVH_COORD};
 use crate::error::{Result, TraceError};
 use crate::model::{
     srgb_to_linear, AlphaMode, Channel, ChannelPath, Interpolation, Intrinsics, Material, Mesh,
@@ -32,8 +33,7 @@ pub fn load_path(path: &Path) -> Result<TriScene> {
         .unwrap_or_default();
     match ext.as_str() {
         "glb" | "gltf" => {
-            let (doc, buffers, images) = gltf::import(path)
-                .map_err(|e| TraceError::format(path, format!("not a readable glTF: {e}")))?;
+            let (doc, buffers, images) = crate::gltf_check::import_path(path)?;
             from_gltf(path, &doc, &buffers, &images)
         }
         "obj" => load_obj(path),
@@ -46,8 +46,7 @@ pub fn load_path(path: &Path) -> Result<TriScene> {
 
 /// Load a GLB (or self-contained glTF JSON) from memory; `name` is used in error messages.
 pub fn load_glb_bytes(bytes: &[u8], name: &Path) -> Result<TriScene> {
-    let (doc, buffers, images) = gltf::import_slice(bytes)
-        .map_err(|e| TraceError::format(name, format!("not a readable glTF: {e}")))?;
+    let (doc, buffers, images) = crate::gltf_check::import(bytes, None, name)?;
     from_gltf(name, &doc, &buffers, &images)
 }
 
@@ -233,10 +232,12 @@ fn from_gltf(
                 .ok_or_else(|| TraceError::format(path, format!("{what}: no POSITION")))?
                 .map(Vec3::from_array)
                 .collect();
-            if let Some(i) = pos.iter().position(|v| !v.is_finite()) {
+            if let Some(i) = pos.iter().position(|v| !fits_bvh(*v)) {
                 return Err(TraceError::format(
                     path,
-                    format!("{what}: POSITION of vertex {i} is not finite"),
+                    format!(
+                        "{what}: POSITION of vertex {i} is not finite or beyond ±{MAX_BVH_COORD}"
+                    ),
                 ));
             }
             let n = pos.len();
@@ -385,20 +386,7 @@ fn from_gltf(
             nodes[c.index()].parent = Some(n.index());
         }
     }
-    // Reject cycles: walk up from every node.
-    for i in 0..nodes.len() {
-        let (mut cur, mut steps) = (nodes[i].parent, 0);
-        while let Some(p) = cur {
-            steps += 1;
-            if steps > nodes.len() {
-                return Err(TraceError::format(
-                    path,
-                    format!("node {i} is part of a parent cycle"),
-                ));
-            }
-            cur = nodes[p].parent;
-        }
-    }
+    // Cycles and depth were rejected by `gltf_check` (in linear time).
     let scene = doc.default_scene().or_else(|| doc.scenes().next());
     let mut reachable = vec![scene.is_none(); nodes.len()];
     if let Some(s) = scene {
@@ -551,8 +539,18 @@ fn obj_options() -> tobj::LoadOptions {
 
 /// Load an OBJ (and its MTL, when present) from a path.
 pub fn load_obj(path: &Path) -> Result<TriScene> {
-    let (models, mats) = tobj::load_obj(path, &obj_options())
-        .map_err(|e| TraceError::format(path, format!("not a readable OBJ: {e}")))?;
+    use splatbridge_scene::input::{read_bounded, Cap};
+    let bytes = read_bounded(path, Cap::Mesh)?;
+    let dir = path.parent().unwrap_or(Path::new("")).to_path_buf();
+    let mut r = std::io::BufReader::new(&bytes[..]);
+    // `mtllib` files go through the same guards (regular file, bounded size); a refused one
+    // counts as a missing MTL.
+    let (models, mats) = tobj::load_obj_buf(&mut r, &obj_options(), |m| {
+        let data =
+            read_bounded(&dir.join(m), Cap::Mesh).map_err(|_| tobj::LoadError::OpenFileFailed)?;
+        tobj::load_mtl_buf(&mut std::io::BufReader::new(&data[..]))
+    })
+    .map_err(|e| TraceError::format(path, format!("not a readable OBJ: {e}")))?;
     // A missing or broken MTL leaves the geometry usable; vertex colours carry the colour.
     let mats = mats.unwrap_or_default();
     obj_scene(path, models, mats)
@@ -601,10 +599,13 @@ fn obj_scene(path: &Path, models: Vec<tobj::Model>, mats: Vec<tobj::Material>) -
             .chunks_exact(3)
             .map(|c| Vec3::new(c[0], c[1], c[2]))
             .collect();
-        if let Some(i) = positions.iter().position(|v| !v.is_finite()) {
+        if let Some(i) = positions.iter().position(|v| !fits_bvh(*v)) {
             return Err(TraceError::format(
                 path,
-                format!("object {mi} ('{}'): vertex {i} is not finite", model.name),
+                format!(
+                    "object {mi} ('{}'): vertex {i} is not finite or beyond ±{MAX_BVH_COORD}",
+                    splatbridge_scene::input::clip(&model.name)
+                ),
             ));
         }
         let mut mat = m.material_id.map(|i| i as u32).unwrap_or(default_material);

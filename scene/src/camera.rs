@@ -222,9 +222,16 @@ impl CameraJson {
 
 /// Read a 3DGS `cameras.json`; every camera is validated and errors name the entry.
 pub fn load_cameras_json(path: &Path) -> Result<Vec<Camera>> {
-    let text = std::fs::read_to_string(path).map_err(|e| SceneError::io(path, e))?;
-    let entries: Vec<CameraJson> = serde_json::from_str(&text)
-        .map_err(|e| SceneError::format(path, format!("not a 3DGS cameras.json: {e}")))?;
+    let text = crate::input::read_text_bounded(path, crate::input::Cap::Text)?;
+    let entries: Vec<CameraJson> = serde_json::from_str(&text).map_err(|e| {
+        SceneError::format(
+            path,
+            format!(
+                "not a 3DGS cameras.json: {}",
+                crate::input::clip_to(&e.to_string(), 400)
+            ),
+        )
+    })?;
     entries
         .iter()
         .enumerate()
@@ -236,7 +243,15 @@ pub fn load_cameras_json(path: &Path) -> Result<Vec<Camera>> {
                     SceneError::format(path, format!("camera {i} ('{}'): {what}", e.img_name))
                 })?;
             c.validate().map_err(|err| {
-                SceneError::format(path, format!("camera {i} ('{}'): {err}", e.img_name))
+                // The validation message repeats the camera's name; both are clipped.
+                SceneError::format(
+                    path,
+                    format!(
+                        "camera {i} ('{}'): {}",
+                        crate::input::clip(&e.img_name),
+                        crate::input::clip_to(&err.to_string(), 200)
+                    ),
+                )
             })?;
             Ok(c)
         })

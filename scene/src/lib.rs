@@ -17,6 +17,7 @@ pub mod formats;
 pub mod frame;
 pub mod gaussians;
 pub mod image_io;
+pub mod input;
 pub mod manifest;
 pub mod metrics;
 pub mod ply;

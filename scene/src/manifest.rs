@@ -135,14 +135,18 @@ pub fn parse_manifest(path: &Path, text: &str) -> Result<Manifest> {
         Some(f) => {
             return Err(bad(
                 path,
-                format!("unknown format {f} (this reader understands \"{FORMAT}\")"),
+                format!(
+                    "unknown format {} (this reader understands \"{FORMAT}\")",
+                    crate::input::clip(&f.to_string())
+                ),
             ))
         }
     }
     if let Some(Value::Object(effects)) = obj.get("effects") {
         check_effect_names(path, effects)?;
     }
-    let m: Manifest = serde_json::from_str(text).map_err(|e| bad(path, e.to_string()))?;
+    let m: Manifest = serde_json::from_str(text)
+        .map_err(|e| bad(path, crate::input::clip_to(&e.to_string(), 400)))?;
     validate_manifest(path, &m)?;
     Ok(m)
 }
@@ -153,7 +157,8 @@ fn check_effect_names(path: &Path, effects: &serde_json::Map<String, Value>) -> 
             return Err(bad(
                 path,
                 format!(
-                    "effects: unknown effect \"{name}\" (known: {})",
+                    "effects: unknown effect \"{}\" (known: {})",
+                    crate::input::clip(name),
                     KNOWN_EFFECTS.join(", ")
                 ),
             ));
@@ -161,7 +166,28 @@ fn check_effect_names(path: &Path, effects: &serde_json::Map<String, Value>) -> 
         if !v.is_object() {
             return Err(bad(
                 path,
-                format!("effects.{name}: expected an object of parameters, found {v}"),
+                format!(
+                    "effects.{}: expected an object of parameters, found {}",
+                    crate::input::clip(name),
+                    crate::input::clip(&v.to_string())
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Largest magnitude of a time (scene time range, key times, retimed key times), in seconds:
+/// one day. glTF stores animation times as f32, whose spacing at 86 400 is 1/128 s, still
+/// finer than a 100 fps frame; a time of 1e300 would become infinite there.
+pub const MAX_TIME_SECONDS: f64 = 86_400.0;
+
+fn check_times(path: &Path, what: &str, times: impl IntoIterator<Item = f64>) -> Result<()> {
+    for t in times {
+        if !(t.abs() <= MAX_TIME_SECONDS) {
+            return Err(bad(
+                path,
+                format!("{what}: time {t:e} is outside ±{MAX_TIME_SECONDS} s"),
             ));
         }
     }
@@ -175,10 +201,11 @@ fn validate_manifest(path: &Path, m: &Manifest) -> Result<()> {
         fps: m.time.fps,
     };
     time.validate().map_err(|e| bad(path, e))?;
+    check_times(path, "time", [time.start, time.end])?;
     check_effect_names(path, &m.effects)?;
     crate::effects::Effects::from_json(&m.effects).map_err(|e| bad(path, e))?;
     for (k, o) in m.objects.iter().enumerate() {
-        let at = format!("objects[{k}] ('{}')", o.name);
+        let at = format!("objects[{k}] ('{}')", crate::input::clip(&o.name));
         if o.name.trim().is_empty() {
             return Err(bad(path, format!("objects[{k}].name is empty")));
         }
@@ -236,9 +263,12 @@ fn validate_manifest(path: &Path, m: &Manifest) -> Result<()> {
                 })
                 .map_err(|e| bad(path, format!("{at}: {e}")))?,
         };
+        check_times(path, &format!("{at}.track"), track.keys.iter().map(|k| k.t))?;
         if let Some(r) = &o.retime {
-            r.apply(&track, time.start)
+            let re = r
+                .apply(&track, time.start)
                 .map_err(|e| bad(path, format!("{at}: {e}")))?;
+            check_times(path, &format!("{at}.retime"), re.keys.iter().map(|k| k.t))?;
         }
     }
     Ok(())
@@ -262,7 +292,7 @@ fn track_from_json(keys: &[KeyJson]) -> Track {
 /// Load a `splatbridge-scene/1` manifest: validate it, check every referenced file exists (all
 /// missing ones are named together), then read the PLYs and cameras.
 pub fn load_manifest(path: &Path, opts: &ReadOptions) -> Result<(DynamicScene, Vec<String>)> {
-    let text = std::fs::read_to_string(path).map_err(|e| SceneError::io(path, e))?;
+    let text = crate::input::read_text_bounded(path, crate::input::Cap::Text)?;
     let m = parse_manifest(path, &text)?;
     let dir = path.parent().unwrap_or(Path::new(""));
     let resolve = |p: &str| dir.join(p);

@@ -25,7 +25,7 @@ pub struct Args {
     /// Cameras, comma-separated (as `compare --cameras`).
     #[arg(long, default_value = "orbit:3")]
     pub cameras: String,
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, value_parser = super::ranges::time, allow_hyphen_values = true)]
     pub time: f64,
     #[arg(long, default_value_t = 320)]
     pub width: u32,

@@ -42,7 +42,7 @@ pub struct Args {
     #[arg(long, default_value = "obvhs")]
     pub backend: String,
     /// k-buffer size of the tracer.
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, default_value_t = 16, value_parser = super::ranges::k_buffer)]
     pub k: usize,
     /// Skip the OBJ exports (which show what losing per-vertex alpha costs).
     #[arg(long)]

@@ -113,10 +113,10 @@ pub struct Args {
     #[arg(long, value_enum)]
     pub profile: Option<ProfileArg>,
     /// Segments per fan (default 8; 4 for texture).
-    #[arg(long)]
+    #[arg(long, value_parser = super::ranges::segments)]
     pub segments: Option<usize>,
     /// Rings per fan (profile rings).
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = 3, value_parser = super::ranges::rings)]
     pub rings: usize,
     /// Non-flat Gaussians: three orthogonal fans, or one flat fan.
     #[arg(long, value_enum, default_value = "three-fans")]
@@ -166,7 +166,7 @@ pub struct Args {
     #[arg(long, value_name = "R", default_value_t = splatbridge_scene::surfels::DEFAULT_MAX_FLATNESS, requires = "surfels")]
     pub surfel_flatness: f32,
     /// Triangles per surfel fan (with --surfels).
-    #[arg(long, value_name = "N", default_value_t = splatbridge_convert::surfels::DEFAULT_SURFEL_SEGMENTS, requires = "surfels")]
+    #[arg(long, value_name = "N", default_value_t = splatbridge_convert::surfels::DEFAULT_SURFEL_SEGMENTS, requires = "surfels", value_parser = super::ranges::surfel_segments)]
     pub surfel_segments: usize,
     /// Print the report as JSON on stdout.
     #[arg(long)]
@@ -293,7 +293,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let cloud_out = cloud_format(&args)?;
     let pb = common::progress(3, "loading");
     let scene = if is_gltf(&args.scene) {
-        splatbridge_convert::splats_gltf::read_file(&args.scene)?
+        let scene = splatbridge_convert::splats_gltf::read_file(&args.scene)?;
+        splatbridge_scene::input::require_gaussians(&args.scene, &scene)?;
+        scene
     } else {
         common::load(&args.scene, args.drop_invalid)?
     };

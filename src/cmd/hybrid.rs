@@ -148,7 +148,7 @@ pub struct Args {
     #[command(flatten)]
     pub camera: CameraArgs,
     /// Scene time in seconds (default: the start of the scene's time range).
-    #[arg(long)]
+    #[arg(long, value_parser = super::ranges::time, allow_hyphen_values = true)]
     pub time: Option<f64>,
     #[command(flatten)]
     pub knobs: HybridKnobs,

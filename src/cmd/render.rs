@@ -118,7 +118,7 @@ pub struct Args {
     #[command(flatten)]
     pub camera: CameraArgs,
     /// Scene time in seconds (default: the start of the scene's time range).
-    #[arg(long)]
+    #[arg(long, value_parser = super::ranges::time, allow_hyphen_values = true)]
     pub time: Option<f64>,
     /// Render every frame of the scene's time range to OUT_0000.ext, OUT_0001.ext, ….
     #[arg(long, conflicts_with = "time")]

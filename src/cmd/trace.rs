@@ -101,13 +101,13 @@ pub struct TraceInput {
     #[command(flatten)]
     pub camera: CameraArgs,
     /// Scene time in seconds (animated files and manifests).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, value_parser = super::ranges::time, allow_hyphen_values = true)]
     pub time: f64,
     /// mesh: composite the triangles; gaussian: ray-trace the Gaussians (PLY/manifest input).
     #[arg(long, value_enum, default_value_t = Mode::Mesh)]
     pub mode: Mode,
     /// k-buffer size: hits gathered per traversal before compositing and resuming.
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, default_value_t = 16, value_parser = super::ranges::k_buffer)]
     pub k: usize,
     /// BVH build preset (none pre-splits triangles).
     #[arg(long, value_enum, default_value_t = PresetArg::Medium)]

@@ -155,6 +155,8 @@ pub(crate) fn parse_header(r: &mut impl BufRead, path: &Path) -> Result<Header> 
             continue;
         }
         let mut tok = text.split_ascii_whitespace();
+        // Names and counts are echoed in messages; a megabyte-long token is shown clipped.
+        let clip = crate::input::clip;
         let Some(keyword) = tok.next() else {
             continue; // blank lines are tolerated
         };
@@ -172,14 +174,15 @@ pub(crate) fn parse_header(r: &mut impl BufRead, path: &Path) -> Result<Header> 
                     other => {
                         return Err(err(format!(
                             "header line {lineno}: unknown format '{}' (expected ascii, binary_little_endian or binary_big_endian)",
-                            other.unwrap_or("")
+                            crate::input::clip(other.unwrap_or(""))
                         )))
                     }
                 };
                 if rest.get(1).copied() != Some("1.0") || rest.len() != 2 {
                     return Err(err(format!(
-                        "header line {lineno}: format line must be 'format {} 1.0', found '{text}'",
-                        rest[0]
+                        "header line {lineno}: format line must be 'format {} 1.0', found '{}'",
+                        rest[0],
+                        crate::input::clip(text)
                     )));
                 }
                 encoding = Some(enc);
@@ -187,17 +190,21 @@ pub(crate) fn parse_header(r: &mut impl BufRead, path: &Path) -> Result<Header> 
             "element" => {
                 let [name, count] = rest[..] else {
                     return Err(err(format!(
-                        "header line {lineno}: expected 'element NAME COUNT', found '{text}'"
+                        "header line {lineno}: expected 'element NAME COUNT', found '{}'",
+                        crate::input::clip(text)
                     )));
                 };
                 let count: u64 = count.parse().map_err(|_| {
                     err(format!(
-                        "header line {lineno}: element '{name}' count '{count}' is not a non-negative integer"
+                        "header line {lineno}: element '{}' count '{}' is not a non-negative integer",
+                        clip(name),
+                        clip(count)
                     ))
                 })?;
                 if elements.is_empty() && name != "vertex" {
                     return Err(err(format!(
-                        "header line {lineno}: the first element is '{name}'; a 3DGS PLY starts with the 'vertex' element"
+                        "header line {lineno}: the first element is '{}'; a 3DGS PLY starts with the 'vertex' element",
+                        clip(name)
                     )));
                 }
                 if name == "vertex" && !elements.is_empty() {
@@ -218,14 +225,16 @@ pub(crate) fn parse_header(r: &mut impl BufRead, path: &Path) -> Result<Header> 
                     if in_vertex {
                         let name = rest.last().copied().unwrap_or("?");
                         return Err(err(format!(
-                            "header line {lineno}: vertex property '{name}' is a list; 3DGS vertex properties are scalars"
+                            "header line {lineno}: vertex property '{}' is a list; 3DGS vertex properties are scalars",
+                            clip(name)
                         )));
                     }
                     continue;
                 }
                 let [ty, name] = rest[..] else {
                     return Err(err(format!(
-                        "header line {lineno}: expected 'property TYPE NAME', found '{text}'"
+                        "header line {lineno}: expected 'property TYPE NAME', found '{}'",
+                        crate::input::clip(text)
                     )));
                 };
                 if !in_vertex {
@@ -233,12 +242,15 @@ pub(crate) fn parse_header(r: &mut impl BufRead, path: &Path) -> Result<Header> 
                 }
                 let ty = ScalarType::parse(ty).ok_or_else(|| {
                     err(format!(
-                        "header line {lineno}: property '{name}' has unsupported type '{ty}'"
+                        "header line {lineno}: property '{}' has unsupported type '{}'",
+                        clip(name),
+                        clip(ty)
                     ))
                 })?;
                 if properties.iter().any(|p| p.name == name) {
                     return Err(err(format!(
-                        "header line {lineno}: vertex property '{name}' declared twice"
+                        "header line {lineno}: vertex property '{}' declared twice",
+                        clip(name)
                     )));
                 }
                 properties.push(Property {

@@ -85,8 +85,7 @@ impl ReadReport {
 /// Read a 3DGS PLY file (see the module docs for the accepted layouts and the invalid-value
 /// policy).
 pub fn read_ply(path: &Path, opts: &ReadOptions) -> Result<(GaussianCloud, ReadReport)> {
-    let file = std::fs::File::open(path).map_err(|e| SceneError::io(path, e))?;
-    let file_len = file.metadata().map_err(|e| SceneError::io(path, e))?.len();
+    let (file, file_len) = crate::input::open_regular(path)?;
     let mut r = BufReader::with_capacity(64 << 10, file);
     let header = header::parse_header(&mut r, path)?;
     let layout = header::layout(&header, path)?;

@@ -25,7 +25,7 @@ pub struct Args {
     #[arg(long, default_value = "meshsplats")]
     pub profile: String,
     /// Segments per fan.
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, default_value_t = 8, value_parser = crate::cmd::ranges::segments)]
     pub segments: usize,
     /// Timed repeats (the median is reported).
     #[arg(long, alias = "repeats", default_value_t = 5)]

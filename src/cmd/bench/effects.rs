@@ -30,7 +30,7 @@ pub struct Args {
     #[command(flatten)]
     pub camera: CameraArgs,
     /// Frame time in seconds.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, value_parser = crate::cmd::ranges::time, allow_hyphen_values = true)]
     pub time: f64,
     /// Timed runs per effect (the median is reported).
     #[arg(long = "repeat", alias = "repeats", default_value_t = 3)]
