@@ -61,10 +61,10 @@ fn assert_close(a: &GaussianCloud, b: &GaussianCloud, tol: f32, what: &str) {
 }
 
 /// splat-transform's GLB holds the PLY turned into glTF's frame (a half turn about z, SH
-/// rotated); reading turns it back. Float32 attributes, so the differences are rounding:
-/// the half-turn quaternion in f32 is not exact (cos(π/2) ≈ −4.4e-8) and SH rotation runs in
-/// f32, both ~1e-7 relative; scale goes through exp then ln, opacity through the sigmoid.
-/// 2e-6 covers those with a margin (values here are ≤ ~5 in magnitude).
+/// rotated); reading turns it back exactly (sign flips). Float32 attributes, so the
+/// differences are splat-transform's own rounding when it rotated the data (~1e-7 relative)
+/// and scale through exp then ln, opacity through the sigmoid; 2e-6 covers those with a
+/// margin (values here are ≤ ~5 in magnitude).
 #[test]
 fn reference_glb_reads_back_to_the_source_ply() {
     let s = read_gltf_splats(&fx("khr/st_source.glb")).unwrap();

@@ -92,16 +92,8 @@ pub fn read_gltf_splats(path: &Path) -> Result<DynamicScene> {
             .get(r)
             .is_some_and(|n| n["name"] == "splatbridge_root" && n["extras"]["inputUp"].is_string())
     });
-    // glTF's LUF to the PLY's RDF: a half turn about z.
-    let to_ply = if ours {
-        Quat::IDENTITY
-    } else {
-        Quat::from_rotation_z(std::f32::consts::PI)
-    };
-    let mut stack: Vec<(usize, Affine3A)> = roots
-        .into_iter()
-        .map(|r| (r, Affine3A::from_quat(to_ply)))
-        .collect();
+    let mut stack: Vec<(usize, Affine3A)> =
+        roots.into_iter().map(|r| (r, Affine3A::IDENTITY)).collect();
     let mut visited = vec![false; nodes.len()];
     while let Some((ni, parent)) = stack.pop() {
         let n = nodes
@@ -155,13 +147,12 @@ pub fn read_gltf_splats(path: &Path) -> Result<DynamicScene> {
                 .map(|(i, &t)| PoseKey {
                     t: t as f64,
                     pose: Pose {
-                        translation: to_ply
-                            * tr.as_ref()
-                                .map_or(Vec3::ZERO, |x| Vec3::from_slice(&x[3 * i..3 * i + 3])),
-                        rotation: to_ply
-                            * rot.as_ref().map_or(Quat::IDENTITY, |x| {
-                                Quat::from_slice(&x[4 * i..4 * i + 4]).normalize()
-                            }),
+                        translation: tr
+                            .as_ref()
+                            .map_or(Vec3::ZERO, |x| Vec3::from_slice(&x[3 * i..3 * i + 3])),
+                        rotation: rot.as_ref().map_or(Quat::IDENTITY, |x| {
+                            Quat::from_slice(&x[4 * i..4 * i + 4]).normalize()
+                        }),
                     },
                 })
                 .collect::<Vec<_>>();
@@ -189,7 +180,54 @@ pub fn read_gltf_splats(path: &Path) -> Result<DynamicScene> {
     // Objects in file order (the stack visits children last-first).
     scene.objects.reverse();
     scene.cameras.reverse();
+    if !ours {
+        half_turn_z(&mut scene);
+    }
     Ok(scene)
+}
+
+/// Sign of each SH coefficient (coefficient-major, after DC) under a half turn about z
+/// (x and y negated): (−1)^m in the 3DGS order (y, z, x; xy, yz, 3z²−1, xz, x²−y²; …).
+const SH_HALF_TURN_Z: [f32; 15] = [
+    -1.0, 1.0, -1.0, // degree 1
+    1.0, -1.0, 1.0, -1.0, 1.0, // degree 2
+    -1.0, 1.0, -1.0, 1.0, -1.0, 1.0, -1.0, // degree 3
+];
+
+/// `qz · q` for the half turn qz = (0, 0, 1, 0) about z, exactly (a permutation with signs).
+fn half_turn_quat(q: Quat) -> Quat {
+    Quat::from_xyzw(-q.y, q.x, q.w, -q.z)
+}
+
+/// glTF's LUF to the PLY's RDF: a half turn about z, applied exactly (sign flips and
+/// permutations, no rounding) to the world-space Gaussians, object tracks and cameras.
+fn half_turn_z(scene: &mut DynamicScene) {
+    let c = &mut scene.static_gaussians;
+    for m in &mut c.means {
+        *m *= Vec3::new(-1.0, -1.0, 1.0);
+    }
+    for q in &mut c.rotations {
+        *q = half_turn_quat(*q);
+    }
+    let k = c.coeffs();
+    if k > 1 {
+        for g in c.sh.chunks_mut(k) {
+            for (j, s) in g[1..].iter_mut().enumerate() {
+                *s *= SH_HALF_TURN_Z[j];
+            }
+        }
+    }
+    for o in &mut scene.objects {
+        for key in &mut o.track.keys {
+            key.pose.translation *= Vec3::new(-1.0, -1.0, 1.0);
+            key.pose.rotation = half_turn_quat(key.pose.rotation);
+        }
+    }
+    let h = DVec3::new(-1.0, -1.0, 1.0);
+    for cam in &mut scene.cameras {
+        cam.centre *= h;
+        cam.world_to_cam *= DMat3::from_diagonal(h);
+    }
 }
 
 /// Whether any splat primitive of the file's JSON uses the SPZ variant (for `info`).
