@@ -133,6 +133,11 @@ pub struct Args {
     /// Write native splats (KHR_gaussian_splatting, .glb/.gltf) instead of a mesh.
     #[arg(long)]
     pub splats: bool,
+    /// With --splats: `spz` stores each primitive's Gaussians as one SPZ stream
+    /// (KHR_gaussian_splatting_compression_spz_2; about 10× smaller, SPZ v3's quantisation);
+    /// `none` writes float accessors (lossless).
+    #[arg(long, value_enum, default_value = "none")]
+    pub khr_compression: KhrCompressionArg,
     /// Keep the Gaussians with the largest opacity·s_max·s_mid within this many triangles.
     #[arg(long)]
     pub max_triangles: Option<u64>,
@@ -288,7 +293,19 @@ fn write_cloud_output(
     Ok(())
 }
 
+/// `--khr-compression`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum KhrCompressionArg {
+    /// Float accessors.
+    None,
+    /// KHR_gaussian_splatting_compression_spz_2.
+    Spz,
+}
+
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.khr_compression != KhrCompressionArg::None && !args.splats {
+        bail!("--khr-compression: applies to --splats glTF outputs only");
+    }
     let t0 = Instant::now();
     let cloud_out = cloud_format(&args)?;
     let pb = common::progress(3, "loading");
@@ -409,7 +426,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 args.output.display()
             );
         }
-        splatbridge_convert::splats_gltf::write_file(&args.output, &scene, &opts)?
+        let compression = match args.khr_compression {
+            KhrCompressionArg::None => splatbridge_convert::splats_gltf::KhrCompression::None,
+            KhrCompressionArg::Spz => splatbridge_convert::splats_gltf::KhrCompression::Spz,
+        };
+        splatbridge_convert::splats_gltf::write_file_with(&args.output, &scene, &opts, compression)?
     } else {
         splatbridge_convert::convert_to_file(
             &args.output,
