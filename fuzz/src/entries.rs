@@ -16,8 +16,11 @@ use std::path::Path;
 
 use arbitrary::{Arbitrary, Unstructured};
 
+/// A target's entry function.
+pub type Entry = fn(&[u8]);
+
 /// Every target: name and entry function.
-pub const TARGETS: &[(&str, fn(&[u8]))] = &[
+pub const TARGETS: &[(&str, Entry)] = &[
     ("ply", ply),
     ("ply_structured", ply_structured),
     ("manifest", manifest),

@@ -27,9 +27,12 @@ fn key(b: &(Vec3, Vec3)) -> [u32; 6] {
     ]
 }
 
+/// An axis-aligned box (min, max).
+pub type Bounds = (Vec3, Vec3);
+
 /// Distinct boxes and, per distinct box, the primitives that have it (ascending), when some box
 /// is shared by more than [`FOLD_THRESHOLD`] primitives; `None` otherwise.
-pub fn fold(boxes: &[(Vec3, Vec3)]) -> Option<(Vec<(Vec3, Vec3)>, Vec<Vec<u32>>)> {
+pub fn fold(boxes: &[Bounds]) -> Option<(Vec<Bounds>, Vec<Vec<u32>>)> {
     if boxes.len() <= FOLD_THRESHOLD {
         return None;
     }

@@ -233,6 +233,15 @@ fn check_document(root: &Root, base: Option<&Path>, name: &Path) -> Result<()> {
         for (pi, p) in m.primitives.iter().enumerate() {
             use gltf::json::mesh::{Mode, Semantic};
             let what = format!("mesh {mi} primitive {pi}");
+            // Every mode: the `gltf` validation indexes attribute accessors unchecked.
+            for acc in p.attributes.values().chain(p.indices.as_ref()) {
+                if acc.value() >= root.accessors.len() {
+                    return Err(bad(
+                        name,
+                        format!("{what}: missing accessor {}", acc.value()),
+                    ));
+                }
+            }
             if !matches!(
                 p.mode,
                 Checked::Valid(Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan)
