@@ -94,7 +94,10 @@ fn every_writer_renders_like_the_original() {
         write_cloud(&path, &orig, format.unwrap()).unwrap();
         let (back, detected) = reload(&path);
         let (mean, min) = psnr_over(&orig, &back, &cams);
-        eprintln!("{name} ({}): mean {mean:.2} dB, min {min:.2} dB", detected.name());
+        eprintln!(
+            "{name} ({}): mean {mean:.2} dB, min {min:.2} dB",
+            detected.name()
+        );
         assert!(min >= floor, "{name}: {min:.2} dB < floor {floor}");
     }
     let scene = DynamicScene::from_static(orig.clone());
@@ -106,7 +109,10 @@ fn every_writer_renders_like_the_original() {
         write_file_with(&path, &scene, &ConvertOptions::default(), compression).unwrap();
         let (back, detected) = reload(&path);
         let (mean, min) = psnr_over(&orig, &back, &cams);
-        eprintln!("{name} ({}): mean {mean:.2} dB, min {min:.2} dB", detected.name());
+        eprintln!(
+            "{name} ({}): mean {mean:.2} dB, min {min:.2} dB",
+            detected.name()
+        );
         assert!(min >= floor, "{name}: {min:.2} dB < floor {floor}");
     }
 }
