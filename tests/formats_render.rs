@@ -160,3 +160,55 @@ fn real_files_render_like_their_plys() {
         assert!(min >= floor, "{file}: {min:.2} dB < floor {floor}");
     }
 }
+
+/// `accuracy --only format` reports what each file format costs: one record per format, the
+/// lossless 3DGS PLY identical to the reference (PSNR +inf, JSON null), every lossy one finite
+/// and at least the floor of `every_writer_renders_like_the_original` for that format (the same
+/// fixture, so the same quantisation; 48×32 images, so the floors are checked loosely at 35 dB,
+/// below the lowest of them, `.splat`'s 39).
+#[test]
+fn accuracy_reports_the_cost_of_each_format() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_splatbridge"))
+        .args(["accuracy", "--only", "format", "--cameras", "orbit:2"])
+        .args(["--width", "48", "--height", "32", "-o"])
+        .arg(dir.path())
+        .arg(fixture("cut300.ply"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(dir.path().join("accuracy.json")).unwrap();
+    let records: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let rows: Vec<_> = records
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|r| r["knob"] == "format")
+        .collect();
+    let values: Vec<&str> = rows.iter().map(|r| r["value"].as_str().unwrap()).collect();
+    assert_eq!(
+        values,
+        ["3DGS PLY", "compressed PLY", ".splat", "SPZ v3", "SPZ v2"]
+    );
+    for r in &rows {
+        let bytes = r["bytes"].as_u64().unwrap();
+        assert!(bytes > 0, "{r}");
+        if r["value"] == "3DGS PLY" {
+            assert!(r["psnr"].is_null(), "lossless PLY: {r}");
+        } else {
+            let p = r["psnr"].as_f64().unwrap_or(f64::INFINITY);
+            assert!(p >= 35.0, "{r}");
+        }
+    }
+    // No sweep file is left behind.
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().starts_with("sweep_"))
+        .collect();
+    assert!(left.is_empty());
+}

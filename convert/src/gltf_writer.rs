@@ -146,7 +146,7 @@ impl DocBuilder {
 
     /// Append bytes to the in-memory part (4-byte aligned) and return a view index.
     pub fn small_view(&mut self, bytes: &[u8], target: Option<u32>) -> usize {
-        while self.small.len() % 4 != 0 {
+        while !self.small.len().is_multiple_of(4) {
             self.small.push(0);
         }
         let off = self.small.len();
@@ -326,7 +326,7 @@ fn plan(
             frame_anim = Some((input, outs));
         }
     }
-    while d.small.len() % 4 != 0 {
+    while !d.small.len().is_multiple_of(4) {
         d.small.push(0);
     }
 

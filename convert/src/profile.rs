@@ -253,7 +253,7 @@ impl ProfileShape {
 
     fn axis_key(&self, k: usize, ring: usize) -> VertexKey {
         let n = self.segments;
-        if self.profile != Profile::Texture && n % 4 == 0 && k % (n / 4) == 0 {
+        if self.profile != Profile::Texture && n.is_multiple_of(4) && k.is_multiple_of(n / 4) {
             // θ_k = −π + 2πk/n: k = 0 → −x, n/4 → −y, n/2 → +x, 3n/4 → +y.
             let dir = [2u8, 3, 0, 1][k / (n / 4)];
             VertexKey::Axis {

@@ -249,7 +249,7 @@ fn plan<'a>(
         let ra = d.floats(&rot, "VEC4", 4, false);
         anim.push(Some((input, ta, ra, keys[0].1, keys[0].2)));
     }
-    while d.small.len() % 4 != 0 {
+    while !d.small.len().is_multiple_of(4) {
         d.small.push(0);
     }
     let mut offset = d.small.len() as u64;

@@ -411,7 +411,7 @@ fn gltf_structured(data: &[u8]) {
         "animations": anims,
     });
     let mut json_bytes = doc.to_string().into_bytes();
-    while json_bytes.len() % 4 != 0 {
+    while !json_bytes.len().is_multiple_of(4) {
         json_bytes.push(b' ');
     }
     let mut bin = g.bin.clone();

@@ -29,7 +29,7 @@ impl Bin {
         normalized: bool,
         minmax: Option<(Vec<f32>, Vec<f32>)>,
     ) -> usize {
-        while self.data.len() % 4 != 0 {
+        while !self.data.len().is_multiple_of(4) {
             self.data.push(0);
         }
         self.views
@@ -193,14 +193,14 @@ fn build_glb() -> (Vec<u8>, Vec<Vec3>, Vec<Vec4>) {
     bin.accessors[stimes]["max"] = json!([1.0]);
     let sc = bin.f32s(&[1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0], 3, "VEC3");
     let png = png_bytes();
-    while bin.data.len() % 4 != 0 {
+    while !bin.data.len().is_multiple_of(4) {
         bin.data.push(0);
     }
     bin.views
         .push(json!({"buffer": 0, "byteOffset": bin.data.len(), "byteLength": png.len()}));
     bin.data.extend_from_slice(&png);
     let img_view = bin.views.len() - 1;
-    while bin.data.len() % 4 != 0 {
+    while !bin.data.len().is_multiple_of(4) {
         bin.data.push(0);
     }
     let doc = json!({
@@ -240,7 +240,7 @@ fn build_glb() -> (Vec<u8>, Vec<Vec3>, Vec<Vec4>) {
         "buffers": [{"byteLength": bin.data.len()}]
     });
     let mut js = serde_json::to_vec(&doc).unwrap();
-    while js.len() % 4 != 0 {
+    while !js.len().is_multiple_of(4) {
         js.push(b' ');
     }
     let total = 12 + 8 + js.len() + 8 + bin.data.len();

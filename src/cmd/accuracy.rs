@@ -12,6 +12,9 @@ use splatbridge::report::{markdown_table, Record};
 use splatbridge_convert::{ConvertOptions, Profile};
 use splatbridge_hybrid::native::RenderOptions as NativeOptions;
 use splatbridge_hybrid::project::Extent;
+use splatbridge_scene::formats::spz::SpzOptions;
+use splatbridge_scene::formats::write::{write_cloud, CloudFormat};
+use splatbridge_scene::ply::ReadOptions;
 use splatbridge_scene::surfels::SplitParams;
 use splatbridge_scene::{Camera, Frame, GaussianCloud};
 
@@ -32,7 +35,8 @@ pub struct Args {
     #[arg(long, default_value_t = 240)]
     pub height: u32,
     /// Knob families to sweep (default: all): profile, segments, extent, k, native-extent,
-    /// hybrid, sh-degree.
+    /// hybrid, sh-degree, format (each splat file format's quantisation: the cloud written by
+    /// our writer, read back and rendered natively).
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
     #[arg(long)]
@@ -49,6 +53,19 @@ enum Setting {
     Mesh(Box<ConvertOptions>, usize),
     Native(NativeOptions),
     Hybrid(SplitParams),
+    /// Write the cloud in this format, read it back, render natively.
+    Format(CloudFormat),
+}
+
+/// A file name ending for a single-cloud format (the loader detects by content; the name is
+/// for a person looking at the folder).
+fn format_ending(f: &CloudFormat) -> &'static str {
+    match f {
+        CloudFormat::Ply => "ply",
+        CloudFormat::CompressedPly => "compressed.ply",
+        CloudFormat::Splat => "splat",
+        CloudFormat::Spz(_) => "spz",
+    }
 }
 
 fn mesh(profile: Profile, segments: Option<usize>, rings: usize) -> ConvertOptions {
@@ -150,6 +167,24 @@ fn settings(only: &[String]) -> Vec<(&'static str, String, Setting, bool)> {
                 }),
                 false,
             ));
+        }
+    }
+    if want("format") {
+        // What each lossy file format costs: the 3DGS PLY is the lossless control.
+        let spz = |version| {
+            CloudFormat::Spz(SpzOptions {
+                version,
+                ..SpzOptions::default()
+            })
+        };
+        for (label, f) in [
+            ("3DGS PLY", CloudFormat::Ply),
+            ("compressed PLY", CloudFormat::CompressedPly),
+            (".splat", CloudFormat::Splat),
+            ("SPZ v3", spz(3)),
+            ("SPZ v2", spz(2)),
+        ] {
+            v.push(("format", label.into(), Setting::Format(f), false));
         }
     }
     if want("hybrid") {
@@ -324,6 +359,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 for (c, reference) in cams.iter().zip(&refs) {
                     let img = parity::render_native(&cloud, c, o)?;
                     push(&img.frame, reference, img.ms, c, 0, 0)?;
+                }
+                "native"
+            }
+            Setting::Format(f) => {
+                let path = args
+                    .out
+                    .join(format!("sweep_{}.{}", records.len(), format_ending(f)));
+                let bytes = write_cloud(&path, &cloud, *f)?;
+                let read = ReadOptions {
+                    drop_invalid: args.drop_invalid,
+                };
+                let decoded = splatbridge_scene::formats::load_cloud(&path, &read);
+                let _ = std::fs::remove_file(&path);
+                let (decoded, _) = decoded?;
+                for (c, reference) in cams.iter().zip(&refs) {
+                    let img = parity::render_native(&decoded, c, &NativeOptions::default())?;
+                    push(&img.frame, reference, img.ms, c, 0, bytes)?;
                 }
                 "native"
             }

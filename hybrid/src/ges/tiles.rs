@@ -50,7 +50,7 @@ mod tests {
                 ]
             })
             .collect();
-        let keep = |k: usize, t: usize| (k * 7 + t * 13) % 5 != 0;
+        let keep = |k: usize, t: usize| !(k * 7 + t * 13).is_multiple_of(5);
         let bins = bin_rects(&rects, [gx, gy], usize::MAX, keep).unwrap();
         let mut pairs = 0;
         for ty in 0..gy {

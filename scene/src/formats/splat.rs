@@ -33,7 +33,7 @@ const MAX_FILE: u64 = (RECORD as u64) << 32;
 /// multiple of 32 and the first records (up to 64 in `head`) must hold finite positions and
 /// finite, non-negative scales of sane magnitude.
 pub(crate) fn plausible(head: &[u8], file_len: u64) -> bool {
-    if file_len == 0 || file_len % RECORD as u64 != 0 {
+    if file_len == 0 || !file_len.is_multiple_of(RECORD as u64) {
         return false;
     }
     let records = head.chunks_exact(RECORD).take(64);
@@ -65,7 +65,7 @@ fn check_len(len: u64, path: &Path) -> Result<()> {
             ".splat file is empty (no records)",
         ));
     }
-    if len % RECORD as u64 != 0 {
+    if !len.is_multiple_of(RECORD as u64) {
         return Err(SceneError::format(
             path,
             format!(
