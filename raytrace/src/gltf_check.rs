@@ -234,11 +234,22 @@ fn check_document(root: &Root, base: Option<&Path>, name: &Path) -> Result<()> {
             use gltf::json::mesh::{Mode, Semantic};
             let what = format!("mesh {mi} primitive {pi}");
             // Every mode: the `gltf` validation indexes attribute accessors unchecked.
-            for acc in p.attributes.values().chain(p.indices.as_ref()) {
+            let named = p
+                .attributes
+                .iter()
+                .map(|(sem, acc)| {
+                    let attr = match sem {
+                        Checked::Valid(sem) => sem.to_string(),
+                        Checked::Invalid => "attribute".to_string(),
+                    };
+                    (attr, acc)
+                })
+                .chain(p.indices.as_ref().map(|acc| ("indices".to_string(), acc)));
+            for (attr, acc) in named {
                 if acc.value() >= root.accessors.len() {
                     return Err(bad(
                         name,
-                        format!("{what}: missing accessor {}", acc.value()),
+                        format!("{what}: {attr}: missing accessor {}", acc.value()),
                     ));
                 }
             }

@@ -293,6 +293,18 @@ fn detect_bytes(path: &Path, buf: &[u8], len: u64) -> Result<SplatFormat> {
     if splat::plausible(buf, len) || is_splat_ext {
         return Ok(SplatFormat::Splat);
     }
+    // Content names no format: the extension picks the reader whose message says what is wrong
+    // with this file ("empty file (no PLY header)", "not UTF-8", a manifest that is not an
+    // object) instead of a generic "unknown format".
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
+    match ext.as_deref() {
+        Some("ply") => return Ok(SplatFormat::Ply),
+        Some("json") => return Ok(SplatFormat::Manifest),
+        _ => {}
+    }
     let shown: String = buf
         .iter()
         .take(8)
