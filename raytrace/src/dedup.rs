@@ -137,8 +137,11 @@ mod tests {
         }
     }
 
-    /// The folded structure against the obvious reference: a ray aimed through the middle of a
-    /// box visits every primitive with that box, each once, as the unfolded build does.
+    /// The folded structure against the obvious reference (the primitives whose boxes the ray
+    /// enters, by brute force): a ray aimed through the middle of a box visits every primitive
+    /// with that box, each once. The unfolded obvhs build is no reference here: on 500 equal
+    /// boxes its tree is deeper than obvhs's 32-entry traversal stack (its own debug validation
+    /// fails), which is what folding is for.
     #[test]
     fn folded_build_visits_every_copy_like_the_plain_build() {
         use crate::backend::{build_boxes, BackendKind, BuildPreset};
@@ -150,27 +153,18 @@ mod tests {
         }
         assert!(fold(&boxes).is_some());
         let folded = build_boxes(BackendKind::Obvhs, BuildPreset::Medium, &boxes).unwrap();
-        let plain = crate::obvhs_backend::ObvhsAccel::boxes(BuildPreset::Medium, &boxes);
         for i in 0..5 {
             let origin = Vec3::new(i as f32 * 3.0 + 0.5, 0.5, -10.0);
             let mut a = Vec::new();
             folded.traverse(origin, Vec3::Z, 100.0, &mut |p, _, _| a.push(p));
-            let mut b = Vec::new();
-            plain.traverse(origin, Vec3::Z, 100.0, &mut |p, _, _| b.push(p));
             a.sort_unstable();
-            b.sort_unstable();
             let want: Vec<u32> = (0..boxes.len() as u32)
                 .filter(|&p| boxes[p as usize].0.x == i as f32 * 3.0)
                 .collect();
             // A backend visits at least the primitives whose boxes the ray enters (leaves may
             // add neighbours), each once.
-            for (name, v) in [("folded", &a), ("plain", &b)] {
-                assert!(v.windows(2).all(|w| w[0] < w[1]), "ray {i}: {name} repeats");
-                assert!(
-                    want.iter().all(|p| v.binary_search(p).is_ok()),
-                    "ray {i}: {name}"
-                );
-            }
+            assert!(a.windows(2).all(|w| w[0] < w[1]), "ray {i}: repeats");
+            assert!(want.iter().all(|p| a.binary_search(p).is_ok()), "ray {i}");
         }
     }
 
