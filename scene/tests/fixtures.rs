@@ -309,8 +309,12 @@ fn committed_fixtures_stay_small() {
         }
     }
     let total = size(&root);
+    // 2 MiB held the street scene and the malformed PLYs; the splat formats added 1.2 MB of
+    // files that the reference encoder made (SOG, SPZ, compressed PLY, KHR GLB of a 300-Gaussian
+    // cut) and their malformed variants, which tests decode without npm. 3 MiB keeps that and
+    // still fails when a large file is committed by mistake.
     assert!(
-        total < 2 * 1024 * 1024,
-        "fixtures/ holds {total} bytes (budget 2 MiB)"
+        total < 3 * 1024 * 1024,
+        "fixtures/ holds {total} bytes (budget 3 MiB)"
     );
 }
