@@ -1,31 +1,7 @@
-//! Build-time facts for the tests, so a test whose data or tool is missing is reported as
-//! *ignored, with the reason* (`#[cfg_attr(not(real_data), ignore = "…")]`) instead of passing
-//! after an early return. libtest has no run-time "ignored" outcome, hence a build-time check:
-//!
-//! - `cfg(real_data)`: the shared real scenes exist (`shared/data/real` next to the workspace).
-//! - `cfg(gltf_tools)`: the glTF validator wrapper exists (`shared/tools/gltf-validate.sh`).
-//!
-//! When a folder is present it is watched, so removing it re-runs this script; a folder that
-//! appears later is picked up on the next change to this file (or `cargo clean -p CRATE`).
+//! Build-time facts for the tests: see `build/shared_cfg.rs` at the workspace root.
 
-use std::path::Path;
-
-/// The folder that holds `shared/` (the workspace's parent), relative to this crate.
-const SHARED_PARENT: &str = "../..";
+include!("../build/shared_cfg.rs");
 
 fn main() {
-    println!("cargo::rustc-check-cfg=cfg(real_data)");
-    println!("cargo::rustc-check-cfg=cfg(gltf_tools)");
-    println!("cargo::rerun-if-changed=build.rs");
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join(SHARED_PARENT);
-    let real = root.join("shared/data/real");
-    if real.is_dir() {
-        println!("cargo::rustc-cfg=real_data");
-        println!("cargo::rerun-if-changed={}", real.display());
-    }
-    let tools = root.join("shared/tools/gltf-validate.sh");
-    if tools.is_file() {
-        println!("cargo::rustc-cfg=gltf_tools");
-        println!("cargo::rerun-if-changed={}", tools.display());
-    }
+    emit_shared_cfgs("..");
 }

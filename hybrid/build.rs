@@ -9,28 +9,12 @@
 //! When a folder is present it is watched, so removing it re-runs this script; a folder that
 //! appears later is picked up on the next change to this file (or `cargo clean -p CRATE`).
 
-use std::path::Path;
-
-/// The folder that holds `shared/` (the workspace's parent), relative to this crate.
-const SHARED_PARENT: &str = "../..";
+include!("../build/shared_cfg.rs");
 
 fn main() {
-    println!("cargo::rustc-check-cfg=cfg(real_data)");
-    println!("cargo::rustc-check-cfg=cfg(gltf_tools)");
+    emit_shared_cfgs("..");
     println!("cargo::rustc-check-cfg=cfg(host_avx2)");
     println!("cargo::rustc-check-cfg=cfg(host_sse41)");
-    println!("cargo::rerun-if-changed=build.rs");
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join(SHARED_PARENT);
-    let real = root.join("shared/data/real");
-    if real.is_dir() {
-        println!("cargo::rustc-cfg=real_data");
-        println!("cargo::rerun-if-changed={}", real.display());
-    }
-    let tools = root.join("shared/tools/gltf-validate.sh");
-    if tools.is_file() {
-        println!("cargo::rustc-cfg=gltf_tools");
-        println!("cargo::rerun-if-changed={}", tools.display());
-    }
     // The SIMD tests compare each kernel with the portable code on the machine that runs them;
     // tests run where they are built, so the build host's CPU decides (only when not
     // cross-compiling).
