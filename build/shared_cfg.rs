@@ -4,17 +4,42 @@
 // libtest has no run-time "ignored" outcome, hence a build-time check:
 //
 // - `cfg(real_data)`: the shared real scenes exist (`shared/data/real` next to the workspace).
-// - `cfg(gltf_tools)`: the glTF validator wrapper exists (`shared/tools/gltf-validate.sh`).
+// - `cfg(gltf_tools)`: the glTF validator can run: its wrapper exists
+//   (`shared/tools/gltf-validate.sh`) and `node` and `npm` are on PATH
+//   (what `scripts/validate-exports.sh` needs).
+// - `cfg(blender)`: `blender` is on PATH (what `scripts/blender-check.sh` needs).
+//
+// A test behind one of these fails, not skips, when the tool is there but cannot do its job.
 //
 // When a folder is present it is watched, so removing it re-runs the script; a folder that
 // appears later is picked up on the next change to the script (or `cargo clean -p CRATE`).
 
-/// Emit `cfg(real_data)` and `cfg(gltf_tools)` for a crate whose workspace root is
+/// Whether an executable named `name` is in one of PATH's folders.
+fn on_path(name: &str) -> bool {
+    let executable = |p: &std::path::Path| {
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            std::fs::metadata(p).is_ok_and(|m| m.is_file() && m.permissions().mode() & 0o111 != 0)
+        }
+        #[cfg(not(unix))]
+        {
+            p.is_file()
+        }
+    };
+    std::env::var_os("PATH")
+        .is_some_and(|paths| std::env::split_paths(&paths).any(|d| executable(&d.join(name))))
+}
+
+/// Emit `cfg(real_data)`, `cfg(gltf_tools)` and `cfg(blender)` for a crate whose workspace root is
 /// `workspace` relative to its manifest folder (`.` for the root crate, `..` for a member);
 /// `shared/` sits beside the workspace.
 fn emit_shared_cfgs(workspace: &str) {
     println!("cargo::rustc-check-cfg=cfg(real_data)");
     println!("cargo::rustc-check-cfg=cfg(gltf_tools)");
+    println!("cargo::rustc-check-cfg=cfg(blender)");
+    // Tools found on PATH are looked up again when PATH changes.
+    println!("cargo::rerun-if-env-changed=PATH");
     println!("cargo::rerun-if-changed=build.rs");
     let workspace = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(workspace);
     println!(
@@ -29,7 +54,12 @@ fn emit_shared_cfgs(workspace: &str) {
     }
     let tools = root.join("shared/tools/gltf-validate.sh");
     if tools.is_file() {
-        println!("cargo::rustc-cfg=gltf_tools");
         println!("cargo::rerun-if-changed={}", tools.display());
+        if on_path("node") && on_path("npm") {
+            println!("cargo::rustc-cfg=gltf_tools");
+        }
+    }
+    if on_path("blender") {
+        println!("cargo::rustc-cfg=blender");
     }
 }

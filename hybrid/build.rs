@@ -3,7 +3,8 @@
 //! after an early return. libtest has no run-time "ignored" outcome, hence a build-time check:
 //!
 //! - `cfg(real_data)`: the shared real scenes exist (`shared/data/real` next to the workspace).
-//! - `cfg(gltf_tools)`: the glTF validator wrapper exists (`shared/tools/gltf-validate.sh`).
+//! - `cfg(gltf_tools)`, `cfg(blender)`: the glTF validator or Blender can run (see
+//!   `build/shared_cfg.rs`).
 //! - `cfg(host_avx2)`, `cfg(host_sse41)`: the CPU has the instructions a SIMD test compares.
 //!
 //! When a folder is present it is watched, so removing it re-runs this script; a folder that

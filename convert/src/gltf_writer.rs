@@ -8,21 +8,27 @@
 //! mesh data, which is generated again chunk by chunk and streamed: memory stays at a few
 //! chunks, not a copy of the mesh. The JSON goes through `gltf_json::Root`, so it is
 //! schema-typed before it is written.
+//!
+//! [`plan`] decides everything before streaming, in steps: the small data (texture, animation
+//! keys), one mesh node per entry with its primitives' regions, the per-frame visibility
+//! channels, the cameras and root, then the document. [`stream_bin`] writes the buffer;
+//! [`write_glb`] and [`write_file`] put it in a GLB or a `.gltf` + `.bin`.
 
 use std::io::{self, Write};
 use std::path::Path;
 
-use glam::{DMat3, DQuat, DVec3, Quat};
 use serde_json::{json, Value};
 use splatbridge_scene::dynamic::DynamicScene;
-use splatbridge_scene::Camera;
 
+use crate::chunked::ChunkedMesh;
+pub use crate::gltf_doc::camera_node;
+use crate::gltf_doc::{
+    camera_nodes, object_tracks, remove_keys, root_node, typed_json, Animation, DocBuilder,
+    ObjectTrack, ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER, FLOAT,
+};
 use crate::options::{ConvertOptions, ConvertReport, Profile};
 use crate::{io_err, prepare, shape_for, FrameClouds, MeshEntry, Role};
 
-pub(crate) const ARRAY_BUFFER: u32 = 34962;
-pub(crate) const ELEMENT_ARRAY_BUFFER: u32 = 34963;
-pub(crate) const FLOAT: u32 = 5126;
 const UNSIGNED_SHORT: u32 = 5123;
 const UNSIGNED_INT: u32 = 5125;
 
@@ -128,121 +134,6 @@ pub(crate) fn index_bytes(idx: &[u32]) -> Vec<u8> {
     b
 }
 
-/// Collects glTF JSON arrays and the in-memory part of the binary buffer.
-pub(crate) struct DocBuilder {
-    pub accessors: Vec<Value>,
-    pub views: Vec<Value>,
-    pub small: Vec<u8>,
-}
-
-impl DocBuilder {
-    pub fn new() -> Self {
-        DocBuilder {
-            accessors: Vec::new(),
-            views: Vec::new(),
-            small: Vec::new(),
-        }
-    }
-
-    /// Append bytes to the in-memory part (4-byte aligned) and return a view index.
-    pub fn small_view(&mut self, bytes: &[u8], target: Option<u32>) -> usize {
-        while !self.small.len().is_multiple_of(4) {
-            self.small.push(0);
-        }
-        let off = self.small.len();
-        self.small.extend_from_slice(bytes);
-        let mut v = json!({"buffer": 0, "byteOffset": off, "byteLength": bytes.len()});
-        if let Some(t) = target {
-            v["target"] = json!(t);
-        }
-        self.views.push(v);
-        self.views.len() - 1
-    }
-
-    pub fn accessor(&mut self, a: Value) -> usize {
-        self.accessors.push(a);
-        self.accessors.len() - 1
-    }
-
-    /// A FLOAT accessor over f32 values in the small part, with min/max when asked.
-    pub fn floats(&mut self, data: &[f32], ty: &str, comps: usize, minmax: bool) -> usize {
-        let bytes: Vec<u8> = data.iter().flat_map(|x| x.to_le_bytes()).collect();
-        let view = self.small_view(&bytes, None);
-        let count = data.len() / comps;
-        let mut a = json!({"bufferView": view, "componentType": FLOAT, "count": count, "type": ty});
-        if minmax {
-            let mut lo = vec![f32::INFINITY; comps];
-            let mut hi = vec![f32::NEG_INFINITY; comps];
-            for (i, &x) in data.iter().enumerate() {
-                lo[i % comps] = lo[i % comps].min(x);
-                hi[i % comps] = hi[i % comps].max(x);
-            }
-            a["min"] = json!(lo);
-            a["max"] = json!(hi);
-        }
-        self.accessor(a)
-    }
-}
-
-/// glTF camera frame from an OpenCV camera: glTF cameras look down −Z with +Y up, OpenCV
-/// cameras down +Z with +Y down, so the camera-to-world rotation gains a 180° turn about
-/// the camera's x axis. Returns (translation, rotation x,y,z,w, camera JSON).
-pub fn camera_node(cam: &Camera) -> ([f32; 3], [f32; 4], Value) {
-    let c2w = cam.cam_to_world() * DMat3::from_diagonal(DVec3::new(1.0, -1.0, -1.0));
-    let q = DQuat::from_mat3(&c2w).normalize();
-    let yfov = 2.0 * (cam.height as f64 / (2.0 * cam.fy)).atan();
-    let json = json!({
-        "type": "perspective",
-        "name": cam.name,
-        "perspective": {"yfov": yfov, "aspectRatio": cam.width as f64 / cam.height as f64, "znear": 0.01},
-        "extras": {"opencv": {"width": cam.width, "height": cam.height, "fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy}}
-    });
-    (
-        cam.centre.as_vec3().to_array(),
-        q.as_quat().to_array(),
-        json,
-    )
-}
-
-/// Keys of an object's track in f32 seconds, extended to span the scene's time range, with
-/// sign-continuous unit quaternions and strictly increasing times.
-pub(crate) fn track_keys(
-    keys: &[splatbridge_scene::dynamic::PoseKey],
-    start: f64,
-    end: f64,
-) -> Vec<(f32, [f32; 3], [f32; 4])> {
-    let mut out: Vec<(f32, [f32; 3], [f32; 4])> = Vec::new();
-    let mut push = |t: f64, p: splatbridge_scene::dynamic::Pose| {
-        let t = t as f32;
-        if out.last().is_some_and(|l| !(t > l.0)) {
-            return;
-        }
-        let mut q = p.rotation.normalize();
-        if let Some(l) = out.last() {
-            if Quat::from_array(l.2).dot(q) < 0.0 {
-                q = -q;
-            }
-        }
-        out.push((t, p.translation.to_array(), q.to_array()));
-    };
-    let (Some(first), Some(last)) = (keys.first(), keys.last()) else {
-        return out;
-    };
-    if end > start && start < first.t {
-        push(start, first.pose);
-    }
-    for k in keys {
-        push(k.t, k.pose);
-    }
-    if end > start && end > last.t {
-        push(end, last.pose);
-    }
-    out
-}
-
-/// Accessors of one object's animation (times, translations, rotations) and its first pose.
-pub(crate) type AnimAccessors = (usize, usize, usize, [f32; 3], [f32; 4]);
-
 /// A mesh region streamed after the small data.
 struct Region {
     vertex_offset: u64,
@@ -260,6 +151,84 @@ struct Plan {
     layout: VertexLayout,
 }
 
+/// Which of the two materials the entries use, and their indices: the splat material for
+/// residual meshes, then the opaque surfel material.
+#[derive(Clone, Copy)]
+struct Materials {
+    any_residual: bool,
+    any_surfels: bool,
+    splat: usize,
+    surfel: usize,
+}
+
+impl Materials {
+    fn of(entries: &[MeshEntry<'_>]) -> Self {
+        let any_residual = entries.iter().any(|e| !e.mesher.is_empty());
+        Materials {
+            any_residual,
+            any_surfels: entries
+                .iter()
+                .any(|e| e.surfels.as_ref().is_some_and(|s| !s.is_empty())),
+            splat: 0,
+            surfel: usize::from(any_residual),
+        }
+    }
+
+    /// Only materials a primitive uses (the validator flags unused objects); the splat
+    /// material samples the falloff texture when `textured`.
+    fn json(self, textured: bool) -> Vec<Value> {
+        let mut materials = Vec::new();
+        if self.any_residual {
+            let mut material = json!({
+                "name": "gaussian_splats",
+                "alphaMode": "BLEND",
+                "doubleSided": true,
+                "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
+                "extensions": {"KHR_materials_unlit": {}}
+            });
+            if textured {
+                material["pbrMetallicRoughness"]["baseColorTexture"] = json!({"index": 0});
+            }
+            materials.push(material);
+        }
+        if self.any_surfels {
+            // Surfels are opaque: vertex alpha is 1 and OPAQUE ignores it anyway; no texture.
+            materials.push(json!({
+                "name": "surfels",
+                "alphaMode": "OPAQUE",
+                "doubleSided": true,
+                "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
+                "extensions": {"KHR_materials_unlit": {}}
+            }));
+        }
+        materials
+    }
+}
+
+/// The scene graph as it is built: nodes (the root first, filled in last), the root's
+/// children, meshes and the animation.
+struct Graph {
+    nodes: Vec<Value>,
+    children: Vec<usize>,
+    meshes: Vec<Value>,
+    animation: Animation,
+}
+
+/// What every entry's mesh node needs from the plan.
+struct EntryContext<'a> {
+    scene: &'a DynamicScene,
+    layout: VertexLayout,
+    materials: Materials,
+    tracks: &'a [Option<ObjectTrack>],
+}
+
+/// Per-frame content's visibility: the frame times' accessor and, per frame, a scale output
+/// that is 1 on its own frame and 0 elsewhere (STEP).
+struct FrameVisibility {
+    input: usize,
+    outputs: Vec<usize>,
+}
+
 fn plan(
     entries: &[MeshEntry<'_>],
     scene: &DynamicScene,
@@ -268,288 +237,64 @@ fn plan(
     report: &ConvertReport,
     bin_uri: Option<String>,
 ) -> io::Result<Plan> {
-    let mut d = DocBuilder::new();
     let layout = VertexLayout {
         ids: opts.gaussian_ids,
         uv: opts.profile == Profile::Texture,
     };
-    let mut nodes: Vec<Value> = Vec::new();
-    let mut root_children: Vec<usize> = Vec::new();
-    // One glTF animation for the whole scene: viewers play one clip at a time, and Blender
-    // makes one action per animated object from it.
-    let mut samplers: Vec<Value> = Vec::new();
-    let mut channels: Vec<Value> = Vec::new();
-    nodes.push(json!({})); // the root, filled in below
+    let materials = Materials::of(entries);
+    // Small data first: the texture and the animation keys.
+    let mut d = DocBuilder::new();
+    let images = falloff_image(&mut d, layout, materials);
+    let tracks = object_tracks(&mut d, scene);
+    let visibility = frame_visibility(&mut d, frames)?;
+    d.align();
 
-    // Small data first: animations and the texture.
-    let mut images = Vec::new();
-    let any_mesh = entries.iter().any(|e| !e.mesher.is_empty());
-    // Surfels carry no texture coordinates; the falloff image serves residual meshes only.
-    if layout.uv && any_mesh {
-        let view = d.small_view(&crate::texture::png(), None);
-        images
-            .push(json!({"bufferView": view, "mimeType": "image/png", "name": "gaussian_falloff"}));
-    }
-    let mut object_anim: Vec<Option<AnimAccessors>> = vec![None; scene.objects.len()];
-    for (k, o) in scene.objects.iter().enumerate() {
-        let keys = track_keys(&o.track.keys, scene.time.start, scene.time.end);
-        if keys.is_empty() {
-            continue;
-        }
-        let times: Vec<f32> = keys.iter().map(|k| k.0).collect();
-        let tr: Vec<f32> = keys.iter().flat_map(|k| k.1).collect();
-        let rot: Vec<f32> = keys.iter().flat_map(|k| k.2).collect();
-        let input = d.floats(&times, "SCALAR", 1, true);
-        let t_acc = d.floats(&tr, "VEC3", 3, false);
-        let r_acc = d.floats(&rot, "VEC4", 4, false);
-        object_anim[k] = Some((input, t_acc, r_acc, keys[0].1, keys[0].2));
-    }
-    let mut frame_anim: Option<(usize, Vec<usize>)> = None;
-    if let Some(fr) = frames {
-        if !fr.times.is_empty() {
-            let times: Vec<f32> = fr.times.iter().map(|&t| t as f32).collect();
-            if times.windows(2).any(|w| !(w[1] > w[0])) {
-                return Err(io::Error::new(
-                    io::ErrorKind::InvalidInput,
-                    "frame times collapse in f32 seconds",
-                ));
-            }
-            let input = d.floats(&times, "SCALAR", 1, true);
-            let outs = (0..times.len())
-                .map(|i| {
-                    let s: Vec<f32> = (0..times.len())
-                        .flat_map(|j| [if i == j { 1.0 } else { 0.0 }; 3])
-                        .collect();
-                    d.floats(&s, "VEC3", 3, false)
-                })
-                .collect();
-            frame_anim = Some((input, outs));
-        }
-    }
-    while !d.small.len().is_multiple_of(4) {
-        d.small.push(0);
-    }
-
-    // Mesh regions after the small data: per entry the residual primitive, then the surfels.
-    let mut offset = d.small.len() as u64;
-    let surfel_layout = VertexLayout {
-        ids: layout.ids,
-        uv: false,
+    let mut g = Graph {
+        nodes: vec![json!({})],
+        children: Vec::new(),
+        meshes: Vec::new(),
+        animation: Animation::default(),
     };
-    let any_residual = entries.iter().any(|e| !e.mesher.is_empty());
-    let any_surfels = entries
-        .iter()
-        .any(|e| e.surfels.as_ref().is_some_and(|s| !s.is_empty()));
-    // Materials in use, in order: the splat material, then the surfel material.
-    let splat_material = 0usize;
-    let surfel_material = usize::from(any_residual);
+    let mut offset = d.small.len() as u64;
     let mut regions = Vec::with_capacity(entries.len());
-    let mut meshes: Vec<Value> = Vec::new();
     let mut frame_nodes: Vec<(usize, usize)> = Vec::new();
+    let ctx = EntryContext {
+        scene,
+        layout,
+        materials,
+        tracks: &tracks,
+    };
     for e in entries {
-        let m = &e.mesher;
-        let residual_bounds = if m.is_empty() { None } else { m.bounds() };
-        let surfel_bounds =
-            e.surfels
-                .as_ref()
-                .and_then(|s| if s.is_empty() { None } else { s.bounds() });
-        if residual_bounds.is_none() && surfel_bounds.is_none() {
-            regions.push([None, None]);
-            continue;
+        let pair = mesh_node(&mut d, &mut g, &mut offset, e, &ctx);
+        if let (Some(_), Role::Frame(k)) = (&pair, e.role) {
+            frame_nodes.push((g.nodes.len() - 1, k));
         }
-        let mut prims = Vec::new();
-        let mut pair = [None, None];
-        let parts = [
-            (
-                residual_bounds,
-                layout,
-                m.counts.vertices,
-                m.counts.triangles,
-                splat_material,
-            ),
-            (
-                surfel_bounds,
-                surfel_layout,
-                e.surfels.as_ref().map_or(0, |s| s.counts.vertices),
-                e.surfels.as_ref().map_or(0, |s| s.counts.triangles),
-                surfel_material,
-            ),
-        ];
-        for (slot, (bounds, layout, nv, nt, material)) in parts.into_iter().enumerate() {
-            let Some((lo, hi)) = bounds else { continue };
-            let stride = layout.stride();
-            let region = Region {
-                vertex_offset: offset,
-                vertex_len: nv * stride as u64,
-                index_len: nt * 12,
-            };
-            d.views.push(json!({"buffer": 0, "byteOffset": offset, "byteLength": region.vertex_len, "byteStride": stride, "target": ARRAY_BUFFER}));
-            let vv = d.views.len() - 1;
-            d.views.push(json!({"buffer": 0, "byteOffset": offset + region.vertex_len, "byteLength": region.index_len, "target": ELEMENT_ARRAY_BUFFER}));
-            let iv = d.views.len() - 1;
-            offset += region.vertex_len + region.index_len;
-            let pos = d.accessor(json!({"bufferView": vv, "byteOffset": 0, "componentType": FLOAT, "count": nv, "type": "VEC3", "min": lo, "max": hi}));
-            let nor = d.accessor(json!({"bufferView": vv, "byteOffset": 12, "componentType": FLOAT, "count": nv, "type": "VEC3"}));
-            let col = d.accessor(json!({"bufferView": vv, "byteOffset": 24, "componentType": UNSIGNED_SHORT, "normalized": true, "count": nv, "type": "VEC4"}));
-            let mut attrs = json!({"POSITION": pos, "NORMAL": nor, "COLOR_0": col});
-            if layout.ids {
-                attrs["_GAUSSIAN_ID"] = json!(d.accessor(json!({"bufferView": vv, "byteOffset": layout.id_offset(), "componentType": FLOAT, "count": nv, "type": "SCALAR"})));
-            }
-            if layout.uv {
-                attrs["TEXCOORD_0"] = json!(d.accessor(json!({"bufferView": vv, "byteOffset": layout.uv_offset(), "componentType": FLOAT, "count": nv, "type": "VEC2"})));
-            }
-            let ind = d.accessor(json!({"bufferView": iv, "componentType": UNSIGNED_INT, "count": nt * 3, "type": "SCALAR"}));
-            prims.push(
-                json!({"attributes": attrs, "indices": ind, "material": material, "mode": 4}),
-            );
-            pair[slot] = Some(region);
-        }
-        let (role, name) = match e.role {
-            Role::Static => ("static", "static".to_string()),
-            Role::Object(k) => ("object", scene.objects[k].name.clone()),
-            Role::Frame(k) => ("frame", format!("frame_{k:04}")),
-        };
-        let mut extras = json!({"role": role, "idOffset": m.counts.id_offset, "gaussians": m.counts.gaussians_in});
-        if let Some(s) = &e.surfels {
-            extras["surfels"] = json!(s.counts.surfels - s.counts.dropped_overflow);
-            extras["primitives"] = json!(if pair[0].is_some() && pair[1].is_some() {
-                vec!["gaussians", "surfels"]
-            } else if pair[0].is_some() {
-                vec!["gaussians"]
-            } else {
-                vec!["surfels"]
-            });
-        }
-        meshes.push(json!({
-            "name": name,
-            "primitives": prims,
-            "extras": extras
-        }));
-        let mesh = meshes.len() - 1;
-        let mut node = json!({"name": name, "mesh": mesh});
-        match e.role {
-            Role::Object(k) => {
-                if let Some((input, t_acc, r_acc, t0, r0)) = object_anim[k] {
-                    node["translation"] = json!(t0);
-                    node["rotation"] = json!(r0);
-                    let ni = nodes.len();
-                    for (out, path) in [(t_acc, "translation"), (r_acc, "rotation")] {
-                        samplers.push(
-                            json!({"input": input, "output": out, "interpolation": "LINEAR"}),
-                        );
-                        channels.push(json!({"sampler": samplers.len() - 1, "target": {"node": ni, "path": path}}));
-                    }
-                }
-            }
-            Role::Frame(k) => {
-                if k != 0 {
-                    node["scale"] = json!([0.0, 0.0, 0.0]);
-                }
-                frame_nodes.push((nodes.len(), k));
-            }
-            Role::Static => {}
-        }
-        root_children.push(nodes.len());
-        nodes.push(node);
-        regions.push(pair);
+        regions.push(pair.unwrap_or([None, None]));
     }
-    if let Some((input, outs)) = &frame_anim {
-        for &(ni, k) in &frame_nodes {
-            samplers.push(json!({"input": input, "output": outs[k], "interpolation": "STEP"}));
-            channels.push(
-                json!({"sampler": samplers.len() - 1, "target": {"node": ni, "path": "scale"}}),
-            );
+    if let Some(v) = &visibility {
+        for &(node, k) in &frame_nodes {
+            g.animation
+                .channel(node, v.input, v.outputs[k], "STEP", "scale");
         }
     }
-    let mut cameras = Vec::new();
-    for cam in &scene.cameras {
-        let (t, r, c) = camera_node(cam);
-        cameras.push(c);
-        root_children.push(nodes.len());
-        nodes.push(
-            json!({"name": cam.name, "camera": cameras.len() - 1, "translation": t, "rotation": r}),
-        );
-    }
-    let rq = opts.up.root_rotation();
-    let mut root = json!({"name": "splatbridge_root", "children": root_children, "extras": {"inputUp": opts.up.name()}});
-    if rq != Quat::IDENTITY {
-        root["rotation"] = json!(rq.to_array());
-    }
-    nodes[0] = root;
+    let cameras = camera_nodes(scene, &mut g.nodes, &mut g.children);
+    g.nodes[0] = root_node(std::mem::take(&mut g.children), opts);
 
     let bin_len = offset;
-    let mut material = json!({
-        "name": "gaussian_splats",
-        "alphaMode": "BLEND",
-        "doubleSided": true,
-        "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
-        "extensions": {"KHR_materials_unlit": {}}
+    let textured = layout.uv && materials.any_residual;
+    let doc = document(DocParts {
+        d: &d,
+        g,
+        cameras,
+        images,
+        materials: materials.json(textured),
+        textured,
+        bin_len,
+        bin_uri,
+        metadata: report.metadata(opts),
     });
-    let mut doc = json!({
-        "asset": {"version": "2.0", "generator": concat!("splatbridge ", env!("CARGO_PKG_VERSION")), "extras": {"splatbridge": report.metadata(opts)}},
-        "extensionsUsed": ["KHR_materials_unlit"],
-        "scene": 0,
-        "scenes": [{"name": "scene", "nodes": [0]}],
-        "nodes": nodes,
-        "materials": [],
-        "buffers": [{"byteLength": bin_len}],
-        "bufferViews": d.views,
-        "accessors": d.accessors,
-    });
-    let textured = layout.uv && any_residual;
-    if textured {
-        material["pbrMetallicRoughness"]["baseColorTexture"] = json!({"index": 0});
-        doc["images"] = json!(images);
-        doc["samplers"] =
-            json!([{"magFilter": 9729, "minFilter": 9729, "wrapS": 33071, "wrapT": 33071}]);
-        doc["textures"] = json!([{"sampler": 0, "source": 0}]);
-    }
-    // Only materials a primitive uses (the validator flags unused objects).
-    let mut materials = Vec::new();
-    if any_residual {
-        materials.push(material);
-    }
-    if any_surfels {
-        // Surfels are opaque: vertex alpha is 1 and OPAQUE ignores it anyway; no texture.
-        materials.push(json!({
-            "name": "surfels",
-            "alphaMode": "OPAQUE",
-            "doubleSided": true,
-            "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
-            "extensions": {"KHR_materials_unlit": {}}
-        }));
-    }
-    doc["materials"] = json!(materials);
-    if meshes.is_empty() {
-        for k in ["materials", "extensionsUsed"] {
-            doc.as_object_mut().map(|o| o.remove(k));
-        }
-    } else {
-        doc["meshes"] = json!(meshes);
-    }
-    if !textured {
-        // The falloff image is in the buffer only when a residual mesh uses it.
-        for k in ["images", "samplers", "textures"] {
-            doc.as_object_mut().map(|o| o.remove(k));
-        }
-    }
-    if !channels.is_empty() {
-        doc["animations"] = json!([{"name": "scene", "samplers": samplers, "channels": channels}]);
-    }
-    if !cameras.is_empty() {
-        doc["cameras"] = json!(cameras);
-    }
-    if bin_len == 0 {
-        // Nothing survived (an empty scene): a zero-length buffer is invalid glTF.
-        for k in ["buffers", "bufferViews", "accessors"] {
-            doc.as_object_mut().map(|o| o.remove(k));
-        }
-    } else if let Some(uri) = bin_uri {
-        doc["buffers"][0]["uri"] = json!(uri);
-    }
-    let json = typed_json(&doc)?;
     Ok(Plan {
-        json,
+        json: typed_json(&doc)?,
         small: d.small,
         regions,
         bin_len,
@@ -557,13 +302,214 @@ fn plan(
     })
 }
 
-/// Pass a JSON document through `gltf_json::Root` (schema types and glTF validation) and
-/// serialise it.
-pub(crate) fn typed_json(doc: &Value) -> io::Result<Vec<u8>> {
-    let raw = serde_json::to_vec(doc).map_err(io::Error::other)?;
-    let root = gltf_json::Root::from_slice(&raw)
-        .map_err(|e| io::Error::other(format!("internal glTF document error: {e}")))?;
-    root.to_vec().map_err(io::Error::other)
+/// The falloff texture in the small data (profile `texture` with a residual mesh; surfels
+/// carry no texture coordinates): the `images` array.
+fn falloff_image(d: &mut DocBuilder, layout: VertexLayout, materials: Materials) -> Vec<Value> {
+    let mut images = Vec::new();
+    if layout.uv && materials.any_residual {
+        let view = d.small_view(&crate::texture::png(), None);
+        images
+            .push(json!({"bufferView": view, "mimeType": "image/png", "name": "gaussian_falloff"}));
+    }
+    images
+}
+
+/// Frame times and per-frame scale outputs in the small data (`None` without frames).
+fn frame_visibility(
+    d: &mut DocBuilder,
+    frames: Option<&FrameClouds>,
+) -> io::Result<Option<FrameVisibility>> {
+    let Some(fr) = frames.filter(|f| !f.times.is_empty()) else {
+        return Ok(None);
+    };
+    let times: Vec<f32> = fr.times.iter().map(|&t| t as f32).collect();
+    if times.windows(2).any(|w| !(w[1] > w[0])) {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            "frame times collapse in f32 seconds",
+        ));
+    }
+    let input = d.floats(&times, "SCALAR", 1, true);
+    let outputs = (0..times.len())
+        .map(|i| {
+            let s: Vec<f32> = (0..times.len())
+                .flat_map(|j| [if i == j { 1.0 } else { 0.0 }; 3])
+                .collect();
+            d.floats(&s, "VEC3", 3, false)
+        })
+        .collect();
+    Ok(Some(FrameVisibility { input, outputs }))
+}
+
+/// One entry's mesh and node: a primitive per non-empty part (residual Gaussians, then
+/// surfels) with its buffer views at `offset` (advanced past them), the mesh's extras, and
+/// the node under the root (animated for an object, hidden off its frame for a frame).
+/// Returns the entry's regions, or `None` when it has no geometry (no node either).
+fn mesh_node(
+    d: &mut DocBuilder,
+    g: &mut Graph,
+    offset: &mut u64,
+    e: &MeshEntry<'_>,
+    ctx: &EntryContext<'_>,
+) -> Option<[Option<Region>; 2]> {
+    let (layout, materials) = (ctx.layout, ctx.materials);
+    let m = &e.mesher;
+    let residual_bounds = if m.is_empty() { None } else { m.bounds() };
+    let surfel_bounds = e
+        .surfels
+        .as_ref()
+        .and_then(|s| if s.is_empty() { None } else { s.bounds() });
+    if residual_bounds.is_none() && surfel_bounds.is_none() {
+        return None;
+    }
+    let surfel_layout = VertexLayout {
+        ids: layout.ids,
+        uv: false,
+    };
+    let parts = [
+        (
+            residual_bounds,
+            layout,
+            m.counts.vertices,
+            m.counts.triangles,
+            materials.splat,
+        ),
+        (
+            surfel_bounds,
+            surfel_layout,
+            e.surfels.as_ref().map_or(0, |s| s.counts.vertices),
+            e.surfels.as_ref().map_or(0, |s| s.counts.triangles),
+            materials.surfel,
+        ),
+    ];
+    let mut prims = Vec::new();
+    let mut pair = [None, None];
+    for (slot, (bounds, layout, nv, nt, material)) in parts.into_iter().enumerate() {
+        let Some(bounds) = bounds else { continue };
+        let region = Region {
+            vertex_offset: *offset,
+            vertex_len: nv * layout.stride() as u64,
+            index_len: nt * 12,
+        };
+        prims.push(primitive(d, &region, bounds, layout, nv, nt, material));
+        *offset += region.vertex_len + region.index_len;
+        pair[slot] = Some(region);
+    }
+    let (role, name) = match e.role {
+        Role::Static => ("static", "static".to_string()),
+        Role::Object(k) => ("object", ctx.scene.objects[k].name.clone()),
+        Role::Frame(k) => ("frame", format!("frame_{k:04}")),
+    };
+    let mut extras =
+        json!({"role": role, "idOffset": m.counts.id_offset, "gaussians": m.counts.gaussians_in});
+    if let Some(s) = &e.surfels {
+        extras["surfels"] = json!(s.counts.surfels - s.counts.dropped_overflow);
+        extras["primitives"] = json!(match (&pair[0], &pair[1]) {
+            (Some(_), Some(_)) => vec!["gaussians", "surfels"],
+            (Some(_), None) => vec!["gaussians"],
+            _ => vec!["surfels"],
+        });
+    }
+    g.meshes
+        .push(json!({"name": name, "primitives": prims, "extras": extras}));
+    let mut node = json!({"name": name, "mesh": g.meshes.len() - 1});
+    let index = g.nodes.len();
+    match e.role {
+        Role::Object(k) => {
+            if let Some(track) = &ctx.tracks[k] {
+                g.animation.object(index, &mut node, track);
+            }
+        }
+        // Only frame 0 shows before the animation plays.
+        Role::Frame(k) if k != 0 => node["scale"] = json!([0.0, 0.0, 0.0]),
+        _ => {}
+    }
+    g.children.push(index);
+    g.nodes.push(node);
+    Some(pair)
+}
+
+/// One TRIANGLES primitive over `region`: an interleaved vertex view and an index view, the
+/// accessors of the layout's attributes (POSITION with its exact bounds) and the indices.
+fn primitive(
+    d: &mut DocBuilder,
+    region: &Region,
+    (lo, hi): ([f32; 3], [f32; 3]),
+    layout: VertexLayout,
+    nv: u64,
+    nt: u64,
+    material: usize,
+) -> Value {
+    let offset = region.vertex_offset;
+    let stride = layout.stride();
+    let vv = d.view(json!({"buffer": 0, "byteOffset": offset, "byteLength": region.vertex_len, "byteStride": stride, "target": ARRAY_BUFFER}));
+    let iv = d.view(json!({"buffer": 0, "byteOffset": offset + region.vertex_len, "byteLength": region.index_len, "target": ELEMENT_ARRAY_BUFFER}));
+    let pos = d.accessor(json!({"bufferView": vv, "byteOffset": 0, "componentType": FLOAT, "count": nv, "type": "VEC3", "min": lo, "max": hi}));
+    let nor = d.accessor(json!({"bufferView": vv, "byteOffset": 12, "componentType": FLOAT, "count": nv, "type": "VEC3"}));
+    let col = d.accessor(json!({"bufferView": vv, "byteOffset": 24, "componentType": UNSIGNED_SHORT, "normalized": true, "count": nv, "type": "VEC4"}));
+    let mut attrs = json!({"POSITION": pos, "NORMAL": nor, "COLOR_0": col});
+    if layout.ids {
+        attrs["_GAUSSIAN_ID"] = json!(d.accessor(json!({"bufferView": vv, "byteOffset": layout.id_offset(), "componentType": FLOAT, "count": nv, "type": "SCALAR"})));
+    }
+    if layout.uv {
+        attrs["TEXCOORD_0"] = json!(d.accessor(json!({"bufferView": vv, "byteOffset": layout.uv_offset(), "componentType": FLOAT, "count": nv, "type": "VEC2"})));
+    }
+    let ind = d.accessor(
+        json!({"bufferView": iv, "componentType": UNSIGNED_INT, "count": nt * 3, "type": "SCALAR"}),
+    );
+    json!({"attributes": attrs, "indices": ind, "material": material, "mode": 4})
+}
+
+/// What the document is assembled from.
+struct DocParts<'a> {
+    d: &'a DocBuilder,
+    g: Graph,
+    cameras: Vec<Value>,
+    images: Vec<Value>,
+    materials: Vec<Value>,
+    textured: bool,
+    bin_len: u64,
+    bin_uri: Option<String>,
+    metadata: Value,
+}
+
+/// The glTF document: every array the plan built, without the ones glTF forbids empty.
+fn document(p: DocParts<'_>) -> Value {
+    let mut doc = json!({
+        "asset": {"version": "2.0", "generator": concat!("splatbridge ", env!("CARGO_PKG_VERSION")), "extras": {"splatbridge": p.metadata}},
+        "extensionsUsed": ["KHR_materials_unlit"],
+        "scene": 0,
+        "scenes": [{"name": "scene", "nodes": [0]}],
+        "nodes": p.g.nodes,
+        "materials": p.materials,
+        "buffers": [{"byteLength": p.bin_len}],
+        "bufferViews": p.d.views,
+        "accessors": p.d.accessors,
+    });
+    if p.textured {
+        doc["images"] = json!(p.images);
+        doc["samplers"] =
+            json!([{"magFilter": 9729, "minFilter": 9729, "wrapS": 33071, "wrapT": 33071}]);
+        doc["textures"] = json!([{"sampler": 0, "source": 0}]);
+    }
+    if p.g.meshes.is_empty() {
+        remove_keys(&mut doc, &["materials", "extensionsUsed"]);
+    } else {
+        doc["meshes"] = json!(p.g.meshes);
+    }
+    if let Some(a) = p.g.animation.into_json() {
+        doc["animations"] = a;
+    }
+    if !p.cameras.is_empty() {
+        doc["cameras"] = json!(p.cameras);
+    }
+    if p.bin_len == 0 {
+        // Nothing survived (an empty scene): a zero-length buffer is invalid glTF.
+        remove_keys(&mut doc, &["buffers", "bufferViews", "accessors"]);
+    } else if let Some(uri) = p.bin_uri {
+        doc["buffers"][0]["uri"] = json!(uri);
+    }
+    doc
 }
 
 fn stream_bin<W: Write>(w: &mut W, plan: &Plan, entries: &[MeshEntry<'_>]) -> io::Result<u64> {

@@ -40,7 +40,9 @@
 //! splatting blends display values, which leaves the render somewhat brighter
 //! (`scripts/blender-render-compare.sh`).
 
+pub mod chunked;
 pub mod classify;
+pub mod gltf_doc;
 pub mod gltf_writer;
 pub mod mesh;
 pub mod obj;
@@ -57,6 +59,7 @@ use std::path::{Path, PathBuf};
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::GaussianCloud;
 
+pub use chunked::ChunkedMesh;
 pub use mesh::{MeshSoup, Mesher};
 pub use options::{
     ColorEncoding, ConvertOptions, ConvertReport, MeshCounts, Profile, UpAxis, VolumetricMode,

@@ -6,9 +6,9 @@
 //! and axis vertices, as in MeshSplats).
 //!
 //! [`Mesher`] classifies a cloud once and then generates the mesh in chunks of Gaussians in
-//! parallel, handing them to a writer in order: writers stream, and nothing holds a second
-//! full copy of the mesh. Generation is deterministic, so two passes (bounds, then data)
-//! produce bit-identical vertices.
+//! parallel through [`crate::chunked::ChunkedMesh`] (shared with the surfel mesher), handing
+//! them to a writer in order: writers stream, and nothing holds a second full copy of the
+//! mesh.
 
 use std::ops::Range;
 
@@ -16,12 +16,10 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use splatbridge_scene::{sh, GaussianCloud};
 
+use crate::chunked::ChunkedMesh;
 use crate::classify::{classify, corrected_alpha, score, Frame, Kind};
 use crate::options::{ColorEncoding, ConvertOptions, MeshCounts, Profile, VolumetricMode};
 use crate::profile::{FanLayout, ProfileShape, VertexKey};
-
-/// Gaussians per generated chunk.
-const CHUNK: usize = 8192;
 
 /// A triangle soup (or one chunk of one); indices are relative to its first vertex.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -138,7 +136,7 @@ pub fn linear_to_srgb(c: f32) -> f32 {
 
 /// Scratch space one worker reuses between Gaussians.
 #[derive(Default)]
-struct Scratch {
+pub struct Scratch {
     layout: FanLayout,
     keymap: Vec<u32>,
     map: Vec<u32>,
@@ -367,7 +365,7 @@ impl<'a> Mesher<'a> {
         }
     }
 
-    fn emit_range<S: VertexSink>(&self, range: Range<usize>, out: &mut S, s: &mut Scratch) {
+    fn emit_items<S: VertexSink>(&self, range: Range<usize>, out: &mut S, s: &mut Scratch) {
         for i in range {
             let kind = self.kinds[i];
             if !kind.kept() {
@@ -394,151 +392,6 @@ impl<'a> Mesher<'a> {
             }
             self.emit_frame(&f, rgb, id, kind == Kind::Volumetric, out, s);
         }
-    }
-
-    fn chunk_count(&self) -> usize {
-        self.cloud.len().div_ceil(CHUNK)
-    }
-
-    fn chunk_range(&self, c: usize) -> Range<usize> {
-        c * CHUNK..((c + 1) * CHUNK).min(self.cloud.len())
-    }
-
-    /// Vertices the chunk will produce (from the classification alone).
-    fn chunk_vertices(&self, c: usize) -> usize {
-        self.chunk_range(c)
-            .map(|i| self.vertices_of(i) as usize)
-            .sum()
-    }
-
-    fn chunk(&self, c: usize) -> MeshSoup {
-        let n = self.chunk_vertices(c);
-        let mut out = MeshSoup {
-            positions: Vec::with_capacity(n),
-            normals: Vec::with_capacity(n),
-            colors: Vec::with_capacity(n),
-            uvs: Vec::with_capacity(n),
-            gaussian_ids: Vec::with_capacity(n),
-            indices: Vec::new(),
-        };
-        let mut s = Scratch::default();
-        self.emit_range(self.chunk_range(c), &mut out, &mut s);
-        if !self.shape.has_uv() {
-            out.uvs = Vec::new();
-        }
-        out
-    }
-
-    /// Like [`Mesher::map_chunks`] with a sink of the caller's: `make(vertices)` creates the
-    /// sink for a chunk of that many vertices, `finish` turns it into what `f` consumes.
-    pub fn map_chunks_with<S: VertexSink, T: Send, E>(
-        &self,
-        make: impl Fn(usize) -> S + Sync + Send,
-        finish: impl Fn(S) -> T + Sync + Send,
-        f: impl FnMut(T) -> Result<(), E>,
-    ) -> Result<(), E> {
-        let chunks = self.chunk_count();
-        in_order(
-            chunks,
-            |k| {
-                let mut sink = make(self.chunk_vertices(k));
-                let mut s = Scratch::default();
-                self.emit_range(self.chunk_range(k), &mut sink, &mut s);
-                finish(sink)
-            },
-            f,
-        )
-    }
-
-    /// Generate the mesh in order, a few chunks at a time in parallel: `map` turns each chunk
-    /// (indices relative to the chunk) into whatever the writer needs, in parallel; `f`
-    /// consumes the results in order.
-    pub fn map_chunks<T: Send, E>(
-        &self,
-        map: impl Fn(MeshSoup) -> T + Sync + Send,
-        f: impl FnMut(T) -> Result<(), E>,
-    ) -> Result<(), E> {
-        let chunks = self.chunk_count();
-        in_order(chunks, |k| map(self.chunk(k)), f)
-    }
-
-    /// Generate the index buffer in order without regenerating geometry: every kept
-    /// Gaussian repeats its kind's index pattern, offset by the vertices before it
-    /// (`base` is added to all). `map` gets each chunk's absolute indices.
-    pub fn map_index_chunks<T: Send, E>(
-        &self,
-        base: u32,
-        map: impl Fn(&[u32]) -> T + Sync + Send,
-        f: impl FnMut(T) -> Result<(), E>,
-    ) -> Result<(), E> {
-        let chunks = self.chunk_count();
-        let n = self.cloud.len();
-        // Vertex offset of every chunk (prefix sums of the per-kind counts).
-        let mut starts = Vec::with_capacity(chunks);
-        let mut acc = base as u64;
-        for c in 0..chunks {
-            starts.push(acc);
-            for i in c * CHUNK..((c + 1) * CHUNK).min(n) {
-                acc += self.vertices_of(i);
-            }
-        }
-        in_order(
-            chunks,
-            |k| {
-                let mut idx = Vec::new();
-                let mut v = starts[k] as u32;
-                for i in k * CHUNK..((k + 1) * CHUNK).min(n) {
-                    let t = match self.kinds[i] {
-                        Kind::Flat => &self.templates[0],
-                        Kind::Volumetric => &self.templates[1],
-                        _ => continue,
-                    };
-                    idx.extend(t.1.iter().map(|&j| v + j));
-                    v += t.0;
-                }
-                map(&idx)
-            },
-            f,
-        )
-    }
-
-    fn vertices_of(&self, i: usize) -> u64 {
-        match self.kinds[i] {
-            Kind::Flat => self.templates[0].0 as u64,
-            Kind::Volumetric => self.templates[1].0 as u64,
-            _ => 0,
-        }
-    }
-
-    /// Exact per-axis min and max of the generated positions (`None` when empty).
-    pub fn bounds(&self) -> Option<([f32; 3], [f32; 3])> {
-        let b = (0..self.chunk_count())
-            .into_par_iter()
-            .map(|k| {
-                let mut b = Bounds::default();
-                let mut s = Scratch::default();
-                self.emit_range(self.chunk_range(k), &mut b, &mut s);
-                b
-            })
-            .reduce(Bounds::default, |a, b| Bounds {
-                lo: a.lo.min(b.lo),
-                hi: a.hi.max(b.hi),
-                count: a.count + b.count,
-            });
-        (b.count > 0).then(|| (b.lo.to_array(), b.hi.to_array()))
-    }
-
-    /// The whole mesh in memory (tests, small scenes, in-memory consumers).
-    pub fn build(&self) -> MeshSoup {
-        let mut all = MeshSoup::default();
-        let _ = self.map_chunks::<MeshSoup, ()>(
-            |c| c,
-            |c| {
-                all.append(&c);
-                Ok(())
-            },
-        );
-        all
     }
 
     /// Triangles of Gaussian `i` under its current classification.
@@ -584,22 +437,36 @@ pub fn apply_budget(meshers: &mut [&mut Mesher<'_>], max_triangles: u64) {
     }
 }
 
-/// Map `0..chunks` in parallel, a few chunks per batch, and hand the results to `f` in order:
-/// the writers stream chunk by chunk without holding the whole mesh, and still use every core.
-pub(crate) fn in_order<T: Send, E>(
-    chunks: usize,
-    map: impl Fn(usize) -> T + Sync + Send,
-    mut f: impl FnMut(T) -> Result<(), E>,
-) -> Result<(), E> {
-    let batch = (rayon::current_num_threads() * 2).max(1);
-    let mut c = 0;
-    while c < chunks {
-        let end = (c + batch).min(chunks);
-        let out: Vec<T> = (c..end).into_par_iter().map(&map).collect();
-        for t in out {
-            f(t)?;
-        }
-        c = end;
+impl ChunkedMesh for Mesher<'_> {
+    type Scratch = Scratch;
+
+    fn items(&self) -> usize {
+        self.cloud.len()
     }
-    Ok(())
+
+    fn vertices_of(&self, i: usize) -> u64 {
+        match self.kinds[i] {
+            Kind::Flat => self.templates[0].0 as u64,
+            Kind::Volumetric => self.templates[1].0 as u64,
+            _ => 0,
+        }
+    }
+
+    fn indices_of(&self, i: usize, first: u32, idx: &mut Vec<u32>) -> u32 {
+        let t = match self.kinds[i] {
+            Kind::Flat => &self.templates[0],
+            Kind::Volumetric => &self.templates[1],
+            _ => return 0,
+        };
+        idx.extend(t.1.iter().map(|&j| first + j));
+        t.0
+    }
+
+    fn emit_range<S: VertexSink>(&self, range: Range<usize>, out: &mut S, s: &mut Scratch) {
+        self.emit_items(range, out, s)
+    }
+
+    fn has_uv(&self) -> bool {
+        self.shape.has_uv()
+    }
 }

@@ -15,6 +15,7 @@ use std::path::Path;
 use glam::{Affine3A, Vec3};
 use splatbridge_scene::dynamic::DynamicScene;
 
+use crate::chunked::ChunkedMesh;
 use crate::options::{ColorEncoding, ConvertOptions, ConvertReport};
 use crate::{prepare, shape_for, FrameClouds, MeshEntry, Role};
 

@@ -13,6 +13,7 @@ use std::path::Path;
 use glam::Vec3;
 use splatbridge_scene::dynamic::DynamicScene;
 
+use crate::chunked::ChunkedMesh;
 use crate::obj::{display_opts, placement};
 use crate::options::{ConvertOptions, ConvertReport};
 use crate::{prepare, shape_for, ConvertError, FrameClouds, MeshSoup};

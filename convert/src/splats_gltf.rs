@@ -22,7 +22,6 @@
 use std::io::{self, Write};
 use std::path::Path;
 
-use glam::Quat;
 use serde_json::{json, Value};
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::formats::gltf_khr::spz::{encode_khr_spz, SPZ_EXTENSIONS};
@@ -30,9 +29,11 @@ use splatbridge_scene::formats::spz::SpzOptions;
 use splatbridge_scene::gaussians::sh_coeffs;
 use splatbridge_scene::{sh, GaussianCloud};
 
-use crate::gltf_writer::{
-    camera_node, glb_container, track_keys, typed_json, DocBuilder, ARRAY_BUFFER, FLOAT,
+use crate::gltf_doc::{
+    camera_nodes, object_tracks, remove_keys, root_node, typed_json, Animation, DocBuilder,
+    ARRAY_BUFFER, FLOAT,
 };
+use crate::gltf_writer::glb_container;
 use crate::options::{ConvertOptions, ConvertReport, MeshCounts};
 use crate::ConvertError;
 
@@ -219,6 +220,9 @@ pub fn write_file_with(
 
 type Planned<'a> = (Vec<u8>, Vec<u8>, Vec<CloudPlan<'a>>, u64, ConvertReport);
 
+/// Decide everything before streaming, in steps: the objects' tracks in the small data, then
+/// per cloud its kept Gaussians, attribute views and accessors, mesh and node, then the
+/// cameras and root, the document, and the extension's attribute names.
 fn plan<'a>(
     scene: &'a DynamicScene,
     opts: &ConvertOptions,
@@ -228,39 +232,17 @@ fn plan<'a>(
     let mut report = ConvertReport::new("splats", opts);
     report.profile = "splats".into();
     let mut d = DocBuilder::new();
-    let mut clouds: Vec<(String, &GaussianCloud, Option<usize>)> =
-        vec![("static".into(), &scene.static_gaussians, None)];
-    for (k, o) in scene.objects.iter().enumerate() {
-        clouds.push((o.name.clone(), &o.gaussians, Some(k)));
-    }
     // Animation data first (small), then the attribute streams.
-    let mut anim = Vec::new();
-    for o in &scene.objects {
-        let keys = track_keys(&o.track.keys, scene.time.start, scene.time.end);
-        if keys.is_empty() {
-            anim.push(None);
-            continue;
-        }
-        let times: Vec<f32> = keys.iter().map(|k| k.0).collect();
-        let tr: Vec<f32> = keys.iter().flat_map(|k| k.1).collect();
-        let rot: Vec<f32> = keys.iter().flat_map(|k| k.2).collect();
-        let input = d.floats(&times, "SCALAR", 1, true);
-        let ta = d.floats(&tr, "VEC3", 3, false);
-        let ra = d.floats(&rot, "VEC4", 4, false);
-        anim.push(Some((input, ta, ra, keys[0].1, keys[0].2)));
-    }
-    while !d.small.len().is_multiple_of(4) {
-        d.small.push(0);
-    }
+    let tracks = object_tracks(&mut d, scene);
+    d.align();
     let mut offset = d.small.len() as u64;
     let mut plans = Vec::new();
     let mut meshes = Vec::new();
     let mut nodes = vec![json!({})];
     let mut children = Vec::new();
-    let mut samplers: Vec<Value> = Vec::new();
-    let mut channels: Vec<Value> = Vec::new();
+    let mut animation = Animation::default();
     let mut id_offset = 0u64;
-    for (name, cloud, obj) in clouds {
+    for (name, cloud, obj) in scene_clouds(scene) {
         cloud.check_shape()?;
         let keep: Vec<u32> = (0..cloud.len() as u32)
             .filter(|&i| cloud.invalid_reason(i as usize).is_none())
@@ -272,135 +254,27 @@ fn plan<'a>(
             id_offset,
             ..Default::default()
         });
+        let first_id = id_offset;
         id_offset += cloud.len() as u64;
         if keep.is_empty() {
             continue;
         }
-        let n = keep.len() as u64;
-        let names = attribute_names(cloud.sh_degree);
-        let mut streams = vec![(Stream::Position, 0u64)];
-        streams.extend([Stream::Rotation, Stream::Scale, Stream::Opacity].map(|s| (s, 0)));
-        for k in 0..sh_coeffs(cloud.sh_degree) {
-            streams.push((Stream::Sh(k), 0));
-        }
-        streams.push((Stream::Color, 0));
-        let mut attrs = serde_json::Map::new();
-        // Under SPZ compression one buffer view holds the whole stream and the accessors
-        // describe the decoded attributes without views of their own.
-        let spz = match compression {
-            KhrCompression::None => None,
-            KhrCompression::Spz => {
-                let mut bytes = if keep.len() == cloud.len() {
-                    encode_khr_spz(cloud, &SpzOptions::default())
-                } else {
-                    let mut sub = cloud.clone();
-                    let mut mask = vec![false; cloud.len()];
-                    keep.iter().for_each(|&i| mask[i as usize] = true);
-                    sub.retain_indices(|i| mask[i]);
-                    encode_khr_spz(&sub, &SpzOptions::default())
-                }
-                .map_err(crate::scene_err)?;
-                let len = bytes.len() as u64;
-                bytes.resize(bytes.len().next_multiple_of(4), 0);
-                d.views
-                    .push(json!({"buffer": 0, "byteOffset": offset, "byteLength": len}));
-                let view = d.views.len() - 1;
-                offset += bytes.len() as u64;
-                Some((bytes, view))
-            }
-        };
-        for (si, (s, off)) in streams.iter_mut().enumerate() {
-            *off = offset;
-            let view = if spz.is_some() {
-                Value::Null
-            } else {
-                let len = s.bytes_per() * n;
-                d.views.push(json!({"buffer": 0, "byteOffset": offset, "byteLength": len, "target": ARRAY_BUFFER}));
-                offset += len;
-                json!(d.views.len() - 1)
-            };
-            let mut acc = match s {
-                Stream::Position => {
-                    let (lo, hi) = keep.iter().fold(
-                        ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
-                        |(mut lo, mut hi), &i| {
-                            let p = cloud.means[i as usize].to_array();
-                            for a in 0..3 {
-                                lo[a] = lo[a].min(p[a]);
-                                hi[a] = hi[a].max(p[a]);
-                            }
-                            (lo, hi)
-                        },
-                    );
-                    json!({"bufferView": view, "componentType": FLOAT, "count": n, "type": "VEC3", "min": lo, "max": hi})
-                }
-                Stream::Rotation => {
-                    json!({"bufferView": view, "componentType": FLOAT, "count": n, "type": "VEC4"})
-                }
-                Stream::Scale | Stream::Sh(_) => {
-                    json!({"bufferView": view, "componentType": FLOAT, "count": n, "type": "VEC3"})
-                }
-                Stream::Opacity => {
-                    json!({"bufferView": view, "componentType": FLOAT, "count": n, "type": "SCALAR"})
-                }
-                Stream::Color => {
-                    json!({"bufferView": view, "componentType": UNSIGNED_BYTE, "normalized": true, "count": n, "type": "VEC4"})
-                }
-            };
-            if view.is_null() {
-                acc.as_object_mut().map(|o| o.remove("bufferView"));
-            }
-            let a = d.accessor(acc);
-            let key = match si {
-                0 => "POSITION".to_string(),
-                _ if matches!(s, Stream::Color) => "COLOR_0".to_string(),
-                _ => names[si - 1].0.clone(),
-            };
-            attrs.insert(key, json!(a));
-        }
-        let mut ext = json!({"kernel": "ellipse", "colorSpace": "srgb_rec709_display", "projection": "perspective", "sortingMethod": "cameraDistance"});
-        if let Some((_, view)) = &spz {
-            let spz_ext = SPZ_EXTENSIONS[0];
-            ext["extensions"] = json!({spz_ext: {"bufferView": view}});
-        }
+        let (plan, primitive) = cloud_primitive(&mut d, &mut offset, cloud, keep, compression)?;
         meshes.push(json!({
             "name": name,
-            "primitives": [{"attributes": attrs, "mode": 0, "extensions": {EXT: ext}}],
-            "extras": {"role": if obj.is_some() { "object" } else { "static" }, "idOffset": report.meshes.last().map(|m| m.id_offset)}
+            "primitives": [primitive],
+            "extras": {"role": if obj.is_some() { "object" } else { "static" }, "idOffset": first_id}
         }));
         let mut node = json!({"name": name, "mesh": meshes.len() - 1});
-        if let Some(Some((input, ta, ra, t0, r0))) = obj.map(|k| anim[k]) {
-            node["translation"] = json!(t0);
-            node["rotation"] = json!(r0);
-            for (out, path) in [(ta, "translation"), (ra, "rotation")] {
-                samplers.push(json!({"input": input, "output": out, "interpolation": "LINEAR"}));
-                channels.push(json!({"sampler": samplers.len() - 1, "target": {"node": nodes.len(), "path": path}}));
-            }
+        if let Some(track) = obj.and_then(|k| tracks[k].as_ref()) {
+            animation.object(nodes.len(), &mut node, track);
         }
         children.push(nodes.len());
         nodes.push(node);
-        plans.push(CloudPlan {
-            cloud,
-            keep,
-            streams,
-            spz: spz.map(|s| s.0),
-        });
+        plans.push(plan);
     }
-    let mut cameras = Vec::new();
-    for cam in &scene.cameras {
-        let (t, r, c) = camera_node(cam);
-        cameras.push(c);
-        children.push(nodes.len());
-        nodes.push(
-            json!({"name": cam.name, "camera": cameras.len() - 1, "translation": t, "rotation": r}),
-        );
-    }
-    let mut root = json!({"name": "splatbridge_root", "children": children, "extras": {"inputUp": opts.up.name()}});
-    let rq = opts.up.root_rotation();
-    if rq != Quat::IDENTITY {
-        root["rotation"] = json!(rq.to_array());
-    }
-    nodes[0] = root;
+    let cameras = camera_nodes(scene, &mut nodes, &mut children);
+    nodes[0] = root_node(children, opts);
     let bin_len = offset;
     let mut doc = json!({
         "asset": {"version": "2.0", "generator": concat!("splatbridge ", env!("CARGO_PKG_VERSION")), "extras": {"splatbridge": report.metadata(opts)}},
@@ -418,21 +292,145 @@ fn plan<'a>(
         doc["extensionsRequired"] = json!([EXT, SPZ_EXTENSIONS[0]]);
         doc["asset"]["extras"]["splatbridge"]["khrCompression"] = json!(compression.name());
     }
-    if !channels.is_empty() {
-        doc["animations"] = json!([{"name": "scene", "samplers": samplers, "channels": channels}]);
+    if let Some(a) = animation.into_json() {
+        doc["animations"] = a;
     }
     if !cameras.is_empty() {
         doc["cameras"] = json!(cameras);
     }
     if bin_len == 0 {
-        for k in ["buffers", "bufferViews", "accessors", "meshes"] {
-            doc.as_object_mut().map(|o| o.remove(k));
-        }
+        remove_keys(&mut doc, &["buffers", "bufferViews", "accessors", "meshes"]);
     } else if let Some(uri) = bin_uri {
         doc["buffers"][0]["uri"] = json!(uri);
     }
-    let typed = typed_json(&doc).map_err(|e| ConvertError::Invalid(e.to_string()))?;
-    // Rename the placeholder attributes to the extension's names.
+    let json = typed_with_extension_names(&doc)?;
+    Ok((json, d.small, plans, bin_len, report))
+}
+
+/// The scene's clouds in composite order: (name, cloud, object index).
+fn scene_clouds(scene: &DynamicScene) -> Vec<(String, &GaussianCloud, Option<usize>)> {
+    let mut clouds = vec![("static".to_string(), &scene.static_gaussians, None)];
+    for (k, o) in scene.objects.iter().enumerate() {
+        clouds.push((o.name.clone(), &o.gaussians, Some(k)));
+    }
+    clouds
+}
+
+/// One cloud's POINTS primitive over its kept Gaussians: the attribute streams' views at
+/// `offset` (advanced past them; under SPZ compression one view holds the whole stream and
+/// the accessors describe the decoded attributes without views of their own), their
+/// accessors, and the extension object.
+fn cloud_primitive<'a>(
+    d: &mut DocBuilder,
+    offset: &mut u64,
+    cloud: &'a GaussianCloud,
+    keep: Vec<u32>,
+    compression: KhrCompression,
+) -> crate::Result<(CloudPlan<'a>, Value)> {
+    let n = keep.len() as u64;
+    let names = attribute_names(cloud.sh_degree);
+    let mut streams = vec![(Stream::Position, 0u64)];
+    streams.extend([Stream::Rotation, Stream::Scale, Stream::Opacity].map(|s| (s, 0)));
+    for k in 0..sh_coeffs(cloud.sh_degree) {
+        streams.push((Stream::Sh(k), 0));
+    }
+    streams.push((Stream::Color, 0));
+    let spz = match compression {
+        KhrCompression::None => None,
+        KhrCompression::Spz => {
+            let mut bytes = spz_stream(cloud, &keep)?;
+            let len = bytes.len() as u64;
+            bytes.resize(bytes.len().next_multiple_of(4), 0);
+            let view = d.view(json!({"buffer": 0, "byteOffset": *offset, "byteLength": len}));
+            *offset += bytes.len() as u64;
+            Some((bytes, view))
+        }
+    };
+    let mut attrs = serde_json::Map::new();
+    for (si, (s, off)) in streams.iter_mut().enumerate() {
+        *off = *offset;
+        let view = if spz.is_some() {
+            None
+        } else {
+            let len = s.bytes_per() * n;
+            let v = d.view(json!({"buffer": 0, "byteOffset": *offset, "byteLength": len, "target": ARRAY_BUFFER}));
+            *offset += len;
+            Some(v)
+        };
+        let a = d.accessor(stream_accessor(*s, view, cloud, &keep));
+        let key = match si {
+            0 => "POSITION".to_string(),
+            _ if matches!(s, Stream::Color) => "COLOR_0".to_string(),
+            _ => names[si - 1].0.clone(),
+        };
+        attrs.insert(key, json!(a));
+    }
+    let mut ext = json!({"kernel": "ellipse", "colorSpace": "srgb_rec709_display", "projection": "perspective", "sortingMethod": "cameraDistance"});
+    if let Some((_, view)) = &spz {
+        let spz_ext = SPZ_EXTENSIONS[0];
+        ext["extensions"] = json!({spz_ext: {"bufferView": view}});
+    }
+    let primitive = json!({"attributes": attrs, "mode": 0, "extensions": {EXT: ext}});
+    let plan = CloudPlan {
+        cloud,
+        keep,
+        streams,
+        spz: spz.map(|s| s.0),
+    };
+    Ok((plan, primitive))
+}
+
+/// The SPZ stream of the kept Gaussians.
+fn spz_stream(cloud: &GaussianCloud, keep: &[u32]) -> crate::Result<Vec<u8>> {
+    if keep.len() == cloud.len() {
+        encode_khr_spz(cloud, &SpzOptions::default())
+    } else {
+        let mut sub = cloud.clone();
+        let mut mask = vec![false; cloud.len()];
+        keep.iter().for_each(|&i| mask[i as usize] = true);
+        sub.retain_indices(|i| mask[i]);
+        encode_khr_spz(&sub, &SpzOptions::default())
+    }
+    .map_err(crate::scene_err)
+}
+
+/// The accessor of one attribute stream (`view`: its buffer view; none under SPZ).
+fn stream_accessor(s: Stream, view: Option<usize>, cloud: &GaussianCloud, keep: &[u32]) -> Value {
+    let n = keep.len();
+    let mut acc = match s {
+        Stream::Position => {
+            let (lo, hi) = keep.iter().fold(
+                ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
+                |(mut lo, mut hi), &i| {
+                    let p = cloud.means[i as usize].to_array();
+                    for a in 0..3 {
+                        lo[a] = lo[a].min(p[a]);
+                        hi[a] = hi[a].max(p[a]);
+                    }
+                    (lo, hi)
+                },
+            );
+            json!({"componentType": FLOAT, "count": n, "type": "VEC3", "min": lo, "max": hi})
+        }
+        Stream::Rotation => json!({"componentType": FLOAT, "count": n, "type": "VEC4"}),
+        Stream::Scale | Stream::Sh(_) => {
+            json!({"componentType": FLOAT, "count": n, "type": "VEC3"})
+        }
+        Stream::Opacity => json!({"componentType": FLOAT, "count": n, "type": "SCALAR"}),
+        Stream::Color => {
+            json!({"componentType": UNSIGNED_BYTE, "normalized": true, "count": n, "type": "VEC4"})
+        }
+    };
+    if let Some(v) = view {
+        acc["bufferView"] = json!(v);
+    }
+    acc
+}
+
+/// Type the document (with placeholder attribute names `gltf_json` accepts), then rename the
+/// placeholders to the extension's names.
+fn typed_with_extension_names(doc: &Value) -> crate::Result<Vec<u8>> {
+    let typed = typed_json(doc).map_err(|e| ConvertError::Invalid(e.to_string()))?;
     let mut v: Value =
         serde_json::from_slice(&typed).map_err(|e| ConvertError::Invalid(e.to_string()))?;
     if let Some(ms) = v["meshes"].as_array_mut() {
@@ -448,8 +446,7 @@ fn plan<'a>(
             }
         }
     }
-    let json = serde_json::to_vec(&v).map_err(|e| ConvertError::Invalid(e.to_string()))?;
-    Ok((json, d.small, plans, bin_len, report))
+    serde_json::to_vec(&v).map_err(|e| ConvertError::Invalid(e.to_string()))
 }
 
 fn stream<W: Write>(w: &mut W, small: &[u8], plans: &[CloudPlan<'_>]) -> io::Result<u64> {

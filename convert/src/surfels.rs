@@ -38,8 +38,9 @@ use splatbridge_scene::surfels::{
 };
 use splatbridge_scene::{sh, GaussianCloud};
 
+use crate::chunked::ChunkedMesh;
 use crate::classify::Frame;
-use crate::mesh::{in_order, srgb_to_linear, VertexSink};
+use crate::mesh::{srgb_to_linear, VertexSink};
 use crate::options::{ColorEncoding, ConvertOptions};
 use crate::FrameClouds;
 
@@ -263,11 +264,8 @@ pub fn split_scene(
     }
 }
 
-/// Surfels per generated chunk.
-const CHUNK: usize = 8192;
-
-/// One part's surfels, ready to be meshed chunk by chunk (the interface of
-/// [`crate::Mesher`]'s streaming methods).
+/// One part's surfels, ready to be meshed chunk by chunk ([`ChunkedMesh`], as
+/// [`crate::Mesher`]).
 pub struct SurfelMesher<'a> {
     pub surfels: &'a SurfelCloud,
     ids: &'a [u32],
@@ -361,8 +359,35 @@ impl<'a> SurfelMesher<'a> {
         }
         rgb
     }
+}
 
-    fn emit_range<S: VertexSink>(&self, range: Range<usize>, out: &mut S) {
+impl ChunkedMesh for SurfelMesher<'_> {
+    type Scratch = ();
+
+    fn items(&self) -> usize {
+        self.surfels.len()
+    }
+
+    fn vertices_of(&self, i: usize) -> u64 {
+        if self.keep[i] {
+            self.rim.len() as u64 + 1
+        } else {
+            0
+        }
+    }
+
+    fn indices_of(&self, i: usize, first: u32, idx: &mut Vec<u32>) -> u32 {
+        if !self.keep[i] {
+            return 0;
+        }
+        let n = self.rim.len() as u32;
+        for k in 0..n {
+            idx.extend_from_slice(&[first, first + 1 + k, first + 1 + (k + 1) % n]);
+        }
+        n + 1
+    }
+
+    fn emit_range<S: VertexSink>(&self, range: Range<usize>, out: &mut S, _: &mut ()) {
         let s = self.surfels;
         let n = self.rim.len() as u32;
         for i in range {
@@ -399,93 +424,7 @@ impl<'a> SurfelMesher<'a> {
         }
     }
 
-    fn chunk_count(&self) -> usize {
-        self.surfels.len().div_ceil(CHUNK)
-    }
-
-    fn chunk_range(&self, c: usize) -> Range<usize> {
-        c * CHUNK..((c + 1) * CHUNK).min(self.surfels.len())
-    }
-
-    fn chunk_vertices(&self, c: usize) -> usize {
-        self.keep[self.chunk_range(c)]
-            .iter()
-            .filter(|&&k| k)
-            .count()
-            * (self.rim.len() + 1)
-    }
-
-    /// Generate the vertices in order, a few chunks at a time in parallel (as
-    /// [`crate::Mesher::map_chunks_with`]).
-    pub fn map_chunks_with<S: VertexSink, T: Send, E>(
-        &self,
-        make: impl Fn(usize) -> S + Sync + Send,
-        finish: impl Fn(S) -> T + Sync + Send,
-        f: impl FnMut(T) -> Result<(), E>,
-    ) -> Result<(), E> {
-        let chunks = self.chunk_count();
-        in_order(
-            chunks,
-            |k| {
-                let mut sink = make(self.chunk_vertices(k));
-                self.emit_range(self.chunk_range(k), &mut sink);
-                finish(sink)
-            },
-            f,
-        )
-    }
-
-    /// The index buffer in order, chunk by chunk (absolute indices, `base` added).
-    pub fn map_index_chunks<T: Send, E>(
-        &self,
-        base: u32,
-        map: impl Fn(&[u32]) -> T + Sync + Send,
-        mut f: impl FnMut(T) -> Result<(), E>,
-    ) -> Result<(), E> {
-        let n = self.rim.len() as u32;
-        let mut v = base;
-        for c in 0..self.chunk_count() {
-            let mut idx = Vec::new();
-            for i in self.chunk_range(c) {
-                if !self.keep[i] {
-                    continue;
-                }
-                for k in 0..n {
-                    idx.extend_from_slice(&[v, v + 1 + k, v + 1 + (k + 1) % n]);
-                }
-                v += n + 1;
-            }
-            f(map(&idx))?;
-        }
-        Ok(())
-    }
-
-    /// Exact per-axis min and max of the generated positions (`None` when empty).
-    pub fn bounds(&self) -> Option<([f32; 3], [f32; 3])> {
-        let b = (0..self.chunk_count())
-            .into_par_iter()
-            .map(|k| {
-                let mut b = crate::mesh::Bounds::default();
-                self.emit_range(self.chunk_range(k), &mut b);
-                b
-            })
-            .reduce(crate::mesh::Bounds::default, |a, b| crate::mesh::Bounds {
-                lo: a.lo.min(b.lo),
-                hi: a.hi.max(b.hi),
-                count: a.count + b.count,
-            });
-        (b.count > 0).then(|| (b.lo.to_array(), b.hi.to_array()))
-    }
-
-    /// The whole surfel mesh in memory (tests, small scenes).
-    pub fn build(&self) -> crate::MeshSoup {
-        let mut all = crate::MeshSoup::default();
-        for c in 0..self.chunk_count() {
-            let mut s = crate::MeshSoup::default();
-            self.emit_range(self.chunk_range(c), &mut s);
-            all.append(&s);
-        }
-        all.uvs = Vec::new();
-        all
+    fn has_uv(&self) -> bool {
+        false
     }
 }

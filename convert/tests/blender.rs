@@ -2,7 +2,8 @@
 //! `scripts/blender-check.sh`: one object per mesh node, the cameras, a BLEND unlit material
 //! with the colour attribute wired to colour and alpha, one action per moving object over the
 //! scene's time range; with `--surfels` also an OPAQUE unlit surfel material with the colour
-//! attribute wired. Skips with a printed reason when Blender is not installed.
+//! attribute wired. Ignored (with the reason) when Blender is not on PATH (`build.rs` sets
+//! `cfg(blender)`); with Blender present, a script that cannot run is a failure.
 
 use std::path::Path;
 use std::process::Command;
@@ -10,6 +11,7 @@ use std::process::Command;
 use splatbridge_convert::{convert_to_file, ConvertOptions, Profile};
 
 #[test]
+#[cfg_attr(not(blender), ignore = "needs Blender on PATH")]
 fn street_glb_imports_into_blender_as_intended() {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scripts/blender-check.sh");
     let dir = tempfile::tempdir().unwrap();
@@ -56,7 +58,6 @@ fn street_glb_imports_into_blender_as_intended() {
     let stdout = String::from_utf8_lossy(&out.stdout);
     println!("{stdout}{}", String::from_utf8_lossy(&out.stderr));
     match out.status.code() {
-        Some(3) => println!("skipped: Blender is not available"),
         Some(0) => {
             assert_eq!(
                 stdout

@@ -8,7 +8,9 @@ use std::collections::BTreeSet;
 
 use glam::{DVec3, Vec3};
 use splatbridge_convert::surfels::{split_scene, SurfelMesher, SurfelOptions};
-use splatbridge_convert::{convert_to_file, glb_bytes, ConvertOptions, FrameClouds, Profile};
+use splatbridge_convert::{
+    convert_to_file, glb_bytes, ChunkedMesh, ConvertOptions, FrameClouds, Profile,
+};
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::GaussianCloud;
 

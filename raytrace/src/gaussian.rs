@@ -25,6 +25,7 @@
 //! in the composite. A part fixed in the world takes the exact path of a plain cloud
 //! (`o − anchor`, `d`): a static scene renders bit-identically either way.
 
+use std::ops::ControlFlow;
 use std::time::Instant;
 
 use glam::{DAffine3, DVec3, Mat3, Vec3};
@@ -34,12 +35,33 @@ use splatbridge_scene::{sh, Camera, Frame, GaussianCloud};
 use crate::backend::{build_boxes, fits_bvh, Accel, BackendKind, BuildPreset, EmptyAccel};
 use crate::error::Result;
 use crate::geom::{ray_box, transformed_box};
-use crate::kbuffer::{Hit, KBuffer, Key};
+use crate::kbuffer::{self, Accum, Hit, KBuffer, Key, Payload};
 use crate::render::{render_frame, PixelOut, RenderOptions, Stats};
 
 /// The rasterizer's near cull (default of `RenderOptions::near`): view-space depth of the
 /// mean must exceed this.
 pub const NEAR_CULL: f32 = 0.2;
+
+/// What a mode-gaussian hit carries: the Gaussian's index in its part's cloud and its α along
+/// the ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GaussianPayload {
+    pub index: u32,
+    pub alpha: f32,
+}
+
+impl Payload for GaussianPayload {
+    /// One Gaussian gives one hit per ray; the index only makes the choice total.
+    #[inline]
+    fn rank(&self) -> u32 {
+        self.index
+    }
+}
+
+/// A mode-gaussian hit.
+pub type GaussianHit = Hit<GaussianPayload>;
+
+kbuffer::thread_buffer!(pub(crate) fn with_thread_buffer, GaussianPayload);
 
 /// Proxies and BVH of one cloud in its own frame: the static Gaussians, one object, or a
 /// frame's particles.
@@ -367,7 +389,7 @@ impl GaussianTracer {
         near: Option<(DVec3, f32)>,
         tmax: f32,
         after: Option<Key>,
-        buf: &mut KBuffer,
+        buf: &mut KBuffer<GaussianPayload>,
     ) {
         buf.clear();
         for (pi, part) in self.parts.iter().enumerate() {
@@ -406,9 +428,10 @@ impl GaussianTracer {
                     gaussian: part.id_offset + part.index[p],
                     instance: pi as u32,
                     group: 0,
-                    tri: part.index[p],
-                    bary: [alpha, 0.0, 0.0],
-                    rgba: glam::Vec4::ZERO,
+                    payload: GaussianPayload {
+                        index: part.index[p],
+                        alpha,
+                    },
                 };
                 if after.is_some_and(|a| h.key() <= a) {
                     return;
@@ -420,21 +443,21 @@ impl GaussianTracer {
 
     /// Colour of a hit seen along world direction `d`: the Gaussian's full SH in that
     /// direction (an object's SH in the local direction).
-    pub fn hit_color(&self, h: &Hit, d: DVec3) -> Vec3 {
+    pub fn hit_color(&self, h: &GaussianHit, d: DVec3) -> Vec3 {
         let i = h.instance as usize;
         let part = &self.parts[i];
         sh::eval_color(
             part.cloud.sh_degree,
-            part.cloud.sh_of(h.tri as usize),
+            part.cloud.sh_of(h.payload.index as usize),
             self.local_dir(i, d),
         )
     }
 
     /// World normal of a hit Gaussian: its shortest axis.
-    pub fn hit_normal(&self, h: &Hit) -> DVec3 {
+    pub fn hit_normal(&self, h: &GaussianHit) -> DVec3 {
         let i = h.instance as usize;
         let part = &self.parts[i];
-        let g = h.tri as usize;
+        let g = h.payload.index as usize;
         let s = part.cloud.scale(g);
         let axis = if s.x <= s.y && s.x <= s.z {
             0
@@ -453,25 +476,15 @@ impl GaussianTracer {
         n.try_normalize().unwrap_or(DVec3::ZERO)
     }
 
-    /// Every Gaussian the ray reaches with α ≥ 1/255 in (t*, index) order, as (hit, α).
-    pub fn all_hits(&self, o: DVec3, d: DVec3, k: usize) -> Vec<Hit> {
+    /// Every Gaussian the ray reaches with α ≥ 1/255 in (t*, index) order.
+    pub fn all_hits(&self, o: DVec3, d: DVec3, k: usize) -> Vec<GaussianHit> {
         self.hits_until(o, d, k, f32::INFINITY)
     }
 
     /// As [`GaussianTracer::all_hits`], but only hits with `t ≤ tmax`: the traversal itself
     /// stops there (segment and shadow queries need nothing beyond their end).
-    pub fn hits_until(&self, o: DVec3, d: DVec3, k: usize, tmax: f32) -> Vec<Hit> {
-        let mut out = Vec::new();
-        let mut buf = KBuffer::new(k.max(1));
-        let mut after = None;
-        loop {
-            self.collect(o, d, None, tmax, after, &mut buf);
-            out.extend_from_slice(&buf.hits);
-            if !buf.is_full() {
-                return out;
-            }
-            after = buf.hits.last().map(Hit::key);
-        }
+    pub fn hits_until(&self, o: DVec3, d: DVec3, k: usize, tmax: f32) -> Vec<GaussianHit> {
+        kbuffer::all_hits(k, |after, buf| self.collect(o, d, None, tmax, after, buf))
     }
 
     /// Composite one ray. `forward` enables the near cull (primary rays).
@@ -481,39 +494,33 @@ impl GaussianTracer {
         d: DVec3,
         forward: Option<DVec3>,
         opts: &RenderOptions,
-        buf: &mut KBuffer,
+        buf: &mut KBuffer<GaussianPayload>,
     ) -> PixelOut {
         let near = forward.map(|f| (f, opts.near));
         let mut out = PixelOut::default();
-        let mut tr = 1.0f32;
-        let (mut c, mut dsum, mut wsum) = (Vec3::ZERO, 0.0f32, 0.0f32);
-        let mut after = None;
+        let mut acc = Accum::default();
+        let mut hits = 0u32;
         buf.candidates = 0;
-        'rounds: loop {
-            self.collect(o, d, near, f32::INFINITY, after, buf);
-            out.traversals += 1;
-            for h in &buf.hits {
-                let a = h.bary[0];
-                let next = tr * (1.0 - a);
-                if next < opts.min_transmittance {
-                    break 'rounds;
+        let (rounds, _) = kbuffer::walk(
+            buf,
+            |after, buf| self.collect(o, d, near, f32::INFINITY, after, buf),
+            |h| {
+                let a = h.payload.alpha;
+                // Native splatting's rule: a Gaussian that would take T below the threshold
+                // stops the ray without being added.
+                if acc.after(a) < opts.min_transmittance {
+                    return ControlFlow::Break(());
                 }
-                out.hits += 1;
-                let col = self.hit_color(h, d);
-                let w = a * tr;
-                c += col * w;
-                dsum += w * h.t;
-                wsum += w;
-                tr = next;
-            }
-            if !buf.is_full() {
-                break;
-            }
-            after = buf.hits.last().map(Hit::key);
-        }
-        out.rgb = c + opts.background * tr;
-        out.alpha = 1.0 - tr;
-        out.depth = if wsum > 0.0 { dsum / wsum } else { 0.0 };
+                hits += 1;
+                acc.add(self.hit_color(h, d), a, h.t);
+                ControlFlow::Continue(())
+            },
+        );
+        out.hits = hits;
+        out.traversals = rounds;
+        out.rgb = acc.rgb + opts.background * acc.tr;
+        out.alpha = 1.0 - acc.tr;
+        out.depth = acc.depth();
         out.candidates = buf.candidates;
         out
     }
@@ -523,16 +530,7 @@ impl GaussianTracer {
         opts.validate()?;
         let forward = cam.world_to_cam.row(2);
         render_frame(cam, |o, d| {
-            thread_local! {
-                static BUF: std::cell::RefCell<KBuffer> = std::cell::RefCell::new(KBuffer::new(16));
-            }
-            BUF.with(|b| {
-                let mut b = b.borrow_mut();
-                if b.k != opts.k {
-                    *b = KBuffer::new(opts.k);
-                }
-                self.trace(o, d, Some(forward), opts, &mut b)
-            })
+            with_thread_buffer(opts.k, |b| self.trace(o, d, Some(forward), opts, b))
         })
     }
 }

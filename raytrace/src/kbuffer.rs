@@ -1,49 +1,55 @@
-//! The k-buffer: the k nearest hits of a ray beyond the last composited one, ordered by
-//! (distance, Gaussian id, instance, group), shared by the mesh tracer (`composite`), the
-//! Gaussian tracer (`gaussian`), secondary rays and LiDAR. Equal keys are one hit, so a
-//! Gaussian's fan is counted once per ray and ties order by Gaussian id whatever the traversal
-//! order.
+//! The k-buffer and the ordered-hit loop, generic over what a hit carries: the k nearest hits
+//! of a ray beyond the last visited one, ordered by (distance, Gaussian id, instance, group),
+//! and [`walk`], the one loop that refills the buffer round after round and visits the hits in
+//! that order. The mesh tracer (`mesh_tracer`: triangle and barycentrics), the Gaussian
+//! tracer (`gaussian`: Gaussian index and α), secondary rays and LiDAR all run on it.
+//!
+//! Equal keys are one hit (the payload with the lower [`Payload::rank`] is kept, so the
+//! choice does not depend on traversal order): a Gaussian's fan is counted once per ray and
+//! ties order by Gaussian id whatever the traversal order. Ordering by the full key means hits
+//! at one distance are never lost or repeated across rounds, however many there are.
 
-use glam::Vec4;
+use std::ops::ControlFlow;
+
+/// What a hit carries besides its key.
+pub trait Payload: Copy {
+    /// Among hits with equal keys, the one with the lower rank is kept.
+    fn rank(&self) -> u32;
+}
 
 /// A hit in the k-buffer.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Hit {
+pub struct Hit<P> {
     /// World ray parameter (distance along the unit world direction).
     pub t: f32,
     pub gaussian: u32,
     pub instance: u32,
     pub group: u32,
-    pub tri: u32,
-    pub bary: [f32; 3],
-    /// Mode mesh, when shaded during collection (see [`KBuffer::shade_on_insert`]): the hit's
-    /// RGBA; unused otherwise.
-    pub rgba: Vec4,
+    pub payload: P,
 }
 
 /// Sort key: distance, then Gaussian id, instance, group (t ≥ 0, so its bits order like it).
 pub type Key = (u32, u32, u32, u32);
 
-impl Hit {
+impl<P> Hit<P> {
     #[inline]
     pub fn key(&self) -> Key {
         (self.t.to_bits(), self.gaussian, self.instance, self.group)
     }
 }
 
-/// A small sorted buffer of the k smallest keys; equal keys are one hit (the lower triangle
-/// index is kept, so the choice does not depend on traversal order).
-pub struct KBuffer {
+/// A small sorted buffer of the k smallest keys; equal keys are one hit.
+pub struct KBuffer<P> {
     pub k: usize,
-    pub hits: Vec<Hit>,
+    pub hits: Vec<Hit<P>>,
     /// Candidates tested since the counter was last reset (statistics only).
     pub candidates: u32,
-    /// Shade hits as they are found and keep only those with α > 0 (compositing; see
-    /// `MeshTracer::trace`). Off for hit enumeration, which reports every crossing.
+    /// Shade hits as they are found and keep only those with α > 0 (mode mesh compositing;
+    /// see `MeshTracer::trace`). Off for hit enumeration, which reports every crossing.
     pub shade_on_insert: bool,
 }
 
-impl KBuffer {
+impl<P: Payload> KBuffer<P> {
     pub fn new(k: usize) -> Self {
         KBuffer {
             k,
@@ -71,14 +77,14 @@ impl KBuffer {
     /// Insert; returns the cull distance to use afterwards (with a relative margin of 2⁻²⁰ so
     /// rounding in node tests never culls a hit at exactly the k-th distance).
     #[inline]
-    pub fn insert(&mut self, h: Hit, tmax: f32) -> f32 {
+    pub fn insert(&mut self, h: Hit<P>, tmax: f32) -> f32 {
         let key = h.key();
         if self.rejects(key) {
             return self.cull(tmax);
         }
         match self.hits.binary_search_by(|x| x.key().cmp(&key)) {
             Ok(i) => {
-                if h.tri < self.hits[i].tri {
+                if h.payload.rank() < self.hits[i].payload.rank() {
                     self.hits[i] = h;
                 }
             }
@@ -98,5 +104,245 @@ impl KBuffer {
         } else {
             tmax
         }
+    }
+}
+
+/// The ordered-hit loop: `collect(after, buf)` fills `buf` with the k smallest-key hits with
+/// key > `after` (None: from the start); `visit` sees them in key order and breaks to stop.
+/// A round that leaves the buffer short of full was the last. Returns the number of rounds
+/// (traversals) and the break value, if any.
+pub fn walk<P: Payload, R>(
+    buf: &mut KBuffer<P>,
+    mut collect: impl FnMut(Option<Key>, &mut KBuffer<P>),
+    mut visit: impl FnMut(&Hit<P>) -> ControlFlow<R>,
+) -> (u32, Option<R>) {
+    let mut after = None;
+    let mut rounds = 0u32;
+    loop {
+        collect(after, buf);
+        rounds += 1;
+        for h in &buf.hits {
+            if let ControlFlow::Break(r) = visit(h) {
+                return (rounds, Some(r));
+            }
+        }
+        if !buf.is_full() {
+            return (rounds, None);
+        }
+        after = buf.hits.last().map(Hit::key);
+    }
+}
+
+/// Every hit in key order: [`walk`] without a stop.
+pub fn all_hits<P: Payload>(
+    k: usize,
+    collect: impl FnMut(Option<Key>, &mut KBuffer<P>),
+) -> Vec<Hit<P>> {
+    let mut out = Vec::new();
+    let mut buf = KBuffer::new(k.max(1));
+    walk::<P, ()>(&mut buf, collect, |h| {
+        out.push(*h);
+        ControlFlow::Continue(())
+    });
+    out
+}
+
+/// Define `fn NAME<T>(k, f: impl FnOnce(&mut KBuffer<P>) -> T) -> T`, which lends `f` a
+/// thread-local k-buffer of capacity `k` for payload `P` (a buffer per payload type, reused
+/// by every ray a render thread traces).
+macro_rules! thread_buffer {
+    ($vis:vis fn $name:ident, $p:ty) => {
+        $vis fn $name<T>(k: usize, f: impl FnOnce(&mut $crate::kbuffer::KBuffer<$p>) -> T) -> T {
+            thread_local! {
+                static BUF: std::cell::RefCell<$crate::kbuffer::KBuffer<$p>> =
+                    std::cell::RefCell::new($crate::kbuffer::KBuffer::new(16));
+            }
+            BUF.with(|b| {
+                let mut b = b.borrow_mut();
+                if b.k != k {
+                    *b = $crate::kbuffer::KBuffer::new(k);
+                }
+                f(&mut b)
+            })
+        }
+    };
+}
+pub(crate) use thread_buffer;
+
+/// Front-to-back compositing state of one ray: colour, transmittance and the weighted depth
+/// sum. Both tracers add a hit with the same operations in the same order, so they share it.
+#[derive(Clone, Copy, Debug)]
+pub struct Accum {
+    pub rgb: glam::Vec3,
+    pub tr: f32,
+    pub dsum: f32,
+    pub wsum: f32,
+}
+
+impl Default for Accum {
+    fn default() -> Self {
+        Accum {
+            rgb: glam::Vec3::ZERO,
+            tr: 1.0,
+            dsum: 0.0,
+            wsum: 0.0,
+        }
+    }
+}
+
+impl Accum {
+    /// Blend `rgb` with opacity `a` at distance `t` behind what is there.
+    #[inline]
+    pub fn add(&mut self, rgb: glam::Vec3, a: f32, t: f32) {
+        let w = a * self.tr;
+        self.rgb += rgb * w;
+        self.dsum += w * t;
+        self.wsum += w;
+        self.tr *= 1.0 - a;
+    }
+
+    /// The transmittance after blending a hit of opacity `a`.
+    #[inline]
+    pub fn after(&self, a: f32) -> f32 {
+        self.tr * (1.0 - a)
+    }
+
+    /// The weighted mean distance (0 when nothing was blended).
+    pub fn depth(&self) -> f32 {
+        if self.wsum > 0.0 {
+            self.dsum / self.wsum
+        } else {
+            0.0
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    struct Tag(u32);
+
+    impl Payload for Tag {
+        fn rank(&self) -> u32 {
+            self.0
+        }
+    }
+
+    /// A tiny deterministic generator (xorshift), so the test needs no dependency.
+    fn rng(seed: &mut u64) -> u32 {
+        *seed ^= *seed << 13;
+        *seed ^= *seed >> 7;
+        *seed ^= *seed << 17;
+        (*seed >> 32) as u32
+    }
+
+    /// Hits with many exact ties in distance, Gaussian and group, and duplicates of one key
+    /// with different ranks (a fan's triangles), in a random traversal order.
+    fn random_hits(seed: &mut u64, n: usize) -> Vec<Hit<Tag>> {
+        (0..n)
+            .map(|_| Hit {
+                t: (rng(seed) % 8) as f32 * 0.25,
+                gaussian: rng(seed) % 5,
+                instance: rng(seed) % 2,
+                group: rng(seed) % 2,
+                payload: Tag(rng(seed) % 1000),
+            })
+            .collect()
+    }
+
+    /// The slow reference: sort all hits by key, keep the lowest rank of each key.
+    fn reference(hits: &[Hit<Tag>]) -> Vec<Hit<Tag>> {
+        let mut v = hits.to_vec();
+        v.sort_by_key(|h| (h.key(), h.payload.rank()));
+        v.dedup_by_key(|h| h.key());
+        v
+    }
+
+    /// What a tracer's `collect` does: every candidate after `after`, inserted in traversal
+    /// order.
+    fn collect_from(hits: &[Hit<Tag>]) -> impl FnMut(Option<Key>, &mut KBuffer<Tag>) + '_ {
+        move |after, buf| {
+            buf.clear();
+            for h in hits {
+                if after.is_some_and(|a| h.key() <= a) || buf.rejects(h.key()) {
+                    continue;
+                }
+                buf.insert(*h, f32::INFINITY);
+            }
+        }
+    }
+
+    #[test]
+    fn walk_matches_sorting_all_hits() {
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        for round in 0..200 {
+            let n = (rng(&mut seed) % 60) as usize;
+            let hits = random_hits(&mut seed, n);
+            let want = reference(&hits);
+            for k in [1, 2, 3, 7, 16, 64] {
+                let got = all_hits(k, collect_from(&hits));
+                assert_eq!(got, want, "round {round}, k {k}, {n} hits");
+            }
+        }
+    }
+
+    #[test]
+    fn composite_matches_front_to_back_reference() {
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        for round in 0..100 {
+            let n = (rng(&mut seed) % 40) as usize;
+            let hits = random_hits(&mut seed, n);
+            let alpha = |h: &Hit<Tag>| (h.payload.0 % 100) as f32 / 100.0;
+            let colour = |h: &Hit<Tag>| glam::Vec3::new(h.t, h.gaussian as f32 * 0.1, 0.5);
+            // Reference: sort everything, blend front to back, stop below T = 1e-4.
+            let mut want = Accum::default();
+            for h in reference(&hits) {
+                want.add(colour(&h), alpha(&h), h.t);
+                if want.tr < 1e-4 {
+                    break;
+                }
+            }
+            for k in [1, 3, 16] {
+                let mut buf = KBuffer::new(k);
+                let mut got = Accum::default();
+                walk(&mut buf, collect_from(&hits), |h| {
+                    got.add(colour(h), alpha(h), h.t);
+                    if got.tr < 1e-4 {
+                        ControlFlow::Break(())
+                    } else {
+                        ControlFlow::Continue(())
+                    }
+                });
+                // Same hits in the same order through the same operations: equal bits.
+                assert_eq!(
+                    got.rgb.to_array(),
+                    want.rgb.to_array(),
+                    "round {round}, k {k}"
+                );
+                assert_eq!(got.tr.to_bits(), want.tr.to_bits(), "round {round}, k {k}");
+                assert_eq!(got.depth().to_bits(), want.depth().to_bits());
+            }
+        }
+    }
+
+    #[test]
+    fn rejects_and_cull_follow_the_kth_hit() {
+        let mut buf = KBuffer::<Tag>::new(2);
+        let hit = |t: f32, g: u32| Hit {
+            t,
+            gaussian: g,
+            instance: 0,
+            group: 0,
+            payload: Tag(0),
+        };
+        assert_eq!(buf.insert(hit(2.0, 0), 10.0), 10.0);
+        let cull = buf.insert(hit(1.0, 0), 10.0);
+        // Full: the cull is the k-th distance plus its 2⁻²⁰ relative margin.
+        assert!(cull > 2.0 && cull < 2.0 + 1e-5, "{cull}");
+        assert!(buf.rejects(hit(2.0, 0).key()));
+        assert!(buf.rejects(hit(3.0, 0).key()));
+        assert!(!buf.rejects(hit(2.0, 0).key().min((1.5f32.to_bits(), 0, 0, 0))));
     }
 }

@@ -23,6 +23,7 @@
 //! binary little-endian PLY, atomically.
 
 use std::io::Write;
+use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -35,8 +36,8 @@ use splatbridge_scene::Camera;
 use crate::backend::{BackendKind, BuildPreset};
 use crate::error::{Result, TraceError};
 use crate::gaussian::GaussianTracer;
-use crate::kbuffer::{Hit, KBuffer};
-use crate::mesh_tracer::MeshTracer;
+use crate::kbuffer::{walk, KBuffer};
+use crate::mesh_tracer::{MeshHit, MeshTracer};
 use crate::secondary::MeshAt;
 
 /// A LiDAR head at a fixed pose.
@@ -211,38 +212,35 @@ pub fn scan<M: OpacityMarch + ?Sized>(scene: &M, sensor: &LidarSensor, t: f64) -
 impl OpacityMarch for MeshAt<'_> {
     fn first_return(&self, o: DVec3, d: DVec3, tmax: f64, threshold: f32) -> Option<Return> {
         let mut buf = KBuffer::new(self.k.max(1));
-        let mut after = None;
         let mut tr = 1.0f32;
-        loop {
+        let collect = |after, buf: &mut _| {
             self.tracer
-                .collect(&self.insts, o, d, 0.0, tmax as f32, after, &mut buf);
-            for h in &buf.hits {
-                let a = self.tracer.shade(&self.insts, h).w;
-                tr *= 1.0 - a;
-                if 1.0 - tr >= threshold {
-                    return Some(Return {
-                        t: h.t as f64,
-                        alpha: a,
-                        normal: self.normal(h),
-                    });
-                }
+                .collect(&self.insts, o, d, 0.0, tmax as f32, after, buf)
+        };
+        walk(&mut buf, collect, |h| {
+            let a = self.tracer.shade(&self.insts, h).w;
+            tr *= 1.0 - a;
+            if 1.0 - tr >= threshold {
+                return ControlFlow::Break(Return {
+                    t: h.t as f64,
+                    alpha: a,
+                    normal: self.normal(h),
+                });
             }
-            if !buf.is_full() {
-                return None;
-            }
-            after = buf.hits.last().map(Hit::key);
-        }
+            ControlFlow::Continue(())
+        })
+        .1
     }
 }
 
 impl MeshAt<'_> {
     /// World unit normal of a hit's triangle (normals transform with the inverse transpose of
     /// local-to-world, i.e. the transpose of `to_local`'s linear part).
-    fn normal(&self, h: &Hit) -> DVec3 {
+    fn normal(&self, h: &MeshHit) -> DVec3 {
         let inst = &self.insts[h.instance as usize];
         let blas = &self.tracer.blas[inst.mesh];
         let mesh = &self.tracer.scene.meshes[inst.mesh];
-        let [a, b, c] = mesh.tris[h.tri as usize].map(|i| blas.rel[i as usize].as_dvec3());
+        let [a, b, c] = mesh.tris[h.payload.tri as usize].map(|i| blas.rel[i as usize].as_dvec3());
         let n = (b - a).cross(c - a);
         let w = inst.to_local.matrix3.transpose() * n;
         w.try_normalize().unwrap_or(DVec3::ZERO)
@@ -253,27 +251,22 @@ impl OpacityMarch for GaussianTracer {
     fn first_return(&self, o: DVec3, d: DVec3, tmax: f64, threshold: f32) -> Option<Return> {
         let tmax = tmax as f32;
         let mut buf = KBuffer::new(16);
-        let mut after: Option<(u32, u32, u32, u32)> = None;
         let mut tr = 1.0f32;
-        loop {
-            // The tracer's own collection: the same hits in the same (t*, index) order.
-            self.collect(o, d, None, tmax, after, &mut buf);
-            for h in &buf.hits {
-                let a = h.bary[0];
-                tr *= 1.0 - a;
-                if 1.0 - tr >= threshold {
-                    return Some(Return {
-                        t: h.t as f64,
-                        alpha: a,
-                        normal: self.hit_normal(h),
-                    });
-                }
+        // The tracer's own collection: the same hits in the same (t*, index) order.
+        let collect = |after, buf: &mut _| self.collect(o, d, None, tmax, after, buf);
+        walk(&mut buf, collect, |h| {
+            let a = h.payload.alpha;
+            tr *= 1.0 - a;
+            if 1.0 - tr >= threshold {
+                return ControlFlow::Break(Return {
+                    t: h.t as f64,
+                    alpha: a,
+                    normal: self.hit_normal(h),
+                });
             }
-            if !buf.is_full() {
-                return None;
-            }
-            after = buf.hits.last().map(Hit::key);
-        }
+            ControlFlow::Continue(())
+        })
+        .1
     }
 }
 

@@ -1,9 +1,10 @@
 //! Mode `mesh`: render exactly what was exported by compositing every triangle hit front to
 //! back, as a viewer with an unlit BLEND material shows it.
 //!
-//! Per ray, a k-buffer collects the k nearest hits beyond the last composited one (ordered by
-//! the key distance, Gaussian id, instance, planar group), composites them, and tracing resumes
-//! until the transmittance falls below 1e-4 (native splatting's threshold) or no hit is left.
+//! Per ray, the k-buffer (`kbuffer`, with a [`TrianglePayload`] per hit) collects the k nearest
+//! hits beyond the last composited one (ordered by the key distance, Gaussian id, instance,
+//! planar group), `kbuffer::walk` composites them, and tracing resumes until the transmittance
+//! falls below 1e-4 (native splatting's threshold) or no hit is left.
 //! When compositing, hits are shaded as they are found and those with α = 0 (the texture
 //! profile's quad corners, fully transparent texels) are not kept: they add nothing, and in
 //! the buffer they would only cost extra rounds. Hit enumeration ([`MeshTracer::all_hits`])
@@ -27,6 +28,7 @@
 //! its bounds) so f32 keeps precision far from the origin; at time t each visible node is an
 //! instance and the ray is carried into its frame in f64 (instancing, no per-frame rebuild).
 
+use std::ops::ControlFlow;
 use std::time::Instant;
 
 use glam::{DAffine3, DVec3, Vec3, Vec4};
@@ -34,11 +36,35 @@ use glam::{DAffine3, DVec3, Vec3, Vec4};
 use crate::backend::{build_triangles, Accel, BackendKind, BuildPreset};
 use crate::error::Result;
 use crate::geom::{ray_box, transformed_box};
-pub use crate::kbuffer::{Hit, KBuffer, Key};
+pub use crate::kbuffer::Key;
+use crate::kbuffer::{self, Accum, Hit, KBuffer, Payload};
 use crate::model::{linear_to_srgb, srgb_to_linear, TriScene};
 use crate::render::{render_frame, Compositing, PixelOut, RenderOptions, Stats};
 use crate::tri::WRay;
 use splatbridge_scene::{Camera, Frame};
+
+/// What a mode-mesh hit carries: the triangle, where on it, and (when shaded during
+/// collection, see [`KBuffer::shade_on_insert`]) its RGBA.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TrianglePayload {
+    /// Triangle index in its mesh.
+    pub tri: u32,
+    pub bary: [f32; 3],
+    pub rgba: Vec4,
+}
+
+impl Payload for TrianglePayload {
+    /// A fan's triangles share one key: the lower triangle index is kept.
+    #[inline]
+    fn rank(&self) -> u32 {
+        self.tri
+    }
+}
+
+/// A mode-mesh hit.
+pub type MeshHit = Hit<TrianglePayload>;
+
+kbuffer::thread_buffer!(pub(crate) fn with_thread_buffer, TrianglePayload);
 
 /// One mesh's acceleration structure and the data the hit test needs.
 pub struct Blas {
@@ -192,7 +218,7 @@ impl MeshTracer {
         tmin: f32,
         tmax: f32,
         after: Option<Key>,
-        buf: &mut KBuffer,
+        buf: &mut KBuffer<TrianglePayload>,
     ) {
         buf.clear();
         for (ii, inst) in insts.iter().enumerate() {
@@ -271,9 +297,11 @@ impl MeshTracer {
                         gaussian: key.1,
                         instance: ii as u32,
                         group: g,
-                        tri: prim,
-                        bary,
-                        rgba,
+                        payload: TrianglePayload {
+                            tri: prim,
+                            bary,
+                            rgba,
+                        },
                     };
                     *cull = buf.insert(hit, tmax);
                 });
@@ -281,29 +309,27 @@ impl MeshTracer {
     }
 
     /// Shade a hit: RGBA as the viewer computes it.
-    pub fn shade(&self, insts: &[PreparedInstance], h: &Hit) -> Vec4 {
+    pub fn shade(&self, insts: &[PreparedInstance], h: &MeshHit) -> Vec4 {
         let mesh = &self.scene.meshes[insts[h.instance as usize].mesh];
         mesh.shade(
-            h.tri as usize,
-            h.bary,
+            h.payload.tri as usize,
+            h.payload.bary,
             &self.scene.materials,
             &self.scene.textures,
         )
     }
 
     /// Every hit along a world ray in key order (no compositing), for tests and tools.
-    pub fn all_hits(&self, insts: &[PreparedInstance], o: DVec3, d: DVec3, k: usize) -> Vec<Hit> {
-        let mut out = Vec::new();
-        let mut buf = KBuffer::new(k.max(1));
-        let mut after = None;
-        loop {
-            self.collect(insts, o, d, 0.0, f32::INFINITY, after, &mut buf);
-            out.extend_from_slice(&buf.hits);
-            if !buf.is_full() {
-                return out;
-            }
-            after = buf.hits.last().map(Hit::key);
-        }
+    pub fn all_hits(
+        &self,
+        insts: &[PreparedInstance],
+        o: DVec3,
+        d: DVec3,
+        k: usize,
+    ) -> Vec<MeshHit> {
+        kbuffer::all_hits(k, |after, buf| {
+            self.collect(insts, o, d, 0.0, f32::INFINITY, after, buf)
+        })
     }
 
     /// Composite one ray (world origin `o`, unit direction `d`). `depth` in the result is the
@@ -314,12 +340,10 @@ impl MeshTracer {
         o: DVec3,
         d: DVec3,
         opts: &RenderOptions,
-        buf: &mut KBuffer,
+        buf: &mut KBuffer<TrianglePayload>,
     ) -> PixelOut {
         let mut out = PixelOut::default();
-        let mut tr = 1.0f32;
-        let (mut c, mut dsum, mut wsum) = (Vec3::ZERO, 0.0f32, 0.0f32);
-        let mut after = None;
+        let mut acc = Accum::default();
         buf.candidates = 0;
         let lin = self.scene.colors_linear;
         let (to_display, to_linear) = match opts.compositing {
@@ -327,15 +351,15 @@ impl MeshTracer {
             Compositing::Viewer => (false, !lin),
         };
         buf.shade_on_insert = true;
-        'rounds: loop {
-            self.collect(insts, o, d, 0.0, f32::INFINITY, after, buf);
-            out.traversals += 1;
-            for h in &buf.hits {
-                out.hits += 1;
-                let rgba = h.rgba;
+        let mut hits = 0u32;
+        let (rounds, _) = kbuffer::walk(
+            buf,
+            |after, buf| self.collect(insts, o, d, 0.0, f32::INFINITY, after, buf),
+            |h| {
+                hits += 1;
+                let rgba = h.payload.rgba;
                 let a = rgba.w;
                 if a > 0.0 {
-                    let w = a * tr;
                     let mut rgb = rgba.truncate().clamp(Vec3::ZERO, Vec3::ONE);
                     if to_display {
                         rgb = Vec3::new(
@@ -350,20 +374,18 @@ impl MeshTracer {
                             srgb_to_linear(rgb.z),
                         );
                     }
-                    c += rgb * w;
-                    dsum += w * h.t;
-                    wsum += w;
-                    tr *= 1.0 - a;
-                    if tr < opts.min_transmittance {
-                        break 'rounds;
+                    // Composited before the termination test: a viewer draws the triangle.
+                    acc.add(rgb, a, h.t);
+                    if acc.tr < opts.min_transmittance {
+                        return ControlFlow::Break(());
                     }
                 }
-            }
-            if !buf.is_full() {
-                break;
-            }
-            after = buf.hits.last().map(Hit::key);
-        }
+                ControlFlow::Continue(())
+            },
+        );
+        out.hits = hits;
+        out.traversals = rounds;
+        let (c, tr) = (acc.rgb, acc.tr);
         out.rgb = c + opts.background * tr;
         if opts.compositing == Compositing::Viewer {
             // The background is a display colour; blend it in linear light, then encode.
@@ -381,7 +403,7 @@ impl MeshTracer {
             );
         }
         out.alpha = 1.0 - tr;
-        out.depth = if wsum > 0.0 { dsum / wsum } else { 0.0 };
+        out.depth = acc.depth();
         out.candidates = buf.candidates;
         buf.shade_on_insert = false;
         out
@@ -392,16 +414,7 @@ impl MeshTracer {
         opts.validate()?;
         let insts = self.prepare(time);
         render_frame(cam, |o, d| {
-            thread_local! {
-                static BUF: std::cell::RefCell<KBuffer> = std::cell::RefCell::new(KBuffer::new(16));
-            }
-            BUF.with(|b| {
-                let mut b = b.borrow_mut();
-                if b.k != opts.k {
-                    *b = KBuffer::new(opts.k);
-                }
-                self.trace(&insts, o, d, opts, &mut b)
-            })
+            with_thread_buffer(opts.k, |b| self.trace(&insts, o, d, opts, b))
         })
     }
 }

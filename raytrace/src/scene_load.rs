@@ -174,17 +174,39 @@ fn read_scalar_u32(
     Ok(v)
 }
 
+/// A checked glTF document (see `gltf_check`, which runs first) to a triangle scene, step by
+/// step: textures, materials, meshes, the node forest, animation channels, colour encoding.
 fn from_gltf(
     path: &Path,
     doc: &gltf::Document,
     buffers: &[gltf::buffer::Data],
     images: &[gltf::image::Data],
 ) -> Result<TriScene> {
-    let get = |b: gltf::Buffer| buffers.get(b.index()).map(|d| &d.0[..]);
-    let mut textures = Vec::new();
-    for t in doc.textures() {
-        textures.push(texture_from(path, &t, images)?);
-    }
+    let textures = doc
+        .textures()
+        .map(|t| texture_from(path, &t, images))
+        .collect::<Result<Vec<_>>>()?;
+    let materials = gltf_materials(doc);
+    // Primitives without a material use glTF's default material, appended last.
+    let default_material = materials.len() as u32 - 1;
+    let meshes = doc
+        .meshes()
+        .map(|m| gltf_mesh(path, &m, buffers, default_material))
+        .collect::<Result<Vec<_>>>()?;
+    let nodes = gltf_nodes(path, doc)?;
+    let channels = gltf_channels(path, doc, buffers)?;
+    Ok(TriScene {
+        meshes,
+        materials,
+        textures,
+        nodes,
+        channels,
+        colors_linear: colors_linear(doc),
+    })
+}
+
+/// The document's materials, then glTF's default material (for primitives without one).
+fn gltf_materials(doc: &gltf::Document) -> Vec<Material> {
     let mut materials: Vec<Material> = doc
         .materials()
         .map(|m| {
@@ -202,179 +224,211 @@ fn from_gltf(
             }
         })
         .collect();
-    // Primitives without a material use glTF's default material, appended last.
-    let default_material = materials.len() as u32;
     materials.push(Material::default());
+    materials
+}
 
-    let mut meshes = Vec::new();
-    for m in doc.meshes() {
-        let mut mesh = Mesh {
-            name: m.name().unwrap_or("").to_string(),
-            ..Mesh::default()
-        };
-        let mut any_uv = false;
-        let mut all_ids = true;
-        let mut uvs: Vec<Vec2> = Vec::new();
-        let mut ids: Vec<u32> = Vec::new();
-        let mut tri_ids: Vec<Option<u32>> = Vec::new();
-        for (pi, p) in m.primitives().enumerate() {
-            let what = format!("mesh {} primitive {pi}", m.index());
-            use gltf::mesh::Mode;
-            if !matches!(
-                p.mode(),
-                Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
-            ) {
-                continue;
-            }
-            let r = p.reader(get);
-            let pos: Vec<Vec3> = r
-                .read_positions()
-                .ok_or_else(|| TraceError::format(path, format!("{what}: no POSITION")))?
-                .map(Vec3::from_array)
-                .collect();
-            if let Some(i) = pos.iter().position(|v| !fits_bvh(*v)) {
-                return Err(TraceError::format(
-                    path,
-                    format!(
-                        "{what}: POSITION of vertex {i} is not finite or beyond ±{MAX_BVH_COORD}"
-                    ),
-                ));
-            }
-            let n = pos.len();
-            let base = mesh.positions.len() as u32;
-            let cols: Vec<Vec4> = match r.read_colors(0) {
-                Some(c) => c.into_rgba_f32().map(Vec4::from_array).collect(),
-                None => vec![Vec4::ONE; n],
-            };
-            if cols.len() != n {
-                return Err(TraceError::format(
-                    path,
-                    format!(
-                        "{what}: COLOR_0 has {} entries for {n} vertices",
-                        cols.len()
-                    ),
-                ));
-            }
-            let uv: Option<Vec<Vec2>> = r
-                .read_tex_coords(0)
-                .map(|t| t.into_f32().map(Vec2::from_array).collect());
-            let gid = p
-                .attributes()
-                .find(|(s, _)| matches!(s, gltf::Semantic::Extras(name) if name == "GAUSSIAN_ID"))
-                .map(|(_, acc)| {
-                    read_scalar_u32(path, &acc, buffers, &format!("{what}: _GAUSSIAN_ID"))
-                })
-                .transpose()?;
-            let idx: Vec<u32> = match r.read_indices() {
-                Some(i) => i.into_u32().collect(),
-                None => (0..n as u32).collect(),
-            };
-            if let Some(bad) = idx.iter().find(|&&i| i as usize >= n) {
-                return Err(TraceError::format(
-                    path,
-                    format!("{what}: index {bad} is out of range ({n} vertices)"),
-                ));
-            }
-            let tris: Vec<[u32; 3]> = match p.mode() {
-                Mode::Triangles => idx.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
-                Mode::TriangleStrip => (2..idx.len())
-                    .map(|i| {
-                        if i % 2 == 0 {
-                            [idx[i - 2], idx[i - 1], idx[i]]
-                        } else {
-                            [idx[i - 1], idx[i - 2], idx[i]]
-                        }
-                    })
-                    .collect(),
-                _ => (2..idx.len())
-                    .map(|i| [idx[0], idx[i - 1], idx[i]])
-                    .collect(),
-            };
-            let mat = p
-                .material()
-                .index()
-                .map(|i| i as u32)
-                .unwrap_or(default_material);
-            if let Some(u) = &uv {
-                if u.len() != n {
-                    return Err(TraceError::format(
-                        path,
-                        format!(
-                            "{what}: TEXCOORD_0 has {} entries for {n} vertices",
-                            u.len()
-                        ),
-                    ));
-                }
-            }
-            any_uv |= uv.is_some();
-            uvs.extend(uv.unwrap_or_else(|| vec![Vec2::ZERO; n]));
-            match &gid {
-                Some(g) if g.len() == n => ids.extend_from_slice(g),
-                Some(g) => {
-                    return Err(TraceError::format(
-                        path,
-                        format!(
-                            "{what}: _GAUSSIAN_ID has {} entries for {n} vertices",
-                            g.len()
-                        ),
-                    ))
-                }
-                None => {
-                    all_ids = false;
-                    ids.extend(std::iter::repeat_n(0, n));
-                }
-            }
-            for t in tris {
-                tri_ids.push(gid.as_ref().map(|g| g[t[0] as usize]));
-                mesh.tris.push(t.map(|i| i + base));
-                mesh.tri_material.push(mat);
-            }
-            mesh.positions.extend(pos);
-            mesh.colors.extend(cols);
-        }
-        if any_uv {
-            mesh.uvs = Some(uvs);
-        }
-        if all_ids && !mesh.tris.is_empty() {
-            mesh.tri_gaussian = tri_ids.into_iter().map(|g| g.unwrap_or(0)).collect();
-            mesh.has_gaussian_ids = true;
-        } else {
-            mesh.assign_components();
-        }
-        meshes.push(mesh);
+/// One triangle primitive's vertices, validated (counts agree, positions within BVH range,
+/// indices in range), with strips and fans expanded to triangles.
+struct Primitive {
+    pos: Vec<Vec3>,
+    cols: Vec<Vec4>,
+    uv: Option<Vec<Vec2>>,
+    gid: Option<Vec<u32>>,
+    tris: Vec<[u32; 3]>,
+    material: u32,
+}
+
+/// Read primitive `p` (`what` names it in errors); `None` for a mode without surface.
+fn gltf_primitive(
+    path: &Path,
+    p: &gltf::Primitive,
+    what: &str,
+    buffers: &[gltf::buffer::Data],
+    default_material: u32,
+) -> Result<Option<Primitive>> {
+    use gltf::mesh::Mode;
+    if !matches!(
+        p.mode(),
+        Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+    ) {
+        return Ok(None);
     }
-
-    // Nodes: only those reachable from the default scene (or scene 0) are shown by viewers.
-    let mut nodes: Vec<Node> = doc
-        .nodes()
-        .map(|n| {
-            let mut node = Node {
-                name: n.name().unwrap_or("").to_string(),
-                ..Node::default()
-            };
-            match n.transform() {
-                gltf::scene::Transform::Matrix { matrix } => {
-                    let m = DMat4::from_cols_array_2d(&matrix.map(|c| c.map(|v| v as f64)));
-                    node.matrix = Some(DAffine3::from_mat4(m));
-                }
-                gltf::scene::Transform::Decomposed {
-                    translation,
-                    rotation,
-                    scale,
-                } => {
-                    node.translation = DVec3::from_array(translation.map(|v| v as f64));
-                    let q = DQuat::from_array(rotation.map(|v| v as f64));
-                    node.rotation = if q.length() > 0.0 {
-                        q.normalize()
-                    } else {
-                        DQuat::IDENTITY
-                    };
-                    node.scale = DVec3::from_array(scale.map(|v| v as f64));
-                }
-            }
-            node
-        })
+    let r = p.reader(|b: gltf::Buffer| buffers.get(b.index()).map(|d| &d.0[..]));
+    let pos: Vec<Vec3> = r
+        .read_positions()
+        .ok_or_else(|| TraceError::format(path, format!("{what}: no POSITION")))?
+        .map(Vec3::from_array)
         .collect();
+    if let Some(i) = pos.iter().position(|v| !fits_bvh(*v)) {
+        return Err(TraceError::format(
+            path,
+            format!("{what}: POSITION of vertex {i} is not finite or beyond ±{MAX_BVH_COORD}"),
+        ));
+    }
+    let n = pos.len();
+    let cols: Vec<Vec4> = match r.read_colors(0) {
+        Some(c) => c.into_rgba_f32().map(Vec4::from_array).collect(),
+        None => vec![Vec4::ONE; n],
+    };
+    if cols.len() != n {
+        return Err(TraceError::format(
+            path,
+            format!(
+                "{what}: COLOR_0 has {} entries for {n} vertices",
+                cols.len()
+            ),
+        ));
+    }
+    let uv: Option<Vec<Vec2>> = r
+        .read_tex_coords(0)
+        .map(|t| t.into_f32().map(Vec2::from_array).collect());
+    let gid = p
+        .attributes()
+        .find(|(s, _)| matches!(s, gltf::Semantic::Extras(name) if name == "GAUSSIAN_ID"))
+        .map(|(_, acc)| read_scalar_u32(path, &acc, buffers, &format!("{what}: _GAUSSIAN_ID")))
+        .transpose()?;
+    let idx: Vec<u32> = match r.read_indices() {
+        Some(i) => i.into_u32().collect(),
+        None => (0..n as u32).collect(),
+    };
+    if let Some(bad) = idx.iter().find(|&&i| i as usize >= n) {
+        return Err(TraceError::format(
+            path,
+            format!("{what}: index {bad} is out of range ({n} vertices)"),
+        ));
+    }
+    let tris: Vec<[u32; 3]> = match p.mode() {
+        Mode::Triangles => idx.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+        Mode::TriangleStrip => (2..idx.len())
+            .map(|i| {
+                if i % 2 == 0 {
+                    [idx[i - 2], idx[i - 1], idx[i]]
+                } else {
+                    [idx[i - 1], idx[i - 2], idx[i]]
+                }
+            })
+            .collect(),
+        _ => (2..idx.len())
+            .map(|i| [idx[0], idx[i - 1], idx[i]])
+            .collect(),
+    };
+    let material = p
+        .material()
+        .index()
+        .map(|i| i as u32)
+        .unwrap_or(default_material);
+    if let Some(u) = &uv {
+        if u.len() != n {
+            return Err(TraceError::format(
+                path,
+                format!(
+                    "{what}: TEXCOORD_0 has {} entries for {n} vertices",
+                    u.len()
+                ),
+            ));
+        }
+    }
+    if let Some(g) = &gid {
+        if g.len() != n {
+            return Err(TraceError::format(
+                path,
+                format!(
+                    "{what}: _GAUSSIAN_ID has {} entries for {n} vertices",
+                    g.len()
+                ),
+            ));
+        }
+    }
+    Ok(Some(Primitive {
+        pos,
+        cols,
+        uv,
+        gid,
+        tris,
+        material,
+    }))
+}
+
+/// A glTF mesh: its triangle primitives concatenated; a triangle's Gaussian id is its first
+/// vertex's `_GAUSSIAN_ID` when every primitive has one, else connected components.
+fn gltf_mesh(
+    path: &Path,
+    m: &gltf::Mesh,
+    buffers: &[gltf::buffer::Data],
+    default_material: u32,
+) -> Result<Mesh> {
+    let mut mesh = Mesh {
+        name: m.name().unwrap_or("").to_string(),
+        ..Mesh::default()
+    };
+    let mut any_uv = false;
+    let mut all_ids = true;
+    let mut uvs: Vec<Vec2> = Vec::new();
+    let mut tri_ids: Vec<Option<u32>> = Vec::new();
+    for (pi, p) in m.primitives().enumerate() {
+        let what = format!("mesh {} primitive {pi}", m.index());
+        let Some(prim) = gltf_primitive(path, &p, &what, buffers, default_material)? else {
+            continue;
+        };
+        let n = prim.pos.len();
+        let base = mesh.positions.len() as u32;
+        any_uv |= prim.uv.is_some();
+        uvs.extend(prim.uv.unwrap_or_else(|| vec![Vec2::ZERO; n]));
+        all_ids &= prim.gid.is_some();
+        for t in prim.tris {
+            tri_ids.push(prim.gid.as_ref().map(|g| g[t[0] as usize]));
+            mesh.tris.push(t.map(|i| i + base));
+            mesh.tri_material.push(prim.material);
+        }
+        mesh.positions.extend(prim.pos);
+        mesh.colors.extend(prim.cols);
+    }
+    if any_uv {
+        mesh.uvs = Some(uvs);
+    }
+    if all_ids && !mesh.tris.is_empty() {
+        mesh.tri_gaussian = tri_ids.into_iter().map(|g| g.unwrap_or(0)).collect();
+        mesh.has_gaussian_ids = true;
+    } else {
+        mesh.assign_components();
+    }
+    Ok(mesh)
+}
+
+/// A node's local transform as stored (TRS, or a matrix).
+fn gltf_node(n: &gltf::Node) -> Node {
+    let mut node = Node {
+        name: n.name().unwrap_or("").to_string(),
+        ..Node::default()
+    };
+    match n.transform() {
+        gltf::scene::Transform::Matrix { matrix } => {
+            let m = DMat4::from_cols_array_2d(&matrix.map(|c| c.map(|v| v as f64)));
+            node.matrix = Some(DAffine3::from_mat4(m));
+        }
+        gltf::scene::Transform::Decomposed {
+            translation,
+            rotation,
+            scale,
+        } => {
+            node.translation = DVec3::from_array(translation.map(|v| v as f64));
+            let q = DQuat::from_array(rotation.map(|v| v as f64));
+            node.rotation = if q.length() > 0.0 {
+                q.normalize()
+            } else {
+                DQuat::IDENTITY
+            };
+            node.scale = DVec3::from_array(scale.map(|v| v as f64));
+        }
+    }
+    node
+}
+
+/// The node forest: transforms, one parent per node, and meshes and cameras on the nodes
+/// the default scene (or scene 0) reaches, which are the only ones viewers show.
+fn gltf_nodes(path: &Path, doc: &gltf::Document) -> Result<Vec<Node>> {
+    let mut nodes: Vec<Node> = doc.nodes().map(|n| gltf_node(&n)).collect();
     for n in doc.nodes() {
         for c in n.children() {
             if nodes[c.index()].parent.is_some() {
@@ -386,9 +440,25 @@ fn from_gltf(
             nodes[c.index()].parent = Some(n.index());
         }
     }
-    // Cycles and depth were rejected by `gltf_check` (in linear time).
+    let reachable = reachable_nodes(doc, nodes.len());
+    for n in doc.nodes() {
+        if !reachable[n.index()] {
+            continue;
+        }
+        let node = &mut nodes[n.index()];
+        node.mesh = n.mesh().map(|m| m.index());
+        if let Some(c) = n.camera() {
+            node.camera = gltf_camera(path, &c)?;
+        }
+    }
+    Ok(nodes)
+}
+
+/// Which nodes the default scene (or scene 0; every node when there is no scene) reaches.
+/// Cycles and depth were rejected by `gltf_check` (in linear time).
+fn reachable_nodes(doc: &gltf::Document, count: usize) -> Vec<bool> {
     let scene = doc.default_scene().or_else(|| doc.scenes().next());
-    let mut reachable = vec![scene.is_none(); nodes.len()];
+    let mut reachable = vec![scene.is_none(); count];
     if let Some(s) = scene {
         let mut stack: Vec<gltf::Node> = s.nodes().collect();
         while let Some(n) = stack.pop() {
@@ -398,114 +468,127 @@ fn from_gltf(
             }
         }
     }
-    for n in doc.nodes() {
-        if !reachable[n.index()] {
-            continue;
-        }
-        let node = &mut nodes[n.index()];
-        node.mesh = n.mesh().map(|m| m.index());
-        if let Some(c) = n.camera() {
-            if let gltf::camera::Projection::Perspective(p) = c.projection() {
-                let yfov = p.yfov() as f64;
-                if !(yfov > 0.0 && yfov < std::f64::consts::PI) {
-                    return Err(TraceError::format(
-                        path,
-                        format!("camera {}: yfov {yfov} is outside (0, π)", c.index()),
-                    ));
-                }
-                node.camera = Some(Perspective {
-                    yfov,
-                    aspect: p.aspect_ratio().map(|a| a as f64),
-                    opencv: opencv_extras(c.extras()),
-                });
-            }
-        }
-    }
+    reachable
+}
 
+/// A perspective camera (with its OpenCV intrinsics when the extras carry them); `None` for
+/// an orthographic one.
+fn gltf_camera(path: &Path, c: &gltf::Camera) -> Result<Option<Perspective>> {
+    let gltf::camera::Projection::Perspective(p) = c.projection() else {
+        return Ok(None);
+    };
+    let yfov = p.yfov() as f64;
+    if !(yfov > 0.0 && yfov < std::f64::consts::PI) {
+        return Err(TraceError::format(
+            path,
+            format!("camera {}: yfov {yfov} is outside (0, π)", c.index()),
+        ));
+    }
+    Ok(Some(Perspective {
+        yfov,
+        aspect: p.aspect_ratio().map(|a| a as f64),
+        opencv: opencv_extras(c.extras()),
+    }))
+}
+
+/// Every animation channel on translation, rotation or scale (morph weights are ignored),
+/// with finite, strictly increasing key times and finite values of the sampler's count.
+fn gltf_channels(
+    path: &Path,
+    doc: &gltf::Document,
+    buffers: &[gltf::buffer::Data],
+) -> Result<Vec<Channel>> {
     let mut channels = Vec::new();
     for a in doc.animations() {
         for (ci, ch) in a.channels().enumerate() {
             let what = format!("animation {} channel {ci}", a.index());
-            use gltf::animation::util::ReadOutputs;
-            use gltf::animation::Property;
-            let path_kind = match ch.target().property() {
-                Property::Translation => ChannelPath::Translation,
-                Property::Rotation => ChannelPath::Rotation,
-                Property::Scale => ChannelPath::Scale,
-                Property::MorphTargetWeights => continue,
-            };
-            let r = ch.reader(get);
-            let times: Vec<f64> = r
-                .read_inputs()
-                .ok_or_else(|| {
-                    TraceError::format(path, format!("{what}: sampler input cannot be read"))
-                })?
-                .map(|t| t as f64)
-                .collect();
-            if times.windows(2).any(|w| !(w[1] > w[0])) || times.iter().any(|t| !t.is_finite()) {
-                return Err(TraceError::format(
-                    path,
-                    format!("{what}: key times are not finite and strictly increasing"),
-                ));
+            if let Some(c) = gltf_channel(path, &ch, &what, buffers)? {
+                channels.push(c);
             }
-            let values: Vec<[f64; 4]> = match r.read_outputs().ok_or_else(|| {
-                TraceError::format(path, format!("{what}: sampler output cannot be read"))
-            })? {
-                ReadOutputs::Translations(it) | ReadOutputs::Scales(it) => it
-                    .map(|v| [v[0] as f64, v[1] as f64, v[2] as f64, 0.0])
-                    .collect(),
-                ReadOutputs::Rotations(it) => it.into_f32().map(|v| v.map(|x| x as f64)).collect(),
-                ReadOutputs::MorphTargetWeights(_) => continue,
-            };
-            let interpolation = match ch.sampler().interpolation() {
-                gltf::animation::Interpolation::Step => Interpolation::Step,
-                gltf::animation::Interpolation::Linear => Interpolation::Linear,
-                gltf::animation::Interpolation::CubicSpline => Interpolation::CubicSpline,
-            };
-            let per = if interpolation == Interpolation::CubicSpline {
-                3
-            } else {
-                1
-            };
-            if values.len() != per * times.len() {
-                return Err(TraceError::format(
-                    path,
-                    format!(
-                        "{what}: {} output values for {} keys",
-                        values.len(),
-                        times.len()
-                    ),
-                ));
-            }
-            if values.iter().any(|v| v.iter().any(|x| !x.is_finite())) {
-                return Err(TraceError::format(
-                    path,
-                    format!("{what}: output values are not finite"),
-                ));
-            }
-            channels.push(Channel {
-                node: ch.target().node().index(),
-                path: path_kind,
-                interpolation,
-                times,
-                values,
-            });
         }
     }
+    Ok(channels)
+}
 
-    // glTF's COLOR_0 is linear unless splatbridge metadata says the file keeps display values.
+/// One animation channel (`what` names it in errors); `None` for morph weights.
+fn gltf_channel(
+    path: &Path,
+    ch: &gltf::animation::Channel,
+    what: &str,
+    buffers: &[gltf::buffer::Data],
+) -> Result<Option<Channel>> {
+    use gltf::animation::util::ReadOutputs;
+    use gltf::animation::Property;
+    let path_kind = match ch.target().property() {
+        Property::Translation => ChannelPath::Translation,
+        Property::Rotation => ChannelPath::Rotation,
+        Property::Scale => ChannelPath::Scale,
+        Property::MorphTargetWeights => return Ok(None),
+    };
+    let r = ch.reader(|b: gltf::Buffer| buffers.get(b.index()).map(|d| &d.0[..]));
+    let times: Vec<f64> = r
+        .read_inputs()
+        .ok_or_else(|| TraceError::format(path, format!("{what}: sampler input cannot be read")))?
+        .map(|t| t as f64)
+        .collect();
+    if times.windows(2).any(|w| !(w[1] > w[0])) || times.iter().any(|t| !t.is_finite()) {
+        return Err(TraceError::format(
+            path,
+            format!("{what}: key times are not finite and strictly increasing"),
+        ));
+    }
+    let values: Vec<[f64; 4]> = match r
+        .read_outputs()
+        .ok_or_else(|| TraceError::format(path, format!("{what}: sampler output cannot be read")))?
+    {
+        ReadOutputs::Translations(it) | ReadOutputs::Scales(it) => it
+            .map(|v| [v[0] as f64, v[1] as f64, v[2] as f64, 0.0])
+            .collect(),
+        ReadOutputs::Rotations(it) => it.into_f32().map(|v| v.map(|x| x as f64)).collect(),
+        ReadOutputs::MorphTargetWeights(_) => return Ok(None),
+    };
+    let interpolation = match ch.sampler().interpolation() {
+        gltf::animation::Interpolation::Step => Interpolation::Step,
+        gltf::animation::Interpolation::Linear => Interpolation::Linear,
+        gltf::animation::Interpolation::CubicSpline => Interpolation::CubicSpline,
+    };
+    let per = if interpolation == Interpolation::CubicSpline {
+        3
+    } else {
+        1
+    };
+    if values.len() != per * times.len() {
+        return Err(TraceError::format(
+            path,
+            format!(
+                "{what}: {} output values for {} keys",
+                values.len(),
+                times.len()
+            ),
+        ));
+    }
+    if values.iter().any(|v| v.iter().any(|x| !x.is_finite())) {
+        return Err(TraceError::format(
+            path,
+            format!("{what}: output values are not finite"),
+        ));
+    }
+    Ok(Some(Channel {
+        node: ch.target().node().index(),
+        path: path_kind,
+        interpolation,
+        times,
+        values,
+    }))
+}
+
+/// glTF's COLOR_0 is linear unless splatbridge metadata says the file keeps display values.
+fn colors_linear(doc: &gltf::Document) -> bool {
     let encoding = extras_value(&doc.as_json().asset.extras).and_then(|v| {
         v.pointer("/splatbridge/colorEncoding")
             .and_then(|e| e.as_str().map(str::to_owned))
     });
-    Ok(TriScene {
-        meshes,
-        materials,
-        textures,
-        nodes,
-        channels,
-        colors_linear: encoding.as_deref() != Some("display"),
-    })
+    encoding.as_deref() != Some("display")
 }
 
 fn extras_value(e: &gltf::json::Extras) -> Option<serde_json::Value> {

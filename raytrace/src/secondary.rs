@@ -2,10 +2,12 @@
 //! the closest hit whose opacity reaches a threshold, for both modes, with the same hit order
 //! and de-duplication as primary rays (no near cull).
 
+use std::ops::ControlFlow;
+
 use glam::{DVec3, Vec3};
 
 use crate::gaussian::GaussianTracer;
-use crate::kbuffer::{Hit, KBuffer};
+use crate::kbuffer::{walk, KBuffer};
 use crate::mesh_tracer::{MeshTracer, PreparedInstance};
 
 /// A closest opaque hit: world distance along the unit direction and the hit's colour.
@@ -63,32 +65,22 @@ impl SecondaryRays for MeshAt<'_> {
         };
         let mut buf = KBuffer::new(self.k);
         let mut tr = 1.0f32;
-        let mut after = None;
-        loop {
-            self.tracer.collect(
-                &self.insts,
-                from,
-                d,
-                offset as f32,
-                len as f32,
-                after,
-                &mut buf,
-            );
-            for h in &buf.hits {
-                // Strictly before the end point: a surface at `to` does not shadow itself.
-                if h.t as f64 >= len {
-                    return tr;
-                }
-                tr *= 1.0 - self.tracer.shade(&self.insts, h).w;
-                if tr < 1e-4 {
-                    return 0.0;
-                }
+        let collect = |after, buf: &mut _| {
+            self.tracer
+                .collect(&self.insts, from, d, offset as f32, len as f32, after, buf)
+        };
+        let (_, stop) = walk(&mut buf, collect, |h| {
+            // Strictly before the end point: a surface at `to` does not shadow itself.
+            if h.t as f64 >= len {
+                return ControlFlow::Break(tr);
             }
-            if !buf.is_full() {
-                return tr;
+            tr *= 1.0 - self.tracer.shade(&self.insts, h).w;
+            if tr < 1e-4 {
+                return ControlFlow::Break(0.0);
             }
-            after = buf.hits.last().map(Hit::key);
-        }
+            ControlFlow::Continue(())
+        });
+        stop.unwrap_or(tr)
     }
 
     fn closest_opaque(
@@ -100,32 +92,22 @@ impl SecondaryRays for MeshAt<'_> {
         threshold: f32,
     ) -> Option<OpaqueHit> {
         let mut buf = KBuffer::new(self.k);
-        let mut after = None;
-        loop {
-            self.tracer.collect(
-                &self.insts,
-                o,
-                d,
-                offset as f32,
-                tmax as f32,
-                after,
-                &mut buf,
-            );
-            for h in &buf.hits {
-                let c = self.tracer.shade(&self.insts, h);
-                if c.w >= threshold {
-                    return Some(OpaqueHit {
-                        t: h.t as f64,
-                        rgb: c.truncate(),
-                        alpha: c.w,
-                    });
-                }
+        let collect = |after, buf: &mut _| {
+            self.tracer
+                .collect(&self.insts, o, d, offset as f32, tmax as f32, after, buf)
+        };
+        walk(&mut buf, collect, |h| {
+            let c = self.tracer.shade(&self.insts, h);
+            if c.w >= threshold {
+                return ControlFlow::Break(OpaqueHit {
+                    t: h.t as f64,
+                    rgb: c.truncate(),
+                    alpha: c.w,
+                });
             }
-            if !buf.is_full() {
-                return None;
-            }
-            after = buf.hits.last().map(Hit::key);
-        }
+            ControlFlow::Continue(())
+        })
+        .1
     }
 }
 
@@ -144,7 +126,7 @@ impl SecondaryRays for GaussianTracer {
             if t >= len {
                 break;
             }
-            tr *= 1.0 - h.bary[0];
+            tr *= 1.0 - h.payload.alpha;
             if tr < 1e-4 {
                 return 0.0;
             }
@@ -163,11 +145,11 @@ impl SecondaryRays for GaussianTracer {
         self.hits_until(o, d, 16, (tmax as f32).next_up())
             .into_iter()
             .filter(|h| (h.t as f64) >= offset && (h.t as f64) <= tmax)
-            .find(|h| h.bary[0] >= threshold)
+            .find(|h| h.payload.alpha >= threshold)
             .map(|h| OpaqueHit {
                 t: h.t as f64,
                 rgb: self.hit_color(&h, d),
-                alpha: h.bary[0],
+                alpha: h.payload.alpha,
             })
     }
 }

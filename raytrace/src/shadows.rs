@@ -33,7 +33,6 @@ use splatbridge_scene::{Camera, Frame};
 
 use crate::error::{Result, TraceError};
 use crate::gaussian::GaussianTracer;
-use crate::kbuffer::KBuffer;
 use crate::mesh_tracer::MeshTracer;
 use crate::render::{render_frame, PixelOut, RenderOptions, Stats};
 use crate::secondary::SecondaryRays;
@@ -134,20 +133,6 @@ pub fn mesh_bounds(tracer: &MeshTracer, time: f64) -> (DVec3, DVec3) {
     )
 }
 
-thread_local! {
-    static BUF: std::cell::RefCell<KBuffer> = std::cell::RefCell::new(KBuffer::new(16));
-}
-
-fn with_buf<T>(k: usize, f: impl FnOnce(&mut KBuffer) -> T) -> T {
-    BUF.with(|b| {
-        let mut b = b.borrow_mut();
-        if b.k != k {
-            *b = KBuffer::new(k);
-        }
-        f(&mut b)
-    })
-}
-
 /// Render `cam` in mode `gaussian` with sun shadows: the same pixels as
 /// [`GaussianTracer::render`], then one shadow ray per surface pixel.
 pub fn render_gaussian_shadowed(
@@ -161,7 +146,9 @@ pub fn render_gaussian_shadowed(
     let rays = AtomicU64::new(0);
     let nanos = AtomicU64::new(0);
     let (frame, stats) = render_frame(cam, |o, d| {
-        let mut px = with_buf(opts.k, |b| tracer.trace(o, d, Some(forward), opts, b));
+        let mut px = crate::gaussian::with_thread_buffer(opts.k, |b| {
+            tracer.trace(o, d, Some(forward), opts, b)
+        });
         let start = Instant::now();
         if sun.shade_pixel(tracer, o, d, opts.background, &mut px) {
             rays.fetch_add(1, Ordering::Relaxed);
@@ -194,7 +181,9 @@ pub fn render_mesh_shadowed(
     let rays = AtomicU64::new(0);
     let nanos = AtomicU64::new(0);
     let (frame, stats) = render_frame(cam, |o, d| {
-        let mut px = with_buf(opts.k, |b| tracer.trace(&frozen.insts, o, d, opts, b));
+        let mut px = crate::mesh_tracer::with_thread_buffer(opts.k, |b| {
+            tracer.trace(&frozen.insts, o, d, opts, b)
+        });
         let start = Instant::now();
         if sun.shade_pixel(&frozen, o, d, opts.background, &mut px) {
             rays.fetch_add(1, Ordering::Relaxed);

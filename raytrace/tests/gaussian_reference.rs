@@ -280,7 +280,7 @@ fn single_gaussian_head_on_and_degenerate_values() {
         // The centre ray meets the first Gaussian's peak: α = 0.7, colour as pushed.
         let hits = t.all_hits(cam.centre, DVec3::Z, 16);
         assert_eq!(hits[0].gaussian, 0);
-        assert!((hits[0].bary[0] - 0.7).abs() < 1e-6);
+        assert!((hits[0].payload.alpha - 0.7).abs() < 1e-6);
         assert!((hits[0].t - 4.0).abs() < 1e-5);
         assert!(
             hits.iter().all(|h| h.gaussian != 3),

@@ -1,22 +1,16 @@
 //! `splatbridge accuracy`: sweep the named knobs one at a time around the defaults and measure
-//! error against the reference (native splatting, reference settings) and time. Writes
-//! `accuracy.json`, `accuracy.md` and plots of PSNR against time and against triangles, with the
-//! Pareto front and the MeshSplats default marked.
+//! error against the reference (native splatting, reference settings) and time
+//! (`splatbridge::accuracy`). Writes `accuracy.json`, `accuracy.md` and plots of PSNR against
+//! time and against triangles, with the Pareto front and the MeshSplats default marked.
 
 use std::path::PathBuf;
 
 use anyhow::Context;
-use splatbridge::parity::{self, CompareConfig};
-use splatbridge::report::plot::{self, Point};
-use splatbridge::report::{markdown_table, Record};
-use splatbridge_convert::{ConvertOptions, Profile};
-use splatbridge_hybrid::native::RenderOptions as NativeOptions;
-use splatbridge_hybrid::project::Extent;
-use splatbridge_scene::formats::spz::SpzOptions;
-use splatbridge_scene::formats::write::{write_cloud, CloudFormat};
-use splatbridge_scene::ply::ReadOptions;
-use splatbridge_scene::surfels::SplitParams;
-use splatbridge_scene::{Camera, Frame, GaussianCloud};
+use splatbridge::accuracy::{
+    measure_setting, read_records, reference_frames, settings, write_outputs, write_records, Sweep,
+};
+use splatbridge::report::Record;
+use splatbridge_scene::{Camera, GaussianCloud};
 
 use super::common;
 use super::compare::resolve_cameras;
@@ -48,245 +42,21 @@ pub struct Args {
     pub out: PathBuf,
 }
 
-/// One knob setting to measure.
-enum Setting {
-    Mesh(Box<ConvertOptions>, usize),
-    Native(NativeOptions),
-    Hybrid(SplitParams),
-    /// Write the cloud in this format, read it back, render natively.
-    Format(CloudFormat),
-}
-
-/// A file name ending for a single-cloud format (the loader detects by content; the name is
-/// for a person looking at the folder).
-fn format_ending(f: &CloudFormat) -> &'static str {
-    match f {
-        CloudFormat::Ply => "ply",
-        CloudFormat::CompressedPly => "compressed.ply",
-        CloudFormat::Splat => "splat",
-        CloudFormat::Spz(_) => "spz",
-    }
-}
-
-fn mesh(profile: Profile, segments: Option<usize>, rings: usize) -> ConvertOptions {
-    ConvertOptions {
-        profile,
-        segments,
-        rings,
-        ..ConvertOptions::default()
-    }
-}
-
-/// The sweep: (family, value label, setting, is the MeshSplats default).
-fn settings(only: &[String]) -> Vec<(&'static str, String, Setting, bool)> {
-    let want = |f: &str| only.is_empty() || only.iter().any(|o| o == f);
-    let mut v = Vec::new();
-    let base = ConvertOptions::default();
-    if want("profile") {
-        v.push((
-            "profile",
-            "meshsplats".into(),
-            Setting::Mesh(Box::new(mesh(Profile::MeshSplats, None, base.rings)), 16),
-            true,
-        ));
-        for m in 1..=4 {
-            v.push((
-                "profile",
-                format!("rings m={m}"),
-                Setting::Mesh(Box::new(mesh(Profile::Rings, None, m)), 16),
-                false,
-            ));
-        }
-        v.push((
-            "profile",
-            "texture".into(),
-            Setting::Mesh(Box::new(mesh(Profile::Texture, None, base.rings)), 16),
-            false,
-        ));
-    }
-    if want("segments") {
-        for n in [4, 6, 8, 12, 16, 32] {
-            v.push((
-                "segments",
-                format!("rings n={n}"),
-                Setting::Mesh(Box::new(mesh(Profile::Rings, Some(n), base.rings)), 16),
-                false,
-            ));
-        }
-    }
-    if want("extent") {
-        // The 2.7σ cut against the 1/255 footprint, both as single-ring fans.
-        v.push((
-            "extent",
-            "2.7σ (meshsplats)".into(),
-            Setting::Mesh(Box::new(mesh(Profile::MeshSplats, None, 1)), 16),
-            false,
-        ));
-        v.push((
-            "extent",
-            "1/255 footprint (rings m=1)".into(),
-            Setting::Mesh(Box::new(mesh(Profile::Rings, None, 1)), 16),
-            false,
-        ));
-    }
-    if want("k") {
-        for k in [4, 8, 16, 32] {
-            v.push((
-                "k",
-                format!("k={k}"),
-                Setting::Mesh(Box::new(base.clone()), k),
-                false,
-            ));
-        }
-    }
-    if want("native-extent") {
-        v.push((
-            "native-extent",
-            "3σ".into(),
-            Setting::Native(NativeOptions::default()),
-            false,
-        ));
-        v.push((
-            "native-extent",
-            "alpha".into(),
-            Setting::Native(NativeOptions {
-                extent: Extent::Alpha,
-                ..NativeOptions::default()
-            }),
-            false,
-        ));
-    }
-    if want("sh-degree") {
-        for d in 0..=3u8 {
-            v.push((
-                "sh-degree",
-                format!("SH ≤ {d}"),
-                Setting::Native(NativeOptions {
-                    sh_degree_cap: d,
-                    ..NativeOptions::default()
-                }),
-                false,
-            ));
-        }
-    }
-    if want("format") {
-        // What each lossy file format costs: the 3DGS PLY is the lossless control.
-        let spz = |version| {
-            CloudFormat::Spz(SpzOptions {
-                version,
-                ..SpzOptions::default()
-            })
-        };
-        for (label, f) in [
-            ("3DGS PLY", CloudFormat::Ply),
-            ("compressed PLY", CloudFormat::CompressedPly),
-            (".splat", CloudFormat::Splat),
-            ("SPZ v3", spz(3)),
-            ("SPZ v2", spz(2)),
-        ] {
-            v.push(("format", label.into(), Setting::Format(f), false));
-        }
-    }
-    if want("hybrid") {
-        // Around the defaults (opacity ≥ 0.8, flatness ≤ 0.3), including GES's own 0.8 rule
-        // with a stricter flatness and the setting that ignores flatness.
-        for (a, r) in [(0.5, 0.3), (0.8, 0.1), (0.8, 0.3), (0.9, 0.5), (0.95, 1.0)] {
-            v.push((
-                "hybrid",
-                format!("opacity≥{a} flat≤{r}"),
-                Setting::Hybrid(SplitParams {
-                    min_opacity: a,
-                    max_flatness: r,
-                }),
-                false,
-            ));
-        }
-    }
-    v
-}
-
-fn mean(v: &[f64]) -> f64 {
-    if v.is_empty() {
-        f64::NAN
-    } else {
-        v.iter().sum::<f64>() / v.len() as f64
-    }
-}
-
-/// The MeshSplats default, marked on the plots.
-fn is_baseline(r: &Record) -> bool {
-    r.knob == "profile" && r.value == "meshsplats"
-}
-
-/// Plot points from the records: every setting against time; against triangles only the knobs
-/// that change the mesh's shape (the k-buffer changes time only, and the extent rows are the
-/// same meshes as two profile rows, so they would sit on top of other points).
-fn points(records: &[Record]) -> (Vec<Point>, Vec<Point>) {
-    let point = |r: &Record, cost: f64| Point {
-        label: r.value.clone(),
-        series: r.knob.clone(),
-        cost,
-        psnr: r.psnr,
-        baseline: is_baseline(r),
-    };
-    let time = records.iter().map(|r| point(r, r.milliseconds)).collect();
-    let tris = records
-        .iter()
-        .filter(|r| r.triangles > 0 && (r.knob == "profile" || r.knob == "segments"))
-        .map(|r| point(r, r.triangles as f64))
-        .collect();
-    (time, tris)
-}
-
-/// Plots and `accuracy.md` from the records (also used by `--replot`).
-fn write_outputs(out: &std::path::Path, what: &str, records: &[Record]) -> anyhow::Result<()> {
-    let (points_time, points_tris) = points(records);
-    plot::plot(
-        &points_time,
-        "milliseconds per frame (log)",
-        "PSNR against time",
-        &out.join("psnr_vs_time"),
-    )?;
-    if !points_tris.is_empty() {
-        plot::plot(
-            &points_tris,
-            "triangles (log)",
-            "PSNR against triangles",
-            &out.join("psnr_vs_triangles"),
-        )?;
-    }
-    let front: Vec<String> = plot::pareto_front(&points_tris)
-        .into_iter()
-        .map(|i| points_tris[i].label.clone())
-        .collect();
-    let md = format!(
-        "# Accuracy against cost\n\n{what}. Reference: native splatting, reference settings. \
-         Each row changes one knob from the defaults; PSNR is the mean over cameras; milliseconds are \
-         render (trace) times on a shared 2-core machine, so compare them within one run only.\n\n\
-         ![PSNR against triangles](psnr_vs_triangles.png)\n![PSNR against time](psnr_vs_time.png)\n\n\
-         Pareto front (PSNR against triangles): {}\n\n{}",
-        front.join(", "),
-        markdown_table(records, false)
-    );
-    splatbridge_scene::image_io::write_atomic(&out.join("accuracy.md"), md.as_bytes())?;
+fn print_records(records: &[Record]) {
     for r in records {
         println!(
             "{:14} {:28} PSNR {:7.2} dB  {:9.1} ms  {:>10} triangles",
             r.knob, r.value, r.psnr, r.milliseconds, r.triangles
         );
     }
-    Ok(())
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     if args.replot {
-        let path = args.out.join("accuracy.json");
-        let text = std::fs::read_to_string(&path)
-            .with_context(|| format!("{}: cannot read", path.display()))?;
-        let records: Vec<Record> = serde_json::from_str(&text)
-            .with_context(|| format!("{}: not an accuracy report", path.display()))?;
+        let records = read_records(&args.out)?;
         let what = format!("`{}` (re-plotted from accuracy.json)", args.scene.display());
         write_outputs(&args.out, &what, &records)?;
+        print_records(&records);
         println!("wrote {}", args.out.join("accuracy.md").display());
         return Ok(());
     }
@@ -296,108 +66,31 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let cloud: GaussianCloud = scene.composite(args.time);
     let cams: Vec<Camera> =
         resolve_cameras(&args.cameras, &cloud, &scene, args.width, args.height)?;
-    let refs: Vec<Frame> = cams
-        .iter()
-        .map(|c| parity::render_native(&cloud, c, &NativeOptions::default()).map(|r| r.frame))
-        .collect::<anyhow::Result<_>>()?;
-    let cfg = CompareConfig::default();
-    let sweep = settings(&args.only);
-    let pb = common::progress(sweep.len() as u64, "accuracy");
+    let refs = reference_frames(&cloud, &cams)?;
+    let sweep = Sweep {
+        cloud: &cloud,
+        cameras: &cams,
+        references: &refs,
+        time: args.time,
+        work_dir: &args.out,
+        drop_invalid: args.drop_invalid,
+    };
+    let settings = settings(&args.only);
+    let pb = common::progress(settings.len() as u64, "accuracy");
     let mut records = Vec::new();
-    for (family, value, setting, _baseline) in sweep {
+    for (family, value, setting, _baseline) in settings {
         pb.set_message(format!("{family} {value}"));
-        let mut psnr = Vec::new();
-        let mut ms = Vec::new();
-        let mut first: Option<Record> = None;
-        let mut push = |img: &Frame,
-                        reference: &Frame,
-                        t_ms: f64,
-                        cam: &Camera,
-                        tris: u64,
-                        b: u64|
-         -> anyhow::Result<()> {
-            let r = parity::measure(
-                reference,
-                img,
-                Record {
-                    renderer: String::new(),
-                    knob: family.into(),
-                    value: value.clone(),
-                    camera: cam.name.clone(),
-                    time: args.time,
-                    milliseconds: t_ms,
-                    triangles: tris,
-                    bytes: b,
-                    ..Record::default()
-                },
-            )?;
-            psnr.push(r.psnr);
-            ms.push(t_ms);
-            if first.is_none() {
-                first = Some(r);
-            }
-            Ok(())
-        };
-        let renderer = match &setting {
-            Setting::Mesh(opts, k) => {
-                let path = args.out.join(format!("sweep_{}.glb", records.len()));
-                let mut m = parity::export_and_load(
-                    &splatbridge_scene::dynamic::DynamicScene::from_static(cloud.clone()),
-                    opts,
-                    &path,
-                    cfg.backend,
-                    cfg.preset,
-                )?;
-                for (c, reference) in cams.iter().zip(&refs) {
-                    let img = parity::render_mesh(&mut m, c, 0.0, *k)?;
-                    push(&img.frame, reference, img.ms, c, m.triangles, m.bytes)?;
-                }
-                let _ = std::fs::remove_file(&path);
-                "trace-mesh"
-            }
-            Setting::Native(o) => {
-                for (c, reference) in cams.iter().zip(&refs) {
-                    let img = parity::render_native(&cloud, c, o)?;
-                    push(&img.frame, reference, img.ms, c, 0, 0)?;
-                }
-                "native"
-            }
-            Setting::Format(f) => {
-                let path = args
-                    .out
-                    .join(format!("sweep_{}.{}", records.len(), format_ending(f)));
-                let bytes = write_cloud(&path, &cloud, *f)?;
-                let read = ReadOptions {
-                    drop_invalid: args.drop_invalid,
-                };
-                let decoded = splatbridge_scene::formats::load_cloud(&path, &read);
-                let _ = std::fs::remove_file(&path);
-                let (decoded, _) = decoded?;
-                for (c, reference) in cams.iter().zip(&refs) {
-                    let img = parity::render_native(&decoded, c, &NativeOptions::default())?;
-                    push(&img.frame, reference, img.ms, c, 0, bytes)?;
-                }
-                "native"
-            }
-            Setting::Hybrid(split) => {
-                for (c, reference) in cams.iter().zip(&refs) {
-                    let img = parity::render_hybrid(&cloud, c, *split, &cfg.ges)?;
-                    push(&img.frame, reference, img.ms, c, 0, 0)?;
-                }
-                "hybrid"
-            }
-        };
-        let mut r = first.context("no camera")?;
-        r.renderer = renderer.into();
-        r.psnr = mean(&psnr);
-        r.milliseconds = mean(&ms);
-        r.camera = format!("mean of {}", cams.len());
-        records.push(r);
+        records.push(measure_setting(
+            &sweep,
+            records.len(),
+            family,
+            &value,
+            &setting,
+        )?);
         pb.inc(1);
     }
     pb.finish_and_clear();
-    let json = serde_json::to_string_pretty(&records)?;
-    splatbridge_scene::image_io::write_atomic(&args.out.join("accuracy.json"), json.as_bytes())?;
+    write_records(&args.out, &records)?;
     let what = format!(
         "`{}`: {} cameras at {}×{}, time {}",
         args.scene.display(),
@@ -407,6 +100,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.time
     );
     write_outputs(&args.out, &what, &records)?;
+    print_records(&records);
     println!("wrote {}", args.out.join("accuracy.md").display());
     Ok(())
 }

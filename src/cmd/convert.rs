@@ -1,21 +1,24 @@
 //! `splatbridge convert`: Gaussians to triangle meshes (GLB/glTF/OBJ/PLY), native glTF
 //! splats (`KHR_gaussian_splatting`) or single-cloud splat files (3DGS PLY, compressed PLY,
-//! `.splat`, `.spz`). The work is done by `splatbridge-convert` and
-//! `splatbridge_scene::formats`; this module parses the command line, loads the scene, shows
-//! progress and prints the summary.
+//! `.splat`, `.spz`). The work is done by `splatbridge::pipeline::export` (over
+//! `splatbridge-convert` and `splatbridge_scene::formats`); this module parses the command
+//! line, shows progress and prints the summary.
 
 use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{bail, Context};
 use clap::ValueEnum;
-use splatbridge_convert::{
-    ColorEncoding, ConvertOptions, ConvertReport, FrameClouds, Profile, UpAxis, VolumetricMode,
+use splatbridge::pipeline::export::{
+    cloud_format, export_scene, is_gltf, load_export_input, write_cloud_export, ExportKind,
+    OutputFormat,
 };
-use splatbridge_scene::effects::EffectCounters;
-use splatbridge_scene::effects_run::{effects_of, not_simulated, weather_frames};
-use splatbridge_scene::formats::spz::SpzOptions;
-use splatbridge_scene::formats::{write_cloud, CloudFormat};
+use splatbridge_convert::splats_gltf::KhrCompression;
+use splatbridge_convert::{
+    ColorEncoding, ConvertOptions, ConvertReport, Profile, UpAxis, VolumetricMode,
+};
+use splatbridge_scene::dynamic::DynamicScene;
+use splatbridge_scene::formats::CloudFormat;
 
 use crate::cmd::common::{self, CameraArgs};
 
@@ -178,59 +181,25 @@ pub struct Args {
     pub json: bool,
 }
 
-fn is_gltf(p: &std::path::Path) -> bool {
-    p.extension()
-        .map(|e| {
-            let e = e.to_string_lossy().to_ascii_lowercase();
-            e == "glb" || e == "gltf"
-        })
-        .unwrap_or(false)
-}
-
-/// The single-cloud splat format the arguments ask for, if any; an error when --format names
-/// a mesh/glTF format that disagrees with the output's extension.
-fn cloud_format(args: &Args) -> anyhow::Result<Option<CloudFormat>> {
-    let spz = CloudFormat::Spz(SpzOptions {
-        version: args.spz_version,
-        ..SpzOptions::default()
-    });
-    let ext = args
-        .output
-        .extension()
-        .map(|e| e.to_string_lossy().to_ascii_lowercase())
-        .unwrap_or_default();
-    Ok(match args.format {
-        Some(FormatArg::SplatPly) => Some(CloudFormat::Ply),
-        Some(FormatArg::Ply) if args.splats => Some(CloudFormat::Ply),
-        Some(FormatArg::CompressedPly) => Some(CloudFormat::CompressedPly),
-        Some(FormatArg::Splat) => Some(CloudFormat::Splat),
-        Some(FormatArg::Spz) => Some(spz),
-        Some(f) => {
-            let want = match f {
-                FormatArg::Ply => "ply",
-                FormatArg::Glb => "glb",
-                FormatArg::Gltf => "gltf",
-                _ => "obj",
-            };
-            if ext != want || CloudFormat::for_path(&args.output, false).is_some() {
-                bail!(
-                    "{}: --format {want} writes a .{want} file; name the output so",
-                    args.output.display()
-                );
-            }
-            None
+impl From<FormatArg> for OutputFormat {
+    fn from(f: FormatArg) -> Self {
+        match f {
+            FormatArg::Ply => OutputFormat::Ply,
+            FormatArg::SplatPly => OutputFormat::SplatPly,
+            FormatArg::CompressedPly => OutputFormat::CompressedPly,
+            FormatArg::Splat => OutputFormat::Splat,
+            FormatArg::Spz => OutputFormat::Spz,
+            FormatArg::Glb => OutputFormat::Glb,
+            FormatArg::Gltf => OutputFormat::Gltf,
+            FormatArg::Obj => OutputFormat::Obj,
         }
-        None => match CloudFormat::for_path(&args.output, args.splats) {
-            Some(CloudFormat::Spz(_)) => Some(spz),
-            other => other,
-        },
-    })
+    }
 }
 
-/// Write a single-cloud splat file: the scene composited at --time.
+/// Write a single-cloud splat file and print what was written.
 fn write_cloud_output(
     args: &Args,
-    scene: &splatbridge_scene::dynamic::DynamicScene,
+    scene: &DynamicScene,
     format: CloudFormat,
     t0: Instant,
 ) -> anyhow::Result<()> {
@@ -248,25 +217,17 @@ fn write_cloud_output(
             );
         }
     }
-    let t = args.time.unwrap_or(scene.time.start);
-    if !t.is_finite() {
-        bail!("--time {t} is not a finite time");
-    }
-    let mut cloud = scene.composite(t);
-    if let Some(n) = args.first {
-        cloud.retain_indices(|i| i < n);
-    }
-    let bytes = write_cloud(&args.output, &cloud, format)?;
+    let c = write_cloud_export(scene, &args.output, format, args.time, args.first)?;
     let seconds = t0.elapsed().as_secs_f64();
     if args.json {
         let v = serde_json::json!({
             "input": args.scene.display().to_string(),
             "output": args.output.display().to_string(),
-            "format": format.name(),
-            "gaussians": cloud.len(),
-            "sh_degree": cloud.sh_degree,
-            "time": t,
-            "bytes": bytes,
+            "format": c.format,
+            "gaussians": c.gaussians,
+            "sh_degree": c.sh_degree,
+            "time": c.time,
+            "bytes": c.bytes,
             "seconds": seconds,
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
@@ -275,18 +236,19 @@ fn write_cloud_output(
             "{} → {} ({}, {} Gaussians, SH degree {}{})",
             args.scene.display(),
             args.output.display(),
-            format.name(),
-            cloud.len(),
-            cloud.sh_degree,
+            c.format,
+            c.gaussians,
+            c.sh_degree,
             if scene.objects.is_empty() {
                 String::new()
             } else {
-                format!(", composited at t = {t}")
+                format!(", composited at t = {}", c.time)
             }
         );
         eprintln!(
-            "  bytes          {bytes:>12}  ({:.1} MB)",
-            bytes as f64 / 1e6
+            "  bytes          {:>12}  ({:.1} MB)",
+            c.bytes,
+            c.bytes as f64 / 1e6
         );
         eprintln!("  time           {seconds:>12.3} s");
     }
@@ -307,15 +269,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         bail!("--khr-compression: applies to --splats glTF outputs only");
     }
     let t0 = Instant::now();
-    let cloud_out = cloud_format(&args)?;
+    let cloud_out = cloud_format(
+        &args.output,
+        args.format.map(OutputFormat::from),
+        args.splats,
+        args.spz_version,
+    )?;
     let pb = common::progress(3, "loading");
-    let scene = if is_gltf(&args.scene) {
-        let scene = splatbridge_convert::splats_gltf::read_file(&args.scene)?;
-        splatbridge_scene::input::require_gaussians(&args.scene, &scene)?;
-        scene
-    } else {
-        common::load(&args.scene, args.drop_invalid)?
-    };
+    let scene = load_export_input(&args.scene, args.drop_invalid, &common::print_warning)?;
     pb.inc(1);
     if args.first.is_some() && cloud_out.is_none() {
         bail!("--first applies to single-cloud splat outputs (.ply with --splats, .splat, .spz, .compressed.ply)");
@@ -396,50 +357,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.output.display()
         );
     }
-    // Weather is per-frame content: one glTF node per frame, particles in every OBJ frame
-    // (`--splats` writes the scene's Gaussians only). Other effects are not content.
-    let declared = effects_of(&scene).with_context(|| args.scene.display().to_string())?;
-    let mut effects = EffectCounters::default();
-    let weather = match args.splats {
-        true => None,
-        false => {
-            let start = Instant::now();
-            let w = weather_frames(&scene).with_context(|| args.scene.display().to_string())?;
-            w.map(|(times, clouds)| {
-                effects.particles = clouds.iter().map(|c| c.len() as u64).sum();
-                effects.milliseconds = start.elapsed().as_secs_f64() * 1e3;
-                effects.simulated.push("weather".into());
-                FrameClouds { times, clouds }
-            })
-        }
-    };
-    effects.not_simulated = not_simulated(
-        &declared,
-        if weather.is_some() { &["weather"] } else { &[] },
-    );
     pb.set_message("converting");
     pb.inc(1);
-    let mut report: ConvertReport = if args.splats {
-        if !is_gltf(&args.output) {
-            bail!(
-                "{}: --splats writes glTF; use .glb or .gltf",
-                args.output.display()
-            );
-        }
-        let compression = match args.khr_compression {
-            KhrCompressionArg::None => splatbridge_convert::splats_gltf::KhrCompression::None,
-            KhrCompressionArg::Spz => splatbridge_convert::splats_gltf::KhrCompression::Spz,
-        };
-        splatbridge_convert::splats_gltf::write_file_with(&args.output, &scene, &opts, compression)?
+    let kind = if args.splats {
+        ExportKind::Splats(match args.khr_compression {
+            KhrCompressionArg::None => KhrCompression::None,
+            KhrCompressionArg::Spz => KhrCompression::Spz,
+        })
     } else {
-        splatbridge_convert::convert_to_file(
-            &args.output,
-            &scene,
-            weather.as_ref(),
-            &opts,
-            args.frames,
-        )?
+        ExportKind::Mesh {
+            frames: args.frames,
+        }
     };
+    let (mut report, effects) = export_scene(&scene, &args.scene, &args.output, &opts, kind)?;
     pb.inc(1);
     pb.finish_and_clear();
     report.seconds = t0.elapsed().as_secs_f64();

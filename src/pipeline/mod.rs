@@ -8,9 +8,12 @@
 //!   tracer and the Gaussian tracer.
 //! - [`frame`]: [`render_frame`], one frame with its time samples, motion-blur samples, weather
 //!   particles, shadows, LiDAR and effect counters.
+//! - [`export`]: a scene to a mesh, glTF splats or a single-cloud splat file, with its
+//!   per-frame content and effect counters (what `convert` runs).
 //!
 //! Cameras are chosen with `splatbridge_scene::camera_spec`.
 
+pub mod export;
 pub mod frame;
 pub mod renderer;
 pub mod source;

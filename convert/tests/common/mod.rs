@@ -87,9 +87,10 @@ pub fn street(n_static: usize) -> DynamicScene {
     s
 }
 
-/// The shared tools folder, or `None` with a printed reason.
+/// The shared tools folder.
 pub fn tools() -> std::path::PathBuf {
-    // Tests that call this are ignored unless `build.rs` found the wrapper (`cfg(gltf_tools)`).
+    // Tests that call this are ignored unless `build.rs` found the wrapper, node and npm
+    // (`cfg(gltf_tools)`).
     std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/tools")).to_path_buf()
 }
 

@@ -46,20 +46,16 @@ pub fn random_cloud(seed: u64, n: usize, degree: u8, extent: f32) -> GaussianClo
     c
 }
 
-/// `../shared/data/real`, or `None` with the reason printed (the test then reports itself
-/// skipped in its output).
-pub fn real_file(name: &str) -> Option<PathBuf> {
+/// `../shared/data/real/NAME`. Tests that call this are ignored unless `build.rs` found the
+/// folder (`cfg(real_data)`); a file missing from it is then a failure.
+pub fn real_file(name: &str) -> PathBuf {
     let p = PathBuf::from(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../../shared/data/real"
     ))
     .join(name);
-    if p.is_file() {
-        Some(p)
-    } else {
-        println!("skipping: real data file {} not found", p.display());
-        None
-    }
+    assert!(p.is_file(), "real data file {} not found", p.display());
+    p
 }
 
 /// The committed fixtures folder `fixtures/formats`.

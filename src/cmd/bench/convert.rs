@@ -9,7 +9,7 @@ use std::io::Write;
 use std::path::PathBuf;
 use std::time::Instant;
 
-use splatbridge_convert::{ConvertOptions, Profile};
+use splatbridge_convert::{ChunkedMesh, ConvertOptions, Profile};
 use splatbridge_scene::dynamic::DynamicScene;
 
 use crate::cmd::common;

@@ -1,0 +1,384 @@
+//! The accuracy sweep behind `splatbridge accuracy`: the named knobs one at a time around the
+//! defaults (meshing profile, segments, extent, k-buffer size, native extent, SH degree, file
+//! format quantisation, hybrid split), each measured against the reference (native splatting,
+//! reference settings) at the same cameras, with time; then `accuracy.json`, `accuracy.md`
+//! and plots of PSNR against time and against triangles with the Pareto front and the
+//! MeshSplats default marked.
+
+use std::path::Path;
+
+use anyhow::Context;
+use splatbridge_convert::{ConvertOptions, Profile};
+use splatbridge_hybrid::native::RenderOptions as NativeOptions;
+use splatbridge_hybrid::project::Extent;
+use splatbridge_scene::dynamic::DynamicScene;
+use splatbridge_scene::formats::spz::SpzOptions;
+use splatbridge_scene::formats::write::{write_cloud, CloudFormat};
+use splatbridge_scene::ply::ReadOptions;
+use splatbridge_scene::surfels::SplitParams;
+use splatbridge_scene::{Camera, Frame, GaussianCloud};
+
+use crate::parity::{self, CompareConfig};
+use crate::report::plot::{self, Point};
+use crate::report::{markdown_table, Record};
+
+/// One knob setting to measure.
+pub enum Setting {
+    Mesh(Box<ConvertOptions>, usize),
+    Native(NativeOptions),
+    Hybrid(SplitParams),
+    /// Write the cloud in this format, read it back, render natively.
+    Format(CloudFormat),
+}
+
+/// A file name ending for a single-cloud format (the loader detects by content; the name is
+/// for a person looking at the folder).
+fn format_ending(f: &CloudFormat) -> &'static str {
+    match f {
+        CloudFormat::Ply => "ply",
+        CloudFormat::CompressedPly => "compressed.ply",
+        CloudFormat::Splat => "splat",
+        CloudFormat::Spz(_) => "spz",
+    }
+}
+
+fn mesh(profile: Profile, segments: Option<usize>, rings: usize) -> ConvertOptions {
+    ConvertOptions {
+        profile,
+        segments,
+        rings,
+        ..ConvertOptions::default()
+    }
+}
+
+/// The sweep: (family, value label, setting, is the MeshSplats default). `only` names the
+/// families to keep (all when empty).
+pub fn settings(only: &[String]) -> Vec<(&'static str, String, Setting, bool)> {
+    let want = |f: &str| only.is_empty() || only.iter().any(|o| o == f);
+    let mut v = Vec::new();
+    let base = ConvertOptions::default();
+    if want("profile") {
+        v.push((
+            "profile",
+            "meshsplats".into(),
+            Setting::Mesh(Box::new(mesh(Profile::MeshSplats, None, base.rings)), 16),
+            true,
+        ));
+        for m in 1..=4 {
+            v.push((
+                "profile",
+                format!("rings m={m}"),
+                Setting::Mesh(Box::new(mesh(Profile::Rings, None, m)), 16),
+                false,
+            ));
+        }
+        v.push((
+            "profile",
+            "texture".into(),
+            Setting::Mesh(Box::new(mesh(Profile::Texture, None, base.rings)), 16),
+            false,
+        ));
+    }
+    if want("segments") {
+        for n in [4, 6, 8, 12, 16, 32] {
+            v.push((
+                "segments",
+                format!("rings n={n}"),
+                Setting::Mesh(Box::new(mesh(Profile::Rings, Some(n), base.rings)), 16),
+                false,
+            ));
+        }
+    }
+    if want("extent") {
+        // The 2.7σ cut against the 1/255 footprint, both as single-ring fans.
+        v.push((
+            "extent",
+            "2.7σ (meshsplats)".into(),
+            Setting::Mesh(Box::new(mesh(Profile::MeshSplats, None, 1)), 16),
+            false,
+        ));
+        v.push((
+            "extent",
+            "1/255 footprint (rings m=1)".into(),
+            Setting::Mesh(Box::new(mesh(Profile::Rings, None, 1)), 16),
+            false,
+        ));
+    }
+    if want("k") {
+        for k in [4, 8, 16, 32] {
+            v.push((
+                "k",
+                format!("k={k}"),
+                Setting::Mesh(Box::new(base.clone()), k),
+                false,
+            ));
+        }
+    }
+    if want("native-extent") {
+        v.push((
+            "native-extent",
+            "3σ".into(),
+            Setting::Native(NativeOptions::default()),
+            false,
+        ));
+        v.push((
+            "native-extent",
+            "alpha".into(),
+            Setting::Native(NativeOptions {
+                extent: Extent::Alpha,
+                ..NativeOptions::default()
+            }),
+            false,
+        ));
+    }
+    if want("sh-degree") {
+        for d in 0..=3u8 {
+            v.push((
+                "sh-degree",
+                format!("SH ≤ {d}"),
+                Setting::Native(NativeOptions {
+                    sh_degree_cap: d,
+                    ..NativeOptions::default()
+                }),
+                false,
+            ));
+        }
+    }
+    if want("format") {
+        // What each lossy file format costs: the 3DGS PLY is the lossless control.
+        let spz = |version| {
+            CloudFormat::Spz(SpzOptions {
+                version,
+                ..SpzOptions::default()
+            })
+        };
+        for (label, f) in [
+            ("3DGS PLY", CloudFormat::Ply),
+            ("compressed PLY", CloudFormat::CompressedPly),
+            (".splat", CloudFormat::Splat),
+            ("SPZ v3", spz(3)),
+            ("SPZ v2", spz(2)),
+        ] {
+            v.push(("format", label.into(), Setting::Format(f), false));
+        }
+    }
+    if want("hybrid") {
+        // Around the defaults (opacity ≥ 0.8, flatness ≤ 0.3), including GES's own 0.8 rule
+        // with a stricter flatness and the setting that ignores flatness.
+        for (a, r) in [(0.5, 0.3), (0.8, 0.1), (0.8, 0.3), (0.9, 0.5), (0.95, 1.0)] {
+            v.push((
+                "hybrid",
+                format!("opacity≥{a} flat≤{r}"),
+                Setting::Hybrid(SplitParams {
+                    min_opacity: a,
+                    max_flatness: r,
+                }),
+                false,
+            ));
+        }
+    }
+    v
+}
+
+fn mean(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        f64::NAN
+    } else {
+        v.iter().sum::<f64>() / v.len() as f64
+    }
+}
+
+/// The MeshSplats default, marked on the plots.
+fn is_baseline(r: &Record) -> bool {
+    r.knob == "profile" && r.value == "meshsplats"
+}
+
+/// Plot points from the records: every setting against time; against triangles only the knobs
+/// that change the mesh's shape (the k-buffer changes time only, and the extent rows are the
+/// same meshes as two profile rows, so they would sit on top of other points).
+fn points(records: &[Record]) -> (Vec<Point>, Vec<Point>) {
+    let point = |r: &Record, cost: f64| Point {
+        label: r.value.clone(),
+        series: r.knob.clone(),
+        cost,
+        psnr: r.psnr,
+        baseline: is_baseline(r),
+    };
+    let time = records.iter().map(|r| point(r, r.milliseconds)).collect();
+    let tris = records
+        .iter()
+        .filter(|r| r.triangles > 0 && (r.knob == "profile" || r.knob == "segments"))
+        .map(|r| point(r, r.triangles as f64))
+        .collect();
+    (time, tris)
+}
+
+/// Plots and `accuracy.md` in `out` from the records (also what `--replot` redraws); `what`
+/// describes the measurement in the table's heading.
+pub fn write_outputs(out: &Path, what: &str, records: &[Record]) -> anyhow::Result<()> {
+    let (points_time, points_tris) = points(records);
+    plot::plot(
+        &points_time,
+        "milliseconds per frame (log)",
+        "PSNR against time",
+        &out.join("psnr_vs_time"),
+    )?;
+    if !points_tris.is_empty() {
+        plot::plot(
+            &points_tris,
+            "triangles (log)",
+            "PSNR against triangles",
+            &out.join("psnr_vs_triangles"),
+        )?;
+    }
+    let front: Vec<String> = plot::pareto_front(&points_tris)
+        .into_iter()
+        .map(|i| points_tris[i].label.clone())
+        .collect();
+    let md = format!(
+        "# Accuracy against cost\n\n{what}. Reference: native splatting, reference settings. \
+         Each row changes one knob from the defaults; PSNR is the mean over cameras; milliseconds are \
+         render (trace) times on a shared 2-core machine, so compare them within one run only.\n\n\
+         ![PSNR against triangles](psnr_vs_triangles.png)\n![PSNR against time](psnr_vs_time.png)\n\n\
+         Pareto front (PSNR against triangles): {}\n\n{}",
+        front.join(", "),
+        markdown_table(records, false)
+    );
+    splatbridge_scene::image_io::write_atomic(&out.join("accuracy.md"), md.as_bytes())?;
+    Ok(())
+}
+
+/// What one sweep measures: the cloud, the cameras and their reference frames, the time
+/// written into the records, and where temporary exports go.
+pub struct Sweep<'a> {
+    pub cloud: &'a GaussianCloud,
+    pub cameras: &'a [Camera],
+    pub references: &'a [Frame],
+    pub time: f64,
+    pub work_dir: &'a Path,
+    pub drop_invalid: bool,
+}
+
+/// The reference frames: native splatting with reference settings at every camera.
+pub fn reference_frames(cloud: &GaussianCloud, cameras: &[Camera]) -> anyhow::Result<Vec<Frame>> {
+    cameras
+        .iter()
+        .map(|c| parity::render_native(cloud, c, &NativeOptions::default()).map(|r| r.frame))
+        .collect()
+}
+
+/// Measure one setting at every camera: one record (the first camera's, with PSNR and
+/// milliseconds the means over cameras). `index` names its temporary files.
+pub fn measure_setting(
+    s: &Sweep<'_>,
+    index: usize,
+    family: &str,
+    value: &str,
+    setting: &Setting,
+) -> anyhow::Result<Record> {
+    let cfg = CompareConfig::default();
+    let mut psnr = Vec::new();
+    let mut ms = Vec::new();
+    let mut first: Option<Record> = None;
+    let mut push = |img: &Frame,
+                    reference: &Frame,
+                    t_ms: f64,
+                    cam: &Camera,
+                    tris: u64,
+                    b: u64|
+     -> anyhow::Result<()> {
+        let r = parity::measure(
+            reference,
+            img,
+            Record {
+                renderer: String::new(),
+                knob: family.into(),
+                value: value.into(),
+                camera: cam.name.clone(),
+                time: s.time,
+                milliseconds: t_ms,
+                triangles: tris,
+                bytes: b,
+                ..Record::default()
+            },
+        )?;
+        psnr.push(r.psnr);
+        ms.push(t_ms);
+        if first.is_none() {
+            first = Some(r);
+        }
+        Ok(())
+    };
+    let views = s.cameras.iter().zip(s.references);
+    let renderer = match setting {
+        Setting::Mesh(opts, k) => {
+            let path = s.work_dir.join(format!("sweep_{index}.glb"));
+            let mut m = parity::export_and_load(
+                &DynamicScene::from_static(s.cloud.clone()),
+                opts,
+                &path,
+                cfg.backend,
+                cfg.preset,
+            )?;
+            for (c, reference) in views {
+                let img = parity::render_mesh(&mut m, c, 0.0, *k)?;
+                push(&img.frame, reference, img.ms, c, m.triangles, m.bytes)?;
+            }
+            let _ = std::fs::remove_file(&path);
+            "trace-mesh"
+        }
+        Setting::Native(o) => {
+            for (c, reference) in views {
+                let img = parity::render_native(s.cloud, c, o)?;
+                push(&img.frame, reference, img.ms, c, 0, 0)?;
+            }
+            "native"
+        }
+        Setting::Format(f) => {
+            let path = s
+                .work_dir
+                .join(format!("sweep_{index}.{}", format_ending(f)));
+            let bytes = write_cloud(&path, s.cloud, *f)?;
+            let read = ReadOptions {
+                drop_invalid: s.drop_invalid,
+            };
+            let decoded = splatbridge_scene::formats::load_cloud(&path, &read);
+            let _ = std::fs::remove_file(&path);
+            let (decoded, _) = decoded?;
+            for (c, reference) in views {
+                let img = parity::render_native(&decoded, c, &NativeOptions::default())?;
+                push(&img.frame, reference, img.ms, c, 0, bytes)?;
+            }
+            "native"
+        }
+        Setting::Hybrid(split) => {
+            for (c, reference) in views {
+                let img = parity::render_hybrid(s.cloud, c, *split, &cfg.ges)?;
+                push(&img.frame, reference, img.ms, c, 0, 0)?;
+            }
+            "hybrid"
+        }
+    };
+    let mut r = first.context("no camera")?;
+    r.renderer = renderer.into();
+    r.psnr = mean(&psnr);
+    r.milliseconds = mean(&ms);
+    r.camera = format!("mean of {}", s.cameras.len());
+    Ok(r)
+}
+
+/// Write `accuracy.json` in `out`.
+pub fn write_records(out: &Path, records: &[Record]) -> anyhow::Result<()> {
+    let json = serde_json::to_string_pretty(records)?;
+    splatbridge_scene::image_io::write_atomic(&out.join("accuracy.json"), json.as_bytes())?;
+    Ok(())
+}
+
+/// Read `accuracy.json` back from `out` (for `--replot`).
+pub fn read_records(out: &Path) -> anyhow::Result<Vec<Record>> {
+    let path = out.join("accuracy.json");
+    let text = std::fs::read_to_string(&path)
+        .with_context(|| format!("{}: cannot read", path.display()))?;
+    serde_json::from_str(&text)
+        .with_context(|| format!("{}: not an accuracy report", path.display()))
+}

@@ -1,0 +1,200 @@
+//! Export: a loaded scene to a triangle mesh (GLB/glTF/OBJ/PLY, through `splatbridge-convert`),
+//! native glTF splats (`KHR_gaussian_splatting`) or a single-cloud splat file (3DGS PLY,
+//! compressed PLY, `.splat`, `.spz`, through `splatbridge_scene::formats`), with the scene's
+//! per-frame content and effect counters. `splatbridge convert` parses its arguments into
+//! these calls and prints what they return.
+//!
+//! Weather is per-frame content: one glTF node per frame, particles in every OBJ frame
+//! (`--splats` writes the scene's Gaussians only). Other declared effects are not content and
+//! are reported as not simulated.
+
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::{bail, Context};
+use splatbridge_convert::splats_gltf::KhrCompression;
+use splatbridge_convert::{ConvertOptions, ConvertReport, FrameClouds};
+use splatbridge_scene::dynamic::DynamicScene;
+use splatbridge_scene::effects::EffectCounters;
+use splatbridge_scene::effects_run::{effects_of, not_simulated, weather_frames};
+use splatbridge_scene::formats::spz::SpzOptions;
+use splatbridge_scene::formats::{write_cloud, CloudFormat};
+
+use super::source::load_scene_warn;
+
+/// Whether a path names a glTF file (`.glb` or `.gltf`, any case).
+pub fn is_gltf(p: &Path) -> bool {
+    p.extension()
+        .map(|e| {
+            let e = e.to_string_lossy().to_ascii_lowercase();
+            e == "glb" || e == "gltf"
+        })
+        .unwrap_or(false)
+}
+
+/// Load what `convert` converts: a `KHR_gaussian_splatting` glTF (which must hold
+/// Gaussians), or any splat format or manifest (warnings to `warn`).
+pub fn load_export_input(
+    path: &Path,
+    drop_invalid: bool,
+    warn: &dyn Fn(&str),
+) -> anyhow::Result<DynamicScene> {
+    if is_gltf(path) {
+        let scene = splatbridge_convert::splats_gltf::read_file(path)?;
+        splatbridge_scene::input::require_gaussians(path, &scene)?;
+        Ok(scene)
+    } else {
+        load_scene_warn(path, drop_invalid, warn)
+    }
+}
+
+/// An output format named explicitly (instead of the one the output's extension implies).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OutputFormat {
+    /// Mesh PLY, or the 3DGS PLY with splats.
+    Ply,
+    SplatPly,
+    CompressedPly,
+    Splat,
+    Spz,
+    Glb,
+    Gltf,
+    Obj,
+}
+
+/// The single-cloud splat format an output asks for, if any (`splats`: a `.ply` means the
+/// 3DGS PLY); an error when `format` names a mesh/glTF format that disagrees with the output's
+/// extension.
+pub fn cloud_format(
+    output: &Path,
+    format: Option<OutputFormat>,
+    splats: bool,
+    spz_version: u32,
+) -> anyhow::Result<Option<CloudFormat>> {
+    let spz = CloudFormat::Spz(SpzOptions {
+        version: spz_version,
+        ..SpzOptions::default()
+    });
+    let ext = output
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    Ok(match format {
+        Some(OutputFormat::SplatPly) => Some(CloudFormat::Ply),
+        Some(OutputFormat::Ply) if splats => Some(CloudFormat::Ply),
+        Some(OutputFormat::CompressedPly) => Some(CloudFormat::CompressedPly),
+        Some(OutputFormat::Splat) => Some(CloudFormat::Splat),
+        Some(OutputFormat::Spz) => Some(spz),
+        Some(f) => {
+            let want = match f {
+                OutputFormat::Ply => "ply",
+                OutputFormat::Glb => "glb",
+                OutputFormat::Gltf => "gltf",
+                _ => "obj",
+            };
+            if ext != want || CloudFormat::for_path(output, false).is_some() {
+                bail!(
+                    "{}: --format {want} writes a .{want} file; name the output so",
+                    output.display()
+                );
+            }
+            None
+        }
+        None => match CloudFormat::for_path(output, splats) {
+            Some(CloudFormat::Spz(_)) => Some(spz),
+            other => other,
+        },
+    })
+}
+
+/// What a single-cloud export wrote.
+#[derive(Clone, Debug)]
+pub struct CloudExport {
+    pub format: &'static str,
+    pub gaussians: usize,
+    pub sh_degree: u8,
+    /// The time the scene was composited at.
+    pub time: f64,
+    pub bytes: u64,
+}
+
+/// Write a single-cloud splat file: the scene composited at `time` (default: its start),
+/// cut to the first `first` Gaussians when asked.
+pub fn write_cloud_export(
+    scene: &DynamicScene,
+    output: &Path,
+    format: CloudFormat,
+    time: Option<f64>,
+    first: Option<usize>,
+) -> anyhow::Result<CloudExport> {
+    let t = time.unwrap_or(scene.time.start);
+    if !t.is_finite() {
+        bail!("--time {t} is not a finite time");
+    }
+    let mut cloud = scene.composite(t);
+    if let Some(n) = first {
+        cloud.retain_indices(|i| i < n);
+    }
+    let bytes = write_cloud(output, &cloud, format)?;
+    Ok(CloudExport {
+        format: format.name(),
+        gaussians: cloud.len(),
+        sh_degree: cloud.sh_degree,
+        time: t,
+        bytes,
+    })
+}
+
+/// What a mesh or glTF splat export writes besides the scene's Gaussians.
+#[derive(Clone, Copy, Debug)]
+pub enum ExportKind {
+    /// A triangle mesh; `frames`: one OBJ per frame.
+    Mesh { frames: bool },
+    /// Native glTF splats with this attribute compression.
+    Splats(KhrCompression),
+}
+
+/// Convert `scene` (read from `input`, named in errors) to `output`: the converter's report
+/// and the effect counters (weather built as per-frame content for meshes).
+pub fn export_scene(
+    scene: &DynamicScene,
+    input: &Path,
+    output: &Path,
+    opts: &ConvertOptions,
+    kind: ExportKind,
+) -> anyhow::Result<(ConvertReport, EffectCounters)> {
+    let declared = effects_of(scene).with_context(|| input.display().to_string())?;
+    let mut effects = EffectCounters::default();
+    let weather = match kind {
+        ExportKind::Splats(_) => None,
+        ExportKind::Mesh { .. } => {
+            let start = Instant::now();
+            let w = weather_frames(scene).with_context(|| input.display().to_string())?;
+            w.map(|(times, clouds)| {
+                effects.particles = clouds.iter().map(|c| c.len() as u64).sum();
+                effects.milliseconds = start.elapsed().as_secs_f64() * 1e3;
+                effects.simulated.push("weather".into());
+                FrameClouds { times, clouds }
+            })
+        }
+    };
+    effects.not_simulated = not_simulated(
+        &declared,
+        if weather.is_some() { &["weather"] } else { &[] },
+    );
+    let report = match kind {
+        ExportKind::Splats(compression) => {
+            if !is_gltf(output) {
+                bail!(
+                    "{}: --splats writes glTF; use .glb or .gltf",
+                    output.display()
+                );
+            }
+            splatbridge_convert::splats_gltf::write_file_with(output, scene, opts, compression)?
+        }
+        ExportKind::Mesh { frames } => {
+            splatbridge_convert::convert_to_file(output, scene, weather.as_ref(), opts, frames)?
+        }
+    };
+    Ok((report, effects))
+}
