@@ -160,10 +160,7 @@ fn every_committed_malformed_case_fails_cleanly() {
     // At least 8 cases per splat format (the glTF splat prefix also counts its SPZ variant's
     // cases, which have their own 8).
     for prefix in ["spz_", "splat_", "cply_", "sog_", "khr_", "khr_spz_"] {
-        let k = table
-            .lines()
-            .filter(|l| l.starts_with(prefix))
-            .count();
+        let k = table.lines().filter(|l| l.starts_with(prefix)).count();
         assert!(k >= 8, "{k} cases for {prefix}*, fewer than 8");
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));

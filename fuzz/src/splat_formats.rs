@@ -326,10 +326,7 @@ fn compressed_ply_structured(data: &[u8]) {
         h.push_str(&format!("property uint {p}\n"));
     }
     if sh_k > 0 {
-        h.push_str(&format!(
-            "element sh {}\n",
-            (n + c.sh_lie as i64).max(0)
-        ));
+        h.push_str(&format!("element sh {}\n", (n + c.sh_lie as i64).max(0)));
         for k in 0..sh_k {
             h.push_str(&format!("property uchar f_rest_{k}\n"));
         }
@@ -337,7 +334,12 @@ fn compressed_ply_structured(data: &[u8]) {
     h.push_str("end_header\n");
     let mut out = h.into_bytes();
     let mut body = Vec::new();
-    let mut b = c.bounds.iter().copied().chain(std::iter::repeat(0.0)).cycle();
+    let mut b = c
+        .bounds
+        .iter()
+        .copied()
+        .chain(std::iter::repeat(0.0))
+        .cycle();
     for _ in 0..chunks as usize * chunk_props.len() {
         body.extend_from_slice(&b.next().unwrap_or(0.0).to_le_bytes());
     }
@@ -419,7 +421,8 @@ fn sog_structured(data: &[u8]) {
     let side = (n as f64).sqrt().ceil() as u32;
     let (w, h) = (side.max(1), n.div_ceil(side.max(1)));
     let mut vals = s.values.iter().copied().chain(std::iter::once(0.5)).cycle();
-    let mut take = |k: usize| -> Vec<Value> { (0..k).map(|_| num(vals.next().unwrap_or(0.0))).collect() };
+    let mut take =
+        |k: usize| -> Vec<Value> { (0..k).map(|_| num(vals.next().unwrap_or(0.0))).collect() };
     let version = s.version % 4;
     let mut meta = json!({
         "means": {
@@ -433,16 +436,18 @@ fn sog_structured(data: &[u8]) {
         "sh0": { "files": ["sh0.webp"] },
     });
     let cb_len = (256 + s.codebook_delta as i64).max(0) as usize;
-    let (shn_bands, shn_palette) = s
-        .shn
-        .map_or((0, 0), |(b, p)| (b % 5, (p % 300) as u32 + 1));
+    let (shn_bands, shn_palette) = s.shn.map_or((0, 0), |(b, p)| (b % 5, (p % 300) as u32 + 1));
     if version == 0 {
         meta["scales"]["mins"] = json!(take(3));
         meta["scales"]["maxs"] = json!(take(3));
         meta["sh0"]["mins"] = json!(take(4));
         meta["sh0"]["maxs"] = json!(take(4));
     } else {
-        meta["version"] = if version == 1 { json!(2) } else { json!(version) };
+        meta["version"] = if version == 1 {
+            json!(2)
+        } else {
+            json!(version)
+        };
         meta["count"] = json!(declared);
         meta["scales"]["codebook"] = json!(take(cb_len));
         meta["sh0"]["codebook"] = json!(take(cb_len));
@@ -591,14 +596,23 @@ fn gltf_splats_structured(data: &[u8]) {
     let mut views = Vec::new();
     let mut accessors = Vec::new();
     let mut attributes = serde_json::Map::new();
-    let mut fl = k.floats.iter().copied().chain(std::iter::once(0.25)).cycle();
+    let mut fl = k
+        .floats
+        .iter()
+        .copied()
+        .chain(std::iter::once(0.25))
+        .cycle();
     for (i, (name, comps)) in names.iter().enumerate() {
         if k.drop.map(|d| d as usize % 32) == Some(i) {
             continue;
         }
         let (lie, ct, ty, normalized) = k.attrs.get(i).copied().unwrap_or((0, 0, 255, false));
         let count = (n + lie as i64 % 8).max(0);
-        let ctype = if ct < 200 { 5126 } else { CT[ct as usize % CT.len()] };
+        let ctype = if ct < 200 {
+            5126
+        } else {
+            CT[ct as usize % CT.len()]
+        };
         // Mostly the right type; a high byte picks any type (VEC2 positions, MAT4 scales).
         let ttype = if ty < 200 {
             match *comps {
@@ -688,8 +702,10 @@ fn gltf_splats_structured(data: &[u8]) {
                 bin.extend_from_slice(&v.to_le_bytes());
             }
             views.push(json!({ "buffer": 0, "byteOffset": off, "byteLength": vals.len() * 4 }));
-            accs.push(json!({ "bufferView": views.len() - 1, "componentType": 5126,
-                              "count": (count as i64 + *lie as i64 % 3).max(0), "type": ty }));
+            accs.push(
+                json!({ "bufferView": views.len() - 1, "componentType": 5126,
+                              "count": (count as i64 + *lie as i64 % 3).max(0), "type": ty }),
+            );
             accs.len() - 1
         };
         let input = push(times[..nt].to_vec(), "SCALAR", nt, &mut bin);

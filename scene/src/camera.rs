@@ -158,7 +158,13 @@ impl Camera {
             .iter()
             // `f64::max` skips NaN, which overflowing entries (inf − inf) produce: count a
             // NaN as an infinite error.
-            .fold(0.0f64, |a, v| if v.is_nan() { f64::INFINITY } else { a.max(v.abs()) });
+            .fold(0.0f64, |a, v| {
+                if v.is_nan() {
+                    f64::INFINITY
+                } else {
+                    a.max(v.abs())
+                }
+            });
         if e > 1e-3 {
             return Err(SceneError::Invalid(format!(
                 "camera '{}' rotation is not orthonormal (error {e:.2e})",
@@ -207,7 +213,10 @@ fn show(x: f64) -> String {
 
 /// An image side as any JSON number, so a value such as 1e308 or 2.5 is refused by name
 /// (serde's own message would say only "expected u32").
-fn de_side<'de, D: serde::Deserializer<'de>>(d: D, name: &str) -> std::result::Result<u32, D::Error> {
+fn de_side<'de, D: serde::Deserializer<'de>>(
+    d: D,
+    name: &str,
+) -> std::result::Result<u32, D::Error> {
     let v = f64::deserialize(d)?;
     if v.fract() == 0.0 && (1.0..=crate::camera_spec::MAX_IMAGE_SIDE as f64).contains(&v) {
         Ok(v as u32)

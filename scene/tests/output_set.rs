@@ -35,7 +35,10 @@ fn a_set_commits_every_file() {
     assert!(!b.exists());
     set.commit().unwrap();
     assert_eq!((read(&a), read(&b)), ("new gltf".into(), "new bin".into()));
-    assert_eq!(extra_entries(d.path(), &["x.gltf", "x.bin"]), Vec::<String>::new());
+    assert_eq!(
+        extra_entries(d.path(), &["x.gltf", "x.bin"]),
+        Vec::<String>::new()
+    );
 }
 
 #[test]
@@ -52,7 +55,10 @@ fn a_failed_write_between_files_leaves_the_old_set_and_no_temporaries() {
     assert!(err.contains("x.mtl"), "{err}");
     drop(set);
     assert_eq!((read(&a), read(&b)), ("old bin".into(), "old gltf".into()));
-    assert_eq!(extra_entries(d.path(), &["x.bin", "x.gltf"]), Vec::<String>::new());
+    assert_eq!(
+        extra_entries(d.path(), &["x.bin", "x.gltf"]),
+        Vec::<String>::new()
+    );
 }
 
 #[test]
@@ -92,7 +98,10 @@ fn a_directory_target_is_refused_when_staged() {
     let d = tempfile::tempdir().unwrap();
     let mut set = OutputSet::new();
     let err = set.write(d.path(), b"x").unwrap_err().to_string();
-    assert!(err.contains("directory") || err.contains("names no file"), "{err}");
+    assert!(
+        err.contains("directory") || err.contains("names no file"),
+        "{err}"
+    );
 }
 
 /// A pid that no process has: Linux caps pids at 2²² (`/proc/sys/kernel/pid_max`).
@@ -118,7 +127,11 @@ fn stale_temporaries_are_cleaned_by_the_next_run() {
     std::fs::create_dir(&staging).unwrap();
     std::fs::write(staging.join("report.md"), "partial").unwrap();
     // Names that merely look similar are never ours.
-    let others = [".out.png.tmp.3", "out.png.tmp999999999.3", ".out.png.bak999999999.3"];
+    let others = [
+        ".out.png.tmp.3",
+        "out.png.tmp999999999.3",
+        ".out.png.bak999999999.3",
+    ];
     for o in others {
         std::fs::write(d.path().join(o), "user file").unwrap();
     }
@@ -182,5 +195,8 @@ fn an_abandoned_staging_folder_is_removed_and_changes_nothing() {
     std::fs::write(stage.join("report.md"), "new report").unwrap();
     drop(set);
     assert_eq!(read(&d.path().join("report.md")), "old report");
-    assert_eq!(extra_entries(d.path(), &["report.md"]), Vec::<String>::new());
+    assert_eq!(
+        extra_entries(d.path(), &["report.md"]),
+        Vec::<String>::new()
+    );
 }
