@@ -7,6 +7,9 @@
 #[allow(dead_code)]
 #[path = "../fuzz/src/entries.rs"]
 mod entries;
+#[allow(dead_code)]
+#[path = "../fuzz/src/splat_formats.rs"]
+mod splat_formats;
 
 use std::path::Path;
 
@@ -42,7 +45,7 @@ fn every_committed_fuzz_finding_replays_without_a_panic() {
 
 #[test]
 fn every_target_accepts_empty_and_garbage_input() {
-    for (name, f) in entries::TARGETS {
+    for (name, f) in entries::all_targets() {
         eprintln!("target {name}");
         f(b"");
         f(&[0xff; 64]);

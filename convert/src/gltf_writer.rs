@@ -667,12 +667,15 @@ pub fn write_file(
             .unwrap_or_default();
         let plan = plan(&entries, scene, frames, opts, &report, Some(uri)).map_err(io_err(path))?;
         let mut n = 0;
-        splatbridge_scene::image_io::with_atomic_writer(&bin_path, |w| {
+        // The .gltf and its .bin appear together or not at all.
+        let mut set = splatbridge_scene::output::OutputSet::new();
+        set.write_with(&bin_path, |w| {
             n = stream_bin(w, &plan, &entries)?;
             Ok(())
         })
         .map_err(crate::scene_err)?;
-        splatbridge_scene::image_io::write_atomic(path, &plan.json).map_err(crate::scene_err)?;
+        set.write(path, &plan.json).map_err(crate::scene_err)?;
+        set.commit().map_err(crate::scene_err)?;
         report.bytes = n + plan.json.len() as u64;
     }
     Ok(report)

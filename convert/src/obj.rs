@@ -155,7 +155,9 @@ pub fn write_file(
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
-    splatbridge_scene::image_io::write_atomic(&mtl_path, MTL.as_bytes())
+    // The MTL and every OBJ (one per frame with `per_frame`) appear together or not at all.
+    let mut set = splatbridge_scene::output::OutputSet::new();
+    set.write(&mtl_path, MTL.as_bytes())
         .map_err(crate::scene_err)?;
     let mut bytes = MTL.len() as u64;
     let times = if per_frame {
@@ -173,12 +175,13 @@ pub fn write_file(
         } else {
             path.to_path_buf()
         };
-        splatbridge_scene::image_io::with_atomic_writer(&target, |w| {
+        set.write_with(&target, |w| {
             bytes += write_obj(w, &entries, scene, frames, &dopts, &report, &mtl_name, t)?;
             Ok(())
         })
         .map_err(crate::scene_err)?;
     }
+    set.commit().map_err(crate::scene_err)?;
     report.bytes = bytes;
     Ok(report)
 }

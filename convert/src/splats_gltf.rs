@@ -206,12 +206,15 @@ pub fn write_file_with(
             .unwrap_or_default();
         let (json, small, plans, _bin_len, mut report) = plan(scene, opts, Some(uri), compression)?;
         let mut n = 0;
-        splatbridge_scene::image_io::with_atomic_writer(&bin_path, |w| {
+        // The .gltf and its .bin appear together or not at all.
+        let mut set = splatbridge_scene::output::OutputSet::new();
+        set.write_with(&bin_path, |w| {
             n = stream(w, &small, &plans)?;
             Ok(())
         })
         .map_err(crate::scene_err)?;
-        splatbridge_scene::image_io::write_atomic(path, &json).map_err(crate::scene_err)?;
+        set.write(path, &json).map_err(crate::scene_err)?;
+        set.commit().map_err(crate::scene_err)?;
         report.bytes = n + json.len() as u64;
         report.format = "gltf splats".into();
         Ok(report)

@@ -9,7 +9,8 @@
 //! fuzzer spends its time past the parsers' first checks.
 //!
 //! Adding a target: a file in `fuzz/fuzz_targets/` calling `run("name", data)`, its `[[bin]]`
-//! in `fuzz/Cargo.toml`, and one line in the `TARGETS` table below.
+//! in `fuzz/Cargo.toml`, and one line in the `TARGETS` table below (or in
+//! `splat_formats.rs`'s, for the compressed splat formats).
 
 use std::io::Write;
 use std::path::Path;
@@ -31,9 +32,14 @@ pub const TARGETS: &[(&str, Entry)] = &[
     ("obj", obj),
 ];
 
+/// Every target of this module and of [`crate::splat_formats`] (the compressed splat formats).
+pub fn all_targets() -> impl Iterator<Item = &'static (&'static str, Entry)> {
+    TARGETS.iter().chain(crate::splat_formats::TARGETS.iter())
+}
+
 /// Run one target on one input; `false` when the target does not exist.
 pub fn run(target: &str, data: &[u8]) -> bool {
-    match TARGETS.iter().find(|(n, _)| *n == target) {
+    match all_targets().find(|(n, _)| *n == target) {
         Some((_, f)) => {
             f(data);
             true

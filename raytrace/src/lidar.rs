@@ -31,6 +31,7 @@ use glam::{DMat3, DQuat, DVec3, Vec3};
 use rayon::prelude::*;
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::effects::{Lidar, LidarMount};
+use splatbridge_scene::output::OutputSet;
 use splatbridge_scene::Camera;
 
 use crate::backend::{BackendKind, BuildPreset};
@@ -307,6 +308,8 @@ pub fn scan_scene_gaussian(
         err: e,
     })?;
     let mut run = LidarRun::default();
+    // The frames' scans appear together or not at all.
+    let mut set = OutputSet::new();
     // One BVH per part for the whole range: frames only re-pose the objects and replace the
     // frame's weather particles.
     let mut tracer: Option<GaussianTracer> = None;
@@ -327,12 +330,13 @@ pub fn scan_scene_gaussian(
         tracer.set_particles(particles)?;
         let s = scan(&*tracer, &sensor, t);
         let path = frame_file(dir, i);
-        write_ply(&path, &s)?;
+        stage_ply(&mut set, &path, &s)?;
         run.rays += s.rays;
         run.points += s.points.len() as u64;
         run.seconds += s.seconds;
         run.files.push(path);
     }
+    set.commit()?;
     Ok(Some(run))
 }
 
@@ -352,22 +356,36 @@ pub fn scan_mesh_frames(
         err: e,
     })?;
     let mut run = LidarRun::default();
+    // The frames' scans appear together or not at all.
+    let mut set = OutputSet::new();
     for (i, &t) in times.iter().enumerate() {
         let s = scan(&tracer.at(t), &sensor, t);
         let path = frame_file(dir, i);
-        write_ply(&path, &s)?;
+        stage_ply(&mut set, &path, &s)?;
         run.rays += s.rays;
         run.points += s.points.len() as u64;
         run.seconds += s.seconds;
         run.files.push(path);
     }
+    set.commit()?;
     Ok(run)
 }
 
 /// Write a scan as a binary little-endian PLY (x, y, z, intensity as float; time as double;
 /// ring as ushort), atomically.
 pub fn write_ply(path: &Path, scan: &LidarScan) -> splatbridge_scene::Result<()> {
-    splatbridge_scene::image_io::with_atomic_writer(path, |w| {
+    let mut set = OutputSet::new();
+    stage_ply(&mut set, path, scan)?;
+    set.commit()
+}
+
+/// [`write_ply`] into an output set (a sequence of scans commits as one).
+pub fn stage_ply(
+    set: &mut OutputSet,
+    path: &Path,
+    scan: &LidarScan,
+) -> splatbridge_scene::Result<()> {
+    set.write_with(path, |w| {
         write!(
             w,
             "ply\nformat binary_little_endian 1.0\ncomment splatbridge lidar scan\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty float intensity\nproperty double time\nproperty ushort ring\nend_header\n",

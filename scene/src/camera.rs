@@ -156,7 +156,15 @@ impl Camera {
         let e = (r * r.transpose() - DMat3::IDENTITY)
             .to_cols_array()
             .iter()
-            .fold(0.0f64, |a, v| a.max(v.abs()));
+            // `f64::max` skips NaN, which overflowing entries (inf − inf) produce: count a
+            // NaN as an infinite error.
+            .fold(0.0f64, |a, v| {
+                if v.is_nan() {
+                    f64::INFINITY
+                } else {
+                    a.max(v.abs())
+                }
+            });
         if e > 1e-3 {
             return Err(SceneError::Invalid(format!(
                 "camera '{}' rotation is not orthonormal (error {e:.2e})",
@@ -167,6 +175,15 @@ impl Camera {
     }
 }
 
+/// Largest camera-centre coordinate a `cameras.json` may hold: the ray tracer's BVHs hold
+/// ±1e12 (`raytrace::backend::MAX_BVH_COORD`), and the splatting renderer projects in f32, so a
+/// camera further out than any scene can be is refused rather than rendered as nothing.
+pub const MAX_CAMERA_COORD: f64 = 1e12;
+/// Focal-length bounds per pixel of the image side: fx = side/(2·tan(fov/2)), so 1e5 is a
+/// field of view of ~0.0006° and 1e-4 one of ~179.98°; anything outside is not a lens.
+const MAX_FOCAL_PER_PIXEL: f64 = 1e5;
+const MIN_FOCAL_PER_PIXEL: f64 = 1e-4;
+
 /// One entry of the `cameras.json` that 3DGS training writes (`utils/camera_utils.py`,
 /// `camera_to_JSON`): `position` is the camera centre and `rotation` the camera-to-world
 /// rotation (rows of the 3×3 matrix), both in the world frame.
@@ -174,12 +191,50 @@ impl Camera {
 pub struct CameraJson {
     pub id: i64,
     pub img_name: String,
+    #[serde(deserialize_with = "de_width")]
     pub width: u32,
+    #[serde(deserialize_with = "de_height")]
     pub height: u32,
     pub position: [f64; 3],
     pub rotation: [[f64; 3]; 3],
     pub fx: f64,
     pub fy: f64,
+}
+
+/// A number as a message shows it: plain when short, in exponent form when huge or tiny (the
+/// plain form of 1e308 has 309 digits).
+fn show(x: f64) -> String {
+    if x != 0.0 && x.is_finite() && !(1e-4..1e6).contains(&x.abs()) {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
+    }
+}
+
+/// An image side as any JSON number, so a value such as 1e308 or 2.5 is refused by name
+/// (serde's own message would say only "expected u32").
+fn de_side<'de, D: serde::Deserializer<'de>>(
+    d: D,
+    name: &str,
+) -> std::result::Result<u32, D::Error> {
+    let v = f64::deserialize(d)?;
+    if v.fract() == 0.0 && (1.0..=crate::camera_spec::MAX_IMAGE_SIDE as f64).contains(&v) {
+        Ok(v as u32)
+    } else {
+        Err(serde::de::Error::custom(format!(
+            "{name} {} is not a whole number of pixels in 1..={}",
+            show(v),
+            crate::camera_spec::MAX_IMAGE_SIDE
+        )))
+    }
+}
+
+fn de_width<'de, D: serde::Deserializer<'de>>(d: D) -> std::result::Result<u32, D::Error> {
+    de_side(d, "width")
+}
+
+fn de_height<'de, D: serde::Deserializer<'de>>(d: D) -> std::result::Result<u32, D::Error> {
+    de_side(d, "height")
 }
 
 impl CameraJson {
@@ -202,6 +257,47 @@ impl CameraJson {
             world_to_cam: c2w.transpose(),
             name: self.img_name.clone(),
         }
+    }
+
+    /// Check every field against what a camera can be, naming the first field that is not:
+    /// finite values, a centre within ±[`MAX_CAMERA_COORD`], rotation entries of an
+    /// orthonormal matrix, and focal lengths giving a field of view strictly between
+    /// ~0.0006° and ~179.98° (`fx` within [10⁻⁴, 10⁵] × `width`, `fy` × `height`). Image
+    /// sizes are checked by [`crate::camera_spec::check_side`].
+    pub fn check(&self) -> std::result::Result<(), String> {
+        for (k, &x) in self.position.iter().enumerate() {
+            if !(x.abs() <= MAX_CAMERA_COORD) {
+                return Err(format!(
+                    "position[{k}] is {}, not a finite coordinate within ±{MAX_CAMERA_COORD:e}",
+                    show(x)
+                ));
+            }
+        }
+        for (i, row) in self.rotation.iter().enumerate() {
+            for (j, &x) in row.iter().enumerate() {
+                // An orthonormal matrix's entries lie in [−1, 1]; the slack matches the
+                // orthonormality tolerance of `Camera::validate`.
+                if !(x.abs() <= 1.0 + 1e-3) {
+                    return Err(format!(
+                        "rotation[{i}][{j}] is {}, not an entry of a rotation matrix (|x| ≤ 1)",
+                        show(x)
+                    ));
+                }
+            }
+        }
+        for (name, f, side) in [("fx", self.fx, self.width), ("fy", self.fy, self.height)] {
+            let side = side as f64;
+            if !(f >= MIN_FOCAL_PER_PIXEL * side && f <= MAX_FOCAL_PER_PIXEL * side) {
+                return Err(format!(
+                    "{name} is {}, outside {:e}..={:e} pixels for a {side}-pixel side \
+                     (fields of view between about 0.0006° and 179.98°)",
+                    show(f),
+                    MIN_FOCAL_PER_PIXEL * side,
+                    MAX_FOCAL_PER_PIXEL * side
+                ));
+            }
+        }
+        Ok(())
     }
 
     pub fn from_camera(id: i64, cam: &Camera) -> Self {
@@ -236,6 +332,12 @@ pub fn load_cameras_json(path: &Path) -> Result<Vec<Camera>> {
         .iter()
         .enumerate()
         .map(|(i, e)| {
+            e.check().map_err(|what| {
+                SceneError::format(
+                    path,
+                    format!("camera {i} ('{}'): {what}", crate::input::clip(&e.img_name)),
+                )
+            })?;
             let c = e.to_camera();
             crate::camera_spec::check_side("width", c.width)
                 .and_then(|()| crate::camera_spec::check_side("height", c.height))
@@ -260,14 +362,17 @@ pub fn load_cameras_json(path: &Path) -> Result<Vec<Camera>> {
 
 /// Write cameras in the 3DGS `cameras.json` layout.
 pub fn save_cameras_json(path: &Path, cams: &[Camera]) -> Result<()> {
+    crate::image_io::write_atomic(path, cameras_json_text(cams)?.as_bytes())
+}
+
+/// The text [`save_cameras_json`] writes.
+pub fn cameras_json_text(cams: &[Camera]) -> Result<String> {
     let entries: Vec<CameraJson> = cams
         .iter()
         .enumerate()
         .map(|(i, c)| CameraJson::from_camera(i as i64, c))
         .collect();
-    let text =
-        serde_json::to_string_pretty(&entries).map_err(|e| SceneError::Invalid(e.to_string()))?;
-    crate::image_io::write_atomic(path, text.as_bytes())
+    serde_json::to_string_pretty(&entries).map_err(|e| SceneError::Invalid(e.to_string()))
 }
 
 /// An orbit rig around a point cloud. The up axis defaults to −y, the COLMAP convention most

@@ -9,19 +9,16 @@
 
 use std::io::Write;
 use std::path::Path;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::error::{Result, SceneError};
+use crate::output::OutputSet;
 use crate::Frame;
 
-/// Write `bytes` to `path` atomically: a temporary file in the same directory, renamed on
-/// success, so a failure never leaves a partial file at the target.
+/// Write `bytes` to `path` atomically: a one-file [`OutputSet`], so a failure never leaves a
+/// partial file at the target, and stale temporaries of killed runs are cleaned.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     with_atomic_writer(path, |w| w.write_all(bytes))
 }
-
-/// Distinguishes temporary files of concurrent writers in one process.
-static TMP_SERIAL: AtomicU64 = AtomicU64::new(0);
 
 /// Stream into `path` atomically through a buffered writer; the target appears only if `f`
 /// and the final flush succeed.
@@ -29,29 +26,9 @@ pub fn with_atomic_writer<F>(path: &Path, f: F) -> Result<()>
 where
     F: FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
 {
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => std::path::PathBuf::from("."),
-    };
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let serial = TMP_SERIAL.fetch_add(1, Ordering::Relaxed);
-    let tmp = dir.join(format!(".{name}.tmp{}.{serial}", std::process::id()));
-    let result = (|| -> std::io::Result<()> {
-        let file = std::fs::File::create(&tmp)?;
-        let mut w = std::io::BufWriter::with_capacity(1 << 20, file);
-        f(&mut w)?;
-        let file = w.into_inner().map_err(|e| e.into_error())?;
-        file.sync_data().ok();
-        std::fs::rename(&tmp, path)
-    })();
-    if let Err(e) = result {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(SceneError::io(path, e));
-    }
-    Ok(())
+    let mut set = OutputSet::new();
+    set.write_with(path, f)?;
+    set.commit()
 }
 
 /// An 8-bit RGB image (heat-maps, thumbnails), rows top first.
@@ -107,6 +84,16 @@ fn check_planes(path: &Path, frame: &Frame) -> Result<()> {
 /// Save a frame by extension (case-insensitive): `.png` (8-bit RGB) or `.exr` (float R, G, B,
 /// A and a `Z` depth channel); see the module docs. Written atomically.
 pub fn save_frame(path: &Path, frame: &Frame) -> Result<()> {
+    write_atomic(path, &encode_frame(path, frame)?)
+}
+
+/// Stage a frame in an output set (a `--frames` sequence commits as one); as [`save_frame`].
+pub fn stage_frame(set: &mut OutputSet, path: &Path, frame: &Frame) -> Result<()> {
+    set.write(path, &encode_frame(path, frame)?)
+}
+
+/// The bytes [`save_frame`] writes for `path`'s extension.
+pub fn encode_frame(path: &Path, frame: &Frame) -> Result<Vec<u8>> {
     check_planes(path, frame)?;
     let ext = path
         .extension()
@@ -115,9 +102,9 @@ pub fn save_frame(path: &Path, frame: &Frame) -> Result<()> {
     match ext.as_str() {
         "png" => {
             let data: Vec<u8> = frame.rgb.iter().map(|&v| to_u8(v)).collect();
-            save_rgb8_png(path, frame.width, frame.height, &data)
+            encode_rgb8_png(path, frame.width, frame.height, &data)
         }
-        "exr" => save_exr(path, frame),
+        "exr" => encode_exr(path, frame),
         _ => Err(SceneError::format(
             path,
             format!("unsupported image extension '{ext}' (use .png or .exr)"),
@@ -127,6 +114,11 @@ pub fn save_frame(path: &Path, frame: &Frame) -> Result<()> {
 
 /// Save interleaved 8-bit RGB as PNG (atomically).
 pub fn save_rgb8_png(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<()> {
+    write_atomic(path, &encode_rgb8_png(path, width, height, rgb)?)
+}
+
+/// Interleaved 8-bit RGB as PNG bytes; `path` names the output in errors.
+pub fn encode_rgb8_png(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<Vec<u8>> {
     use image::ImageEncoder;
     if rgb.len() != 3 * width as usize * height as usize || rgb.is_empty() {
         return Err(SceneError::format(
@@ -141,10 +133,10 @@ pub fn save_rgb8_png(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result
     image::codecs::png::PngEncoder::new(&mut png)
         .write_image(rgb, width, height, image::ExtendedColorType::Rgb8)
         .map_err(|e| SceneError::format(path, format!("PNG encoding failed: {e}")))?;
-    write_atomic(path, &png)
+    Ok(png)
 }
 
-fn save_exr(path: &Path, frame: &Frame) -> Result<()> {
+fn encode_exr(path: &Path, frame: &Frame) -> Result<Vec<u8>> {
     use exr::prelude::*;
     let n = frame.pixels();
     let plane = |c: usize| -> Vec<f32> { (0..n).map(|i| frame.rgb[3 * i + c]).collect() };
@@ -166,7 +158,7 @@ fn save_exr(path: &Path, frame: &Frame) -> Result<()> {
         .write()
         .to_buffered(&mut bytes)
         .map_err(|e| SceneError::format(path, format!("OpenEXR encoding failed: {e}")))?;
-    write_atomic(path, bytes.get_ref())
+    Ok(bytes.into_inner())
 }
 
 /// Load a PNG (8- or 16-bit, grey or RGB, with or without alpha) as a frame: RGB and alpha in

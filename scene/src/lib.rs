@@ -20,6 +20,7 @@ pub mod image_io;
 pub mod input;
 pub mod manifest;
 pub mod metrics;
+pub mod output;
 pub mod ply;
 pub mod rng;
 pub mod sh;

@@ -26,12 +26,12 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
-use crate::camera::{load_cameras_json, save_cameras_json};
+use crate::camera::{cameras_json_text, load_cameras_json};
 use crate::dynamic::{
     quat_from_wxyz, quat_wxyz, DynamicScene, PoseKey, SceneObject, TimeRange, Track,
 };
 use crate::error::{Result, SceneError};
-use crate::ply::{write_ply, PlyFormat, ReadOptions};
+use crate::ply::{stage_ply, PlyFormat, ReadOptions};
 use crate::trajectory::{Retime, TrajectoryRule};
 use crate::GaussianCloud;
 
@@ -461,12 +461,19 @@ pub fn save_manifest(dir: &Path, scene: &DynamicScene) -> Result<SavedScene> {
     check_effect_names(&target, &scene.effects)?;
     crate::effects::Effects::from_json(&scene.effects).map_err(|e| bad(&target, e))?;
     std::fs::create_dir_all(dir).map_err(|e| SceneError::io(dir, e))?;
+    // The manifest and every file it names appear together or not at all.
+    let mut set = crate::output::OutputSet::new();
     let mut files = Vec::new();
     let static_file = if scene.static_gaussians.is_empty() {
         None
     } else {
         let p = dir.join("static.ply");
-        write_ply(&p, &scene.static_gaussians, PlyFormat::BinaryLittleEndian)?;
+        stage_ply(
+            &mut set,
+            &p,
+            &scene.static_gaussians,
+            PlyFormat::BinaryLittleEndian,
+        )?;
         files.push(p);
         Some("static.ply")
     };
@@ -483,7 +490,7 @@ pub fn save_manifest(dir: &Path, scene: &DynamicScene) -> Result<SavedScene> {
         used.push(stem.clone());
         let name = format!("{stem}.ply");
         let p = dir.join(&name);
-        write_ply(&p, &o.gaussians, PlyFormat::BinaryLittleEndian)?;
+        stage_ply(&mut set, &p, &o.gaussians, PlyFormat::BinaryLittleEndian)?;
         files.push(p);
         object_files.push(name);
     }
@@ -491,7 +498,7 @@ pub fn save_manifest(dir: &Path, scene: &DynamicScene) -> Result<SavedScene> {
         None
     } else {
         let p = dir.join("cameras.json");
-        save_cameras_json(&p, &scene.cameras)?;
+        set.write(&p, cameras_json_text(&scene.cameras)?.as_bytes())?;
         files.push(p);
         Some("cameras.json")
     };
@@ -500,7 +507,8 @@ pub fn save_manifest(dir: &Path, scene: &DynamicScene) -> Result<SavedScene> {
     let mut text =
         serde_json::to_string_pretty(&m).map_err(|e| SceneError::Invalid(e.to_string()))?;
     text.push('\n');
-    crate::image_io::write_atomic(&manifest, text.as_bytes())?;
+    set.write(&manifest, text.as_bytes())?;
+    set.commit()?;
     files.push(manifest.clone());
     Ok(SavedScene { manifest, files })
 }

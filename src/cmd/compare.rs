@@ -1,6 +1,7 @@
 //! `splatbridge compare`: every renderer and converter profile against native splatting at the
 //! same cameras and times; images, heat-maps, `report.json` and `report.md`.
 
+use splatbridge_scene::output::OutputSet;
 use std::path::PathBuf;
 
 use anyhow::Context;
@@ -119,7 +120,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..CompareConfig::default()
     };
     let pb = common::progress(0, "compare");
-    let records = parity::compare(&scene, &cams, &times, &args.out, &cfg, &|m| {
+    // Every image, heat-map, export and report is written to a staging folder inside `--out`
+    // and moved into place only when the whole comparison succeeded.
+    let mut outputs = OutputSet::new();
+    let stage = outputs.stage_dir(&args.out)?;
+    let records = parity::compare(&scene, &cams, &times, &stage, &cfg, &|m| {
         pb.set_message(m.to_string())
     })?;
     pb.finish_and_clear();
@@ -132,7 +137,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.width,
         args.height
     );
-    parity::write_reports(&args.out, "splatbridge compare", &preamble, &records)?;
+    parity::write_reports(&stage, "splatbridge compare", &preamble, &records)?;
+    outputs.commit()?;
     print_summary(&records);
     println!("wrote {}", args.out.join("report.md").display());
     Ok(())

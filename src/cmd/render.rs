@@ -13,7 +13,8 @@ use splatbridge::pipeline::{render_frame, FrameRequest, FrameStats, Renderer};
 use splatbridge_hybrid::{Extent, RenderOptions, RenderStats};
 use splatbridge_scene::effects::EffectCounters;
 use splatbridge_scene::effects_run::effects_of;
-use splatbridge_scene::image_io::save_frame;
+use splatbridge_scene::image_io::stage_frame;
+use splatbridge_scene::output::OutputSet;
 use splatbridge_scene::Camera;
 
 use crate::cmd::common::{load, parse_rgb, with_suffix, CameraArgs};
@@ -240,6 +241,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let mut counters = EffectCounters::default();
     let mut frames_json = Vec::with_capacity(times.len());
+    // A `--frames` sequence appears together or not at all (and never half old, half new).
+    let mut outputs = OutputSet::new();
     for (i, &t) in times.iter().enumerate() {
         let req = FrameRequest {
             scene: Some(&scene),
@@ -259,7 +262,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         } else {
             args.out.clone()
         };
-        save_frame(&out, &r.frame)?;
+        stage_frame(&mut outputs, &out, &r.frame)?;
         if args.json {
             frames_json.push(json!({
                 "output": out.display().to_string(),
@@ -281,6 +284,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             print_summary(&cam, stats, near);
         }
     }
+    outputs.commit()?;
     if args.json {
         let report = json!({
             "command": "render",

@@ -360,7 +360,18 @@ pub fn load(path: &Path, opts: &ReadOptions) -> Result<(DynamicScene, LoadInfo)>
             info.warnings = warnings;
             scene
         }
-        SplatFormat::Gltf { .. } => read_gltf(path)?,
+        SplatFormat::Gltf { .. } => {
+            let mut scene = read_gltf(path)?;
+            // The same invalid-Gaussian policy as every other format (NaN, infinite or
+            // non-positive scales, zero quaternions).
+            let mut report = crate::ply::ReadReport::default();
+            crate::ply::validate(&mut scene.static_gaussians, true, path, opts, &mut report)?;
+            for o in &mut scene.objects {
+                crate::ply::validate(&mut o.gaussians, true, path, opts, &mut report)?;
+            }
+            info.warnings.append(&mut report.warnings);
+            scene
+        }
         _ => {
             let (cloud, warnings) = read_single(path, &mut info.format, opts)?;
             info.warnings = warnings;
@@ -385,6 +396,10 @@ pub fn load_cloud(path: &Path, opts: &ReadOptions) -> Result<(GaussianCloud, Loa
         }
         SplatFormat::Gltf { .. } => {
             let scene = read_gltf(path)?;
+            let mut cloud = scene.composite(scene.time.start);
+            let mut report = crate::ply::ReadReport::default();
+            crate::ply::validate(&mut cloud, true, path, opts, &mut report)?;
+            info.warnings.append(&mut report.warnings);
             if !scene.objects.is_empty() {
                 info.warnings.push(format!(
                     "{} objects composited at t = {} into one cloud",
@@ -392,7 +407,7 @@ pub fn load_cloud(path: &Path, opts: &ReadOptions) -> Result<(GaussianCloud, Loa
                     scene.time.start
                 ));
             }
-            scene.composite(scene.time.start)
+            cloud
         }
         _ => {
             let (cloud, warnings) = read_single(path, &mut info.format, opts)?;

@@ -311,8 +311,20 @@ fn push_slots(cloud: &mut GaussianCloud, v: &[f32; header::MAX_SLOTS], n_rest: u
 /// Write a 3DGS PLY file (atomically: a temporary file renamed on success) in the standard
 /// layout; see the `write` module docs.
 pub fn write_ply(path: &Path, cloud: &GaussianCloud, format: PlyFormat) -> Result<()> {
+    let mut set = crate::output::OutputSet::new();
+    stage_ply(&mut set, path, cloud, format)?;
+    set.commit()
+}
+
+/// [`write_ply`] into an output set (several files committed together).
+pub fn stage_ply(
+    set: &mut crate::output::OutputSet,
+    path: &Path,
+    cloud: &GaussianCloud,
+    format: PlyFormat,
+) -> Result<()> {
     cloud
         .check_shape()
         .map_err(|e| SceneError::format(path, format!("cannot write: {e}")))?;
-    crate::image_io::with_atomic_writer(path, |w| write::write_cloud(w, cloud, format))
+    set.write_with(path, |w| write::write_cloud(w, cloud, format))
 }

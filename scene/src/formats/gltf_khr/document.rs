@@ -37,6 +37,13 @@ pub(super) fn load(path: &Path) -> Result<Document> {
                 "GLB version {version}; glTF 2.0 GLB is version 2"
             )));
         }
+        let declared = u32at(8)? as usize;
+        if declared != data.len() {
+            return Err(bad(format!(
+                "GLB header length {declared} is not the file's {} bytes",
+                data.len()
+            )));
+        }
         let mut o = 12usize;
         let (mut json, mut bin) = (None, None);
         while o + 8 <= data.len() {
@@ -131,6 +138,21 @@ impl Document {
             .get(a as usize)
             .ok_or_else(|| bad(format!("accessor {a} does not exist")))?;
         let count = self.accessor_count(path, a)?;
+        // The accessor's type must have the components the attribute needs (a VEC2 POSITION
+        // would otherwise be read as VEC3 across element boundaries).
+        let want = match comps {
+            1 => "SCALAR",
+            2 => "VEC2",
+            3 => "VEC3",
+            _ => "VEC4",
+        };
+        let ty = acc["type"].as_str().unwrap_or("");
+        if ty != want {
+            return Err(bad(format!(
+                "accessor {a}: type {} where {want} is needed",
+                crate::input::clip(ty)
+            )));
+        }
         let ct = acc["componentType"].as_u64().unwrap_or(0);
         let size = match ct {
             FLOAT => 4usize,
