@@ -230,7 +230,7 @@ fn cloud_format(args: &Args) -> anyhow::Result<Option<CloudFormat>> {
 /// Write a single-cloud splat file: the scene composited at --time.
 fn write_cloud_output(
     args: &Args,
-    scene: &splatbridge_scene::dynamic::DynamicScene,
+    scene: splatbridge_scene::dynamic::DynamicScene,
     format: CloudFormat,
     t0: Instant,
 ) -> anyhow::Result<()> {
@@ -252,7 +252,9 @@ fn write_cloud_output(
     if !t.is_finite() {
         bail!("--time {t} is not a finite time");
     }
-    let mut cloud = scene.composite(t);
+    let objects = scene.objects.len();
+    // Consumed, so a scene without objects is written from its own cloud, not a copy.
+    let mut cloud = scene.into_composite(t);
     if let Some(n) = args.first {
         cloud.retain_indices(|i| i < n);
     }
@@ -278,7 +280,7 @@ fn write_cloud_output(
             format.name(),
             cloud.len(),
             cloud.sh_degree,
-            if scene.objects.is_empty() {
+            if objects == 0 {
                 String::new()
             } else {
                 format!(", composited at t = {t}")
@@ -322,7 +324,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     if let Some(format) = cloud_out {
         pb.finish_and_clear();
-        return write_cloud_output(&args, &scene, format, t0);
+        return write_cloud_output(&args, scene, format, t0);
     }
     let mut opts = ConvertOptions {
         profile: match args.profile {

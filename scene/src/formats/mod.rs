@@ -392,7 +392,8 @@ pub fn load_cloud(path: &Path, opts: &ReadOptions) -> Result<(GaussianCloud, Loa
                     scene.time.start
                 ));
             }
-            scene.composite(scene.time.start)
+            let start = scene.time.start;
+            scene.into_composite(start)
         }
         _ => {
             let (cloud, warnings) = read_single(path, &mut info.format, opts)?;
