@@ -29,7 +29,7 @@
 //! checked against what the compressed size can hold (deflate expands at most 1032:1) before
 //! anything is allocated, and the stream is read through `Read::take` with that size.
 
-use std::io::{BufReader, Read, Write};
+use std::io::{BufReader, Read, Seek, SeekFrom, Write};
 use std::path::Path;
 
 use flate2::read::GzDecoder;
@@ -249,7 +249,8 @@ pub fn decode_spz(bytes: &[u8], path: &Path) -> Result<GaussianCloud> {
 /// [`decode_spz`] with an explicit axis convention.
 pub fn decode_spz_with(bytes: &[u8], path: &Path, axes: SpzAxes) -> Result<GaussianCloud> {
     if bytes.starts_with(&MAGIC.to_le_bytes()) {
-        return decode_v4(bytes, path, axes).map(|(c, _)| c);
+        let len = bytes.len() as u64;
+        return decode_v4(std::io::Cursor::new(bytes), len, path, axes).map(|(c, _)| c);
     }
     decode_gzip(bytes, bytes.len() as u64, path, axes).map(|(c, _)| c)
 }
@@ -274,8 +275,7 @@ pub fn read_spz(path: &Path) -> Result<(GaussianCloud, Vec<String>)> {
         .read(&mut magic)
         .map_err(|e| SceneError::io(path, e))?;
     if n == 4 && magic == MAGIC.to_le_bytes() {
-        let bytes = super::read_file_capped(path, len)?;
-        return decode_v4(&bytes, path, SpzAxes::Rub);
+        return decode_v4(file, len, path, SpzAxes::Rub);
     }
     let file = std::fs::File::open(path).map_err(|e| SceneError::io(path, e))?;
     decode_gzip(
@@ -286,15 +286,26 @@ pub fn read_spz(path: &Path) -> Result<(GaussianCloud, Vec<String>)> {
     )
 }
 
-/// Decode a version-4 file (uncompressed header, zstd attribute streams).
-fn decode_v4(bytes: &[u8], path: &Path, axes: SpzAxes) -> Result<(GaussianCloud, Vec<String>)> {
+/// Decode a version-4 file (uncompressed header, zstd attribute streams) of `file_len`
+/// bytes from `src`: the header and table of contents are read, then each stream straight
+/// from its place into the cloud, so the compressed file is never held whole.
+fn decode_v4<R: Read + Seek>(
+    mut src: R,
+    file_len: u64,
+    path: &Path,
+    axes: SpzAxes,
+) -> Result<(GaussianCloud, Vec<String>)> {
     let bad = |what: String| SceneError::format(path, what);
-    if bytes.len() < HEADER_V4 {
+    let io_err = |e: std::io::Error| SceneError::io(path, e);
+    if file_len < HEADER_V4 as u64 {
         return Err(bad(format!(
-            "SPZ file of {} bytes ends inside the {HEADER_V4}-byte version-4 header",
-            bytes.len()
+            "SPZ file of {file_len} bytes ends inside the {HEADER_V4}-byte version-4 header"
         )));
     }
+    let mut bytes = [0u8; HEADER_V4];
+    src.seek(SeekFrom::Start(0))
+        .and_then(|_| src.read_exact(&mut bytes))
+        .map_err(io_err)?;
     let version = u32::from_le_bytes([bytes[4], bytes[5], bytes[6], bytes[7]]);
     if version != 4 {
         return Err(bad(format!(
@@ -321,7 +332,6 @@ fn decode_v4(bytes: &[u8], path: &Path, axes: SpzAxes) -> Result<(GaussianCloud,
             expected.len()
         )));
     }
-    let file_len = bytes.len() as u64;
     let need = h.payload_len();
     if need > file_len.saturating_mul(MAX_ZSTD_RATIO) {
         return Err(bad(format!(
@@ -342,9 +352,14 @@ fn decode_v4(bytes: &[u8], path: &Path, axes: SpzAxes) -> Result<(GaussianCloud,
             toc - HEADER_V4 as u64
         ));
     }
+    // At most 255 entries of 16 bytes.
+    let mut table = vec![0u8; 16 * streams];
+    src.seek(SeekFrom::Start(toc))
+        .and_then(|_| src.read_exact(&mut table))
+        .map_err(io_err)?;
     let u64_at = |o: usize| {
         let mut b = [0u8; 8];
-        b.copy_from_slice(&bytes[o..o + 8]);
+        b.copy_from_slice(&table[o..o + 8]);
         u64::from_le_bytes(b)
     };
     let mut dec = PlaneDecoder::new(&h, axes.flip()).map_err(|_| {
@@ -360,8 +375,7 @@ fn decode_v4(bytes: &[u8], path: &Path, axes: SpzAxes) -> Result<(GaussianCloud,
         if want == 0 {
             continue;
         }
-        let e = (toc + 16 * k as u64) as usize;
-        let (csize, usize_) = (u64_at(e), u64_at(e + 8));
+        let (csize, usize_) = (u64_at(16 * k), u64_at(16 * k + 8));
         if usize_ != want {
             return Err(bad(format!(
                 "SPZ v4 stream {k} declares {usize_} bytes; {} Gaussians need {want}",
@@ -376,8 +390,9 @@ fn decode_v4(bytes: &[u8], path: &Path, axes: SpzAxes) -> Result<(GaussianCloud,
                     "SPZ v4 stream {k} ({csize} bytes at {at}) runs past the end of the {file_len}-byte file (truncated)"
                 ))
             })?;
-        let src = &bytes[at as usize..end as usize];
-        let mut dec_z = ruzstd::decoding::StreamingDecoder::new(src)
+        src.seek(SeekFrom::Start(at)).map_err(io_err)?;
+        let stream = BufReader::with_capacity(1 << 16, (&mut src).take(csize));
+        let mut dec_z = ruzstd::decoding::StreamingDecoder::new(stream)
             .map_err(|e| bad(format!("SPZ v4 stream {k} is not zstd: {e}")))?;
         let before = dec.got;
         let short = |got: u64| {
