@@ -21,6 +21,7 @@
 
 pub mod compressed_ply;
 pub mod gltf_khr;
+mod prefetch;
 pub mod sog;
 pub mod splat;
 pub mod spz;

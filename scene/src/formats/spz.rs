@@ -37,6 +37,7 @@ use flate2::write::GzEncoder;
 use flate2::Compression;
 use glam::{Quat, Vec3};
 
+use super::prefetch::with_prefetch;
 use super::regular_file_len;
 use decode::{PlaneDecoder, PlaneError};
 
@@ -289,7 +290,7 @@ pub fn read_spz(path: &Path) -> Result<(GaussianCloud, Vec<String>)> {
 /// Decode a version-4 file (uncompressed header, zstd attribute streams) of `file_len`
 /// bytes from `src`: the header and table of contents are read, then each stream straight
 /// from its place into the cloud, so the compressed file is never held whole.
-fn decode_v4<R: Read + Seek>(
+fn decode_v4<R: Read + Seek + Send>(
     mut src: R,
     file_len: u64,
     path: &Path,
@@ -392,7 +393,7 @@ fn decode_v4<R: Read + Seek>(
             })?;
         src.seek(SeekFrom::Start(at)).map_err(io_err)?;
         let stream = BufReader::with_capacity(1 << 16, (&mut src).take(csize));
-        let mut dec_z = ruzstd::decoding::StreamingDecoder::new(stream)
+        let dec_z = ruzstd::decoding::StreamingDecoder::new(stream)
             .map_err(|e| bad(format!("SPZ v4 stream {k} is not zstd: {e}")))?;
         let before = dec.got;
         let short = |got: u64| {
@@ -401,24 +402,28 @@ fn decode_v4<R: Read + Seek>(
                 h.count
             ))
         };
-        match dec.read_plane(p, &mut dec_z) {
-            Ok(()) => {}
-            Err(PlaneError::Short) => return Err(short(dec.got - before)),
-            Err(PlaneError::Io(e)) => {
-                return Err(bad(format!("SPZ v4 stream {k} does not decompress: {e}")))
+        // Decompress on one core while the plane is dequantised on the other.
+        with_prefetch(dec_z, |z| -> Result<()> {
+            match dec.read_plane(p, z) {
+                Ok(()) => {}
+                Err(PlaneError::Short) => return Err(short(dec.got - before)),
+                Err(PlaneError::Io(e)) => {
+                    return Err(bad(format!("SPZ v4 stream {k} does not decompress: {e}")))
+                }
             }
-        }
-        // One byte beyond the declared size is enough to tell a lying stream (a bomb).
-        let mut extra = [0u8; 1];
-        let more = (&mut dec_z)
-            .read(&mut extra)
-            .map_err(|e| bad(format!("SPZ v4 stream {k} does not decompress: {e}")))?;
-        if more > 0 {
-            return Err(bad(format!(
-                "SPZ v4 stream {k} decompresses to more than {want} bytes; {} Gaussians need {want}",
-                h.count
-            )));
-        }
+            // One byte beyond the declared size is enough to tell a lying stream (a bomb).
+            let mut extra = [0u8; 1];
+            let more = z
+                .read(&mut extra)
+                .map_err(|e| bad(format!("SPZ v4 stream {k} does not decompress: {e}")))?;
+            if more > 0 {
+                return Err(bad(format!(
+                    "SPZ v4 stream {k} decompresses to more than {want} bytes; {} Gaussians need {want}",
+                    h.count
+                )));
+            }
+            Ok(())
+        })?;
         at = end;
         k += 1;
     }
@@ -434,7 +439,7 @@ fn decode_v4<R: Read + Seek>(
     Ok((dec.finish(), warnings))
 }
 
-fn decode_gzip<R: Read>(
+fn decode_gzip<R: Read + Send>(
     r: R,
     compressed_len: u64,
     path: &Path,
@@ -444,7 +449,8 @@ fn decode_gzip<R: Read>(
     let cap = compressed_len
         .saturating_mul(MAX_DEFLATE_RATIO)
         .saturating_add(64);
-    decode_stream(GzDecoder::new(r), cap, path, axes)
+    // Inflate on one core while the planes are dequantised on the other.
+    with_prefetch(GzDecoder::new(r), |p| decode_stream(p, cap, path, axes))
 }
 
 fn decode_stream<R: Read>(
