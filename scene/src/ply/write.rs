@@ -77,11 +77,16 @@ fn write_f32(w: &mut impl Write, v: f32) -> io::Result<()> {
     }
 }
 
-/// Records per block of the fast path: 4 MiB of output at SH degree 3 (248 bytes a record),
-/// so blocks amortise the write call and the thread hand-off without a large buffer.
-const BLOCK_RECORDS: usize = 16 << 10;
+/// Output bytes per block of the fast path: enough to amortise the write call and the thread
+/// hand-off, small next to a cloud (a 100k-Gaussian SH-0 cloud is 6 MB).
+const BLOCK_BYTES: usize = 256 << 10;
 /// Records per parallel task within a block.
 const TASK_RECORDS: usize = 1 << 10;
+
+/// Records per block for records of `rec` bytes: whole tasks, at least two of them.
+fn block_records(rec: usize) -> usize {
+    (BLOCK_BYTES / rec / TASK_RECORDS).max(2) * TASK_RECORDS
+}
 
 /// Lay Gaussian `i` out as little-endian float32 in file order into `out` (exactly one
 /// record's bytes); the same values in the same order as [`record`].
@@ -119,9 +124,10 @@ fn record_le(cloud: &GaussianCloud, i: usize, out: &mut [u8]) {
 fn write_records_le(w: &mut impl Write, cloud: &GaussianCloud, n_rest: usize) -> io::Result<()> {
     let rec = 4 * (17 + n_rest);
     let n = cloud.len();
-    let mut buf = vec![0u8; BLOCK_RECORDS.min(n) * rec];
-    for start in (0..n).step_by(BLOCK_RECORDS) {
-        let m = BLOCK_RECORDS.min(n - start);
+    let per_block = block_records(rec);
+    let mut buf = vec![0u8; per_block.min(n) * rec];
+    for start in (0..n).step_by(per_block) {
+        let m = per_block.min(n - start);
         let block = &mut buf[..m * rec];
         block
             .par_chunks_mut(TASK_RECORDS * rec)
@@ -190,6 +196,7 @@ fn write_records(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::gaussians::sh_coeffs;
     use glam::{Quat, Vec3};
 
     /// A cloud whose every stored float is distinct (and some are ±inf, NaN, −0.0), so a
@@ -225,7 +232,8 @@ mod tests {
     fn fast_little_endian_path_matches_the_per_record_path() {
         // Counts around the block and task sizes, every SH degree.
         for degree in 0..=3u8 {
-            for n in [0, 1, TASK_RECORDS + 3, BLOCK_RECORDS + TASK_RECORDS + 1] {
+            let per_block = block_records(4 * (17 + 3 * (sh_coeffs(degree) - 1)));
+            for n in [0, 1, TASK_RECORDS + 3, per_block + TASK_RECORDS + 1] {
                 let c = cloud(n, degree);
                 let mut fast = Vec::new();
                 write_cloud(&mut fast, &c, PlyFormat::BinaryLittleEndian).unwrap();
