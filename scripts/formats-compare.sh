@@ -8,7 +8,8 @@
 #   `fourth_st.spz` (files made by other encoders) are compared the same way.
 # Timing (median of N process runs, default 3, cold process each time, same work on both
 # sides): decoding = `FILE → float PLY`; SPZ encoding = `PLY → .spz`. Peak memory of our
-# decoder: `splatbridge bench ply` (VmHWM above the start, relative to the decoded cloud).
+# decoder: `splatbridge bench ply` (VmHWM above the start, relative to the decoded cloud), and
+# the whole `convert` process's maximum RSS from GNU time (binary and libraries included).
 # splat-transform is installed from scripts/package.json into $SPLAT_TRANSFORM_DIR
 # (default ~/.cache/splat-transform), reinstalled when the version there differs.
 # Exit status: 0 when every comparison is within its step and every speed target is met,
@@ -61,6 +62,20 @@ print(f"{ts[len(ts) // 2]:.4f}")
 PY
 }
 
+# our load's peak memory above the process's start over the decoded cloud (`bench ply`)
+peak() {
+  "$sb" bench ply "$1" --repeat 1 --json | python3 -c "import json,sys; v=json.load(sys.stdin); print(f\"{v['peak_over_cloud']:.2f}\")"
+}
+
+# a whole process's maximum resident set (GNU time), e.g. "45.1 MB"
+maxrss() {
+  if [[ -x /usr/bin/time ]]; then
+    /usr/bin/time -f '%M' "$@" 2>&1 >/dev/null | tail -1 | python3 -c "import sys; print(f'{int(sys.stdin.read()) / 1000:.1f} MB')"
+  else
+    echo "n/a"
+  fi
+}
+
 # decode FILE with both tools, compare, time; $1 format name for splat_diff, $2 file
 check() {
   local fmt=$1 file=$2 base
@@ -75,10 +90,11 @@ check() {
   t_sb=$(timeit "$sb" convert "$file" --splats -o "$base.sb.ply")
   t_st=$(timeit "$st" -q -w "$file" "$base.st.ply")
   ratio=$(python3 -c "print(f'{$t_st / $t_sb:.1f}')")
-  local mem
-  mem=$("$sb" bench ply "$file" --repeat 1 --json | python3 -c "import json,sys; v=json.load(sys.stdin); print(f\"{v['peak_over_cloud']:.2f}\")")
-  printf '  decode %-16s splatbridge %7.3f s  splat-transform %7.3f s  %5s×  peak %s× cloud\n' \
-    "$fmt" "$t_sb" "$t_st" "$ratio" "$mem"
+  local mem rss
+  mem=$(peak "$file")
+  rss=$(maxrss "$sb" convert "$file" --splats -o "$base.sb.ply")
+  printf '  decode %-16s splatbridge %7.3f s  splat-transform %7.3f s  %5s×  peak %s× cloud  (max RSS %s)\n' \
+    "$fmt" "$t_sb" "$t_st" "$ratio" "$mem" "$rss"
   python3 -c "import sys; sys.exit(0 if $t_st / $t_sb >= 5 and $mem <= 1.5 else 1)" || { echo "  ^ below target (5× faster, ≤ 1.5× memory)"; fail=1; }
 }
 
@@ -137,5 +153,19 @@ for ply in "${plys[@]}"; do
     "$t_sb" "$t_st" "$(python3 -c "print(f'{$t_st / $t_sb:.1f}')")" \
     "$(stat -c %s "$out/$name.khr-spz.glb")" "$(stat -c %s "$out/$name.st3.spz")"
   python3 -c "import sys; sys.exit(0 if $t_st >= $t_sb else 1)" || { echo "  ^ KHR-SPZ encoding slower than splat-transform's SPZ"; fail=1; }
+  # KHR-SPZ decoding: splat-transform reads no glTF, so it is timed decoding the same SPZ v3
+  # payload as a .spz file (the GLB adds only a small JSON chunk).
+  t_sb=$(timeit "$sb" convert "$out/$name.khr-spz.glb" --splats -o "$out/$name.khr-spz.sb.ply")
+  t_st=$(timeit "$st" -q -w "$out/$name.st3.spz" "$out/$name.st3.st.ply")
+  printf '  decode KHR-SPZ glb      splatbridge %7.3f s  splat-transform .spz %7.3f s  %5s×  peak %s× cloud  (max RSS %s)\n' \
+    "$t_sb" "$t_st" "$(python3 -c "print(f'{$t_st / $t_sb:.1f}')")" "$(peak "$out/$name.khr-spz.glb")" \
+    "$(maxrss "$sb" convert "$out/$name.khr-spz.glb" --splats -o "$out/$name.khr-spz.sb.ply")"
+  python3 -c "import sys; sys.exit(0 if $t_st / $t_sb >= 5 else 1)" || { echo "  ^ KHR-SPZ decoding below 5× splat-transform's SPZ"; fail=1; }
+  if [[ -f $out/$name.st.glb ]]; then
+    mem=$(peak "$out/$name.st.glb")
+    printf '  load float KHR glb      peak %s× cloud  (max RSS %s converting to PLY)\n' "$mem" \
+      "$(maxrss "$sb" convert "$out/$name.st.glb" --splats -o "$out/$name.st.glb.sb.ply")"
+    python3 -c "import sys; sys.exit(0 if $mem <= 1.5 else 1)" || { echo "  ^ float GLB above 1.5× memory"; fail=1; }
+  fi
 done
 exit $fail

@@ -429,6 +429,18 @@ impl DynamicScene {
         out
     }
 
+    /// [`DynamicScene::composite`] consuming the scene: a scene without objects hands over its
+    /// static cloud instead of copying it (the same values and ids), so loading a file and
+    /// writing it elsewhere holds one cloud, not two.
+    pub fn into_composite(self, t: f64) -> GaussianCloud {
+        if !self.objects.is_empty() {
+            return self.composite(t);
+        }
+        let mut out = self.static_gaussians;
+        out.object_ids = Some(vec![0; out.len()]);
+        out
+    }
+
     /// [`DynamicScene::composite`] into an existing cloud, reusing its allocations (per-frame
     /// loops over large scenes avoid re-faulting hundreds of megabytes each frame).
     pub fn composite_into(&self, t: f64, out: &mut GaussianCloud) {

@@ -424,3 +424,17 @@ fn composite_into_reuses_a_cloud_and_matches_composite() {
         assert_eq!(out, scene.composite(t));
     }
 }
+
+#[test]
+fn into_composite_equals_composite() {
+    // With objects: the copying path. Without: the static cloud handed over, which must be
+    // the same cloud (values, degree and object ids) as the copy.
+    let scene = one_object_scene();
+    assert_eq!(scene.clone().into_composite(0.7), scene.composite(0.7));
+    let mut stat = scene.static_gaussians.clone();
+    stat.object_ids = Some(vec![5]);
+    let only = DynamicScene::from_static(stat);
+    let want = only.composite(0.0);
+    assert_eq!(want.object_ids, Some(vec![0]));
+    assert_eq!(only.into_composite(0.0), want);
+}

@@ -199,7 +199,7 @@ impl From<FormatArg> for OutputFormat {
 /// Write a single-cloud splat file and print what was written.
 fn write_cloud_output(
     args: &Args,
-    scene: &DynamicScene,
+    scene: DynamicScene,
     format: CloudFormat,
     t0: Instant,
 ) -> anyhow::Result<()> {
@@ -217,6 +217,7 @@ fn write_cloud_output(
             );
         }
     }
+    let objects = scene.objects.len();
     let c = write_cloud_export(scene, &args.output, format, args.time, args.first)?;
     let seconds = t0.elapsed().as_secs_f64();
     if args.json {
@@ -239,7 +240,7 @@ fn write_cloud_output(
             c.format,
             c.gaussians,
             c.sh_degree,
-            if scene.objects.is_empty() {
+            if objects == 0 {
                 String::new()
             } else {
                 format!(", composited at t = {}", c.time)
@@ -283,7 +284,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     if let Some(format) = cloud_out {
         pb.finish_and_clear();
-        return write_cloud_output(&args, &scene, format, t0);
+        return write_cloud_output(&args, scene, format, t0);
     }
     let mut opts = ConvertOptions {
         profile: match args.profile {

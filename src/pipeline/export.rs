@@ -121,7 +121,7 @@ pub struct CloudExport {
 /// Write a single-cloud splat file: the scene composited at `time` (default: its start),
 /// cut to the first `first` Gaussians when asked.
 pub fn write_cloud_export(
-    scene: &DynamicScene,
+    scene: DynamicScene,
     output: &Path,
     format: CloudFormat,
     time: Option<f64>,
@@ -131,7 +131,8 @@ pub fn write_cloud_export(
     if !t.is_finite() {
         bail!("--time {t} is not a finite time");
     }
-    let mut cloud = scene.composite(t);
+    // Consumed, so a scene without objects is written from its own cloud, not a copy.
+    let mut cloud = scene.into_composite(t);
     if let Some(n) = first {
         cloud.retain_indices(|i| i < n);
     }

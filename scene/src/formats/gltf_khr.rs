@@ -275,7 +275,7 @@ fn primitive_cloud(path: &Path, doc: &Document, prim: &Value) -> Result<Gaussian
     let attrs = &prim["attributes"];
     if let Some(view) = spz_view(prim) {
         let bytes = doc.view_bytes(path, view)?;
-        let cloud = spz::decode_khr_spz(bytes, path)?;
+        let cloud = spz::decode_khr_spz(&bytes, path)?;
         // The extension requires every accessor's count to match the stream's.
         for (name, a) in attrs.as_object().into_iter().flatten() {
             if let Some(a) = a.as_u64() {
@@ -290,19 +290,19 @@ fn primitive_cloud(path: &Path, doc: &Document, prim: &Value) -> Result<Gaussian
         }
         return Ok(cloud);
     }
-    let get = |name: &str, comps: usize| -> Result<Option<Vec<f32>>> {
+    let acc = |name: &str, comps: usize| -> Result<Option<document::Accessor>> {
         attrs[name]
             .as_u64()
-            .map(|a| doc.read_accessor(path, a, comps))
+            .map(|a| doc.accessor(path, a, comps))
             .transpose()
     };
-    let need = |name: &str, comps: usize| -> Result<Vec<f32>> {
-        get(name, comps)?.ok_or_else(|| bad(format!("splat primitive lacks {name}")))
+    let need = |name: &str, comps: usize| -> Result<document::Accessor> {
+        acc(name, comps)?.ok_or_else(|| bad(format!("splat primitive lacks {name}")))
     };
-    // One attribute at a time straight into the cloud, so the peak is the cloud plus one
-    // attribute's floats (not every attribute's).
+    // Every attribute is read element by element from the file straight into the cloud's
+    // arrays, so the peak is the cloud plus one block of the file.
     let pos = need("POSITION", 3)?;
-    let n = pos.len() / 3;
+    let n = pos.count as usize;
     let mut degree = 0u8;
     while degree < 3 && attrs[format!("{EXT}:SH_DEGREE_{}_COEF_0", degree + 1)].is_u64() {
         degree += 1;
@@ -312,47 +312,50 @@ fn primitive_cloud(path: &Path, doc: &Document, prim: &Value) -> Result<Gaussian
             "splat attributes have different counts ({name} vs POSITION's {n})"
         ))
     };
-    let mut part = GaussianCloud::new(degree);
-    part.means = pos.chunks_exact(3).map(Vec3::from_slice).collect();
-    drop(pos);
-    let name = format!("{EXT}:ROTATION");
-    let rot = need(&name, 4)?;
-    if rot.len() != 4 * n {
-        return Err(mismatch(&name));
-    }
-    part.rotations = rot.chunks_exact(4).map(Quat::from_slice).collect();
-    drop(rot);
-    let name = format!("{EXT}:SCALE");
-    let scale = need(&name, 3)?;
-    if scale.len() != 3 * n {
-        return Err(mismatch(&name));
-    }
-    part.log_scales = scale
-        .chunks_exact(3)
-        .map(|c| Vec3::new(c[0].ln(), c[1].ln(), c[2].ln()))
-        .collect();
-    drop(scale);
-    let opac = match get(&format!("{EXT}:OPACITY"), 1)? {
-        Some(o) => o,
-        None => need("COLOR_0", 4)?.chunks(4).map(|c| c[3]).collect(),
+    let checked = |name: &str, a: document::Accessor| {
+        if a.count == n as u64 {
+            Ok(a)
+        } else {
+            Err(mismatch(name))
+        }
     };
-    if opac.len() != n {
-        return Err(mismatch("OPACITY"));
+    let mut part = GaussianCloud::new(degree);
+    part.means.reserve_exact(n);
+    doc.for_each(&pos, |v| part.means.push(Vec3::from_slice(v)))?;
+    let name = format!("{EXT}:ROTATION");
+    let rot = checked(&name, need(&name, 4)?)?;
+    part.rotations.reserve_exact(n);
+    doc.for_each(&rot, |v| part.rotations.push(Quat::from_slice(v)))?;
+    let name = format!("{EXT}:SCALE");
+    let scale = checked(&name, need(&name, 3)?)?;
+    part.log_scales.reserve_exact(n);
+    doc.for_each(&scale, |c| {
+        part.log_scales
+            .push(Vec3::new(c[0].ln(), c[1].ln(), c[2].ln()))
+    })?;
+    part.opacity_logits.reserve_exact(n);
+    match acc(&format!("{EXT}:OPACITY"), 1)? {
+        Some(o) => {
+            let o = checked("OPACITY", o)?;
+            doc.for_each(&o, |v| part.opacity_logits.push(logit(v[0])))?;
+        }
+        None => {
+            let c = checked("OPACITY", need("COLOR_0", 4)?)?;
+            doc.for_each(&c, |v| part.opacity_logits.push(logit(v[3])))?;
+        }
     }
-    part.opacity_logits = opac.into_iter().map(logit).collect();
     let k = sh_coeffs(degree);
     part.sh = vec![Vec3::ZERO; n * k];
     let mut j = 0;
     for l in 0..=degree as usize {
         for c in 0..2 * l + 1 {
             let name = format!("{EXT}:SH_DEGREE_{l}_COEF_{c}");
-            let col = need(&name, 3)?;
-            if col.len() != 3 * n {
-                return Err(mismatch(&name));
-            }
-            for (i, v) in col.chunks_exact(3).enumerate() {
+            let col = checked(&name, need(&name, 3)?)?;
+            let mut i = 0;
+            doc.for_each(&col, |v| {
                 part.sh[i * k + j] = Vec3::from_slice(v);
-            }
+                i += 1;
+            })?;
             j += 1;
         }
     }

@@ -21,6 +21,7 @@
 
 pub mod compressed_ply;
 pub mod gltf_khr;
+mod prefetch;
 pub mod sog;
 pub mod splat;
 pub mod spz;
@@ -396,15 +397,14 @@ pub fn load_cloud(path: &Path, opts: &ReadOptions) -> Result<(GaussianCloud, Loa
         }
         SplatFormat::Gltf { .. } => {
             let scene = read_gltf(path)?;
-            let mut cloud = scene.composite(scene.time.start);
+            let (start, objects) = (scene.time.start, scene.objects.len());
+            let mut cloud = scene.into_composite(start);
             let mut report = crate::ply::ReadReport::default();
             crate::ply::validate(&mut cloud, true, path, opts, &mut report)?;
             info.warnings.append(&mut report.warnings);
-            if !scene.objects.is_empty() {
+            if objects > 0 {
                 info.warnings.push(format!(
-                    "{} objects composited at t = {} into one cloud",
-                    scene.objects.len(),
-                    scene.time.start
+                    "{objects} objects composited at t = {start} into one cloud"
                 ));
             }
             cloud

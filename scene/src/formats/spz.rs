@@ -29,7 +29,7 @@
 //! checked against what the compressed size can hold (deflate expands at most 1032:1) before
 //! anything is allocated, and the stream is read through `Read::take` with that size.
 
-use std::io::{BufReader, Read, Write};
+use std::io::{BufReader, Read, Seek, SeekFrom, Write};
 use std::path::Path;
 
 use flate2::read::GzDecoder;
@@ -37,9 +37,16 @@ use flate2::write::GzEncoder;
 use flate2::Compression;
 use glam::{Quat, Vec3};
 
+use super::prefetch::with_prefetch;
 use super::regular_file_len;
+use decode::{PlaneDecoder, PlaneError};
+
+mod decode;
+
+/// Said when a degree-4 file is read (the cloud keeps degrees 0–3).
+const SH4_WARNING: &str = "SH degree 4 cut to degree 3 (the highest this tool renders)";
 use crate::error::{Result, SceneError};
-use crate::gaussians::{logit, sh_coeffs, sigmoid};
+use crate::gaussians::{sh_coeffs, sigmoid};
 use crate::GaussianCloud;
 
 /// "NGSP", little endian.
@@ -243,7 +250,8 @@ pub fn decode_spz(bytes: &[u8], path: &Path) -> Result<GaussianCloud> {
 /// [`decode_spz`] with an explicit axis convention.
 pub fn decode_spz_with(bytes: &[u8], path: &Path, axes: SpzAxes) -> Result<GaussianCloud> {
     if bytes.starts_with(&MAGIC.to_le_bytes()) {
-        return decode_v4(bytes, path, axes).map(|(c, _)| c);
+        let len = bytes.len() as u64;
+        return decode_v4(std::io::Cursor::new(bytes), len, path, axes).map(|(c, _)| c);
     }
     decode_gzip(bytes, bytes.len() as u64, path, axes).map(|(c, _)| c)
 }
@@ -268,8 +276,7 @@ pub fn read_spz(path: &Path) -> Result<(GaussianCloud, Vec<String>)> {
         .read(&mut magic)
         .map_err(|e| SceneError::io(path, e))?;
     if n == 4 && magic == MAGIC.to_le_bytes() {
-        let bytes = super::read_file_capped(path, len)?;
-        return decode_v4(&bytes, path, SpzAxes::Rub);
+        return decode_v4(file, len, path, SpzAxes::Rub);
     }
     let file = std::fs::File::open(path).map_err(|e| SceneError::io(path, e))?;
     decode_gzip(
@@ -280,15 +287,26 @@ pub fn read_spz(path: &Path) -> Result<(GaussianCloud, Vec<String>)> {
     )
 }
 
-/// Decode a version-4 file (uncompressed header, zstd attribute streams).
-fn decode_v4(bytes: &[u8], path: &Path, axes: SpzAxes) -> Result<(GaussianCloud, Vec<String>)> {
+/// Decode a version-4 file (uncompressed header, zstd attribute streams) of `file_len`
+/// bytes from `src`: the header and table of contents are read, then each stream straight
+/// from its place into the cloud, so the compressed file is never held whole.
+fn decode_v4<R: Read + Seek + Send>(
+    mut src: R,
+    file_len: u64,
+    path: &Path,
+    axes: SpzAxes,
+) -> Result<(GaussianCloud, Vec<String>)> {
     let bad = |what: String| SceneError::format(path, what);
-    if bytes.len() < HEADER_V4 {
+    let io_err = |e: std::io::Error| SceneError::io(path, e);
+    if file_len < HEADER_V4 as u64 {
         return Err(bad(format!(
-            "SPZ file of {} bytes ends inside the {HEADER_V4}-byte version-4 header",
-            bytes.len()
+            "SPZ file of {file_len} bytes ends inside the {HEADER_V4}-byte version-4 header"
         )));
     }
+    let mut bytes = [0u8; HEADER_V4];
+    src.seek(SeekFrom::Start(0))
+        .and_then(|_| src.read_exact(&mut bytes))
+        .map_err(io_err)?;
     let version = u32::from_le_bytes([bytes[4], bytes[5], bytes[6], bytes[7]]);
     if version != 4 {
         return Err(bad(format!(
@@ -315,7 +333,6 @@ fn decode_v4(bytes: &[u8], path: &Path, axes: SpzAxes) -> Result<(GaussianCloud,
             expected.len()
         )));
     }
-    let file_len = bytes.len() as u64;
     let need = h.payload_len();
     if need > file_len.saturating_mul(MAX_ZSTD_RATIO) {
         return Err(bad(format!(
@@ -336,22 +353,30 @@ fn decode_v4(bytes: &[u8], path: &Path, axes: SpzAxes) -> Result<(GaussianCloud,
             toc - HEADER_V4 as u64
         ));
     }
+    // At most 255 entries of 16 bytes.
+    let mut table = vec![0u8; 16 * streams];
+    src.seek(SeekFrom::Start(toc))
+        .and_then(|_| src.read_exact(&mut table))
+        .map_err(io_err)?;
     let u64_at = |o: usize| {
         let mut b = [0u8; 8];
-        b.copy_from_slice(&bytes[o..o + 8]);
+        b.copy_from_slice(&table[o..o + 8]);
         u64::from_le_bytes(b)
     };
-    let mut payload = Vec::new();
-    payload.try_reserve_exact(need as usize + 1).map_err(|_| {
+    let mut dec = PlaneDecoder::new(&h, axes.flip()).map_err(|_| {
         bad(format!(
-            "cannot allocate {need} bytes for {} Gaussians",
+            "cannot allocate the arrays of {} Gaussians",
             h.count
         ))
     })?;
     let mut at = toc_end;
-    for (k, &want) in expected.iter().enumerate() {
-        let e = (toc + 16 * k as u64) as usize;
-        let (csize, usize_) = (u64_at(e), u64_at(e + 8));
+    let mut k = 0;
+    for p in 0..decode::PLANES {
+        let want = dec.stride(p) as u64 * n;
+        if want == 0 {
+            continue;
+        }
+        let (csize, usize_) = (u64_at(16 * k), u64_at(16 * k + 8));
         if usize_ != want {
             return Err(bad(format!(
                 "SPZ v4 stream {k} declares {usize_} bytes; {} Gaussians need {want}",
@@ -366,24 +391,41 @@ fn decode_v4(bytes: &[u8], path: &Path, axes: SpzAxes) -> Result<(GaussianCloud,
                     "SPZ v4 stream {k} ({csize} bytes at {at}) runs past the end of the {file_len}-byte file (truncated)"
                 ))
             })?;
-        let src = &bytes[at as usize..end as usize];
-        let before = payload.len();
-        let mut dec = ruzstd::decoding::StreamingDecoder::new(src)
+        src.seek(SeekFrom::Start(at)).map_err(io_err)?;
+        let stream = BufReader::with_capacity(1 << 16, (&mut src).take(csize));
+        let dec_z = ruzstd::decoding::StreamingDecoder::new(stream)
             .map_err(|e| bad(format!("SPZ v4 stream {k} is not zstd: {e}")))?;
-        // One byte beyond the declared size is enough to tell a lying stream (a bomb).
-        (&mut dec)
-            .take(want + 1)
-            .read_to_end(&mut payload)
-            .map_err(|e| bad(format!("SPZ v4 stream {k} does not decompress: {e}")))?;
-        let got = (payload.len() - before) as u64;
-        if got != want {
-            return Err(bad(format!(
-                "SPZ v4 stream {k} decompresses to {}{got} bytes; {} Gaussians need {want}",
-                if got > want { "more than " } else { "" },
+        let before = dec.got;
+        let short = |got: u64| {
+            bad(format!(
+                "SPZ v4 stream {k} decompresses to {got} bytes; {} Gaussians need {want}",
                 h.count
-            )));
-        }
+            ))
+        };
+        // Decompress on one core while the plane is dequantised on the other.
+        with_prefetch(dec_z, |z| -> Result<()> {
+            match dec.read_plane(p, z) {
+                Ok(()) => {}
+                Err(PlaneError::Short) => return Err(short(dec.got - before)),
+                Err(PlaneError::Io(e)) => {
+                    return Err(bad(format!("SPZ v4 stream {k} does not decompress: {e}")))
+                }
+            }
+            // One byte beyond the declared size is enough to tell a lying stream (a bomb).
+            let mut extra = [0u8; 1];
+            let more = z
+                .read(&mut extra)
+                .map_err(|e| bad(format!("SPZ v4 stream {k} does not decompress: {e}")))?;
+            if more > 0 {
+                return Err(bad(format!(
+                    "SPZ v4 stream {k} decompresses to more than {want} bytes; {} Gaussians need {want}",
+                    h.count
+                )));
+            }
+            Ok(())
+        })?;
         at = end;
+        k += 1;
     }
     if at != file_len {
         return Err(bad(format!(
@@ -391,11 +433,13 @@ fn decode_v4(bytes: &[u8], path: &Path, axes: SpzAxes) -> Result<(GaussianCloud,
             file_len - at
         )));
     }
-    let cloud = unpack(&h, &payload, axes.flip(), &mut warnings);
-    Ok((cloud, warnings))
+    if h.sh_degree > 3 {
+        warnings.push(SH4_WARNING.into());
+    }
+    Ok((dec.finish(), warnings))
 }
 
-fn decode_gzip<R: Read>(
+fn decode_gzip<R: Read + Send>(
     r: R,
     compressed_len: u64,
     path: &Path,
@@ -405,7 +449,8 @@ fn decode_gzip<R: Read>(
     let cap = compressed_len
         .saturating_mul(MAX_DEFLATE_RATIO)
         .saturating_add(64);
-    decode_stream(GzDecoder::new(r), cap, path, axes)
+    // Inflate on one core while the planes are dequantised on the other.
+    with_prefetch(GzDecoder::new(r), |p| decode_stream(p, cap, path, axes))
 }
 
 fn decode_stream<R: Read>(
@@ -437,25 +482,31 @@ fn decode_stream<R: Read>(
             ),
         ));
     }
-    let mut payload = Vec::new();
-    payload.try_reserve_exact(need as usize).map_err(|_| {
+    let mut dec = PlaneDecoder::new(&h, axes.flip()).map_err(|_| {
         SceneError::format(
             path,
-            format!("cannot allocate {need} bytes for {} Gaussians", h.count),
+            format!("cannot allocate the arrays of {} Gaussians", h.count),
         )
     })?;
-    let got = (&mut r)
-        .take(need)
-        .read_to_end(&mut payload)
-        .map_err(|e| SceneError::format(path, format!("SPZ stream does not decompress: {e}")))?;
-    if (got as u64) < need {
-        return Err(SceneError::format(
-            path,
-            format!(
-                "SPZ header declares {} Gaussians ({need} bytes of data) but the stream holds only {got} (truncated, or the count is wrong)",
-                h.count
-            ),
-        ));
+    for p in 0..decode::PLANES {
+        match dec.read_plane(p, &mut r) {
+            Ok(()) => {}
+            Err(PlaneError::Short) => {
+                return Err(SceneError::format(
+                    path,
+                    format!(
+                        "SPZ header declares {} Gaussians ({need} bytes of data) but the stream holds only {} (truncated, or the count is wrong)",
+                        h.count, dec.got
+                    ),
+                ))
+            }
+            Err(PlaneError::Io(e)) => {
+                return Err(SceneError::format(
+                    path,
+                    format!("SPZ stream does not decompress: {e}"),
+                ))
+            }
+        }
     }
     // What follows the data: nothing, or extension records when flag 2 says so. Reading on
     // also makes the gzip layer check its CRC and length.
@@ -487,8 +538,10 @@ fn decode_stream<R: Read>(
             rest.len()
         ));
     }
-    let cloud = unpack(&h, &payload, axes.flip(), &mut warnings);
-    Ok((cloud, warnings))
+    if h.sh_degree > 3 {
+        warnings.push(SH4_WARNING.into());
+    }
+    Ok((dec.finish(), warnings))
 }
 
 /// float16 → f32 (SPZ v1 positions).
@@ -502,78 +555,6 @@ fn half_to_f32(h: u16) -> f32 {
         31 => f32::NAN,
         e => sign * (1.0 + man / 1024.0) * (2.0f32).powi(e - 15),
     }
-}
-
-/// Unpack the attribute planes (sizes already checked) into a cloud in the PLY's RDF frame.
-fn unpack(h: &SpzHeader, p: &[u8], flip: bool, warnings: &mut Vec<String>) -> GaussianCloud {
-    let f = if flip { -1.0 } else { 1.0 };
-    let sh_flip = |j: usize| if flip { SH_FLIP[j] } else { 1.0 };
-    let n = h.count as usize;
-    let pos_len = n * h.position_bytes() as usize;
-    let (positions, p) = p.split_at(pos_len);
-    let (alphas, p) = p.split_at(n);
-    let (colors, p) = p.split_at(3 * n);
-    let (scales, p) = p.split_at(3 * n);
-    let (rotations, sh) = p.split_at(n * h.rotation_bytes() as usize);
-    let file_rest = sh_coeffs(h.sh_degree) - 1;
-    let degree = h.sh_degree.min(3);
-    if h.sh_degree > 3 {
-        warnings.push("SH degree 4 cut to degree 3 (the highest this tool renders)".into());
-    }
-    let k = sh_coeffs(degree);
-    let mut cloud = GaussianCloud::with_capacity(degree, n);
-    let unit = 1.0 / (1u32 << h.fractional_bits) as f32;
-    for i in 0..n {
-        let pos = if h.version == 1 {
-            let c = |j: usize| {
-                let o = i * 6 + 2 * j;
-                half_to_f32(u16::from_le_bytes([positions[o], positions[o + 1]]))
-            };
-            Vec3::new(c(0), c(1), c(2))
-        } else {
-            let c = |j: usize| {
-                let o = i * 9 + 3 * j;
-                let v = i32::from_le_bytes([positions[o], positions[o + 1], positions[o + 2], 0]);
-                // Sign-extend the 24-bit value.
-                ((v << 8) >> 8) as f32 * unit
-            };
-            Vec3::new(c(0), c(1), c(2))
-        };
-        cloud.means.push(Vec3::new(pos.x, f * pos.y, f * pos.z));
-        let s = |j: usize| scales[3 * i + j] as f32 / 16.0 - 10.0;
-        cloud.log_scales.push(Vec3::new(s(0), s(1), s(2)));
-        let q = if h.version >= 3 {
-            let o = 4 * i;
-            unpack_smallest_three(u32::from_le_bytes([
-                rotations[o],
-                rotations[o + 1],
-                rotations[o + 2],
-                rotations[o + 3],
-            ]))
-        } else {
-            let c = |j: usize| rotations[3 * i + j] as f32 / 127.5 - 1.0;
-            let xyz = Vec3::new(c(0), c(1), c(2));
-            [
-                xyz.x,
-                xyz.y,
-                xyz.z,
-                (1.0 - xyz.length_squared()).max(0.0).sqrt(),
-            ]
-        };
-        // RUB → RDF: conjugating by a half turn about x negates the quaternion's y and z.
-        cloud
-            .rotations
-            .push(Quat::from_xyzw(q[0], f * q[1], f * q[2], q[3]));
-        cloud.opacity_logits.push(logit(alphas[i] as f32 / 255.0));
-        let c = |j: usize| (colors[3 * i + j] as f32 / 255.0 - 0.5) / COLOR_SCALE;
-        cloud.sh.push(Vec3::new(c(0), c(1), c(2)));
-        let base = i * file_rest * 3;
-        for j in 0..k - 1 {
-            let v = |ch: usize| (sh[base + 3 * j + ch] as f32 - 128.0) / 128.0;
-            cloud.sh.push(Vec3::new(v(0), v(1), v(2)) * sh_flip(j));
-        }
-    }
-    cloud
 }
 
 /// Turn a cloud half a turn about x (y and z negated: positions, the quaternions' y and z
