@@ -5,6 +5,8 @@
 //
 // - `cfg(real_data)`: the shared real scenes exist (`shared/data/real` next to the workspace).
 // - `cfg(gltf_tools)`: the glTF validator wrapper exists (`shared/tools/gltf-validate.sh`).
+// - `cfg(blender_render)`: `blender` and `xvfb-run` are on PATH, so `scripts/blender-render.sh`
+//   can render with both engines (EEVEE needs the virtual display).
 //
 // When a folder is present it is watched, so removing it re-runs the script; a folder that
 // appears later is picked up on the next change to the script (or `cargo clean -p CRATE`).
@@ -15,6 +17,7 @@
 fn emit_shared_cfgs(workspace: &str) {
     println!("cargo::rustc-check-cfg=cfg(real_data)");
     println!("cargo::rustc-check-cfg=cfg(gltf_tools)");
+    println!("cargo::rustc-check-cfg=cfg(blender_render)");
     println!("cargo::rerun-if-changed=build.rs");
     let workspace = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(workspace);
     println!(
@@ -32,4 +35,27 @@ fn emit_shared_cfgs(workspace: &str) {
         println!("cargo::rustc-cfg=gltf_tools");
         println!("cargo::rerun-if-changed={}", tools.display());
     }
+    println!("cargo::rerun-if-env-changed=PATH");
+    if on_path("blender") && on_path("xvfb-run") {
+        println!("cargo::rustc-cfg=blender_render");
+    }
+}
+
+/// Whether an executable file `name` is in one of PATH's folders.
+#[allow(dead_code)]
+fn on_path(name: &str) -> bool {
+    std::env::var_os("PATH").is_some_and(|paths| {
+        std::env::split_paths(&paths).any(|dir| {
+            let p = dir.join(name);
+            #[cfg(unix)]
+            {
+                use std::os::unix::fs::PermissionsExt;
+                std::fs::metadata(&p).is_ok_and(|m| m.is_file() && m.permissions().mode() & 0o111 != 0)
+            }
+            #[cfg(not(unix))]
+            {
+                p.is_file()
+            }
+        })
+    })
 }
