@@ -3,7 +3,7 @@
 Usage (Blender 3.4 or newer; EEVEE needs a display, e.g. `xvfb-run`):
   blender --factory-startup --python scripts/blender-splat-setup.py -- FILE.glb
           [--render OUT.png] [--engine eevee|cycles] [--camera N] [--size WxH] [--samples N]
-          [--time SECONDS] [--save OUT.blend]
+          [--time SECONDS] [--eevee-order sorted|hashed] [--save OUT.blend]
 Without --render the scene is left open (or saved with --save) ready to look at: the same
 settings apply to the viewport's rendered mode and to F12.
 
@@ -58,7 +58,7 @@ FILTER_WIDTH = 0.01
 def parse_args(argv):
     argv = argv[argv.index("--") + 1:] if "--" in argv else []
     opts = {"file": None, "render": None, "engine": "eevee", "camera": "0", "size": None,
-            "samples": str(DEFAULT_SAMPLES), "time": "0", "save": None}
+            "samples": str(DEFAULT_SAMPLES), "time": "0", "eevee-order": "sorted", "save": None}
     it = iter(argv)
     for a in it:
         if a.startswith("--"):
@@ -176,6 +176,48 @@ def setup_material(m, encode):
 def srgb(x):
     x = max(x, 0.0)
     return 12.92 * x if x < 0.0031308 else 1.055 * x ** (1 / 2.4) - 0.055
+
+
+def sort_back_to_front(scene, cam_ob):
+    """EEVEE render from one camera: join every mesh object into one (at the current frame,
+    animation removed) and order its faces back to front along the camera's view axis, with
+    materials in BLEND mode drawn without a depth pre-pass ("show backface"): the GPU blends a
+    draw call's triangles in index order, so this is the painter's algorithm per triangle.
+    HASHED transparency is view-independent but biased on stacked, nearly coplanar splats:
+    its noise is a hash of the position, so layers at one spot share a threshold and the
+    nearest-surviving test under-counts coverage (measured 2.8 dB darker on the street)."""
+    import bmesh
+    from mathutils import Vector
+
+    meshes = [o for o in scene.objects if o.type == "MESH"]
+    if not meshes:
+        return 0
+    bpy.ops.object.select_all(action="DESELECT")
+    for o in meshes:
+        # Freeze the pose of this frame: the joined object must not move.
+        mw = o.matrix_world.copy()
+        o.animation_data_clear()
+        o.parent = None
+        o.matrix_world = mw
+        o.select_set(True)
+    bpy.context.view_layer.objects.active = meshes[0]
+    if len(meshes) > 1:
+        bpy.ops.object.join()
+    ob = bpy.context.view_layer.objects.active
+    mw = ob.matrix_world
+    forward = cam_ob.matrix_world.to_quaternion() @ Vector((0.0, 0.0, -1.0))
+    eye = cam_ob.matrix_world.translation
+    bm = bmesh.new()
+    bm.from_mesh(ob.data)
+    bm.faces.sort(key=lambda f: -(mw @ f.calc_center_median() - eye).dot(forward))
+    bm.faces.index_update()
+    bm.to_mesh(ob.data)
+    bm.free()
+    for m in ob.data.materials:
+        if m is not None and m.blend_method != "OPAQUE":
+            m.blend_method = "BLEND"
+            m.show_transparent_back = True
+    return len(ob.data.polygons)
 
 
 def setup_colour_management(scene):
@@ -348,6 +390,9 @@ def main():
     frame = time * scene.render.fps / scene.render.fps_base
     scene.frame_set(math.floor(frame), subframe=frame - math.floor(frame))
     report["frame"] = frame
+    if o["render"] and o["engine"] == "eevee" and o["eevee-order"] == "sorted":
+        report["eevee_order"] = "sorted"
+        report["sorted_faces"] = sort_back_to_front(scene, scene.camera)
     if o["render"]:
         scene.render.image_settings.file_format = "PNG"
         scene.render.image_settings.color_mode = "RGB"
