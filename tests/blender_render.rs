@@ -67,6 +67,9 @@ fn eevee_and_cycles_render_the_street_export_close_to_our_tracer() {
         let db = psnr(&native, &img).unwrap();
         println!("{engine}: {db:.2} dB against native; our tracer {trace_db:.2} dB");
         // FLOOR
-        assert!(db >= trace_db - 2.0, "{engine} {db:.2} dB vs tracer {trace_db:.2} dB");
+        assert!(
+            db >= trace_db - 2.0,
+            "{engine} {db:.2} dB vs tracer {trace_db:.2} dB"
+        );
     }
 }

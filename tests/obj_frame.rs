@@ -12,9 +12,7 @@ use splatbridge_convert::{convert_to_file, ConvertOptions, Profile, UpAxis};
 use splatbridge_raytrace::model::TriScene;
 use splatbridge_raytrace::obj_frame::up_rotation;
 use splatbridge_raytrace::scene_load::load_path;
-use splatbridge_raytrace::{
-    BackendKind, BuildPreset, MeshTracer, RenderOptions as TraceOptions,
-};
+use splatbridge_raytrace::{BackendKind, BuildPreset, MeshTracer, RenderOptions as TraceOptions};
 use splatbridge_scene::camera_spec::{CameraRequest, CameraSource, CameraSpec};
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::fixtures::{street_with, StreetParams};
@@ -47,7 +45,11 @@ fn the_obj_reader_knows_the_converters_root_rotations() {
         let want = up.root_rotation().as_dquat();
         let got = up_rotation(up.name()).unwrap();
         // f32 (converter) against f64 (reader) of the same angle: 1e-7 is f32 rounding.
-        assert!(got.abs_diff_eq(want, 1e-7), "{}: {got} vs {want}", up.name());
+        assert!(
+            got.abs_diff_eq(want, 1e-7),
+            "{}: {got} vs {want}",
+            up.name()
+        );
     }
 }
 
@@ -121,7 +123,10 @@ fn the_traced_obj_has_the_glb_silhouette_through_the_scene_camera() {
     let glb = trace(glb, &cam, t);
     let obj = trace(obj, &cam, t);
     let covered = glb.alpha.iter().filter(|&&a| a > 0.0).count();
-    assert!(covered > glb.alpha.len() / 4, "the camera sees too little: {covered} pixels");
+    assert!(
+        covered > glb.alpha.len() / 4,
+        "the camera sees too little: {covered} pixels"
+    );
     let iou = silhouette_iou(&glb, &obj);
     let before = silhouette_iou(&glb, &mirrored);
     println!("silhouette IoU against the GLB: OBJ {iou:.4}, OBJ in the written frame {before:.4}");
@@ -130,5 +135,8 @@ fn the_traced_obj_has_the_glb_silhouette_through_the_scene_camera() {
     // being 0 at a fan's rim (a hit of alpha 0 leaves the pixel uncovered). 0.98 leaves room
     // for those rim pixels; the frame mismatch this guards against measured far below.
     assert!(iou >= 0.98, "OBJ silhouette IoU {iou}");
-    assert!(before < 0.9, "the mirrored OBJ should not match: IoU {before}");
+    assert!(
+        before < 0.9,
+        "the mirrored OBJ should not match: IoU {before}"
+    );
 }

@@ -70,7 +70,10 @@ mod tests {
         let q = written_root(obj).unwrap();
         assert!(q.abs_diff_eq(DQuat::from_rotation_x(-std::f64::consts::FRAC_PI_2), 0.0));
         let neg_y = b"#{\"generator\":\"splatbridge 9\",\"options\":{\"up\":\"-y\"}}\r\nv 1 2 3\n";
-        assert_eq!(written_root(neg_y), Some(DQuat::from_xyzw(1.0, 0.0, 0.0, 0.0)));
+        assert_eq!(
+            written_root(neg_y),
+            Some(DQuat::from_xyzw(1.0, 0.0, 0.0, 0.0))
+        );
     }
 
     #[test]

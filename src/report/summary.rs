@@ -96,7 +96,9 @@ fn fmt_db(p: Option<f64>) -> String {
 /// relative to the report (`None` leaves the image out).
 pub fn markdown_summary(records: &[Record], colour_bar: Option<&str>) -> String {
     let rows = summarize(records);
-    let mut s = String::from("## Summary\n\nOne row per renderer, averaged over its images (cameras × times).\n\n");
+    let mut s = String::from(
+        "## Summary\n\nOne row per renderer, averaged over its images (cameras × times).\n\n",
+    );
     s.push_str("| renderer | profile | file | images | mean PSNR dB | worst PSNR dB | mean SSIM | mean ms |\n");
     s.push_str("|---|---|---|---|---|---|---|---|\n");
     for r in &rows {
@@ -274,10 +276,16 @@ mod tests {
             Some(COLOUR_BAR),
         );
         assert!(md.contains("| native |  |  | 1 | ∞ (reference)"), "{md}");
-        assert!(md.contains("| trace-mesh |  | obj | 1 | 12.00 | 12.00 | 0.5000 |"), "{md}");
+        assert!(
+            md.contains("| trace-mesh |  | obj | 1 | 12.00 | 12.00 | 0.5000 |"),
+            "{md}"
+        );
         assert!(md.contains("**trace-mesh**"));
         assert!(md.contains("**OBJ files**"));
-        assert!(!md.contains("**hybrid**"), "no hybrid note without hybrid rows");
+        assert!(
+            !md.contains("**hybrid**"),
+            "no hybrid note without hybrid rows"
+        );
         assert!(md.contains(COLOUR_BAR));
     }
 
