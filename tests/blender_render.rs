@@ -66,10 +66,13 @@ fn eevee_and_cycles_render_the_street_export_close_to_our_tracer() {
         assert_eq!((img.width, img.height), (W, H), "{engine}");
         let db = psnr(&native, &img).unwrap();
         println!("{engine}: {db:.2} dB against native; our tracer {trace_db:.2} dB");
-        // FLOOR
+        // The goal is Blender within 1 dB of our tracer on the same file. Measured with this
+        // scene, camera, size and sample counts (the CLI equivalent: `fixture street --count
+        // 3000`, 80×60, t = 0): tracer 20.55 dB, Cycles 20.36 dB (32 samples), EEVEE 21.73 dB
+        // (sorted faces, 4 samples).
         assert!(
-            db >= trace_db - 2.0,
-            "{engine} {db:.2} dB vs tracer {trace_db:.2} dB"
+            db >= trace_db - 1.0,
+            "{engine} {db:.2} dB is more than 1 dB below our tracer's {trace_db:.2} dB"
         );
     }
 }
