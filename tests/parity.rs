@@ -164,6 +164,8 @@ fn fourth_st_parity() {
 }
 
 /// fourth_st floors (dB): gaussian, meshsplats, rings, texture, rings OBJ, hybrid.
-/// Measured at 320×240 over orbit cameras 0 and 2 of 4: 29.89, 29.29, 29.46, 28.81, 12.11,
-/// 30.18; each floor is the measurement minus 0.5 dB, rounded down to 0.1 dB.
-const THRESH_FOURTH: [f64; 6] = [29.3, 28.7, 28.9, 28.3, 11.6, 29.6];
+/// Measured at 320×240 over orbit cameras 0 and 2 of 4: 29.89, 29.29, 29.46, 28.81, 21.12,
+/// 30.18; each floor is the measurement minus 0.5 dB, rounded down to 0.1 dB. The OBJ figure is
+/// `splatbridge compare fourth_st.ply --cameras orbit:4:0,orbit:4:2` (the same code path) once
+/// OBJs are traced in their written frame (12.11 dB before, mirrored geometry).
+const THRESH_FOURTH: [f64; 6] = [29.3, 28.7, 28.9, 28.3, 20.6, 29.6];
