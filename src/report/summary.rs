@@ -175,8 +175,9 @@ fn expected_low(rows: &[SummaryRow]) -> Vec<String> {
     if rows.iter().any(|r| r.format == "obj") {
         notes.push(
             "- **OBJ files** (`file` obj) have no per-vertex alpha: every splat becomes an opaque triangle fan, so the \
-             nearest Gaussian's fan hides everything behind it and soft edges become hard. 10–20 dB below the GLB of the \
-             same profile is the cost of the format, not a converter defect; use GLB/glTF or the PLY mesh when alpha matters."
+             nearest Gaussian's fan hides everything behind it and soft edges become hard. 8–11 dB below the GLB of the \
+             same profile (measured with `rings` on `fourth_st` and the street) is the cost of the format, not a \
+             converter defect; use GLB/glTF or the PLY mesh when alpha matters."
                 .to_string(),
         );
     }
