@@ -77,6 +77,22 @@ mod tests {
     }
 
     #[test]
+    fn a_splatbridge_obj_loads_in_the_written_frame_under_its_root() {
+        // Written with up -y: the capture's (1, 2, 3) was baked to (1, −2, −3).
+        let obj = "# splatbridge mesh export\n# {\"generator\": \"splatbridge 0.1.0\", \"options\": {\"up\": \"-y\"}}\n\
+                   v 1 -2 -3\nv 2 -2 -3\nv 1 -1 -3\nf 1 2 3\n";
+        let mut s =
+            crate::scene_load::load_obj_bytes(obj.as_bytes(), std::path::Path::new("a.obj"))
+                .unwrap();
+        let written = glam::DVec3::new(1.0, -2.0, -3.0);
+        // As a viewer shows it: the file's own coordinates.
+        assert!(s.sample_points(0.0, 1)[0].abs_diff_eq(written, 1e-12));
+        assert!(s.to_capture_frame());
+        let capture = glam::DVec3::new(1.0, 2.0, 3.0);
+        assert!(s.sample_points(0.0, 1)[0].abs_diff_eq(capture, 1e-12));
+    }
+
+    #[test]
     fn other_files_are_taken_as_written() {
         // Another generator, metadata after the first statement, an unknown axis, bad JSON.
         for obj in [
