@@ -8,6 +8,8 @@
 //   (`shared/tools/gltf-validate.sh`) and `node` and `npm` are on PATH
 //   (what `scripts/validate-exports.sh` needs).
 // - `cfg(blender)`: `blender` is on PATH (what `scripts/blender-check.sh` needs).
+// - `cfg(blender_render)`: `blender` and `xvfb-run` are on PATH, so `scripts/blender-render.sh`
+//   can render with both engines (EEVEE needs the virtual display).
 //
 // A test behind one of these fails, not skips, when the tool is there but cannot do its job.
 //
@@ -31,13 +33,14 @@ fn on_path(name: &str) -> bool {
         .is_some_and(|paths| std::env::split_paths(&paths).any(|d| executable(&d.join(name))))
 }
 
-/// Emit `cfg(real_data)`, `cfg(gltf_tools)` and `cfg(blender)` for a crate whose workspace root is
+/// Emit `cfg(real_data)`, `cfg(gltf_tools)`, `cfg(blender)` and `cfg(blender_render)` for a crate whose workspace root is
 /// `workspace` relative to its manifest folder (`.` for the root crate, `..` for a member);
 /// `shared/` sits beside the workspace.
 fn emit_shared_cfgs(workspace: &str) {
     println!("cargo::rustc-check-cfg=cfg(real_data)");
     println!("cargo::rustc-check-cfg=cfg(gltf_tools)");
     println!("cargo::rustc-check-cfg=cfg(blender)");
+    println!("cargo::rustc-check-cfg=cfg(blender_render)");
     // Tools found on PATH are looked up again when PATH changes.
     println!("cargo::rerun-if-env-changed=PATH");
     println!("cargo::rerun-if-changed=build.rs");
@@ -61,5 +64,8 @@ fn emit_shared_cfgs(workspace: &str) {
     }
     if on_path("blender") {
         println!("cargo::rustc-cfg=blender");
+    }
+    if on_path("blender") && on_path("xvfb-run") {
+        println!("cargo::rustc-cfg=blender_render");
     }
 }

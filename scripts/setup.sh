@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Install what the tests need on a fresh Debian machine: libclang (bindgen for Embree),
-# Blender and numpy (the Blender import check), Node.js (the Khronos glTF-Validator), and
+# Blender and numpy (the Blender import check), Xvfb (EEVEE renders need an OpenGL context:
+# scripts/blender-render.sh runs Blender under xvfb-run), Node.js (the Khronos glTF-Validator), and
 # Embree 4 from the PyPI wheel `embreex` (scripts/get-embree.sh). Idempotent: what is there
 # already is left alone.
 set -euo pipefail
@@ -9,8 +10,9 @@ cd "$(dirname "$0")/.."
 need=()
 installed() { dpkg-query -W -f='${Status}' "$1" 2>/dev/null | grep -q "install ok installed"; }
 # blender: the import check; python3-numpy: Debian's Blender 3.4 importer needs it;
-# libclang-dev: bindgen in embree4-sys (headers included, not just the runtime library).
-for pkg in blender python3-numpy libclang-dev unzip; do
+# libclang-dev: bindgen in embree4-sys (headers included, not just the runtime library);
+# xvfb, xauth: a virtual display (software GL) for EEVEE (`xvfb-run` needs xauth).
+for pkg in blender python3-numpy libclang-dev unzip xvfb xauth; do
   installed "$pkg" || need+=("$pkg")
 done
 command -v node >/dev/null 2>&1 || need+=(nodejs npm)

@@ -347,8 +347,11 @@ pub fn write_reports(
 ) -> anyhow::Result<()> {
     let json = serde_json::to_string_pretty(records)?;
     splatbridge_scene::image_io::write_atomic(&dir.join("report.json"), json.as_bytes())?;
+    use crate::report::summary;
+    summary::colour_bar(256, 16).save_png(&dir.join(summary::COLOUR_BAR))?;
     let md = format!(
-        "# {title}\n\n{preamble}\n\n{}",
+        "# {title}\n\n{preamble}\n\n{}\n## All images\n\n{}",
+        summary::markdown_summary(records, Some(summary::COLOUR_BAR)),
         crate::report::markdown_table(records, true)
     );
     splatbridge_scene::image_io::write_atomic(&dir.join("report.md"), md.as_bytes())?;

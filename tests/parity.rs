@@ -118,9 +118,11 @@ fn street_fixture_parity() {
 }
 
 /// Street fixture floors (dB): gaussian, meshsplats, rings, texture, rings OBJ, hybrid.
-/// Measured at 320×240 over 4 cameras × 2 times: 28.65, 23.15, 25.97, 25.92, 10.75, 16.89;
-/// each floor is the measurement minus 0.5 dB, rounded down to 0.1 dB.
-const THRESH_STREET: [f64; 6] = [28.1, 22.6, 25.4, 25.4, 10.2, 16.3];
+/// Measured at 320×240 over 4 cameras × 2 times: 28.65, 23.15, 25.97, 25.92, 14.97, 16.89;
+/// each floor is the measurement minus 0.5 dB, rounded down to 0.1 dB. The OBJ figure is
+/// `splatbridge compare` of the fixture (`--cameras scene --times 0,2`, the same code path)
+/// once OBJs are traced in their written frame (10.75 dB before, mirrored geometry).
+const THRESH_STREET: [f64; 6] = [28.1, 22.6, 25.4, 25.4, 14.4, 16.3];
 
 /// `../shared/data/real/NAME`; tests that call this are ignored unless `build.rs` found the
 /// folder (`cfg(real_data)`).
@@ -162,6 +164,8 @@ fn fourth_st_parity() {
 }
 
 /// fourth_st floors (dB): gaussian, meshsplats, rings, texture, rings OBJ, hybrid.
-/// Measured at 320×240 over orbit cameras 0 and 2 of 4: 29.89, 29.29, 29.46, 28.81, 12.11,
-/// 30.18; each floor is the measurement minus 0.5 dB, rounded down to 0.1 dB.
-const THRESH_FOURTH: [f64; 6] = [29.3, 28.7, 28.9, 28.3, 11.6, 29.6];
+/// Measured at 320×240 over orbit cameras 0 and 2 of 4: 29.89, 29.29, 29.46, 28.81, 21.12,
+/// 30.18; each floor is the measurement minus 0.5 dB, rounded down to 0.1 dB. The OBJ figure is
+/// `splatbridge compare fourth_st.ply --cameras orbit:4:0,orbit:4:2` (the same code path) once
+/// OBJs are traced in their written frame (12.11 dB before, mirrored geometry).
+const THRESH_FOURTH: [f64; 6] = [29.3, 28.7, 28.9, 28.3, 20.6, 29.6];

@@ -33,12 +33,10 @@
 //! Blender 3.4 imports the BLEND material as Emission/Transparent mixed by `COLOR_0` alpha
 //! (× the falloff texture's alpha) behind a Light Path "Is Camera Ray" switch; camera rays keep
 //! that flag through transparent bounces, so Cycles composites the layers correctly. What the
-//! file cannot carry and a Cycles comparison with native splatting must set: the Standard view
-//! transform (3.4 defaults to Filmic), a black world (the factory world is grey) and enough
-//! transparent bounces (Cycles' default 8 cuts a ray off after 8 splat layers);
-//! `scripts/blender-parity-settings.py` sets them. Cycles blends in linear light where native
-//! splatting blends display values, which leaves the render somewhat brighter
-//! (`scripts/blender-render-compare.sh`).
+//! file cannot carry (the view transform, a black world, enough transparent bounces, an
+//! order-independent or sorted EEVEE blend, compositing display values rather than the linear
+//! `COLOR_0`) is set by `scripts/blender-splat-setup.py`; `scripts/blender-render-compare.sh`
+//! measures EEVEE and Cycles against native splatting.
 
 pub mod chunked;
 pub mod classify;

@@ -21,6 +21,7 @@ pub mod gltf_check;
 pub mod kbuffer;
 pub mod lidar;
 pub mod model;
+pub mod obj_frame;
 pub mod obvhs_backend;
 pub mod render;
 pub mod scene_load;

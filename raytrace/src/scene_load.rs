@@ -12,7 +12,10 @@
 //!
 //! OBJ: positions, `v x y z r g b` vertex colours (OBJ has no per-vertex alpha: alpha is 1,
 //! times the MTL dissolve `d` when one is given), MTL diffuse colour when there are no vertex
-//! colours; one mesh per object, all under one identity node.
+//! colours; one mesh per object. A splatbridge OBJ (its header names the up axis whose
+//! rotation was baked into the vertices, `obj_frame`) gets the glTF export's shape: vertices
+//! in the capture frame under a `splatbridge_root` node carrying that rotation; any other OBJ
+//! is taken as written, every mesh under the identity.
 
 use std::path::Path;
 
@@ -636,7 +639,7 @@ pub fn load_obj(path: &Path) -> Result<TriScene> {
     .map_err(|e| TraceError::format(path, format!("not a readable OBJ: {e}")))?;
     // A missing or broken MTL leaves the geometry usable; vertex colours carry the colour.
     let mats = mats.unwrap_or_default();
-    obj_scene(path, models, mats)
+    obj_scene(path, models, mats, crate::obj_frame::written_root(&bytes))
 }
 
 /// Load an OBJ from memory (materials are not resolved).
@@ -646,10 +649,20 @@ pub fn load_obj_bytes(bytes: &[u8], name: &Path) -> Result<TriScene> {
         Err(tobj::LoadError::OpenFileFailed)
     })
     .map_err(|e| TraceError::format(name, format!("not a readable OBJ: {e}")))?;
-    obj_scene(name, models, Vec::new())
+    obj_scene(
+        name,
+        models,
+        Vec::new(),
+        crate::obj_frame::written_root(bytes),
+    )
 }
 
-fn obj_scene(path: &Path, models: Vec<tobj::Model>, mats: Vec<tobj::Material>) -> Result<TriScene> {
+fn obj_scene(
+    path: &Path,
+    models: Vec<tobj::Model>,
+    mats: Vec<tobj::Material>,
+    root: Option<DQuat>,
+) -> Result<TriScene> {
     let mut materials: Vec<Material> = mats
         .iter()
         .map(|m| {
@@ -674,6 +687,15 @@ fn obj_scene(path: &Path, models: Vec<tobj::Model>, mats: Vec<tobj::Material>) -
         colors_linear: false,
         ..TriScene::default()
     };
+    // The baked root rotation is undone on the vertices and kept on a root node, as in glTF.
+    let unbake = root.map(|q| q.inverse());
+    if let Some(q) = root {
+        scene.nodes.push(Node {
+            name: "splatbridge_root".into(),
+            rotation: q,
+            ..Node::default()
+        });
+    }
     for (mi, model) in models.into_iter().enumerate() {
         let m = model.mesh;
         let n = m.positions.len() / 3;
@@ -691,6 +713,13 @@ fn obj_scene(path: &Path, models: Vec<tobj::Model>, mats: Vec<tobj::Material>) -
                 ),
             ));
         }
+        let positions = match unbake {
+            Some(q) => positions
+                .into_iter()
+                .map(|p| (q * p.as_dvec3()).as_vec3())
+                .collect(),
+            None => positions,
+        };
         let mut mat = m.material_id.map(|i| i as u32).unwrap_or(default_material);
         if mat as usize >= scene.materials.len() {
             mat = default_material;
@@ -734,6 +763,7 @@ fn obj_scene(path: &Path, models: Vec<tobj::Model>, mats: Vec<tobj::Material>) -
         scene.nodes.push(Node {
             mesh: Some(scene.meshes.len()),
             name: model.name,
+            parent: root.map(|_| 0),
             ..Node::default()
         });
         scene.meshes.push(mesh);

@@ -2,6 +2,7 @@
 //! setting), written as `report.json` and as a markdown table with thumbnails, plus plots.
 
 pub mod plot;
+pub mod summary;
 
 use std::fmt::Write as _;
 
