@@ -33,8 +33,9 @@ fn on_path(name: &str) -> bool {
         .is_some_and(|paths| std::env::split_paths(&paths).any(|d| executable(&d.join(name))))
 }
 
-/// Emit `cfg(real_data)`, `cfg(gltf_tools)`, `cfg(blender)` and `cfg(blender_render)` for a crate whose workspace root is
-/// `workspace` relative to its manifest folder (`.` for the root crate, `..` for a member);
+/// Emit `cfg(real_data)`, `cfg(gltf_tools)`, `cfg(blender)` and `cfg(blender_render)` for a
+/// crate whose workspace root is `workspace` relative to its manifest folder (`.` for the root
+/// crate, `..` for a member);
 /// `shared/` sits beside the workspace.
 fn emit_shared_cfgs(workspace: &str) {
     println!("cargo::rustc-check-cfg=cfg(real_data)");
