@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Install what the tests need on a fresh Debian machine: libclang (bindgen for Embree),
-# Blender and numpy (the Blender import check), Node.js (the Khronos glTF-Validator), and
-# Embree 4 from the PyPI wheel `embreex` (scripts/get-embree.sh). Idempotent: what is there
-# already is left alone.
+# Blender and numpy (the Blender import check), Node.js (the Khronos glTF-Validator), Debian's
+# chromium and the npm packages of scripts/package.json (three.js, Babylon.js, puppeteer-core:
+# the browser viewer check, scripts/web-render.mjs), and Embree 4 from the PyPI wheel
+# `embreex` (scripts/get-embree.sh). Idempotent: what is there already is left alone.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -10,7 +11,8 @@ need=()
 installed() { dpkg-query -W -f='${Status}' "$1" 2>/dev/null | grep -q "install ok installed"; }
 # blender: the import check; python3-numpy: Debian's Blender 3.4 importer needs it;
 # libclang-dev: bindgen in embree4-sys (headers included, not just the runtime library).
-for pkg in blender python3-numpy libclang-dev unzip; do
+# chromium: headless software-GL browser for the three.js / Babylon.js viewer check.
+for pkg in blender python3-numpy libclang-dev unzip chromium; do
   installed "$pkg" || need+=("$pkg")
 done
 command -v node >/dev/null 2>&1 || need+=(nodejs npm)
@@ -35,5 +37,13 @@ dir=${GLTF_VALIDATOR_DIR:-$HOME/.cache/gltf-validator}
 if [ ! -f "$dir/node_modules/gltf-validator/package.json" ]; then
   mkdir -p "$dir"
   (cd "$dir" && { [ -f package.json ] || npm init -y >/dev/null; } && npm install --silent --no-audit --no-fund gltf-validator@2.0.0-dev.3.10 >/dev/null)
+fi
+# The viewer check's npm packages (pinned in scripts/package.json) go to a cache folder, not
+# the repository; reinstalled when the pinned versions change.
+web=${SPLATBRIDGE_WEB_DIR:-$HOME/.cache/splatbridge-web}
+if ! cmp -s scripts/package.json "$web/package.json" || [ ! -f "$web/node_modules/three/package.json" ]; then
+  mkdir -p "$web"
+  cp scripts/package.json "$web/package.json"
+  (cd "$web" && npm install --silent --no-audit --no-fund >/dev/null)
 fi
 echo "setup: done"
