@@ -5,6 +5,9 @@
 //
 // - `cfg(real_data)`: the shared real scenes exist (`shared/data/real` next to the workspace).
 // - `cfg(gltf_tools)`: the glTF validator wrapper exists (`shared/tools/gltf-validate.sh`).
+// - `cfg(web_clients)`: the browser viewer check can run: Debian's `chromium` and the npm
+//   packages of `scripts/package.json` in `$SPLATBRIDGE_WEB_DIR` (default
+//   `~/.cache/splatbridge-web`), as `scripts/setup.sh` installs them.
 //
 // When a folder is present it is watched, so removing it re-runs the script; a folder that
 // appears later is picked up on the next change to the script (or `cargo clean -p CRATE`).
@@ -15,6 +18,8 @@
 fn emit_shared_cfgs(workspace: &str) {
     println!("cargo::rustc-check-cfg=cfg(real_data)");
     println!("cargo::rustc-check-cfg=cfg(gltf_tools)");
+    println!("cargo::rustc-check-cfg=cfg(web_clients)");
+    println!("cargo::rerun-if-env-changed=SPLATBRIDGE_WEB_DIR");
     println!("cargo::rerun-if-changed=build.rs");
     let workspace = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(workspace);
     println!(
@@ -26,6 +31,18 @@ fn emit_shared_cfgs(workspace: &str) {
     if real.is_dir() {
         println!("cargo::rustc-cfg=real_data");
         println!("cargo::rerun-if-changed={}", real.display());
+    }
+    let web = std::env::var_os("SPLATBRIDGE_WEB_DIR")
+        .map(std::path::PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| std::path::Path::new(&h).join(".cache/splatbridge-web")));
+    if let Some(web) = web {
+        let modules = web.join("node_modules");
+        let chromium = std::path::Path::new("/usr/bin/chromium");
+        let packages = ["three", "@babylonjs/core", "@babylonjs/loaders", "puppeteer-core"];
+        if chromium.is_file() && packages.iter().all(|p| modules.join(p).join("package.json").is_file()) {
+            println!("cargo::rustc-cfg=web_clients");
+            println!("cargo::rerun-if-changed={}", web.join("package.json").display());
+        }
     }
     let tools = root.join("shared/tools/gltf-validate.sh");
     if tools.is_file() {

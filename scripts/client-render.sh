@@ -4,6 +4,7 @@
 # sRGB PNG comparable with `splatbridge render`.
 #
 # Usage: scripts/client-render.sh CLIENT FILE OUT.png [--camera N] [--size WxH]
+#   (three and babylon also take --camera N,N,… with `{camera}` in OUT.png: one load, many views)
 #   CLIENT: three | babylon  (headless chromium, scripts/web-render.mjs)
 #           eevee | cycles   (Blender, scripts/blender-render.sh)
 # Exit status: 0 written, 1 failed, 2 bad arguments, 3 the client is not available (the
@@ -17,7 +18,7 @@ shift 3
 camera=0 size=
 while [[ $# -gt 0 ]]; do
   case $1 in
-    --camera) [[ $# -ge 2 && $2 =~ ^[0-9]+$ ]] || usage; camera=$2; shift 2 ;;
+    --camera) [[ $# -ge 2 && $2 =~ ^[0-9]+(,[0-9]+)*$ ]] || usage; camera=$2; shift 2 ;;
     --size) [[ $# -ge 2 && $2 =~ ^[0-9]+x[0-9]+$ ]] || usage; size=$2; shift 2 ;;
     *) usage ;;
   esac

@@ -3,6 +3,9 @@
 //
 // Usage: node scripts/web-render.mjs three|babylon FILE OUT.png [--camera N] [--size WxH]
 //
+// `--camera` also takes a list (`0,1,2`): the file is loaded once and OUT must contain
+// `{camera}`, replaced by each index (the measurement scripts use this to save start-ups).
+//
 // Headless Debian `chromium` (software GL: ANGLE on SwiftShader) is driven by puppeteer-core;
 // the page loads the stock loaders (three's `GLTFLoader`, Babylon's glTF loader with its
 // `KHR_gaussian_splatting` extension) from the npm cache folder through a tiny local HTTP
@@ -32,12 +35,12 @@ function fail(msg, code = 1) {
 
 function parseArgs(argv) {
   const pos = [];
-  const o = { camera: 0, size: null };
+  const o = { cameras: [0], size: null };
   for (let i = 0; i < argv.length; i++) {
     const a = argv[i];
     if (a === "--camera") {
-      o.camera = Number(argv[++i]);
-      if (!Number.isInteger(o.camera) || o.camera < 0) fail("--camera: expected an index ≥ 0", 2);
+      o.cameras = String(argv[++i] ?? "").split(",").map(Number);
+      if (!o.cameras.every((c) => Number.isInteger(c) && c >= 0)) fail("--camera: expected indices ≥ 0", 2);
     } else if (a === "--size") {
       const m = /^(\d+)x(\d+)$/.exec(argv[++i] ?? "");
       if (!m) fail("--size: expected WxH", 2);
@@ -49,6 +52,7 @@ function parseArgs(argv) {
   if (pos.length !== 3 || !["three", "babylon"].includes(pos[0]))
     fail("usage: web-render.mjs three|babylon FILE OUT.png [--camera N] [--size WxH]", 2);
   [o.client, o.file, o.out] = pos;
+  if (o.cameras.length > 1 && !o.out.includes("{camera}")) fail("a camera list needs {camera} in OUT", 2);
   return o;
 }
 
@@ -85,8 +89,10 @@ try {
 } catch (e) {
   fail(`${opts.file}: ${e.message}`, 2);
 }
-const camDef = (doc.cameras ?? [])[opts.camera];
-if (!camDef) fail(`${opts.file}: no camera ${opts.camera} (the file has ${(doc.cameras ?? []).length})`, 2);
+for (const c of opts.cameras) {
+  if (!(doc.cameras ?? [])[c]) fail(`${opts.file}: no camera ${c} (the file has ${(doc.cameras ?? []).length})`, 2);
+}
+const camDef = doc.cameras[opts.cameras[0]];
 const cv = camDef.extras?.opencv;
 const [width, height] = opts.size ?? (cv ? [cv.width, cv.height] : [640, 480]);
 
@@ -99,7 +105,7 @@ const types = { ".js": "text/javascript", ".mjs": "text/javascript", ".json": "a
 const page3 = `
 import * as THREE from "three";
 import { GLTFLoader } from "three/addons/loaders/GLTFLoader.js";
-export async function render(url, camIndex, w, h) {
+export async function render(url, camList, w, h) {
   const renderer = new THREE.WebGLRenderer({ antialias: false, preserveDrawingBuffer: true });
   renderer.setPixelRatio(1);
   renderer.setSize(w, h);
@@ -110,17 +116,21 @@ export async function render(url, camIndex, w, h) {
   const gltf = await new GLTFLoader().loadAsync(url);
   const scene = gltf.scene;
   scene.background = new THREE.Color(0x000000);
-  let cam = null;
-  scene.traverse((o) => {
-    const a = gltf.parser.associations.get(o);
-    if (!cam && o.isCamera && a && a.nodes !== undefined && gltf.parser.json.nodes[a.nodes].camera === camIndex) cam = o;
-  });
-  if (!cam) throw new Error("camera " + camIndex + " is not referenced by a node");
-  cam.aspect = w / h;
-  cam.updateProjectionMatrix();
-  scene.updateMatrixWorld(true);
-  renderer.render(scene, cam);
-  return renderer.domElement.toDataURL("image/png");
+  const shots = [];
+  for (const camIndex of camList) {
+    let cam = null;
+    scene.traverse((o) => {
+      const a = gltf.parser.associations.get(o);
+      if (!cam && o.isCamera && a && a.nodes !== undefined && gltf.parser.json.nodes[a.nodes].camera === camIndex) cam = o;
+    });
+    if (!cam) throw new Error("camera " + camIndex + " is not referenced by a node");
+    cam.aspect = w / h;
+    cam.updateProjectionMatrix();
+    scene.updateMatrixWorld(true);
+    renderer.render(scene, cam);
+    shots.push(renderer.domElement.toDataURL("image/png"));
+  }
+  return shots;
 }`;
 
 const pageBabylon = `
@@ -133,7 +143,7 @@ import "@babylonjs/core/Loading/loadingScreen.js";
 // reports nothing.
 import "@babylonjs/core/Meshes/thinInstanceMesh.js";
 import "@babylonjs/loaders/glTF/index.js";
-export async function render(url, camIndex, w, h) {
+export async function render(url, camList, w, h) {
   const canvas = document.createElement("canvas");
   canvas.width = w;
   canvas.height = h;
@@ -145,18 +155,23 @@ export async function render(url, camIndex, w, h) {
   const scene = new Scene(engine);
   scene.clearColor = new Color4(0, 0, 0, 1);
   await AppendSceneAsync(url, scene);
-  const want = "/cameras/" + camIndex;
-  const cam = scene.cameras.find((c) => (c._internalMetadata?.gltf?.pointers ?? []).includes(want));
-  if (!cam) throw new Error("camera " + camIndex + " not loaded");
-  scene.activeCamera = cam;
-  await scene.whenReadyAsync();
-  // Gaussian splats are sorted on a worker after the first frames: render until the sort settles.
-  for (let i = 0; i < 30; i++) {
+  const shots = [];
+  for (const camIndex of camList) {
+    const want = "/cameras/" + camIndex;
+    const cam = scene.cameras.find((c) => (c._internalMetadata?.gltf?.pointers ?? []).includes(want));
+    if (!cam) throw new Error("camera " + camIndex + " not loaded");
+    scene.activeCamera = cam;
+    await scene.whenReadyAsync();
+    // Gaussian splats are sorted on a worker after the first frames: render until the sort
+    // settles.
+    for (let i = 0; i < 30; i++) {
+      scene.render();
+      await new Promise((r) => setTimeout(r, 50));
+    }
     scene.render();
-    await new Promise((r) => setTimeout(r, 50));
+    shots.push(canvas.toDataURL("image/png"));
   }
-  scene.render();
-  return canvas.toDataURL("image/png");
+  return shots;
 }`;
 
 const html = `<!doctype html><html><head><meta charset="utf-8">
@@ -208,14 +223,17 @@ try {
   page.on("pageerror", (e) => logs.push(`pageerror: ${e.message}`));
   page.setDefaultTimeout(0);
   await page.goto(`${base}/`);
-  const dataUrl = await page.evaluate(
+  const shots = await page.evaluate(
     async (u, n, w, h) => (await import("/render.js")).render(u, n, w, h),
-    `${base}/file/${encodeURIComponent(fileName)}`, opts.camera, width, height,
+    `${base}/file/${encodeURIComponent(fileName)}`, opts.cameras, width, height,
   );
-  const png = Buffer.from(dataUrl.slice(dataUrl.indexOf(",") + 1), "base64");
-  const tmp = `${opts.out}.tmp${process.pid}`;
-  fs.writeFileSync(tmp, png);
-  fs.renameSync(tmp, opts.out);
+  shots.forEach((dataUrl, k) => {
+    const png = Buffer.from(dataUrl.slice(dataUrl.indexOf(",") + 1), "base64");
+    const out = opts.out.replaceAll("{camera}", String(opts.cameras[k]));
+    const tmp = `${out}.tmp${process.pid}`;
+    fs.writeFileSync(tmp, png);
+    fs.renameSync(tmp, out);
+  });
   if (process.env.SPLATBRIDGE_WEB_LOG) for (const l of logs) console.error(l);
 } catch (e) {
   console.error(`web-render: ${opts.client}: ${opts.file}: ${e.message ?? e}`);

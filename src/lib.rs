@@ -2,6 +2,7 @@
 //! `convert`, `hybrid`, `raytrace`): the frame pipeline every command renders through, the
 //! parity pipeline and the reports. End-to-end tests and the commands share it.
 
+pub mod clients;
 pub mod parity;
 pub mod pipeline;
 pub mod report;

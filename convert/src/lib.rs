@@ -45,6 +45,7 @@ pub mod gltf_writer;
 pub mod mesh;
 pub mod obj;
 pub mod options;
+pub mod order;
 pub mod ply_mesh;
 pub mod profile;
 pub mod splats_gltf;
@@ -129,21 +130,89 @@ pub fn prepare<'a>(
             ));
         }
     }
-    let mut clouds: Vec<(Role, String, &GaussianCloud)> =
-        vec![(Role::Static, "static".into(), &scene.static_gaussians)];
+    let mut clouds: Vec<Piece<'a>> = vec![Piece::whole(Role::Static, "static", &scene.static_gaussians)];
     for (k, o) in scene.objects.iter().enumerate() {
-        clouds.push((Role::Object(k), o.name.clone(), &o.gaussians));
+        clouds.push(Piece::whole(Role::Object(k), &o.name, &o.gaussians));
     }
     if let Some(fr) = frames {
         for (k, c) in fr.clouds.iter().enumerate() {
-            clouds.push((Role::Frame(k), format!("frame {k}"), c));
+            clouds.push(Piece::whole(Role::Frame(k), &format!("frame {k}"), c));
         }
     }
+    prepare_pieces(clouds, scene, opts, shape, report)
+}
+
+/// One cloud to mesh: a whole part of the scene, or a chunk of one with its global ids and
+/// facing (`order.rs`).
+struct Piece<'a> {
+    role: Role,
+    name: String,
+    cloud: &'a GaussianCloud,
+    ids: Option<&'a [u32]>,
+    facing: order::Facing,
+}
+
+impl<'a> Piece<'a> {
+    fn whole(role: Role, name: &str, cloud: &'a GaussianCloud) -> Self {
+        Piece {
+            role,
+            name: name.into(),
+            cloud,
+            ids: None,
+            facing: order::Facing::Template,
+        }
+    }
+}
+
+/// [`prepare`] for a scene arranged for viewers ([`order::arrange`]): one entry per chunk.
+pub fn prepare_arranged<'a>(
+    parts: &'a [order::Part],
+    scene: &'a DynamicScene,
+    opts: &ConvertOptions,
+    shape: &'a ProfileShape,
+    report: &mut ConvertReport,
+) -> Result<Vec<MeshEntry<'a>>> {
+    opts.validate()?;
+    let pieces = parts
+        .iter()
+        .map(|p| Piece {
+            role: p.role,
+            name: p.name.clone(),
+            cloud: &p.cloud,
+            ids: Some(&p.ids),
+            facing: p.facing,
+        })
+        .collect();
+    prepare_pieces(pieces, scene, opts, shape, report)
+}
+
+fn prepare_pieces<'a>(
+    clouds: Vec<Piece<'a>>,
+    scene: &'a DynamicScene,
+    opts: &ConvertOptions,
+    shape: &'a ProfileShape,
+    report: &mut ConvertReport,
+) -> Result<Vec<MeshEntry<'a>>> {
     let mut offset = 0u64;
     let mut entries = Vec::with_capacity(clouds.len());
-    for (role, name, cloud) in clouds {
+    for Piece {
+        role,
+        name,
+        cloud,
+        ids,
+        facing,
+    } in clouds
+    {
         cloud.check_shape()?;
         let mut mesher = Mesher::new(cloud, shape, opts, &name, offset);
+        if let Some(ids) = ids {
+            let first = ids.iter().copied().min().unwrap_or(0) as u64;
+            mesher.set_id_map(ids, first)?;
+            offset = offset.max(ids.iter().copied().max().map_or(0, |m| m as u64 + 1));
+        } else {
+            offset += cloud.len() as u64;
+        }
+        mesher.set_facing(facing);
         if let Role::Object(k) = role {
             let reach = scene.objects[k]
                 .track
@@ -158,7 +227,6 @@ pub fn prepare<'a>(
             mesher,
             surfels: None,
         });
-        offset += cloud.len() as u64;
     }
     if opts.gaussian_ids && offset > 1 << 24 {
         return Err(ConvertError::Invalid(format!(
@@ -225,6 +293,24 @@ pub fn prepare_split<'a>(
     Ok(entries)
 }
 
+/// Classify a scene for the mesh writers: arranged for viewers when the options ask
+/// ([`order::arrange`], owned by `parts`), split into surfels when they ask, else as is.
+pub(crate) fn prepare_any<'a>(
+    scene: &'a DynamicScene,
+    frames: Option<&'a FrameClouds>,
+    split: Option<&'a surfels::SplitScene>,
+    parts: Option<&'a [order::Part]>,
+    opts: &ConvertOptions,
+    shape: &'a ProfileShape,
+    report: &mut ConvertReport,
+) -> Result<Vec<MeshEntry<'a>>> {
+    match (split, &opts.surfels, parts) {
+        (Some(s), Some(o), _) => prepare_split(s, o, opts, shape, report),
+        (_, _, Some(p)) => prepare_arranged(p, scene, opts, shape, report),
+        _ => prepare(scene, frames, opts, shape, report),
+    }
+}
+
 /// The profile shape for the options.
 pub fn shape_for(opts: &ConvertOptions) -> ProfileShape {
     ProfileShape::new(opts.profile, opts.segments(), opts.rings)
@@ -289,10 +375,16 @@ pub fn write_glb<W: Write>(
         Some(s) => (&s.residual, s.frames.as_ref()),
         None => (scene, frames),
     };
-    let entries = match (&split, &opts.surfels) {
-        (Some(s), Some(o)) => prepare_split(s, o, opts, &shape, &mut report)?,
-        _ => prepare(scene, frames, opts, &shape, &mut report)?,
-    };
+    let parts = order::arrange_for(scene, frames, opts)?;
+    let entries = prepare_any(
+        scene,
+        frames,
+        split.as_ref(),
+        parts.as_deref(),
+        opts,
+        &shape,
+        &mut report,
+    )?;
     let bytes = gltf_writer::write_glb(w, &entries, scene, frames, opts, &report).map_err(|e| {
         ConvertError::Io {
             path: "<memory>".into(),
