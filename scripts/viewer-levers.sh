@@ -38,8 +38,8 @@ variants=(
   "both windings, one node, ordered|--layout input --windings both --chunk-order normal|"
   "chunks 4096 + ordered + both windings|--layout input --chunk-size 4096 --chunk-order normal --windings both|"
   "chunks 1024 + ordered + both windings|--layout input --chunk-size 1024 --chunk-order normal --windings both|"
-  "chunks 16384 + ordered + both windings|--layout input --chunk-size 16384 --chunk-order normal --windings both|"
-  "default: --layout viewer (chunks 4096, ordered, both windings, no NORMAL)||trace"
+  "chunks 256 + ordered + both windings|--layout input --chunk-size 256 --chunk-order normal --windings both|"
+  "default: --layout viewer (chunks 256, ordered, both windings, no NORMAL)||trace"
   "--view-order orbit:8:0 (camera 0 only)|--layout input --view-order orbit:8:0|"
 )
 echo "| variant | three.js PSNR (8 cameras) | camera 0 | tracer PSNR | bytes |"

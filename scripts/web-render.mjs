@@ -164,9 +164,9 @@ export async function render(url, camList, w, h) {
     await scene.whenReadyAsync();
     // Gaussian splats are sorted on a worker after the first frames: render until the sort
     // settles.
-    for (let i = 0; i < 30; i++) {
+    for (let i = 0; i < 10; i++) {
       scene.render();
-      await new Promise((r) => setTimeout(r, 50));
+      await new Promise((r) => setTimeout(r, 100));
     }
     scene.render();
     shots.push(canvas.toDataURL("image/png"));
@@ -214,6 +214,8 @@ try {
   browser = await puppeteer.launch({
     executablePath: chromium,
     headless: true,
+    // Software GL is slow on big files: no protocol deadline (the caller bounds the run).
+    protocolTimeout: 0,
     args: ["--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--ignore-gpu-blocklist", "--disable-dev-shm-usage", `--window-size=${width},${height}`],
   });
   const page = await browser.newPage();

@@ -25,7 +25,10 @@ fn fixture(name: &str) -> PathBuf {
 }
 
 fn run(args: &[&str]) {
-    let out = Command::new(BIN).args(args).output().expect("splatbridge runs");
+    let out = Command::new(BIN)
+        .args(args)
+        .output()
+        .expect("splatbridge runs");
     assert!(
         out.status.success(),
         "splatbridge {args:?}: {}",
@@ -124,10 +127,7 @@ fn tracer_reads_the_viewer_arrangement_like_the_input_layout() {
 
 /// Render `glb` in `client` through its camera 0 at 160×120 and return the PSNR against
 /// `reference`.
-#[cfg_attr(
-    not(web_clients),
-    allow(dead_code)
-)]
+#[cfg_attr(not(web_clients), allow(dead_code))]
 fn client_psnr(client: &str, glb: &Path, reference: &Path, out: &Path) -> f64 {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/client-render.sh");
     let st = Command::new(script)
@@ -151,22 +151,48 @@ fn stock_web_viewers_draw_the_exports_close_to_native() {
     let d = |n: &str| dir.path().join(n);
     let ds = |n: &str| d(n).to_str().unwrap().to_string();
     run(&[
-        "render", s, "--camera", "orbit:4:0", "--width", "160", "--height", "120", "-o",
+        "render",
+        s,
+        "--camera",
+        "orbit:4:0",
+        "--width",
+        "160",
+        "--height",
+        "120",
+        "-o",
         &ds("native.png"),
     ]);
     run(&["convert", s, "-o", &ds("mesh.glb"), "--camera", "orbit:4:0"]);
-    run(&["convert", s, "--splats", "-o", &ds("splats.glb"), "--camera", "orbit:4:0"]);
+    run(&[
+        "convert",
+        s,
+        "--splats",
+        "-o",
+        &ds("splats.glb"),
+        "--camera",
+        "orbit:4:0",
+    ]);
     let three = client_psnr("three", &d("mesh.glb"), &d("native.png"), &d("three.png"));
-    let babylon = client_psnr("babylon", &d("splats.glb"), &d("native.png"), &d("babylon.png"));
-    // Floors: measured on this fixture and camera at 160×120 (README, viewer check) less
-    // 1 dB for SwiftShader and browser versions; the input layout measured far lower in
-    // three.js, so the floor fails if the arrangement for viewers is lost.
+    let babylon = client_psnr(
+        "babylon",
+        &d("splats.glb"),
+        &d("native.png"),
+        &d("babylon.png"),
+    );
+    // Floors: measured on this fixture and camera at 160×120 with three.js 0.187 and
+    // Babylon.js 9.35 on SwiftShader (README, viewer check): three.js 26.14 dB (the input
+    // layout 25.76, our tracer 26.97), Babylon.js splats 32.68 dB; less 0.5 dB for three.js
+    // (a deterministic rasteriser) and 1 dB for Babylon.js, whose splat sort runs on a worker
+    // and may settle one frame later.
     assert!(three >= THREE_FLOOR, "three.js {three:.2} dB");
-    assert!(babylon >= BABYLON_FLOOR, "Babylon.js splats {babylon:.2} dB");
+    assert!(
+        babylon >= BABYLON_FLOOR,
+        "Babylon.js splats {babylon:.2} dB"
+    );
 }
 
 /// See `stock_web_viewers_draw_the_exports_close_to_native`.
 #[cfg_attr(not(web_clients), allow(dead_code))]
-const THREE_FLOOR: f64 = 20.0;
+const THREE_FLOOR: f64 = 25.6;
 #[cfg_attr(not(web_clients), allow(dead_code))]
-const BABYLON_FLOOR: f64 = 20.0;
+const BABYLON_FLOOR: f64 = 31.6;

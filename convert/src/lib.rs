@@ -130,7 +130,11 @@ pub fn prepare<'a>(
             ));
         }
     }
-    let mut clouds: Vec<Piece<'a>> = vec![Piece::whole(Role::Static, "static", &scene.static_gaussians)];
+    let mut clouds: Vec<Piece<'a>> = vec![Piece::whole(
+        Role::Static,
+        "static",
+        &scene.static_gaussians,
+    )];
     for (k, o) in scene.objects.iter().enumerate() {
         clouds.push(Piece::whole(Role::Object(k), &o.name, &o.gaussians));
     }

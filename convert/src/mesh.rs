@@ -17,8 +17,8 @@ use rayon::prelude::*;
 use splatbridge_scene::{sh, GaussianCloud};
 
 use crate::classify::{classify, corrected_alpha, score, Frame, Kind};
-use crate::order::Facing;
 use crate::options::{ColorEncoding, ConvertOptions, MeshCounts, Profile, VolumetricMode};
+use crate::order::Facing;
 use crate::profile::{FanLayout, ProfileShape, VertexKey};
 
 /// Gaussians per generated chunk.
@@ -597,8 +597,7 @@ impl<'a> Mesher<'a> {
         };
         let f = Frame::of(self.cloud, i);
         const PLANES: [(usize, usize); 3] = [(0, 1), (1, 2), (2, 0)];
-        let side: [bool; 3] =
-            PLANES.map(|(a, b)| f.axes[a].cross(f.axes[b]).dot(towards) >= 0.0);
+        let side: [bool; 3] = PLANES.map(|(a, b)| f.axes[a].cross(f.axes[b]).dot(towards) >= 0.0);
         for (tri, &(plane, positive)) in pattern.chunks_exact(3).zip(&self.tri_planes[kind]) {
             // Front face towards `towards` when the template's normal sign agrees with the side.
             let keep = (positive == side[plane as usize]) != reverse;

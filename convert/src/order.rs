@@ -28,12 +28,12 @@ use splatbridge_scene::{Camera, GaussianCloud};
 
 use crate::classify::Frame;
 use crate::options::{ChunkOrder, ConvertOptions};
-use crate::{FrameClouds, Role, Result};
+use crate::{FrameClouds, Result, Role};
 use splatbridge_scene::dynamic::DynamicScene;
 
 /// Gaussians per spatial chunk in the arrangement for viewers
 /// ([`ConvertOptions::for_viewers`]); chosen by the measurements in the README's viewer table.
-pub const VIEWER_CHUNK: usize = 4096;
+pub const VIEWER_CHUNK: usize = 256;
 
 /// One mesh node of an arranged scene: its own copy of the Gaussians in draw order, their
 /// global (`_GAUSSIAN_ID`) ids and which way their fans face.
@@ -57,8 +57,12 @@ pub fn arrange_for(
         return Ok(None);
     }
     opts.validate()?;
-    let mut wholes: Vec<(Role, String, &GaussianCloud, usize)> =
-        vec![(Role::Static, "static".into(), &scene.static_gaussians, opts.chunk_size)];
+    let mut wholes: Vec<(Role, String, &GaussianCloud, usize)> = vec![(
+        Role::Static,
+        "static".into(),
+        &scene.static_gaussians,
+        opts.chunk_size,
+    )];
     for (k, o) in scene.objects.iter().enumerate() {
         wholes.push((Role::Object(k), o.name.clone(), &o.gaussians, 0));
     }
@@ -99,7 +103,11 @@ pub fn arrange_for(
                 .collect();
             parts.push(Part {
                 role,
-                name: if many { format!("{name}_{k:04}") } else { name.clone() },
+                name: if many {
+                    format!("{name}_{k:04}")
+                } else {
+                    name.clone()
+                },
                 cloud: subset(cloud, &c.indices),
                 ids,
                 facing: c.facing,
@@ -305,7 +313,10 @@ mod tests {
                 seen[i as usize] += 1;
             }
         }
-        assert!(seen.iter().all(|&n| n == 1), "every Gaussian in exactly one chunk");
+        assert!(
+            seen.iter().all(|&n| n == 1),
+            "every Gaussian in exactly one chunk"
+        );
         // Median splits of 1000 down to ≤ 64: 16 chunks of 62–63.
         assert_eq!(chunks.len(), 16);
     }
@@ -313,7 +324,9 @@ mod tests {
     #[test]
     fn dominant_normal_of_a_flat_layer() {
         // Flat Gaussians (identity rotation, smallest scale along z) have normal ±z.
-        let pts: Vec<Vec3> = (0..50).map(|i| Vec3::new(i as f32, 0.0, 0.1 * i as f32)).collect();
+        let pts: Vec<Vec3> = (0..50)
+            .map(|i| Vec3::new(i as f32, 0.0, 0.1 * i as f32))
+            .collect();
         let n = dominant_normal(&cloud(&pts), &(0..50).collect::<Vec<_>>());
         assert!(n.z.abs() > 0.999, "{n}");
     }
@@ -396,7 +409,8 @@ mod tests {
         let mut s = 5;
         let mut c = GaussianCloud::new(0);
         for k in 0..200 {
-            c.means.push(Vec3::new(lcg(&mut s), lcg(&mut s), lcg(&mut s)) * 4.0);
+            c.means
+                .push(Vec3::new(lcg(&mut s), lcg(&mut s), lcg(&mut s)) * 4.0);
             // Every other Gaussian volumetric (three fans), rotations all over.
             let thin = if k % 2 == 0 { -4.0 } else { -0.2 };
             c.log_scales.push(Vec3::new(-1.0, -0.5, thin));
@@ -423,10 +437,14 @@ mod tests {
                 assert_eq!(m.counts.triangles, 2 * single);
                 let soup = m.build();
                 let mut idx = Vec::new();
-                m.map_index_chunks::<_, ()>(0, |i| i.to_vec(), |i| {
-                    idx.extend(i);
-                    Ok(())
-                })
+                m.map_index_chunks::<_, ()>(
+                    0,
+                    |i| i.to_vec(),
+                    |i| {
+                        idx.extend(i);
+                        Ok(())
+                    },
+                )
                 .unwrap();
                 assert_eq!(idx.len() as u64, 3 * m.counts.triangles);
                 let tris: Vec<[u32; 3]> = idx.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();

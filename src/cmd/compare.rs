@@ -164,10 +164,21 @@ pub fn print_summary(records: &[splatbridge::report::Record]) {
             keys.push(k);
         }
     }
+    for r in records.iter().filter(|r| !r.note.is_empty()) {
+        println!("{} {}: {}", r.renderer, r.profile, r.note);
+    }
+    let measured: Vec<_> = records.iter().filter(|r| r.note.is_empty()).collect();
     for (renderer, profile, format) in keys {
-        let sel: Vec<_> = records
+        if !measured
+            .iter()
+            .any(|r| r.renderer == renderer && r.profile == profile && r.format == format)
+        {
+            continue;
+        }
+        let sel: Vec<_> = measured
             .iter()
             .filter(|r| r.renderer == renderer && r.profile == profile && r.format == format)
+            .copied()
             .collect();
         let finite: Vec<f64> = sel
             .iter()

@@ -208,7 +208,7 @@ pub struct Args {
     /// Mesh layout of glTF outputs (mesh profiles; not OBJ/PLY).
     #[arg(long, value_enum, default_value = "viewer")]
     pub layout: LayoutArg,
-    /// Gaussians per static mesh node (0: one node); default 4096 with --layout viewer.
+    /// Gaussians per static mesh node (0: one node); default 256 with --layout viewer.
     #[arg(long, value_name = "N")]
     pub chunk_size: Option<usize>,
     /// Order inside each mesh node; default normal with --layout viewer.
@@ -234,7 +234,9 @@ fn embedded_cameras(
     specs: &[String],
     scene: &splatbridge_scene::dynamic::DynamicScene,
 ) -> anyhow::Result<Vec<splatbridge_scene::Camera>> {
-    use splatbridge_scene::camera_spec::{parse_camera_list, CameraRequest, CameraSource, CameraSpec};
+    use splatbridge_scene::camera_spec::{
+        parse_camera_list, CameraRequest, CameraSource, CameraSpec,
+    };
     let composite = scene.composite(scene.time.start);
     let src = CameraSource {
         cloud: &composite,
