@@ -14,10 +14,12 @@
 //!   its local frame under a node whose translation and rotation are animated (LINEAR,
 //!   seconds, unit x,y,z,w quaternions); per-frame content as one node per frame, shown
 //!   only on its frame by a STEP scale animation; the scene's cameras as camera nodes.
-//! * Vertex attributes: POSITION, NORMAL (the Gaussian's shortest axis), COLOR_0 (RGBA,
-//!   normalized u16, linear by default: see [`options::ColorEncoding`]), `_GAUSSIAN_ID` and,
-//!   for the `texture` profile, TEXCOORD_0; u32 indexed TRIANGLES; one unlit, double-sided
-//!   BLEND material. With `--surfels` ([`surfels`]) each part's mesh gets a second primitive:
+//! * Vertex attributes: POSITION, NORMAL (the Gaussian's shortest axis; optional, off in the
+//!   arrangement for viewers), COLOR_0 (RGBA, normalized u16, linear by default: see
+//!   [`options::ColorEncoding`]), `_GAUSSIAN_ID` and, for the `texture` profile, TEXCOORD_0;
+//!   u32 indexed TRIANGLES; one unlit BLEND material, double-sided, or single-sided with
+//!   every triangle in both windings when arranged for viewers ([`order`]: spatial chunks as
+//!   nodes, ordered along each chunk's normal). With `--surfels` ([`surfels`]) each part's mesh gets a second primitive:
 //!   opaque surfel fans with an unlit, double-sided OPAQUE material `surfels`.
 //! * With [`ConvertOptions::coplanar_offset`] (on in `splatbridge convert`), every Gaussian's
 //!   fans sit a hashed sub-millimetre step off its own plane, so that Cycles renders exactly
