@@ -19,8 +19,8 @@
 //!   [`options::ColorEncoding`]), `_GAUSSIAN_ID` and, for the `texture` profile, TEXCOORD_0;
 //!   u32 indexed TRIANGLES; one unlit BLEND material, double-sided, or single-sided with
 //!   every triangle in both windings when arranged for viewers ([`order`]: spatial chunks as
-//!   nodes, ordered along each chunk's normal). With `--surfels` ([`surfels`]) each part's mesh gets a second primitive:
-//!   opaque surfel fans with an unlit, double-sided OPAQUE material `surfels`.
+//!   nodes, ordered along each chunk's normal). With `--surfels` ([`surfels`]) each part's
+//!   mesh gets a second primitive: opaque surfel fans with an unlit, double-sided OPAQUE material `surfels`.
 //! * With [`ConvertOptions::coplanar_offset`] (on in `splatbridge convert`), every Gaussian's
 //!   fans sit a hashed sub-millimetre step off its own plane, so that Cycles renders exactly
 //!   coplanar splats (see [`classify`] for why and what it costs).
@@ -118,20 +118,7 @@ pub fn prepare<'a>(
     report: &mut ConvertReport,
 ) -> Result<Vec<MeshEntry<'a>>> {
     opts.validate()?;
-    if let Some(fr) = frames {
-        if fr.times.len() != fr.clouds.len() {
-            return Err(ConvertError::Invalid(format!(
-                "per-frame content has {} times but {} clouds",
-                fr.times.len(),
-                fr.clouds.len()
-            )));
-        }
-        if fr.times.windows(2).any(|w| !(w[1] > w[0])) || fr.times.iter().any(|t| !t.is_finite()) {
-            return Err(ConvertError::Invalid(
-                "per-frame content times must be finite and strictly increasing".into(),
-            ));
-        }
-    }
+    check_frames(frames)?;
     let mut clouds: Vec<Piece<'a>> = vec![Piece::whole(
         Role::Static,
         "static",
@@ -146,6 +133,25 @@ pub fn prepare<'a>(
         }
     }
     prepare_pieces(clouds, scene, opts, shape, report)
+}
+
+/// Per-frame content has one cloud per time, times finite and strictly increasing.
+fn check_frames(frames: Option<&FrameClouds>) -> Result<()> {
+    if let Some(fr) = frames {
+        if fr.times.len() != fr.clouds.len() {
+            return Err(ConvertError::Invalid(format!(
+                "per-frame content has {} times but {} clouds",
+                fr.times.len(),
+                fr.clouds.len()
+            )));
+        }
+        if fr.times.windows(2).any(|w| !(w[1] > w[0])) || fr.times.iter().any(|t| !t.is_finite()) {
+            return Err(ConvertError::Invalid(
+                "per-frame content times must be finite and strictly increasing".into(),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// One cloud to mesh: a whole part of the scene, or a chunk of one with its global ids and
@@ -170,7 +176,7 @@ impl<'a> Piece<'a> {
     }
 }
 
-/// [`prepare`] for a scene arranged for viewers ([`order::arrange`]): one entry per chunk.
+/// [`prepare`] for a scene arranged for viewers ([`order::arrange_for`]): one entry per chunk.
 pub fn prepare_arranged<'a>(
     parts: &'a [order::Part],
     scene: &'a DynamicScene,
@@ -300,7 +306,7 @@ pub fn prepare_split<'a>(
 }
 
 /// Classify a scene for the mesh writers: arranged for viewers when the options ask
-/// ([`order::arrange`], owned by `parts`), split into surfels when they ask, else as is.
+/// ([`order::arrange_for`], owned by `parts`), split into surfels when they ask, else as is.
 pub(crate) fn prepare_any<'a>(
     scene: &'a DynamicScene,
     frames: Option<&'a FrameClouds>,
@@ -312,7 +318,10 @@ pub(crate) fn prepare_any<'a>(
 ) -> Result<Vec<MeshEntry<'a>>> {
     match (split, &opts.surfels, parts) {
         (Some(s), Some(o), _) => prepare_split(s, o, opts, shape, report),
-        (_, _, Some(p)) => prepare_arranged(p, scene, opts, shape, report),
+        (_, _, Some(p)) => {
+            check_frames(frames)?;
+            prepare_arranged(p, scene, opts, shape, report)
+        }
         _ => prepare(scene, frames, opts, shape, report),
     }
 }
