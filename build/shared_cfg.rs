@@ -10,6 +10,9 @@
 // - `cfg(blender)`: `blender` is on PATH (what `scripts/blender-check.sh` needs).
 // - `cfg(blender_render)`: `blender` and `xvfb-run` are on PATH, so `scripts/blender-render.sh`
 //   can render with both engines (EEVEE needs the virtual display).
+// - `cfg(web_clients)`: the browser viewer check can run: Debian's `chromium` and the npm
+//   packages of `scripts/package.json` in `$SPLATBRIDGE_WEB_DIR` (default
+//   `~/.cache/splatbridge-web`), as `scripts/setup.sh` installs them.
 //
 // A test behind one of these fails, not skips, when the tool is there but cannot do its job.
 //
@@ -33,10 +36,9 @@ fn on_path(name: &str) -> bool {
         .is_some_and(|paths| std::env::split_paths(&paths).any(|d| executable(&d.join(name))))
 }
 
-/// Emit `cfg(real_data)`, `cfg(gltf_tools)`, `cfg(blender)` and `cfg(blender_render)` for a
-/// crate whose workspace root is `workspace` relative to its manifest folder (`.` for the root
-/// crate, `..` for a member);
-/// `shared/` sits beside the workspace.
+/// Emit `cfg(real_data)`, `cfg(gltf_tools)`, `cfg(blender)`, `cfg(blender_render)` and
+/// `cfg(web_clients)` for a crate whose workspace root is `workspace` relative to its manifest
+/// folder (`.` for the root crate, `..` for a member); `shared/` sits beside the workspace.
 fn emit_shared_cfgs(workspace: &str) {
     println!("cargo::rustc-check-cfg=cfg(real_data)");
     println!("cargo::rustc-check-cfg=cfg(gltf_tools)");
@@ -44,6 +46,8 @@ fn emit_shared_cfgs(workspace: &str) {
     println!("cargo::rustc-check-cfg=cfg(blender_render)");
     // Tools found on PATH are looked up again when PATH changes.
     println!("cargo::rerun-if-env-changed=PATH");
+    println!("cargo::rustc-check-cfg=cfg(web_clients)");
+    println!("cargo::rerun-if-env-changed=SPLATBRIDGE_WEB_DIR");
     println!("cargo::rerun-if-changed=build.rs");
     let workspace = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(workspace);
     println!(
@@ -55,6 +59,21 @@ fn emit_shared_cfgs(workspace: &str) {
     if real.is_dir() {
         println!("cargo::rustc-cfg=real_data");
         println!("cargo::rerun-if-changed={}", real.display());
+    }
+    let web = std::env::var_os("SPLATBRIDGE_WEB_DIR")
+        .map(std::path::PathBuf::from)
+        .or_else(|| {
+            std::env::var_os("HOME").map(|h| std::path::Path::new(&h).join(".cache/splatbridge-web"))
+        });
+    if let Some(web) = web {
+        let modules = web.join("node_modules");
+        let chromium = std::path::Path::new("/usr/bin/chromium");
+        let packages = ["three", "@babylonjs/core", "@babylonjs/loaders", "puppeteer-core"];
+        let installed = |p: &&str| modules.join(p).join("package.json").is_file();
+        if chromium.is_file() && packages.iter().all(installed) {
+            println!("cargo::rustc-cfg=web_clients");
+            println!("cargo::rerun-if-changed={}", web.join("package.json").display());
+        }
     }
     let tools = root.join("shared/tools/gltf-validate.sh");
     if tools.is_file() {

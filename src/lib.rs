@@ -4,6 +4,7 @@
 //! and the commands share it.
 
 pub mod accuracy;
+pub mod clients;
 pub mod describe;
 pub mod parity;
 pub mod pipeline;

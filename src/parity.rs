@@ -36,6 +36,10 @@ pub struct CompareConfig {
     pub native: NativeOptions,
     pub ges: GesOptions,
     pub split: SplitParams,
+    /// Viewer clients to render the exports in (`clients.rs`), at the first time only.
+    pub clients: Vec<crate::clients::Client>,
+    /// The client dispatcher (`scripts/client-render.sh`).
+    pub client_script: PathBuf,
 }
 
 impl Default for CompareConfig {
@@ -51,6 +55,8 @@ impl Default for CompareConfig {
             native: NativeOptions::default(),
             ges: GesOptions::default(),
             split: SplitParams::default(),
+            clients: Vec::new(),
+            client_script: crate::clients::default_script(),
         }
     }
 }
@@ -255,7 +261,15 @@ pub fn compare(
             })
         })
         .transpose()?;
-    for &t in times {
+    let client_files = if cfg.clients.is_empty() {
+        None
+    } else {
+        progress("export for clients");
+        Some(crate::clients::export(scene, cams, &cfg.clients, dir)?)
+    };
+    let mut unavailable: Vec<crate::clients::Client> = Vec::new();
+    let mut skipped: Vec<Record> = Vec::new();
+    for (ti, &t) in times.iter().enumerate() {
         let cloud = scene.composite(t);
         if let Some(g) = &mut gaussians {
             g.set_time(t);
@@ -310,6 +324,50 @@ pub fn compare(
                 bytes: m.bytes,
                 ..named("trace-mesh", ms)
             };
+            if let (Some(files), 0) = (&client_files, ti) {
+                let active: Vec<_> = cfg
+                    .clients
+                    .iter()
+                    .copied()
+                    .filter(|c| !unavailable.contains(c))
+                    .collect();
+                let results = crate::clients::render_all(
+                    &cfg.client_script,
+                    &active,
+                    files,
+                    dir,
+                    ci,
+                    cam,
+                    progress,
+                )?;
+                for res in results {
+                    let r = Record {
+                        profile: res.kind.into(),
+                        format: "glb".into(),
+                        bytes: res.bytes,
+                        ..named(res.client.name(), res.ms)
+                    };
+                    match res.outcome {
+                        crate::clients::Outcome::Image(img) => emit(
+                            format!("client_{}_{}_{tag}", res.client.name(), res.kind),
+                            &img,
+                            r,
+                        )?,
+                        crate::clients::Outcome::Unavailable(why) => {
+                            if !unavailable.contains(&res.client) {
+                                unavailable.push(res.client);
+                                skipped.push(Record {
+                                    camera: cam.name.clone(),
+                                    time: t,
+                                    psnr: f64::NAN,
+                                    note: format!("skipped: {why}"),
+                                    ..r
+                                });
+                            }
+                        }
+                    }
+                }
+            }
             for (profile, format, m) in &mut meshes {
                 progress(&format!("trace {profile}.{format} {tag}"));
                 let img = render_mesh(m, cam, t, cfg.k)?;
@@ -335,6 +393,7 @@ pub fn compare(
             }
         }
     }
+    records.append(&mut skipped);
     Ok(records)
 }
 
@@ -347,13 +406,21 @@ pub fn write_reports(
 ) -> anyhow::Result<()> {
     let json = serde_json::to_string_pretty(records)?;
     splatbridge_scene::image_io::write_atomic(&dir.join("report.json"), json.as_bytes())?;
+    let (skipped, measured): (Vec<Record>, Vec<Record>) =
+        records.iter().cloned().partition(|r| !r.note.is_empty());
     use crate::report::summary;
     summary::colour_bar(256, 16).save_png(&dir.join(summary::COLOUR_BAR))?;
-    let md = format!(
+    let mut md = format!(
         "# {title}\n\n{preamble}\n\n{}\n## All images\n\n{}",
-        summary::markdown_summary(records, Some(summary::COLOUR_BAR)),
-        crate::report::markdown_table(records, true)
+        summary::markdown_summary(&measured, Some(summary::COLOUR_BAR)),
+        crate::report::markdown_table(&measured, true)
     );
+    if !skipped.is_empty() {
+        md.push_str("\nSkipped clients:\n\n");
+        for r in &skipped {
+            md.push_str(&format!("- {} ({}): {}\n", r.renderer, r.profile, r.note));
+        }
+    }
     splatbridge_scene::image_io::write_atomic(&dir.join("report.md"), md.as_bytes())?;
     Ok(())
 }

@@ -504,7 +504,7 @@ fn empty_effects_object_renders_bit_identically_to_no_key() {
                 files.push(std::fs::read(&out).unwrap());
             }
             bytes.push(files);
-            if i == 0 && *tag == "a" {
+            if i == 0 && tag == "a" {
                 native = Some(r.frame);
             }
         }

@@ -29,8 +29,16 @@ pub trait ChunkedMesh: Sync {
     fn vertices_of(&self, i: usize) -> u64;
 
     /// Append item `i`'s triangles, with its first vertex at absolute index `first`, to `idx`;
-    /// return its vertex count.
-    fn indices_of(&self, i: usize, first: u32, idx: &mut Vec<u32>) -> u32;
+    /// return its vertex count. `reverse`: the copy written in the second index pass (see
+    /// [`ChunkedMesh::index_passes`]).
+    fn indices_of(&self, i: usize, first: u32, reverse: bool, idx: &mut Vec<u32>) -> u32;
+
+    /// Copies of every triangle in the index buffer: 1, or 2 when the source writes each
+    /// triangle once more in a second pass (items in reverse order, the other winding), as
+    /// the viewer arrangement does (`order.rs`). Vertices are never duplicated.
+    fn index_passes(&self) -> usize {
+        1
+    }
 
     /// Emit the vertices and triangles of `range` (indices relative to the sink's start).
     fn emit_range<S: VertexSink>(&self, range: Range<usize>, out: &mut S, s: &mut Self::Scratch);
@@ -121,13 +129,35 @@ pub trait ChunkedMesh: Sync {
                 .map(|i| self.vertices_of(i))
                 .sum::<u64>();
         }
+        // With two passes, chunks 0..chunks are the first copies, then the same chunks in
+        // reverse with every item reversed and every triangle in the other winding.
+        let passes = self.index_passes();
         in_order(
-            chunks,
+            chunks * passes,
             |k| {
+                let (c, second) = if k < chunks {
+                    (k, false)
+                } else {
+                    (2 * chunks - 1 - k, true)
+                };
                 let mut idx = Vec::new();
-                let mut v = starts[k] as u32;
-                for i in self.chunk_range(k) {
-                    v += self.indices_of(i, v, &mut idx);
+                let mut v = starts[c] as u32;
+                if !second {
+                    for i in self.chunk_range(c) {
+                        v += self.indices_of(i, v, false, &mut idx);
+                    }
+                } else {
+                    let mut firsts = Vec::with_capacity(self.chunk_range(c).len());
+                    for i in self.chunk_range(c) {
+                        let n = self.vertices_of(i) as u32;
+                        if n > 0 {
+                            firsts.push((i, v));
+                        }
+                        v += n;
+                    }
+                    for &(i, v) in firsts.iter().rev() {
+                        self.indices_of(i, v, true, &mut idx);
+                    }
                 }
                 map(&idx)
             },

@@ -1,8 +1,9 @@
 //! The glTF 2.0 mesh writer (GLB, or `.gltf` + `.bin`), streaming.
 //!
 //! Layout of the binary buffer: first the small data built in memory (animation keys, the
-//! falloff PNG), then per mesh one interleaved vertex view (POSITION f32×3, NORMAL f32×3,
-//! COLOR_0 normalized u16×4, `_GAUSSIAN_ID` f32, TEXCOORD_0 f32×2) and one u32 index view.
+//! falloff PNG), then per mesh one interleaved vertex view (POSITION f32×3, NORMAL f32×3
+//! unless left out, COLOR_0 normalized u16×4, `_GAUSSIAN_ID` f32, TEXCOORD_0 f32×2) and one
+//! u32 index view.
 //! Every offset and stride is a multiple of 4. Sizes are known from the classification, so
 //! the JSON (with exact POSITION min/max from a first generation pass) is written before the
 //! mesh data, which is generated again chunk by chunk and streamed: memory stays at a few
@@ -27,7 +28,7 @@ use crate::gltf_doc::{
     ObjectTrack, ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER, FLOAT,
 };
 use crate::options::{ConvertOptions, ConvertReport, Profile};
-use crate::{io_err, prepare, shape_for, FrameClouds, MeshEntry, Role};
+use crate::{io_err, shape_for, FrameClouds, MeshEntry, Role};
 
 const UNSIGNED_SHORT: u32 = 5123;
 const UNSIGNED_INT: u32 = 5125;
@@ -37,17 +38,25 @@ const UNSIGNED_INT: u32 = 5125;
 pub struct VertexLayout {
     pub ids: bool,
     pub uv: bool,
+    pub normals: bool,
 }
 
 impl VertexLayout {
     pub fn stride(self) -> usize {
-        32 + if self.ids { 4 } else { 0 } + if self.uv { 8 } else { 0 }
+        self.id_offset() + if self.ids { 4 } else { 0 } + if self.uv { 8 } else { 0 }
+    }
+    fn color_offset(self) -> usize {
+        if self.normals {
+            24
+        } else {
+            12
+        }
     }
     fn id_offset(self) -> usize {
-        32
+        self.color_offset() + 8
     }
     fn uv_offset(self) -> usize {
-        32 + if self.ids { 4 } else { 0 }
+        self.id_offset() + if self.ids { 4 } else { 0 }
     }
 }
 
@@ -55,7 +64,8 @@ impl VertexLayout {
 pub fn vertex_bytes(s: &crate::MeshSoup, l: VertexLayout) -> Vec<u8> {
     let mut b = Vec::with_capacity(s.vertex_count() * l.stride());
     for v in 0..s.vertex_count() {
-        for x in s.positions[v].iter().chain(&s.normals[v]) {
+        let normal: &[f32] = if l.normals { &s.normals[v] } else { &[] };
+        for x in s.positions[v].iter().chain(normal) {
             b.extend_from_slice(&x.to_le_bytes());
         }
         for c in s.colors[v] {
@@ -103,13 +113,15 @@ impl crate::mesh::VertexSink for Interleaved {
     ) -> u32 {
         let mut v = [0u8; 44];
         let mut put = |o: usize, b: [u8; 4]| v[o..o + 4].copy_from_slice(&b);
-        for (k, x) in p.to_array().iter().chain(&normal).enumerate() {
+        let normal: &[f32] = if self.layout.normals { &normal } else { &[] };
+        for (k, x) in p.to_array().iter().chain(normal).enumerate() {
             put(4 * k, x.to_le_bytes());
         }
         let q = |c: f32| ((c.clamp(0.0, 1.0) * 65535.0).round() as u16).to_le_bytes();
         let (c0, c1, c2, c3) = (q(rgba[0]), q(rgba[1]), q(rgba[2]), q(rgba[3]));
-        v[24..32].copy_from_slice(&[c0[0], c0[1], c1[0], c1[1], c2[0], c2[1], c3[0], c3[1]]);
-        let mut o = 32;
+        let co = self.layout.color_offset();
+        v[co..co + 8].copy_from_slice(&[c0[0], c0[1], c1[0], c1[1], c2[0], c2[1], c3[0], c3[1]]);
+        let mut o = co + 8;
         if self.layout.ids {
             v[o..o + 4].copy_from_slice(&(id as f32).to_le_bytes());
             o += 4;
@@ -176,13 +188,14 @@ impl Materials {
 
     /// Only materials a primitive uses (the validator flags unused objects); the splat
     /// material samples the falloff texture when `textured`.
-    fn json(self, textured: bool) -> Vec<Value> {
+    fn json(self, textured: bool, both_windings: bool) -> Vec<Value> {
         let mut materials = Vec::new();
         if self.any_residual {
             let mut material = json!({
                 "name": "gaussian_splats",
                 "alphaMode": "BLEND",
-                "doubleSided": true,
+                // Both windings are written instead when arranged for viewers (`order.rs`).
+                "doubleSided": !both_windings,
                 "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
                 "extensions": {"KHR_materials_unlit": {}}
             });
@@ -240,6 +253,7 @@ fn plan(
     let layout = VertexLayout {
         ids: opts.gaussian_ids,
         uv: opts.profile == Profile::Texture,
+        normals: opts.normals,
     };
     let materials = Materials::of(entries);
     // Small data first: the texture and the animation keys.
@@ -287,7 +301,7 @@ fn plan(
         g,
         cameras,
         images,
-        materials: materials.json(textured),
+        materials: materials.json(textured, opts.both_windings),
         textured,
         bin_len,
         bin_uri,
@@ -365,6 +379,7 @@ fn mesh_node(
     let surfel_layout = VertexLayout {
         ids: layout.ids,
         uv: false,
+        normals: layout.normals,
     };
     let parts = [
         (
@@ -396,7 +411,7 @@ fn mesh_node(
         pair[slot] = Some(region);
     }
     let (role, name) = match e.role {
-        Role::Static => ("static", "static".to_string()),
+        Role::Static => ("static", m.counts.name.clone()),
         Role::Object(k) => ("object", ctx.scene.objects[k].name.clone()),
         Role::Frame(k) => ("frame", format!("frame_{k:04}")),
     };
@@ -445,9 +460,11 @@ fn primitive(
     let vv = d.view(json!({"buffer": 0, "byteOffset": offset, "byteLength": region.vertex_len, "byteStride": stride, "target": ARRAY_BUFFER}));
     let iv = d.view(json!({"buffer": 0, "byteOffset": offset + region.vertex_len, "byteLength": region.index_len, "target": ELEMENT_ARRAY_BUFFER}));
     let pos = d.accessor(json!({"bufferView": vv, "byteOffset": 0, "componentType": FLOAT, "count": nv, "type": "VEC3", "min": lo, "max": hi}));
-    let nor = d.accessor(json!({"bufferView": vv, "byteOffset": 12, "componentType": FLOAT, "count": nv, "type": "VEC3"}));
-    let col = d.accessor(json!({"bufferView": vv, "byteOffset": 24, "componentType": UNSIGNED_SHORT, "normalized": true, "count": nv, "type": "VEC4"}));
-    let mut attrs = json!({"POSITION": pos, "NORMAL": nor, "COLOR_0": col});
+    let mut attrs = json!({"POSITION": pos});
+    if layout.normals {
+        attrs["NORMAL"] = json!(d.accessor(json!({"bufferView": vv, "byteOffset": 12, "componentType": FLOAT, "count": nv, "type": "VEC3"})));
+    }
+    attrs["COLOR_0"] = json!(d.accessor(json!({"bufferView": vv, "byteOffset": layout.color_offset(), "componentType": UNSIGNED_SHORT, "normalized": true, "count": nv, "type": "VEC4"})));
     if layout.ids {
         attrs["_GAUSSIAN_ID"] = json!(d.accessor(json!({"bufferView": vv, "byteOffset": layout.id_offset(), "componentType": FLOAT, "count": nv, "type": "SCALAR"})));
     }
@@ -541,6 +558,7 @@ fn stream_bin<W: Write>(w: &mut W, plan: &Plan, entries: &[MeshEntry<'_>]) -> io
             let layout = VertexLayout {
                 ids: plan.layout.ids,
                 uv: false,
+                normals: plan.layout.normals,
             };
             let mut vb = 0u64;
             s.map_chunks_with(
@@ -647,10 +665,16 @@ pub fn write_file(
         Some(s) => (&s.residual, s.frames.as_ref()),
         None => (scene, frames),
     };
-    let entries = match (&split, &opts.surfels) {
-        (Some(s), Some(o)) => crate::prepare_split(s, o, opts, &shape, &mut report)?,
-        _ => prepare(scene, frames, opts, &shape, &mut report)?,
-    };
+    let parts = crate::order::arrange_for(scene, frames, opts)?;
+    let entries = crate::prepare_any(
+        scene,
+        frames,
+        split.as_ref(),
+        parts.as_deref(),
+        opts,
+        &shape,
+        &mut report,
+    )?;
     if glb {
         let mut bytes = 0;
         splatbridge_scene::image_io::with_atomic_writer(path, |w| {

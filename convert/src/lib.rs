@@ -14,11 +14,13 @@
 //!   its local frame under a node whose translation and rotation are animated (LINEAR,
 //!   seconds, unit x,y,z,w quaternions); per-frame content as one node per frame, shown
 //!   only on its frame by a STEP scale animation; the scene's cameras as camera nodes.
-//! * Vertex attributes: POSITION, NORMAL (the Gaussian's shortest axis), COLOR_0 (RGBA,
-//!   normalized u16, linear by default: see [`options::ColorEncoding`]), `_GAUSSIAN_ID` and,
-//!   for the `texture` profile, TEXCOORD_0; u32 indexed TRIANGLES; one unlit, double-sided
-//!   BLEND material. With `--surfels` ([`surfels`]) each part's mesh gets a second primitive:
-//!   opaque surfel fans with an unlit, double-sided OPAQUE material `surfels`.
+//! * Vertex attributes: POSITION, NORMAL (the Gaussian's shortest axis; optional, off in the
+//!   arrangement for viewers), COLOR_0 (RGBA, normalized u16, linear by default: see
+//!   [`options::ColorEncoding`]), `_GAUSSIAN_ID` and, for the `texture` profile, TEXCOORD_0;
+//!   u32 indexed TRIANGLES; one unlit BLEND material, double-sided, or single-sided with
+//!   every triangle in both windings when arranged for viewers ([`order`]: spatial chunks as
+//!   nodes, ordered along each chunk's normal). With `--surfels` ([`surfels`]) each part's
+//!   mesh gets a second primitive: opaque surfel fans with an unlit, double-sided OPAQUE material `surfels`.
 //! * With [`ConvertOptions::coplanar_offset`] (on in `splatbridge convert`), every Gaussian's
 //!   fans sit a hashed sub-millimetre step off its own plane, so that Cycles renders exactly
 //!   coplanar splats (see [`classify`] for why and what it costs).
@@ -45,6 +47,7 @@ pub mod gltf_writer;
 pub mod mesh;
 pub mod obj;
 pub mod options;
+pub mod order;
 pub mod ply_mesh;
 pub mod profile;
 pub mod splats_gltf;
@@ -116,6 +119,25 @@ pub fn prepare<'a>(
     report: &mut ConvertReport,
 ) -> Result<Vec<MeshEntry<'a>>> {
     opts.validate()?;
+    check_frames(frames)?;
+    let mut clouds: Vec<Piece<'a>> = vec![Piece::whole(
+        Role::Static,
+        "static",
+        &scene.static_gaussians,
+    )];
+    for (k, o) in scene.objects.iter().enumerate() {
+        clouds.push(Piece::whole(Role::Object(k), &o.name, &o.gaussians));
+    }
+    if let Some(fr) = frames {
+        for (k, c) in fr.clouds.iter().enumerate() {
+            clouds.push(Piece::whole(Role::Frame(k), &format!("frame {k}"), c));
+        }
+    }
+    prepare_pieces(clouds, scene, opts, shape, report)
+}
+
+/// Per-frame content has one cloud per time, times finite and strictly increasing.
+fn check_frames(frames: Option<&FrameClouds>) -> Result<()> {
     if let Some(fr) = frames {
         if fr.times.len() != fr.clouds.len() {
             return Err(ConvertError::Invalid(format!(
@@ -130,21 +152,80 @@ pub fn prepare<'a>(
             ));
         }
     }
-    let mut clouds: Vec<(Role, String, &GaussianCloud)> =
-        vec![(Role::Static, "static".into(), &scene.static_gaussians)];
-    for (k, o) in scene.objects.iter().enumerate() {
-        clouds.push((Role::Object(k), o.name.clone(), &o.gaussians));
-    }
-    if let Some(fr) = frames {
-        for (k, c) in fr.clouds.iter().enumerate() {
-            clouds.push((Role::Frame(k), format!("frame {k}"), c));
+    Ok(())
+}
+
+/// One cloud to mesh: a whole part of the scene, or a chunk of one with its global ids and
+/// facing (`order.rs`).
+struct Piece<'a> {
+    role: Role,
+    name: String,
+    cloud: &'a GaussianCloud,
+    ids: Option<&'a [u32]>,
+    facing: order::Facing,
+}
+
+impl<'a> Piece<'a> {
+    fn whole(role: Role, name: &str, cloud: &'a GaussianCloud) -> Self {
+        Piece {
+            role,
+            name: name.into(),
+            cloud,
+            ids: None,
+            facing: order::Facing::Template,
         }
     }
+}
+
+/// [`prepare`] for a scene arranged for viewers ([`order::arrange_for`]): one entry per chunk.
+pub fn prepare_arranged<'a>(
+    parts: &'a [order::Part],
+    scene: &'a DynamicScene,
+    opts: &ConvertOptions,
+    shape: &'a ProfileShape,
+    report: &mut ConvertReport,
+) -> Result<Vec<MeshEntry<'a>>> {
+    opts.validate()?;
+    let pieces = parts
+        .iter()
+        .map(|p| Piece {
+            role: p.role,
+            name: p.name.clone(),
+            cloud: &p.cloud,
+            ids: Some(&p.ids),
+            facing: p.facing,
+        })
+        .collect();
+    prepare_pieces(pieces, scene, opts, shape, report)
+}
+
+fn prepare_pieces<'a>(
+    clouds: Vec<Piece<'a>>,
+    scene: &'a DynamicScene,
+    opts: &ConvertOptions,
+    shape: &'a ProfileShape,
+    report: &mut ConvertReport,
+) -> Result<Vec<MeshEntry<'a>>> {
     let mut offset = 0u64;
     let mut entries = Vec::with_capacity(clouds.len());
-    for (role, name, cloud) in clouds {
+    for Piece {
+        role,
+        name,
+        cloud,
+        ids,
+        facing,
+    } in clouds
+    {
         cloud.check_shape()?;
         let mut mesher = Mesher::new(cloud, shape, opts, &name, offset);
+        if let Some(ids) = ids {
+            let first = ids.iter().copied().min().unwrap_or(0) as u64;
+            mesher.set_id_map(ids, first)?;
+            offset = offset.max(ids.iter().copied().max().map_or(0, |m| m as u64 + 1));
+        } else {
+            offset += cloud.len() as u64;
+        }
+        mesher.set_facing(facing);
         if let Role::Object(k) = role {
             let reach = scene.objects[k]
                 .track
@@ -159,7 +240,6 @@ pub fn prepare<'a>(
             mesher,
             surfels: None,
         });
-        offset += cloud.len() as u64;
     }
     if opts.gaussian_ids && offset > 1 << 24 {
         return Err(ConvertError::Invalid(format!(
@@ -226,6 +306,27 @@ pub fn prepare_split<'a>(
     Ok(entries)
 }
 
+/// Classify a scene for the mesh writers: arranged for viewers when the options ask
+/// ([`order::arrange_for`], owned by `parts`), split into surfels when they ask, else as is.
+pub(crate) fn prepare_any<'a>(
+    scene: &'a DynamicScene,
+    frames: Option<&'a FrameClouds>,
+    split: Option<&'a surfels::SplitScene>,
+    parts: Option<&'a [order::Part]>,
+    opts: &ConvertOptions,
+    shape: &'a ProfileShape,
+    report: &mut ConvertReport,
+) -> Result<Vec<MeshEntry<'a>>> {
+    match (split, &opts.surfels, parts) {
+        (Some(s), Some(o), _) => prepare_split(s, o, opts, shape, report),
+        (_, _, Some(p)) => {
+            check_frames(frames)?;
+            prepare_arranged(p, scene, opts, shape, report)
+        }
+        _ => prepare(scene, frames, opts, shape, report),
+    }
+}
+
 /// The profile shape for the options.
 pub fn shape_for(opts: &ConvertOptions) -> ProfileShape {
     ProfileShape::new(opts.profile, opts.segments(), opts.rings)
@@ -290,10 +391,16 @@ pub fn write_glb<W: Write>(
         Some(s) => (&s.residual, s.frames.as_ref()),
         None => (scene, frames),
     };
-    let entries = match (&split, &opts.surfels) {
-        (Some(s), Some(o)) => prepare_split(s, o, opts, &shape, &mut report)?,
-        _ => prepare(scene, frames, opts, &shape, &mut report)?,
-    };
+    let parts = order::arrange_for(scene, frames, opts)?;
+    let entries = prepare_any(
+        scene,
+        frames,
+        split.as_ref(),
+        parts.as_deref(),
+        opts,
+        &shape,
+        &mut report,
+    )?;
     let bytes = gltf_writer::write_glb(w, &entries, scene, frames, opts, &report).map_err(|e| {
         ConvertError::Io {
             path: "<memory>".into(),

@@ -19,6 +19,7 @@ use splatbridge_scene::{sh, GaussianCloud};
 use crate::chunked::ChunkedMesh;
 use crate::classify::{classify, corrected_alpha, score, Frame, Kind};
 use crate::options::{ColorEncoding, ConvertOptions, MeshCounts, Profile, VolumetricMode};
+use crate::order::Facing;
 use crate::profile::{FanLayout, ProfileShape, VertexKey};
 
 /// A triangle soup (or one chunk of one); indices are relative to its first vertex.
@@ -152,6 +153,12 @@ pub struct Mesher<'a> {
     linear: bool,
     /// Vertex count and index pattern of a flat and a volumetric Gaussian.
     templates: [(u32, Vec<u32>); 2],
+    /// Per template triangle: its fan (plane) and whether its winding's normal is
+    /// `+axes[a] × axes[b]` of that plane (see [`Mesher::set_facing`]).
+    tri_planes: [Vec<(u8, bool)>; 2],
+    /// Which way fans face in the index stream; anything but `Template` writes each
+    /// triangle twice, once per winding (see `order.rs`).
+    facing: Facing,
     /// Explicit `_GAUSSIAN_ID` per Gaussian (a split cloud keeps its unsplit ids).
     id_map: Option<&'a [u32]>,
     /// Coplanar separation on (see `classify.rs`), and the largest distance the cloud's
@@ -184,6 +191,8 @@ impl<'a> Mesher<'a> {
             bake_centre: opts.bake_view.as_ref().map(|c| c.centre),
             linear: opts.color_encoding == ColorEncoding::Linear,
             templates: [(0, Vec::new()), (0, Vec::new())],
+            tri_planes: [Vec::new(), Vec::new()],
+            facing: Facing::Template,
             id_map: None,
             coplanar: opts.coplanar_offset,
             frame_reach: 0.0,
@@ -195,8 +204,54 @@ impl<'a> Mesher<'a> {
             },
         };
         m.templates = [m.probe(false), m.probe(true)];
+        m.tri_planes = [m.probe_planes(false), m.probe_planes(true)];
         m.recount();
         m
+    }
+
+    /// The plane and orientation of every triangle of a template: the probe's axes are
+    /// x, y, z, so plane (a, b)'s normal `axes[a] × axes[b]` is z, x or y.
+    fn probe_planes(&self, volumetric: bool) -> Vec<(u8, bool)> {
+        let f = Frame {
+            mean: Vec3::ZERO,
+            axes: [Vec3::X, Vec3::Y, Vec3::Z],
+            scales: [1.0; 3],
+            opacity: 1.0,
+        };
+        let mut out = MeshSoup::default();
+        let mut s = Scratch::default();
+        self.emit_frame(&f, Vec3::ONE, 0, volumetric, &mut out, &mut s);
+        let planes = if volumetric { 3 } else { 1 };
+        let per_plane = (out.indices.len() / 3 / planes).max(1);
+        let normals = [Vec3::Z, Vec3::X, Vec3::Y];
+        out.indices
+            .chunks_exact(3)
+            .enumerate()
+            .map(|(t, tri)| {
+                let p = [0, 1, 2].map(|k| Vec3::from_array(out.positions[tri[k] as usize]));
+                let plane = (t / per_plane).min(planes - 1);
+                let n = (p[1] - p[0]).cross(p[2] - p[0]);
+                (plane as u8, n.dot(normals[plane]) >= 0.0)
+            })
+            .collect()
+    }
+
+    /// Write fans facing `facing` in the index stream: with `Axis` or `Point`, every fan's
+    /// triangles first face that way (Gaussians in cloud order), then every triangle follows
+    /// once more in the other winding (Gaussians in reverse order). Vertices are not
+    /// duplicated. Counts double accordingly.
+    pub fn set_facing(&mut self, facing: Facing) {
+        self.facing = facing;
+        self.recount();
+    }
+
+    /// Copies of each triangle in the index stream.
+    fn copies(&self) -> u64 {
+        if self.facing == Facing::Template {
+            1
+        } else {
+            2
+        }
     }
 
     /// Vertex count and index pattern of one Gaussian of the given kind (opacity 1; the
@@ -215,6 +270,7 @@ impl<'a> Mesher<'a> {
     }
 
     fn recount(&mut self) {
+        let copies = self.copies();
         let c = &mut self.counts;
         let (mut flat, mut vol, mut inv, mut tr, mut ov, mut bu) =
             (0u64, 0u64, 0u64, 0u64, 0u64, 0u64);
@@ -236,7 +292,7 @@ impl<'a> Mesher<'a> {
         c.dropped_budget = bu;
         let [(fv, fi), (vv, vi)] = &self.templates;
         c.vertices = flat * *fv as u64 + vol * *vv as u64;
-        c.triangles = flat * (fi.len() / 3) as u64 + vol * (vi.len() / 3) as u64;
+        c.triangles = (flat * (fi.len() / 3) as u64 + vol * (vi.len() / 3) as u64) * copies;
     }
 
     /// Use `ids[i]` as Gaussian `i`'s `_GAUSSIAN_ID` instead of `id_offset + i`.
@@ -394,11 +450,43 @@ impl<'a> Mesher<'a> {
         }
     }
 
+    /// Template 0 (flat) or 1 (volumetric) of a kept Gaussian.
+    fn template_of(&self, i: usize) -> Option<usize> {
+        match self.kinds[i] {
+            Kind::Flat => Some(0),
+            Kind::Volumetric => Some(1),
+            _ => None,
+        }
+    }
+
+    /// Gaussian `i`'s triangles with its first vertex at `v`: the template's winding, or
+    /// facing [`Mesher::facing`] (`reverse`: the opposite winding of that).
+    fn gaussian_indices(&self, i: usize, v: u32, kind: usize, reverse: bool, idx: &mut Vec<u32>) {
+        let pattern = &self.templates[kind].1;
+        let towards = match self.facing {
+            Facing::Template => {
+                idx.extend(pattern.iter().map(|&j| v + j));
+                return;
+            }
+            Facing::Axis(a) => a,
+            Facing::Point(p) => (p - self.cloud.means[i].as_dvec3()).as_vec3(),
+        };
+        let f = Frame::of(self.cloud, i);
+        const PLANES: [(usize, usize); 3] = [(0, 1), (1, 2), (2, 0)];
+        let side: [bool; 3] = PLANES.map(|(a, b)| f.axes[a].cross(f.axes[b]).dot(towards) >= 0.0);
+        for (tri, &(plane, positive)) in pattern.chunks_exact(3).zip(&self.tri_planes[kind]) {
+            // Front face towards `towards` when the template's normal sign agrees with the side.
+            let keep = (positive == side[plane as usize]) != reverse;
+            let t = [v + tri[0], v + tri[1], v + tri[2]];
+            idx.extend(if keep { t } else { [t[0], t[2], t[1]] });
+        }
+    }
+
     /// Triangles of Gaussian `i` under its current classification.
     fn triangles_of(&self, i: usize) -> u64 {
         match self.kinds[i] {
-            Kind::Flat => (self.templates[0].1.len() / 3) as u64,
-            Kind::Volumetric => (self.templates[1].1.len() / 3) as u64,
+            Kind::Flat => (self.templates[0].1.len() / 3) as u64 * self.copies(),
+            Kind::Volumetric => (self.templates[1].1.len() / 3) as u64 * self.copies(),
             _ => 0,
         }
     }
@@ -452,14 +540,18 @@ impl ChunkedMesh for Mesher<'_> {
         }
     }
 
-    fn indices_of(&self, i: usize, first: u32, idx: &mut Vec<u32>) -> u32 {
-        let t = match self.kinds[i] {
-            Kind::Flat => &self.templates[0],
-            Kind::Volumetric => &self.templates[1],
-            _ => return 0,
-        };
-        idx.extend(t.1.iter().map(|&j| first + j));
-        t.0
+    fn index_passes(&self) -> usize {
+        self.copies() as usize
+    }
+
+    fn indices_of(&self, i: usize, first: u32, reverse: bool, idx: &mut Vec<u32>) -> u32 {
+        match self.template_of(i) {
+            Some(kind) => {
+                self.gaussian_indices(i, first, kind, reverse, idx);
+                self.templates[kind].0
+            }
+            None => 0,
+        }
     }
 
     fn emit_range<S: VertexSink>(&self, range: Range<usize>, out: &mut S, s: &mut Scratch) {

@@ -117,6 +117,18 @@ pub enum ColorEncoding {
     Display,
 }
 
+/// The order of Gaussians inside a mesh node (see `order.rs`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum ChunkOrder {
+    /// The input's order.
+    #[default]
+    Input,
+    /// Ascending along the node's dominant normal: back to front for views from its +normal
+    /// side (and, with both windings, the reverse copy for the other side).
+    Normal,
+}
+
 /// Default smallest/middle scale ratio at or above which a Gaussian counts as volumetric.
 ///
 /// 0.3: below it the thickness is under 30 % of the width, so seen edge-on the single fan
@@ -155,6 +167,31 @@ pub struct ConvertOptions {
     /// see `surfels.rs`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub surfels: Option<crate::surfels::SurfelOptions>,
+    /// Split the static Gaussians into mesh nodes of at most this many (median cuts; 0: one
+    /// node), so that viewers sorting objects get the coarse order right.
+    #[serde(default)]
+    pub chunk_size: usize,
+    /// The order inside each node.
+    #[serde(default)]
+    pub chunk_order: ChunkOrder,
+    /// A single-sided material with every triangle in both windings (each view draws one copy,
+    /// in one pass) instead of a `doubleSided` material (drawn in two passes by three.js).
+    #[serde(default)]
+    pub both_windings: bool,
+    /// Write the NORMAL attribute (unlit materials never read it).
+    #[serde(default = "yes")]
+    pub normals: bool,
+    /// Sort every part far to near for this camera (one node per part, both windings facing
+    /// it first); overrides the chunking.
+    #[serde(skip)]
+    pub view_order: Option<Camera>,
+    /// Name of the view-order camera, for the metadata.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub view_order_name: Option<String>,
+}
+
+fn yes() -> bool {
+    true
 }
 
 impl Default for ConvertOptions {
@@ -173,11 +210,34 @@ impl Default for ConvertOptions {
             gaussian_ids: true,
             coplanar_offset: false,
             surfels: None,
+            chunk_size: 0,
+            chunk_order: ChunkOrder::Input,
+            both_windings: false,
+            normals: true,
+            view_order: None,
+            view_order_name: None,
         }
     }
 }
 
 impl ConvertOptions {
+    /// Whether the Gaussians are rearranged for viewers (`order.rs`).
+    pub fn arranged(&self) -> bool {
+        self.chunk_size > 0
+            || self.chunk_order != ChunkOrder::Input
+            || self.both_windings
+            || self.view_order.is_some()
+    }
+
+    /// The arrangement for stock viewers: measured in the README's viewer table.
+    pub fn for_viewers(mut self) -> Self {
+        self.chunk_size = crate::order::VIEWER_CHUNK;
+        self.chunk_order = ChunkOrder::Normal;
+        self.both_windings = true;
+        self.normals = false;
+        self
+    }
+
     pub fn segments(&self) -> usize {
         self.segments.unwrap_or(self.profile.default_segments())
     }
@@ -200,6 +260,13 @@ impl ConvertOptions {
         }
         if let Some(s) = &self.surfels {
             s.validate()?;
+        }
+        if let Some(c) = &self.view_order {
+            c.validate()
+                .map_err(|e| crate::ConvertError::Invalid(format!("view-order camera: {e}")))?;
+        }
+        if self.surfels.is_some() && self.arranged() {
+            return bad("surfel export keeps one node per part: no chunks, chunk order, both windings or view order".into());
         }
         if let Some(c) = &self.bake_view {
             c.validate()

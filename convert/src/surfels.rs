@@ -376,7 +376,7 @@ impl ChunkedMesh for SurfelMesher<'_> {
         }
     }
 
-    fn indices_of(&self, i: usize, first: u32, idx: &mut Vec<u32>) -> u32 {
+    fn indices_of(&self, i: usize, first: u32, _reverse: bool, idx: &mut Vec<u32>) -> u32 {
         if !self.keep[i] {
             return 0;
         }

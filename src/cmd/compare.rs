@@ -51,6 +51,14 @@ pub struct Args {
     /// Drop invalid Gaussians instead of failing.
     #[arg(long)]
     pub drop_invalid: bool,
+    /// Viewer clients to render the exports in, comma-separated: three, babylon (headless
+    /// chromium), eevee, cycles (Blender); through `scripts/client-render.sh`, at the first
+    /// time. A client that is not installed is reported as skipped with the reason.
+    #[arg(long, value_name = "LIST")]
+    pub clients: Option<String>,
+    /// The client dispatcher script (default: the repository's scripts/client-render.sh).
+    #[arg(long, value_name = "PATH")]
+    pub client_script: Option<PathBuf>,
     /// Output folder.
     #[arg(short, long, alias = "output")]
     pub out: PathBuf,
@@ -117,6 +125,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         obj: !args.no_obj,
         backend: args.backend.parse()?,
         k: args.k,
+        clients: match &args.clients {
+            Some(l) => splatbridge::clients::Client::parse_list(l)
+                .map_err(|e| anyhow::anyhow!("--clients: {e}"))?,
+            None => Vec::new(),
+        },
+        client_script: args
+            .client_script
+            .clone()
+            .unwrap_or_else(splatbridge::clients::default_script),
         ..CompareConfig::default()
     };
     let pb = common::progress(0, "compare");
@@ -153,10 +170,21 @@ pub fn print_summary(records: &[splatbridge::report::Record]) {
             keys.push(k);
         }
     }
+    for r in records.iter().filter(|r| !r.note.is_empty()) {
+        println!("{} {}: {}", r.renderer, r.profile, r.note);
+    }
+    let measured: Vec<_> = records.iter().filter(|r| r.note.is_empty()).collect();
     for (renderer, profile, format) in keys {
-        let sel: Vec<_> = records
+        if !measured
+            .iter()
+            .any(|r| r.renderer == renderer && r.profile == profile && r.format == format)
+        {
+            continue;
+        }
+        let sel: Vec<_> = measured
             .iter()
             .filter(|r| r.renderer == renderer && r.profile == profile && r.format == format)
+            .copied()
             .collect();
         let finite: Vec<f64> = sel
             .iter()

@@ -10,9 +10,10 @@ use std::time::Instant;
 use anyhow::{bail, Context};
 use clap::ValueEnum;
 use splatbridge::pipeline::export::{
-    cloud_format, export_scene, is_gltf, load_export_input, write_cloud_export, ExportKind,
-    OutputFormat,
+    cloud_format, embedded_cameras, export_scene, is_gltf, load_export_input, write_cloud_export,
+    ExportKind, OutputFormat,
 };
+use splatbridge_convert::options::ChunkOrder;
 use splatbridge_convert::splats_gltf::KhrCompression;
 use splatbridge_convert::{
     ColorEncoding, ConvertOptions, ConvertReport, Profile, UpAxis, VolumetricMode,
@@ -70,6 +71,31 @@ pub enum FormatArg {
     Gltf,
     /// Wavefront OBJ mesh.
     Obj,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum LayoutArg {
+    /// For stock viewers that blend in file order (three.js, Babylon.js, EEVEE): spatial
+    /// chunks as nodes, each ordered along its normal, both windings single-sided, no NORMAL.
+    Viewer,
+    /// One node per scene part in the input's order, doubleSided material, with NORMAL.
+    Input,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum ChunkOrderArg {
+    /// The input's order.
+    Input,
+    /// Along each chunk's dominant normal.
+    Normal,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum WindingsArg {
+    /// Every triangle twice (both windings) with a single-sided material.
+    Both,
+    /// One winding and a doubleSided material.
+    Double,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -176,6 +202,31 @@ pub struct Args {
     /// Triangles per surfel fan (with --surfels).
     #[arg(long, value_name = "N", default_value_t = splatbridge_convert::surfels::DEFAULT_SURFEL_SEGMENTS, requires = "surfels", value_parser = super::ranges::surfel_segments)]
     pub surfel_segments: usize,
+    /// Embed these cameras in glTF outputs (replacing the scene's own), in order: orbit:N,
+    /// orbit:N:I, scene (the input's cameras), scene:I, PATH.json (all its cameras) or
+    /// PATH.json:I; repeatable and comma-separated. Orbit cameras are 640×480 (50° field of
+    /// view, up −y), as `render --camera` makes them.
+    #[arg(long, value_name = "SPEC")]
+    pub camera: Vec<String>,
+    /// Mesh layout of glTF outputs (mesh profiles; not OBJ/PLY).
+    #[arg(long, value_enum, default_value = "viewer")]
+    pub layout: LayoutArg,
+    /// Gaussians per static mesh node (0: one node); default 256 with --layout viewer.
+    #[arg(long, value_name = "N")]
+    pub chunk_size: Option<usize>,
+    /// Order inside each mesh node; default normal with --layout viewer.
+    #[arg(long, value_enum)]
+    pub chunk_order: Option<ChunkOrderArg>,
+    /// Triangle windings; default both with --layout viewer.
+    #[arg(long, value_enum)]
+    pub windings: Option<WindingsArg>,
+    /// Write NORMAL (true/false); default false with --layout viewer.
+    #[arg(long, value_name = "BOOL")]
+    pub normals: Option<bool>,
+    /// Write each part exactly far to near for this camera (orbit:N:I, scene:I, PATH.json:I),
+    /// one node per part; overrides the chunking.
+    #[arg(long, value_name = "CAMERA")]
+    pub view_order: Option<String>,
     /// Print the report as JSON on stdout.
     #[arg(long)]
     pub json: bool,
@@ -277,7 +328,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.spz_version,
     )?;
     let pb = common::progress(3, "loading");
-    let scene = load_export_input(&args.scene, args.drop_invalid, &common::print_warning)?;
+    let mut scene = load_export_input(&args.scene, args.drop_invalid, &common::print_warning)?;
+    if !args.camera.is_empty() {
+        scene.cameras = embedded_cameras(&args.camera, &scene)?;
+    }
     pb.inc(1);
     if args.first.is_some() && cloud_out.is_none() {
         bail!("--first applies to single-cloud splat outputs (.ply with --splats, .splat, .spz, .compressed.ply)");
@@ -331,6 +385,47 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             } else {
                 "OBJ or PLY"
             }
+        );
+    }
+    let gltf_mesh = is_gltf(&args.output) && !args.splats;
+    let viewer = gltf_mesh && args.layout == LayoutArg::Viewer && !args.surfels;
+    if viewer {
+        opts = opts.for_viewers();
+    }
+    if let Some(n) = args.chunk_size {
+        opts.chunk_size = n;
+    }
+    if let Some(o) = args.chunk_order {
+        opts.chunk_order = match o {
+            ChunkOrderArg::Input => ChunkOrder::Input,
+            ChunkOrderArg::Normal => ChunkOrder::Normal,
+        };
+    }
+    if let Some(w) = args.windings {
+        opts.both_windings = matches!(w, WindingsArg::Both);
+    }
+    if let Some(n) = args.normals {
+        opts.normals = n;
+    }
+    if let Some(spec) = &args.view_order {
+        let cam_args = CameraArgs {
+            camera: Some(spec.clone()),
+            ..Default::default()
+        };
+        let composite = scene.composite(scene.time.start);
+        let cam = cam_args
+            .resolve(&composite, &scene.cameras)
+            .with_context(|| format!("--view-order {spec}"))?;
+        opts.view_order_name = Some(format!("{spec} ({})", cam.name));
+        opts.view_order = Some(cam);
+        if args.windings.is_none() {
+            opts.both_windings = true;
+        }
+    }
+    if opts.arranged() && !gltf_mesh {
+        bail!(
+            "{}: --chunk-size, --chunk-order, --windings and --view-order arrange glTF meshes (.glb or .gltf without --splats)",
+            args.output.display()
         );
     }
     if let Some(spec) = &args.bake_view {

@@ -35,6 +35,9 @@ pub struct Record {
     /// Image and heat-map paths relative to the report.
     pub image: String,
     pub heatmap: String,
+    /// Why a row has no measurement (a viewer client that is not installed); empty otherwise.
+    #[serde(skip_serializing_if = "String::is_empty")]
+    pub note: String,
 }
 
 /// JSON has no infinity: serde_json writes +inf as null, read back here as +inf.

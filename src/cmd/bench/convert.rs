@@ -98,6 +98,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let layout = splatbridge_convert::gltf_writer::VertexLayout {
             ids: true,
             uv: profile == Profile::Texture,
+            normals: true,
         };
         let t = Instant::now();
         let mut nb = 0usize;
