@@ -8,12 +8,14 @@ use splatbridge_scene::dynamic::{
 use splatbridge_scene::sh::eval_color_f64;
 use splatbridge_scene::GaussianCloud;
 
-/// Angle in radians between two rotations (sign of the quaternion ignored).
+/// Angle in radians between two rotations (sign of the quaternion ignored). From the chord
+/// |a − b| = 2 sin(φ/2) between the unit quaternions (rotation angle 2φ), not from
+/// `acos(a·b)`: acos is ill-conditioned near 1, where one f32 rounding of the dot product
+/// (≈1e-7) already reads as 2·√(2e-7) ≈ 1e-3 rad.
 fn angle_between(a: Quat, b: Quat) -> f64 {
-    let d = (a.normalize().as_dquat().dot(b.normalize().as_dquat()))
-        .abs()
-        .min(1.0);
-    2.0 * d.acos()
+    let (a, b) = (a.normalize().as_dquat(), b.normalize().as_dquat());
+    let b = if a.dot(b) < 0.0 { -b } else { b };
+    4.0 * ((a - b).length() / 2.0).min(1.0).asin()
 }
 
 fn quat_strategy() -> impl Strategy<Value = Quat> {
