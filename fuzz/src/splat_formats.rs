@@ -548,6 +548,9 @@ fn sog_structured(data: &[u8]) {
 
 // ---- KHR_gaussian_splatting glTF ----
 
+/// A node: translation, rotation, scale, children.
+type NodeIn = ([f32; 3], [f32; 4], [f32; 3], Vec<u8>);
+
 #[derive(Arbitrary, Debug)]
 struct KhrIn {
     count: u16,
@@ -560,7 +563,7 @@ struct KhrIn {
     view_offset_lie: u16,
     view_len_lie: i16,
     stride: Option<u8>,
-    nodes: Vec<([f32; 3], [f32; 4], [f32; 3], Vec<u8>)>,
+    nodes: Vec<NodeIn>,
     matrix: Option<[f32; 16]>,
     /// An animation: node, key times, and whether translation/rotation outputs exist.
     anim: Option<(u8, Vec<f32>, bool, bool, i8)>,
@@ -659,7 +662,7 @@ fn gltf_splats_structured(data: &[u8]) {
         ext["extensions"] = Value::Object(nested);
         used.push(json!(name));
     }
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let mut nodes: Vec<Value> = k
@@ -740,7 +743,7 @@ fn gltf_splats_structured(data: &[u8]) {
         });
         return;
     }
-    while text.len() % 4 != 0 {
+    while !text.len().is_multiple_of(4) {
         text.push(b' ');
     }
     let mut glb = Vec::with_capacity(28 + text.len() + bin.len());
@@ -773,8 +776,11 @@ fn fill_f32(src: &[f32], len: usize) -> Vec<f32> {
     src.iter().copied().cycle().take(len).collect()
 }
 
+/// A target's entry function.
+pub type Entry = fn(&[u8]);
+
 /// Every target of this module: name and entry function.
-pub const TARGETS: &[(&str, fn(&[u8]))] = &[
+pub const TARGETS: &[(&str, Entry)] = &[
     ("splat", splat),
     ("spz", spz),
     ("spz_structured", spz_structured),
