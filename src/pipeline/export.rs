@@ -39,13 +39,14 @@ pub fn load_export_input(
     drop_invalid: bool,
     warn: &dyn Fn(&str),
 ) -> anyhow::Result<DynamicScene> {
+    // One loader for every input, so a glTF's splats get the invalid-Gaussian policy of
+    // every other format (NaN or infinite values refused, or dropped with --drop-invalid).
+    let scene = load_scene_warn(path, drop_invalid, warn)?;
     if is_gltf(path) {
-        let scene = splatbridge_convert::splats_gltf::read_file(path)?;
+        // A mesh-only glTF is not a scene to convert (it would write an empty file).
         splatbridge_scene::input::require_gaussians(path, &scene)?;
-        Ok(scene)
-    } else {
-        load_scene_warn(path, drop_invalid, warn)
     }
+    Ok(scene)
 }
 
 /// An output format named explicitly (instead of the one the output's extension implies).
