@@ -11,7 +11,7 @@ use std::path::Path;
 use std::process::Command;
 
 use splatbridge::parity::{export_and_load, render_mesh, render_native};
-use splatbridge_convert::ConvertOptions;
+use splatbridge_convert::{ConvertOptions, Profile};
 use splatbridge_hybrid::native::RenderOptions as NativeOptions;
 use splatbridge_raytrace::{BackendKind, BuildPreset};
 use splatbridge_scene::fixtures::{street_with, StreetParams};
@@ -35,9 +35,18 @@ fn eevee_and_cycles_render_the_street_export_close_to_our_tracer() {
         .unwrap()
         .frame;
     let glb = dir.path().join("street.glb");
+    // The export `convert street.glb` writes by default: texture profile, coplanar layers
+    // separated, arranged for viewers. (Without the coplanar separation the street's
+    // coincident wall layers render about 9 dB darker in Cycles.)
+    let opts = ConvertOptions {
+        profile: Profile::Texture,
+        coplanar_offset: true,
+        ..Default::default()
+    }
+    .for_viewers();
     let mut traced = export_and_load(
         &scene,
-        &ConvertOptions::default(),
+        &opts,
         &glb,
         BackendKind::default(),
         BuildPreset::default(),
