@@ -213,9 +213,10 @@ fn points(records: &[Record]) -> (Vec<Point>, Vec<Point>) {
     (time, tris)
 }
 
-/// Plots and `accuracy.md` in `out` from the records (also what `--replot` redraws); `what`
-/// describes the measurement in the table's heading.
-pub fn write_outputs(out: &Path, what: &str, records: &[Record]) -> anyhow::Result<()> {
+/// Plots and `accuracy.md` in `out` (a staging folder, see [`commit_outputs`]) from the
+/// records (also what `--replot` redraws); `what` describes the measurement in the table's
+/// heading.
+fn write_outputs(out: &Path, what: &str, records: &[Record]) -> anyhow::Result<()> {
     let (points_time, points_tris) = points(records);
     plot::plot(
         &points_time,
@@ -244,7 +245,19 @@ pub fn write_outputs(out: &Path, what: &str, records: &[Record]) -> anyhow::Resu
         front.join(", "),
         markdown_table(records, false)
     );
-    splatbridge_scene::image_io::write_atomic(&out.join("accuracy.md"), md.as_bytes())?;
+    std::fs::write(out.join("accuracy.md"), md.as_bytes())
+        .with_context(|| out.join("accuracy.md").display().to_string())?;
+    Ok(())
+}
+
+/// Write `accuracy.json`, the plots and `accuracy.md` into `out` as one set: all are made in a
+/// staging folder and move in together, so a failure leaves the previous set as it was.
+pub fn commit_outputs(out: &Path, what: &str, records: &[Record]) -> anyhow::Result<()> {
+    let mut set = splatbridge_scene::output::OutputSet::new();
+    let stage = set.stage_dir(out)?;
+    write_records(&stage, records)?;
+    write_outputs(&stage, what, records)?;
+    set.commit()?;
     Ok(())
 }
 
@@ -367,10 +380,11 @@ pub fn measure_setting(
     Ok(r)
 }
 
-/// Write `accuracy.json` in `out`.
-pub fn write_records(out: &Path, records: &[Record]) -> anyhow::Result<()> {
+/// Write `accuracy.json` in `out` (a staging folder, see [`commit_outputs`]).
+fn write_records(out: &Path, records: &[Record]) -> anyhow::Result<()> {
     let json = serde_json::to_string_pretty(records)?;
-    splatbridge_scene::image_io::write_atomic(&out.join("accuracy.json"), json.as_bytes())?;
+    std::fs::write(out.join("accuracy.json"), json.as_bytes())
+        .with_context(|| out.join("accuracy.json").display().to_string())?;
     Ok(())
 }
 

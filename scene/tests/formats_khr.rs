@@ -155,6 +155,17 @@ fn cases() -> Vec<Case> {
         Case {
             name: "truncated.glb",
             bytes: good[..good.len() / 2].to_vec(),
+            expect: "is not the file's",
+        },
+        // Truncated with the header's length made to agree: the chunk itself runs past the end.
+        Case {
+            name: "truncated_chunk.glb",
+            bytes: {
+                let mut b = good[..good.len() / 2].to_vec();
+                let n = b.len() as u32;
+                b[8..12].copy_from_slice(&n.to_le_bytes());
+                b
+            },
             expect: "runs past the end",
         },
         Case {

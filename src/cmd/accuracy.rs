@@ -7,7 +7,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use splatbridge::accuracy::{
-    measure_setting, read_records, reference_frames, settings, write_outputs, write_records, Sweep,
+    commit_outputs, measure_setting, read_records, reference_frames, settings, Sweep,
 };
 use splatbridge::report::Record;
 use splatbridge_scene::{Camera, GaussianCloud};
@@ -55,7 +55,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.replot {
         let records = read_records(&args.out)?;
         let what = format!("`{}` (re-plotted from accuracy.json)", args.scene.display());
-        write_outputs(&args.out, &what, &records)?;
+        commit_outputs(&args.out, &what, &records)?;
         print_records(&records);
         println!("wrote {}", args.out.join("accuracy.md").display());
         return Ok(());
@@ -90,7 +90,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         pb.inc(1);
     }
     pb.finish_and_clear();
-    write_records(&args.out, &records)?;
     let what = format!(
         "`{}`: {} cameras at {}×{}, time {}",
         args.scene.display(),
@@ -99,7 +98,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.height,
         args.time
     );
-    write_outputs(&args.out, &what, &records)?;
+    commit_outputs(&args.out, &what, &records)?;
     print_records(&records);
     println!("wrote {}", args.out.join("accuracy.md").display());
     Ok(())
