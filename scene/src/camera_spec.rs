@@ -98,11 +98,14 @@ pub enum CameraListItem {
     Orbit(usize),
     /// `scene`: every camera of the scene's own.
     Scene,
+    /// `PATH.json`: every camera of a 3DGS `cameras.json`.
+    File(PathBuf),
     /// Any single camera spec.
     One(CameraSpec),
 }
 
-/// Parse a comma-separated camera list (`orbit:4`, `scene`, `orbit:8:1,scene:0,a.json:2`).
+/// Parse a comma-separated camera list (`orbit:4`, `scene`, `cams.json`,
+/// `orbit:8:1,scene:0,a.json:2`).
 /// Empty items are skipped; a list naming no camera is an error.
 pub fn parse_camera_list(s: &str) -> Result<Vec<CameraListItem>> {
     let mut items = Vec::new();
@@ -115,6 +118,8 @@ pub fn parse_camera_list(s: &str) -> Result<Vec<CameraListItem>> {
             items.push(CameraListItem::Orbit(n));
         } else if item == "scene" {
             items.push(CameraListItem::Scene);
+        } else if item.ends_with(".json") {
+            items.push(CameraListItem::File(item.into()));
         } else {
             items.push(CameraListItem::One(item.parse()?));
         }
@@ -280,6 +285,13 @@ impl CameraRequest {
                 CameraListItem::Scene => {
                     for i in 0..src.own.len() {
                         cams.push(self.with_spec(CameraSpec::Scene(i)).resolve(src)?);
+                    }
+                }
+                CameraListItem::File(path) => {
+                    for cam in load_cameras_json(path)? {
+                        let cam = self.resize(&cam);
+                        self.check_budget(&cam)?;
+                        cams.push(cam);
                     }
                 }
                 CameraListItem::One(spec) => cams.push(self.with_spec(spec.clone()).resolve(src)?),

@@ -167,3 +167,19 @@ fn camera_lists_expand_in_order() {
     assert!(parse_camera_list(" , ").is_err());
     assert!(parse_camera_list("orbit:x").is_err());
 }
+
+#[test]
+fn a_bare_cameras_file_in_a_list_means_all_of_its_cameras() {
+    let items = parse_camera_list("orbit:2,views/cameras.json,a.json:1").unwrap();
+    assert_eq!(
+        items,
+        vec![
+            CameraListItem::Orbit(2),
+            CameraListItem::File("views/cameras.json".into()),
+            CameraListItem::One(CameraSpec::Json {
+                path: "a.json".into(),
+                index: 1
+            }),
+        ]
+    );
+}

@@ -201,8 +201,8 @@ pub fn export_scene(
     Ok((report, effects))
 }
 
-/// Resolve `convert --camera` items against the scene (orbits frame its composite at the
-/// start; a `.json` item is a camera list file), in the order given.
+/// Resolve `convert --camera` lists against the scene (orbits frame its composite at the
+/// start; a `.json` item is every camera of that file), in the order given.
 pub fn embedded_cameras(
     specs: &[String],
     scene: &DynamicScene,
@@ -218,18 +218,11 @@ pub fn embedded_cameras(
     let req = CameraRequest::new(CameraSpec::Scene(0));
     let mut cams = Vec::new();
     for spec in specs {
-        for item in spec.split(',').map(str::trim).filter(|t| !t.is_empty()) {
-            if item.ends_with(".json") {
-                let all = splatbridge_scene::camera::load_cameras_json(Path::new(item))?;
-                cams.extend(all);
-                continue;
-            }
-            let items = parse_camera_list(item).with_context(|| format!("--camera {item}"))?;
-            cams.extend(
-                req.resolve_list(&items, src)
-                    .with_context(|| format!("--camera {item}"))?,
-            );
-        }
+        let items = parse_camera_list(spec).with_context(|| format!("--camera {spec}"))?;
+        cams.extend(
+            req.resolve_list(&items, src)
+                .with_context(|| format!("--camera {spec}"))?,
+        );
     }
     Ok(cams)
 }
