@@ -185,6 +185,13 @@ fn s(p: &Path) -> String {
     p.to_str().unwrap().to_string()
 }
 
+/// `trace INPUT --width 8 --height 8 -o PNG`.
+fn trace_8x8(input: String, png: String) -> Vec<String> {
+    ["trace", &input, "--width", "8", "--height", "8", "-o", &png]
+        .map(String::from)
+        .to_vec()
+}
+
 #[cfg(unix)]
 fn mkfifo(p: &Path) {
     let st = Command::new("mkfifo").arg(p).status().expect("mkfifo");
@@ -249,31 +256,13 @@ fn fifos_and_devices_are_refused_without_blocking() {
         ),
         (
             "fifo_gltf_buffer",
-            vec![
-                "trace".into(),
-                s(&gltf),
-                "--width".into(),
-                "8".into(),
-                "--height".into(),
-                "8".into(),
-                "-o".into(),
-                format!("{o}/t.png"),
-            ],
+            trace_8x8(s(&gltf), format!("{o}/t.png")),
             "buffer 0: ",
             "fifo_buffer.gltf".into(),
         ),
         (
             "dev_zero_gltf_buffer",
-            vec![
-                "trace".into(),
-                s(&zero_gltf),
-                "--width".into(),
-                "8".into(),
-                "--height".into(),
-                "8".into(),
-                "-o".into(),
-                format!("{o}/t.png"),
-            ],
+            trace_8x8(s(&zero_gltf), format!("{o}/t.png")),
             "not a regular file",
             "zero_buffer.gltf".into(),
         ),
@@ -297,16 +286,7 @@ fn an_obj_with_a_fifo_mtllib_does_not_block() {
     let obj = dir.path().join("a.obj");
     std::fs::write(&obj, "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
     let png = dir.path().join("t.png");
-    let o = run(&[
-        "trace".into(),
-        s(&obj),
-        "--width".into(),
-        "8".into(),
-        "--height".into(),
-        "8".into(),
-        "-o".into(),
-        s(&png),
-    ]);
+    let o = run(&trace_8x8(s(&obj), s(&png)));
     assert!(
         !o.timed_out && o.code == Some(0),
         "{:?} {}",
@@ -350,16 +330,7 @@ fn a_deep_node_chain_is_refused_quickly() {
     );
     let p = dir.path().join("deep.gltf");
     std::fs::write(&p, json).unwrap();
-    let args = vec![
-        "trace".into(),
-        s(&p),
-        "--width".into(),
-        "8".into(),
-        "--height".into(),
-        "8".into(),
-        "-o".into(),
-        format!("{}/t.png", s(out.path())),
-    ];
+    let args = trace_8x8(s(&p), format!("{}/t.png", s(out.path())));
     let f = check(
         "deep",
         &args,
@@ -445,16 +416,7 @@ fn thousands_of_identical_triangles_trace_quickly() {
     let p = dir.path().join("same.obj");
     std::fs::write(&p, obj).unwrap();
     let png = dir.path().join("t.png");
-    let o = run(&[
-        "trace".into(),
-        s(&p),
-        "--width".into(),
-        "8".into(),
-        "--height".into(),
-        "8".into(),
-        "-o".into(),
-        s(&png),
-    ]);
+    let o = run(&trace_8x8(s(&p), s(&png)));
     assert!(
         !o.timed_out && o.code == Some(0),
         "{:?} {}",
