@@ -28,7 +28,7 @@ use crate::gltf_doc::{
     ObjectTrack, ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER, FLOAT,
 };
 use crate::options::{ConvertOptions, ConvertReport, Profile};
-use crate::{io_err, shape_for, FrameClouds, MeshEntry, Role};
+use crate::{io_err, FrameClouds, MeshEntry, Role};
 
 const UNSIGNED_SHORT: u32 = 5123;
 const UNSIGNED_INT: u32 = 5125;
@@ -656,51 +656,41 @@ pub fn write_file(
     opts: &ConvertOptions,
 ) -> crate::Result<ConvertReport> {
     let mut report = ConvertReport::new(if glb { "glb" } else { "gltf" }, opts);
-    let shape = shape_for(opts);
-    let split = opts
-        .surfels
-        .as_ref()
-        .map(|o| crate::surfels::split_scene(scene, frames, o));
-    let (scene, frames) = match &split {
-        Some(s) => (&s.residual, s.frames.as_ref()),
-        None => (scene, frames),
-    };
-    let parts = crate::order::arrange_for(scene, frames, opts)?;
-    let entries = crate::prepare_any(
+    let bytes = crate::with_mesh_entries(
         scene,
         frames,
-        split.as_ref(),
-        parts.as_deref(),
         opts,
-        &shape,
         &mut report,
+        |entries, scene, frames, report| {
+            if glb {
+                let mut bytes = 0;
+                splatbridge_scene::image_io::with_atomic_writer(path, |w| {
+                    bytes = write_glb(w, entries, scene, frames, opts, report)?;
+                    Ok(())
+                })
+                .map_err(crate::scene_err)?;
+                return Ok(bytes);
+            }
+            let bin_path = path.with_extension("bin");
+            let uri = bin_path
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            let plan =
+                plan(entries, scene, frames, opts, report, Some(uri)).map_err(io_err(path))?;
+            let mut n = 0;
+            // The .gltf and its .bin appear together or not at all.
+            let mut set = splatbridge_scene::output::OutputSet::new();
+            set.write_with(&bin_path, |w| {
+                n = stream_bin(w, &plan, entries)?;
+                Ok(())
+            })
+            .map_err(crate::scene_err)?;
+            set.write(path, &plan.json).map_err(crate::scene_err)?;
+            set.commit().map_err(crate::scene_err)?;
+            Ok(n + plan.json.len() as u64)
+        },
     )?;
-    if glb {
-        let mut bytes = 0;
-        splatbridge_scene::image_io::with_atomic_writer(path, |w| {
-            bytes = write_glb(w, &entries, scene, frames, opts, &report)?;
-            Ok(())
-        })
-        .map_err(crate::scene_err)?;
-        report.bytes = bytes;
-    } else {
-        let bin_path = path.with_extension("bin");
-        let uri = bin_path
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default();
-        let plan = plan(&entries, scene, frames, opts, &report, Some(uri)).map_err(io_err(path))?;
-        let mut n = 0;
-        // The .gltf and its .bin appear together or not at all.
-        let mut set = splatbridge_scene::output::OutputSet::new();
-        set.write_with(&bin_path, |w| {
-            n = stream_bin(w, &plan, &entries)?;
-            Ok(())
-        })
-        .map_err(crate::scene_err)?;
-        set.write(path, &plan.json).map_err(crate::scene_err)?;
-        set.commit().map_err(crate::scene_err)?;
-        report.bytes = n + plan.json.len() as u64;
-    }
+    report.bytes = bytes;
     Ok(report)
 }

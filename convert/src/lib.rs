@@ -382,6 +382,39 @@ pub fn write_glb<W: Write>(
     opts: &ConvertOptions,
 ) -> Result<ConvertReport> {
     let mut report = ConvertReport::new("glb", opts);
+    let bytes = with_mesh_entries(
+        scene,
+        frames,
+        opts,
+        &mut report,
+        |entries, scene, frames, report| {
+            gltf_writer::write_glb(w, entries, scene, frames, opts, report).map_err(|e| {
+                ConvertError::Io {
+                    path: "<memory>".into(),
+                    err: e,
+                }
+            })
+        },
+    )?;
+    report.bytes = bytes;
+    Ok(report)
+}
+
+/// Prepare the mesh entries of a glTF export (the surfel split and the viewer arrangement
+/// when the options ask for them) and hand them to `write`, with the scene and frames they
+/// were made from (the residual scene after a surfel split).
+pub(crate) fn with_mesh_entries<T>(
+    scene: &DynamicScene,
+    frames: Option<&FrameClouds>,
+    opts: &ConvertOptions,
+    report: &mut ConvertReport,
+    write: impl FnOnce(
+        &[MeshEntry<'_>],
+        &DynamicScene,
+        Option<&FrameClouds>,
+        &mut ConvertReport,
+    ) -> Result<T>,
+) -> Result<T> {
     let shape = shape_for(opts);
     let split = opts
         .surfels
@@ -399,16 +432,9 @@ pub fn write_glb<W: Write>(
         parts.as_deref(),
         opts,
         &shape,
-        &mut report,
+        report,
     )?;
-    let bytes = gltf_writer::write_glb(w, &entries, scene, frames, opts, &report).map_err(|e| {
-        ConvertError::Io {
-            path: "<memory>".into(),
-            err: e,
-        }
-    })?;
-    report.bytes = bytes;
-    Ok(report)
+    write(&entries, scene, frames, report)
 }
 
 /// A scene converted to GLB bytes in memory.
