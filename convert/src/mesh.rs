@@ -203,37 +203,13 @@ impl<'a> Mesher<'a> {
                 ..Default::default()
             },
         };
-        m.templates = [m.probe(false), m.probe(true)];
-        m.tri_planes = [m.probe_planes(false), m.probe_planes(true)];
+        for (k, volumetric) in [false, true].into_iter().enumerate() {
+            let probe = m.probe(volumetric);
+            m.tri_planes[k] = probe_planes(&probe, volumetric);
+            m.templates[k] = (probe.vertex_count() as u32, probe.indices);
+        }
         m.recount();
         m
-    }
-
-    /// The plane and orientation of every triangle of a template: the probe's axes are
-    /// x, y, z, so plane (a, b)'s normal `axes[a] × axes[b]` is z, x or y.
-    fn probe_planes(&self, volumetric: bool) -> Vec<(u8, bool)> {
-        let f = Frame {
-            mean: Vec3::ZERO,
-            axes: [Vec3::X, Vec3::Y, Vec3::Z],
-            scales: [1.0; 3],
-            opacity: 1.0,
-        };
-        let mut out = MeshSoup::default();
-        let mut s = Scratch::default();
-        self.emit_frame(&f, Vec3::ONE, 0, volumetric, &mut out, &mut s);
-        let planes = if volumetric { 3 } else { 1 };
-        let per_plane = (out.indices.len() / 3 / planes).max(1);
-        let normals = [Vec3::Z, Vec3::X, Vec3::Y];
-        out.indices
-            .chunks_exact(3)
-            .enumerate()
-            .map(|(t, tri)| {
-                let p = [0, 1, 2].map(|k| Vec3::from_array(out.positions[tri[k] as usize]));
-                let plane = (t / per_plane).min(planes - 1);
-                let n = (p[1] - p[0]).cross(p[2] - p[0]);
-                (plane as u8, n.dot(normals[plane]) >= 0.0)
-            })
-            .collect()
     }
 
     /// Write fans facing `facing` in the index stream: with `Axis` or `Point`, every fan's
@@ -254,9 +230,10 @@ impl<'a> Mesher<'a> {
         }
     }
 
-    /// Vertex count and index pattern of one Gaussian of the given kind (opacity 1; the
-    /// topology of every profile is independent of opacity).
-    fn probe(&self, volumetric: bool) -> (u32, Vec<u32>) {
+    /// One unit Gaussian of the given kind at the origin, axes x, y, z (opacity 1; the
+    /// topology of every profile is independent of opacity): its vertex count and index
+    /// pattern are the kind's template.
+    fn probe(&self, volumetric: bool) -> MeshSoup {
         let f = Frame {
             mean: Vec3::ZERO,
             axes: [Vec3::X, Vec3::Y, Vec3::Z],
@@ -266,7 +243,7 @@ impl<'a> Mesher<'a> {
         let mut out = MeshSoup::default();
         let mut s = Scratch::default();
         self.emit_frame(&f, Vec3::ONE, 0, volumetric, &mut out, &mut s);
-        (out.vertex_count() as u32, out.indices)
+        out
     }
 
     fn recount(&mut self) {
@@ -490,6 +467,24 @@ impl<'a> Mesher<'a> {
             _ => 0,
         }
     }
+}
+
+/// The plane and orientation of every triangle of a template: the probe's axes are
+/// x, y, z, so plane (a, b)'s normal `axes[a] × axes[b]` is z, x or y.
+fn probe_planes(out: &MeshSoup, volumetric: bool) -> Vec<(u8, bool)> {
+    let planes = if volumetric { 3 } else { 1 };
+    let per_plane = (out.indices.len() / 3 / planes).max(1);
+    let normals = [Vec3::Z, Vec3::X, Vec3::Y];
+    out.indices
+        .chunks_exact(3)
+        .enumerate()
+        .map(|(t, tri)| {
+            let p = [0, 1, 2].map(|k| Vec3::from_array(out.positions[tri[k] as usize]));
+            let plane = (t / per_plane).min(planes - 1);
+            let n = (p[1] - p[0]).cross(p[2] - p[0]);
+            (plane as u8, n.dot(normals[plane]) >= 0.0)
+        })
+        .collect()
 }
 
 /// Keep the highest-scoring Gaussians of all `meshers` within `max_triangles`; the rest are
