@@ -6,6 +6,7 @@
 pub mod accuracy;
 pub mod clients;
 pub mod describe;
+pub mod heap;
 pub mod parity;
 pub mod pipeline;
 pub mod report;

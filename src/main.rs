@@ -3,6 +3,10 @@
 
 mod cmd;
 
+/// Counted, so `bench` can report what a stage allocates at its peak (`splatbridge::heap`).
+#[global_allocator]
+static ALLOC: splatbridge::heap::Counting = splatbridge::heap::Counting;
+
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]

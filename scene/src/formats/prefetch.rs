@@ -9,8 +9,21 @@
 use std::io::{self, Read};
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
 
-/// Bytes per block handed over.
+/// Bytes per block handed over, at most: large enough that per-block costs vanish, and
+/// L2-sized. Small streams use smaller blocks ([`block_for`]).
 const BLOCK: usize = 256 << 10;
+
+/// The smallest block: per-block costs (a channel send, a wake-up) stay far below the time
+/// to inflate 16 KiB.
+const MIN_BLOCK: usize = 16 << 10;
+
+/// The block size for a stream of about `bytes`: a 32nd of it within [16 KiB, 256 KiB], so
+/// the blocks in flight (up to `DEPTH + 3`, see [`with_prefetch`]) stay a small fraction of a
+/// small file's data too. With fixed 256 KiB blocks they were 1.3 MB, a fifth of a 113k-Gaussian
+/// SH-0 cloud.
+pub(crate) fn block_for(bytes: u64) -> usize {
+    (bytes / 32).clamp(MIN_BLOCK as u64, BLOCK as u64) as usize
+}
 /// Blocks in flight between the threads.
 const DEPTH: usize = 2;
 
@@ -52,18 +65,38 @@ impl Read for Prefetched {
     }
 }
 
-/// Read `r` to its end on a second thread while `f` consumes it through a [`Prefetched`]
-/// reader; returns what `f` returns. Errors of `r` reach `f` as read errors, in order.
+/// Streams smaller than this are read on the calling thread: they inflate in a few
+/// milliseconds, and a second thread costs more than its overlap saves in memory (its stack and
+/// its own malloc arena, about 1–2 MB of resident memory next to a 6 MB cloud), not in time.
+pub(crate) const SEQUENTIAL_BELOW: u64 = 4 << 20;
+
+/// Read `r` (a stream of about `bytes` bytes) to its end on a second thread while `f`
+/// consumes it; returns what `f` returns. Errors of `r` reach `f` as read errors, in order.
+/// Below [`SEQUENTIAL_BELOW`] bytes, `f` reads `r` directly.
 pub(crate) fn with_prefetch<R: Read + Send, T>(
     mut r: R,
-    f: impl FnOnce(&mut Prefetched) -> T,
+    bytes: u64,
+    f: impl FnOnce(&mut dyn Read) -> T,
 ) -> T {
+    if bytes < SEQUENTIAL_BELOW {
+        return f(&mut r);
+    }
+    prefetch_blocks(r, block_for(bytes), f)
+}
+
+/// [`with_prefetch`] on a second thread, in blocks of `block` bytes.
+fn prefetch_blocks<R: Read + Send, T>(
+    mut r: R,
+    block: usize,
+    f: impl FnOnce(&mut dyn Read) -> T,
+) -> T {
+    let block = block.clamp(1, BLOCK);
     let (tx, blocks) = sync_channel::<io::Result<Vec<u8>>>(DEPTH);
     let (spare, spares) = sync_channel::<Vec<u8>>(DEPTH + 2);
     std::thread::scope(|s| {
         s.spawn(move || loop {
             let mut b = spares.try_recv().unwrap_or_default();
-            b.resize(BLOCK, 0);
+            b.resize(block, 0);
             let mut at = 0;
             let res = loop {
                 if at == b.len() {
@@ -77,7 +110,7 @@ pub(crate) fn with_prefetch<R: Read + Send, T>(
                 }
             };
             b.truncate(at);
-            let last = at < BLOCK || res.is_err();
+            let last = at < block || res.is_err();
             if at > 0 && tx.send(Ok(b)).is_err() {
                 return;
             }
@@ -133,16 +166,19 @@ mod tests {
 
     #[test]
     fn passes_every_byte_in_order_then_the_error() {
-        for n in [0, 1, BLOCK - 1, BLOCK, 3 * BLOCK + 17] {
+        for (n, block) in [0, 1, BLOCK - 1, BLOCK, 3 * BLOCK + 17]
+            .into_iter()
+            .flat_map(|n| [(n, BLOCK), (n, MIN_BLOCK), (n, 1000)])
+        {
             for fail in [false, true] {
-                let got = with_prefetch(Source { at: 0, n, fail }, |r| {
+                let got = prefetch_blocks(Source { at: 0, n, fail }, block, |r| {
                     let mut v = Vec::new();
                     let res = r.read_to_end(&mut v);
                     (v, res.is_err())
                 });
                 let want: Vec<u8> = (0..n).map(|i| (i % 251) as u8).collect();
-                assert!(got.0 == want, "{n} bytes");
-                assert_eq!(got.1, fail, "{n} bytes, fail {fail}");
+                assert!(got.0 == want, "{n} bytes in blocks of {block}");
+                assert_eq!(got.1, fail, "{n} bytes, blocks of {block}, fail {fail}");
             }
         }
     }
@@ -150,12 +186,13 @@ mod tests {
     #[test]
     fn a_consumer_that_stops_early_ends_the_producer() {
         // An endless source: the scope returns only if the producer notices the closed channel.
-        let first = with_prefetch(
+        let first = prefetch_blocks(
             Source {
                 at: 0,
                 n: usize::MAX,
                 fail: false,
             },
+            MIN_BLOCK,
             |r| {
                 let mut b = [0u8; 10];
                 r.read_exact(&mut b).map(|_| b[9])

@@ -403,7 +403,7 @@ fn decode_v4<R: Read + Seek + Send>(
             ))
         };
         // Decompress on one core while the plane is dequantised on the other.
-        with_prefetch(dec_z, |z| -> Result<()> {
+        with_prefetch(dec_z, want, |z| -> Result<()> {
             match dec.read_plane(p, z) {
                 Ok(()) => {}
                 Err(PlaneError::Short) => return Err(short(dec.got - before)),
@@ -450,7 +450,11 @@ fn decode_gzip<R: Read + Send>(
         .saturating_mul(MAX_DEFLATE_RATIO)
         .saturating_add(64);
     // Inflate on one core while the planes are dequantised on the other.
-    with_prefetch(GzDecoder::new(r), |p| decode_stream(p, cap, path, axes))
+    // The payload is not known before the header inside the stream; deflate typically
+    // shrinks SPZ by 1.5–3×, so the compressed size decides.
+    with_prefetch(GzDecoder::new(r), compressed_len, |p| {
+        decode_stream(p, cap, path, axes)
+    })
 }
 
 fn decode_stream<R: Read>(

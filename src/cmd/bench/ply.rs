@@ -5,13 +5,16 @@
 //! One untimed load warms the page cache, then `--repeat` timed loads; reported: the median
 //! wall time, file MB/s at the median (MB = 10⁶ bytes), and the process's peak resident memory
 //! (`VmHWM` from `/proc/self/status`) above its resident size before the first load, relative
-//! to the size of the loaded cloud's arrays. Each cloud is dropped before the next load, so
+//! to the size of the loaded cloud's arrays; and the most the load held on the heap at once
+//! (`splatbridge::heap`, the counting allocator), which leaves out the fixed runtime costs the
+//! resident figure includes (code pages, thread stacks, malloc arenas). Each cloud is dropped before the next load, so
 //! the peak is one load's.
 
 use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context;
+use splatbridge::heap;
 use splatbridge_scene::formats::{compressed_ply, load_cloud, splat, spz};
 use splatbridge_scene::ply::ReadOptions;
 use splatbridge_scene::GaussianCloud;
@@ -90,12 +93,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let (n, degree, data) = (cloud.len(), cloud.sh_degree, cloud_bytes(&cloud));
     drop(cloud);
     let mut times = Vec::with_capacity(args.repeat.max(1));
+    // The most any one load held on the heap above what was allocated before it.
+    let mut heap_peak = 0usize;
     for _ in 0..args.repeat.max(1) {
+        let base = heap::current();
+        heap::reset_peak();
         let t = Instant::now();
         let loaded = load_cloud(&args.file, &opts)?;
         times.push(t.elapsed().as_secs_f64());
+        heap_peak = heap_peak.max(heap::peak().saturating_sub(base));
         drop(loaded);
     }
+    let heap_ratio = heap_peak as f64 / data.max(1) as f64;
     times.sort_by(f64::total_cmp);
     let median = times[times.len() / 2];
     let mb_s = file_bytes as f64 / 1e6 / median;
@@ -142,6 +151,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "peak_rss_bytes": peak,
             "peak_above_start_bytes": above,
             "peak_over_cloud": ratio,
+            "heap_peak_bytes": heap_peak,
+            "heap_peak_over_cloud": heap_ratio,
             "encode": encoded.as_ref().map(|(f, s, b)| serde_json::json!({"format": f, "median_s": s, "bytes": b})),
         });
         println!("{v}");
@@ -174,6 +185,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ),
         _ => println!("peak memory   unavailable (no /proc/self/status)"),
     }
+    println!(
+        "peak heap     {:.1} MiB allocated by one load = {heap_ratio:.2}× the cloud",
+        mib(heap_peak as u64)
+    );
     if let Some((f, s, b)) = encoded {
         println!("encode {f:<6} median {:.2} ms, {b} bytes", s * 1e3);
     }

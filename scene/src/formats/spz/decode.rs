@@ -21,8 +21,9 @@ use super::{half_to_f32, unpack_smallest_three, SpzHeader, COLOR_SCALE, SH_FLIP}
 use crate::gaussians::{logit, sh_coeffs};
 use crate::GaussianCloud;
 
-/// Bytes decompressed per block: large enough that per-block costs vanish, small next to
-/// any real cloud (and L2-sized, so a block is dequantised while still in cache).
+/// Bytes decompressed per block at most: large enough that per-block costs vanish, and
+/// L2-sized, so a block is dequantised while still in cache. Small clouds use a smaller block
+/// (`prefetch::block_for` of the payload), so the block stays small next to their data.
 const BLOCK: usize = 256 << 10;
 
 /// Number of attribute planes.
@@ -40,6 +41,8 @@ pub(super) struct PlaneDecoder {
     cloud: GaussianCloud,
     colours: Vec<u8>,
     block: Vec<u8>,
+    /// Bytes read per block.
+    block_bytes: usize,
     /// Payload bytes consumed so far (for truncation messages).
     pub got: u64,
     opacity_lut: [f32; 256],
@@ -69,7 +72,7 @@ fn lut(f: impl Fn(u8) -> f32) -> [f32; 256] {
 }
 
 /// Read until `buf` is full or the stream ends; returns the bytes read.
-fn fill<R: Read>(r: &mut R, buf: &mut [u8]) -> io::Result<usize> {
+fn fill<R: Read + ?Sized>(r: &mut R, buf: &mut [u8]) -> io::Result<usize> {
     let mut at = 0;
     while at < buf.len() {
         match r.read(&mut buf[at..]) {
@@ -93,8 +96,11 @@ impl PlaneDecoder {
         reserve(&mut cloud.rotations, n)?;
         reserve(&mut cloud.opacity_logits, n)?;
         reserve(&mut cloud.sh, n.saturating_mul(sh_coeffs(degree)))?;
+        // Colours wait for the SH plane only when there is one (see `decode_block`).
         let mut colours = Vec::new();
-        reserve(&mut colours, n.saturating_mul(3))?;
+        if sh_coeffs(h.sh_degree) > 1 {
+            reserve(&mut colours, n.saturating_mul(3))?;
+        }
         Ok(PlaneDecoder {
             version: h.version,
             n,
@@ -105,6 +111,7 @@ impl PlaneDecoder {
             cloud,
             colours,
             block: Vec::new(),
+            block_bytes: super::super::prefetch::block_for(h.payload_len()).min(BLOCK),
             got: 0,
             opacity_lut: lut(|a| logit(a as f32 / 255.0)),
             scale_lut: lut(|b| b as f32 / 16.0 - 10.0),
@@ -128,12 +135,16 @@ impl PlaneDecoder {
     }
 
     /// Read plane `p` (exactly `n · stride` bytes) from `r` and decode it.
-    pub(super) fn read_plane<R: Read>(&mut self, p: usize, r: &mut R) -> Result<(), PlaneError> {
+    pub(super) fn read_plane<R: Read + ?Sized>(
+        &mut self,
+        p: usize,
+        r: &mut R,
+    ) -> Result<(), PlaneError> {
         let stride = self.stride(p);
         if stride == 0 || self.n == 0 {
             return Ok(());
         }
-        let per_block = (BLOCK / stride).max(1);
+        let per_block = (self.block_bytes / stride).max(1);
         let mut block = std::mem::take(&mut self.block);
         let mut done = 0;
         while done < self.n {
@@ -175,6 +186,14 @@ impl PlaneDecoder {
                 let t = &self.opacity_lut;
                 c.opacity_logits.extend(b.iter().map(|&a| t[a as usize]));
             }
+            // Without higher SH the colours are the whole SH array, in order: no buffer.
+            2 if self.file_rest == 0 => {
+                let t = &self.colour_lut;
+                c.sh.extend(
+                    b.chunks_exact(3)
+                        .map(|e| Vec3::new(t[e[0] as usize], t[e[1] as usize], t[e[2] as usize])),
+                )
+            }
             2 => self.colours.extend_from_slice(b),
             3 => {
                 let t = &self.scale_lut;
@@ -213,12 +232,7 @@ impl PlaneDecoder {
     }
 
     /// The cloud, once every plane has been read.
-    pub(super) fn finish(mut self) -> GaussianCloud {
-        if self.file_rest == 0 {
-            for i in 0..self.n {
-                push_dc(&mut self.cloud, &self.colour_lut, &self.colours, i);
-            }
-        }
+    pub(super) fn finish(self) -> GaussianCloud {
         self.cloud
     }
 }
