@@ -90,8 +90,8 @@ fn run(args: &[String]) -> anyhow::Result<()> {
             if let Some((db, ci, img)) = worst {
                 let (n, i, _) = &cams[ci];
                 let stem = format!("{name}-{label}-orbit{n}_{i}");
-                img.save_png(&out.join(format!("{stem}-hybrid-{db:.1}dB.png")))?;
-                natives[ci].save_png(&out.join(format!("{name}-orbit{n}_{i}-native.png")))?;
+                splatbridge_scene::image_io::save_frame(&out.join(format!("{stem}-hybrid-{db:.1}dB.png")), &img)?;
+                splatbridge_scene::image_io::save_frame(&out.join(format!("{name}-orbit{n}_{i}-native.png")), &natives[ci])?;
             }
         }
     }

@@ -15,7 +15,7 @@ use std::time::Instant;
 use anyhow::Context;
 use serde_json::json;
 use splatbridge_hybrid::ges::{render_ges, GesOptions};
-use splatbridge_hybrid::{render, RenderOptions};
+use splatbridge_hybrid::RenderOptions;
 use splatbridge_scene::camera_spec::{CameraRequest, CameraSource, CameraSpec};
 use splatbridge_scene::metrics::psnr;
 use splatbridge_scene::surfels::{split_counted, SplitParams};

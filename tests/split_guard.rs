@@ -23,25 +23,22 @@ use splatbridge_scene::{Camera, GaussianCloud};
 
 const BIN: &str = env!("CARGO_BIN_EXE_splatbridge");
 
-/// A wall of small, flat, opaque Gaussians facing the camera at depth `z`, in a checkerboard of
-/// two colours: `n × n` of them at `spacing`, each with scale `0.6·spacing` in the wall's plane
-/// (so neighbours overlap and the wall is closed) and a tenth of that across it.
+/// A wall of small, flat, opaque Gaussians facing the camera at depth `z`, all one colour:
+/// `n × n` of them at `spacing`, each with scale `0.7·spacing` in the wall's plane (so
+/// neighbours overlap and the wall is closed) and a tenth of that across it. One colour,
+/// because coplanar surfels tie in the z-buffer and a patterned wall would measure that
+/// (the 3.33σ footprint of a surfel against the Gaussian's soft falloff), not the guards.
 fn wall(c: &mut GaussianCloud, n: usize, spacing: f32, z: f32) {
-    let s = 0.6 * spacing;
+    let s = 0.7 * spacing;
     let half = 0.5 * spacing * (n as f32 - 1.0);
     for i in 0..n {
         for j in 0..n {
-            let rgb = if (i / 4 + j / 4) % 2 == 0 {
-                Vec3::new(0.2, 0.6, 0.3)
-            } else {
-                Vec3::new(0.7, 0.7, 0.6)
-            };
             c.push_activated(
                 Vec3::new(i as f32 * spacing - half, j as f32 * spacing - half, z),
                 Vec3::new(s, s, 0.1 * s),
                 Quat::IDENTITY,
                 0.95,
-                rgb,
+                Vec3::new(0.2, 0.6, 0.3),
             );
         }
     }
@@ -111,6 +108,7 @@ fn guard_case(
     assert_eq!(g.len(), 1);
     assert_eq!(g.means[0], c.means[bad]);
     assert!(!s.means.contains(&c.means[bad]));
+    eprintln!("PSNR without {db_without:.2} dB, with {db_with:.2} dB");
     (db_without, db_with)
 }
 
@@ -127,30 +125,30 @@ fn scene_scale_guard_keeps_a_wall_sized_floater_soft() {
         ..unguarded()
     };
     let (without, with) = guard_case(&c, bad, with, |k| k.too_large_for_scene);
-    // Measured 9.7 dB without the guard and 25.8 dB with it; the bars leave 2–5 dB of margin
+    // Measured 8.44 dB without the guard and 27.98 dB with it; the bars leave 3 dB of margin
     // each way. What remains with the guard is the hybrid's unsorted blend of the tail over
     // the wall, the same in kind as any residual Gaussian's.
-    assert!(without < 15.0, "without the guard: {without:.2} dB");
-    assert!(with > 22.0, "with the guard: {with:.2} dB");
+    assert!(without < 11.5, "without the guard: {without:.2} dB");
+    assert!(with > 25.0, "with the guard: {with:.2} dB");
 }
 
 #[test]
 fn neighbourhood_guard_keeps_coarse_fill_off_fine_detail() {
     // A Gaussian 8× the wall's scale, flat and opaque, 2 cm in front of the wall in the middle
-    // of the view: native shows its soft centre over the checkerboard, the surfel paints out
-    // to 3.33σ and hides the checkerboard in a 0.9 m circle.
+    // of the view: native shows its soft centre over the wall, the surfel paints out to 3.33σ
+    // and hides the wall in a 0.9 m circle.
     let mut c = base();
     let bad = c.len();
-    let s_wall = 0.6 * 2.0 / 59.0;
+    let s_wall = 0.7 * 2.0 / 59.0;
     flat(&mut c, Vec3::new(0.0, 0.0, 1.48), 8.0 * s_wall, Vec3::new(0.1, 0.1, 0.9));
     let with = SplitParams {
         max_neighbour_ratio: SplitParams::default().max_neighbour_ratio,
         ..unguarded()
     };
     let (without, with) = guard_case(&c, bad, with, |k| k.too_large_for_neighbours);
-    // Measured 14.5 dB without and 21.6 dB with; bars 3 dB inside each.
-    assert!(without < 17.5, "without the guard: {without:.2} dB");
-    assert!(with > 18.5, "with the guard: {with:.2} dB");
+    // Measured 11.13 dB without and 29.76 dB with; bars 3 dB inside each.
+    assert!(without < 14.0, "without the guard: {without:.2} dB");
+    assert!(with > 26.5, "with the guard: {with:.2} dB");
 }
 
 #[test]
@@ -165,9 +163,9 @@ fn isolation_guard_keeps_a_lone_floater_soft() {
         ..unguarded()
     };
     let (without, with) = guard_case(&c, bad, with, |k| k.isolated);
-    // Measured 16.6 dB without and 24.1 dB with; bars 2.5 dB inside each.
-    assert!(without < 19.0, "without the guard: {without:.2} dB");
-    assert!(with > 21.5, "with the guard: {with:.2} dB");
+    // Measured 11.38 dB without and 29.81 dB with; bars 3 dB inside each.
+    assert!(without < 14.5, "without the guard: {without:.2} dB");
+    assert!(with > 26.5, "with the guard: {with:.2} dB");
 }
 
 #[test]
@@ -321,7 +319,8 @@ fn cli_bad_split_values_exit_2_naming_the_option() {
         ("--surfel-min-neighbours", "many"),
     ] {
         let r = Command::new(BIN)
-            .args(["hybrid", &scene, "--camera", "scene:0", opt, val, "-o"])
+            // `--opt=value`, so a negative number is not taken for an option.
+            .args(["hybrid", &scene, "--camera", "scene:0", &format!("{opt}={val}"), "-o"])
             .arg(&out)
             .output()
             .unwrap();
