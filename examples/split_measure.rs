@@ -23,7 +23,10 @@ use splatbridge_scene::surfels::{split_counted, SplitParams};
 use splatbridge_scene::Frame;
 
 fn run(args: &[String]) -> anyhow::Result<()> {
-    anyhow::ensure!(args.len() >= 5, "usage: OUT_DIR WIDTH HEIGHT RIGS SCENE [SCENE …]");
+    anyhow::ensure!(
+        args.len() >= 5,
+        "usage: OUT_DIR WIDTH HEIGHT RIGS SCENE [SCENE …]"
+    );
     let out = PathBuf::from(&args[0]);
     std::fs::create_dir_all(&out)?;
     let (w, h): (u32, u32) = (args[1].parse()?, args[2].parse()?);
@@ -46,7 +49,10 @@ fn run(args: &[String]) -> anyhow::Result<()> {
         eprint!("{name}: {}", auto.summary());
         let d = SplitParams::default();
         let splits = [
-            ("unguarded", SplitParams::unguarded(d.min_opacity, d.max_flatness)),
+            (
+                "unguarded",
+                SplitParams::unguarded(d.min_opacity, d.max_flatness),
+            ),
             ("guarded", d),
             ("auto", auto.params()),
         ];
@@ -59,7 +65,14 @@ fn run(args: &[String]) -> anyhow::Result<()> {
                     height: Some(h),
                     ..CameraRequest::new(CameraSpec::Orbit { n, index })
                 };
-                cams.push((n, index, req.resolve(CameraSource { cloud: &cloud, own: &[] })?));
+                cams.push((
+                    n,
+                    index,
+                    req.resolve(CameraSource {
+                        cloud: &cloud,
+                        own: &[],
+                    })?,
+                ));
             }
         }
         let nopts = RenderOptions::default();
@@ -90,8 +103,14 @@ fn run(args: &[String]) -> anyhow::Result<()> {
             if let Some((db, ci, img)) = worst {
                 let (n, i, _) = &cams[ci];
                 let stem = format!("{name}-{label}-orbit{n}_{i}");
-                splatbridge_scene::image_io::save_frame(&out.join(format!("{stem}-hybrid-{db:.1}dB.png")), &img)?;
-                splatbridge_scene::image_io::save_frame(&out.join(format!("{name}-orbit{n}_{i}-native.png")), &natives[ci])?;
+                splatbridge_scene::image_io::save_frame(
+                    &out.join(format!("{stem}-hybrid-{db:.1}dB.png")),
+                    &img,
+                )?;
+                splatbridge_scene::image_io::save_frame(
+                    &out.join(format!("{name}-orbit{n}_{i}-native.png")),
+                    &natives[ci],
+                )?;
             }
         }
     }

@@ -95,19 +95,25 @@ pub fn ladder() -> Vec<(String, SplitParams)> {
         ..d
     };
     vec![
-        ("loose guards, A 0.5 R 0.5".into(), SplitParams {
-            min_opacity: 0.5,
-            max_flatness: 0.5,
-            ..loose
-        }),
+        (
+            "loose guards, A 0.5 R 0.5".into(),
+            SplitParams {
+                min_opacity: 0.5,
+                max_flatness: 0.5,
+                ..loose
+            },
+        ),
         ("loose guards".into(), loose),
         ("default".into(), d),
         ("strict guards".into(), strict),
-        ("strict guards, A 0.95 R 0.2".into(), SplitParams {
-            min_opacity: 0.95,
-            max_flatness: 0.2,
-            ..strict
-        }),
+        (
+            "strict guards, A 0.95 R 0.2".into(),
+            SplitParams {
+                min_opacity: 0.95,
+                max_flatness: 0.2,
+                ..strict
+            },
+        ),
         ("no surfels".into(), SplitParams::none()),
     ]
 }
@@ -189,7 +195,11 @@ pub fn choose_from(
             let best = candidates
                 .iter()
                 .enumerate()
-                .max_by(|a, b| a.1.worst_psnr.total_cmp(&b.1.worst_psnr).then(b.0.cmp(&a.0)))
+                .max_by(|a, b| {
+                    a.1.worst_psnr
+                        .total_cmp(&b.1.worst_psnr)
+                        .then(b.0.cmp(&a.0))
+                })
                 .map(|(i, _)| i)
                 .unwrap_or(0);
             (best, false)

@@ -97,7 +97,11 @@ fn guard_case(
 ) -> (f64, f64) {
     let (db_without, n_without, _) = hybrid_psnr(c, &unguarded());
     let (db_with, n_with, counts) = hybrid_psnr(c, &with);
-    assert_eq!(n_without, c.len(), "without the guard every Gaussian is a surfel");
+    assert_eq!(
+        n_without,
+        c.len(),
+        "without the guard every Gaussian is a surfel"
+    );
     assert_eq!(
         n_with,
         c.len() - 1,
@@ -119,7 +123,12 @@ fn scene_scale_guard_keeps_a_wall_sized_floater_soft() {
     // 0.01). As a surfel it is a hard red disc 4 m across over the whole view.
     let mut c = base();
     let bad = c.len();
-    flat(&mut c, Vec3::new(1.9, 0.0, 1.0), 1.2, Vec3::new(0.9, 0.1, 0.1));
+    flat(
+        &mut c,
+        Vec3::new(1.9, 0.0, 1.0),
+        1.2,
+        Vec3::new(0.9, 0.1, 0.1),
+    );
     let with = SplitParams {
         max_scene_fraction: SplitParams::default().max_scene_fraction,
         ..unguarded()
@@ -140,7 +149,12 @@ fn neighbourhood_guard_keeps_coarse_fill_off_fine_detail() {
     let mut c = base();
     let bad = c.len();
     let s_wall = 0.7 * 2.0 / 59.0;
-    flat(&mut c, Vec3::new(0.0, 0.0, 1.48), 8.0 * s_wall, Vec3::new(0.1, 0.1, 0.9));
+    flat(
+        &mut c,
+        Vec3::new(0.0, 0.0, 1.48),
+        8.0 * s_wall,
+        Vec3::new(0.1, 0.1, 0.9),
+    );
     let with = SplitParams {
         max_neighbour_ratio: SplitParams::default().max_neighbour_ratio,
         ..unguarded()
@@ -157,7 +171,12 @@ fn isolation_guard_keeps_a_lone_floater_soft() {
     // its 0.27 m footprint. As a surfel its hard rim reaches 3.33σ, where native has faded out.
     let mut c = base();
     let bad = c.len();
-    flat(&mut c, Vec3::new(0.1, 0.05, 0.6), 0.08, Vec3::new(0.9, 0.8, 0.1));
+    flat(
+        &mut c,
+        Vec3::new(0.1, 0.05, 0.6),
+        0.08,
+        Vec3::new(0.9, 0.8, 0.1),
+    );
     let with = SplitParams {
         min_neighbours: SplitParams::default().min_neighbours,
         ..unguarded()
@@ -197,7 +216,12 @@ fn split_is_the_same_twice_and_at_any_thread_count() {
 /// The scene-scale case: a floater that ruins the unguarded split.
 fn floater_scene() -> GaussianCloud {
     let mut c = base();
-    flat(&mut c, Vec3::new(1.9, 0.0, 1.0), 1.2, Vec3::new(0.9, 0.1, 0.1));
+    flat(
+        &mut c,
+        Vec3::new(1.9, 0.0, 1.0),
+        1.2,
+        Vec3::new(0.9, 0.1, 0.1),
+    );
     c
 }
 
@@ -320,7 +344,14 @@ fn cli_bad_split_values_exit_2_naming_the_option() {
     ] {
         let r = Command::new(BIN)
             // `--opt=value`, so a negative number is not taken for an option.
-            .args(["hybrid", &scene, "--camera", "scene:0", &format!("{opt}={val}"), "-o"])
+            .args([
+                "hybrid",
+                &scene,
+                "--camera",
+                "scene:0",
+                &format!("{opt}={val}"),
+                "-o",
+            ])
             .arg(&out)
             .output()
             .unwrap();

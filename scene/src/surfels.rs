@@ -143,7 +143,10 @@ impl SplitParams {
     /// Checked: `None` when every value is usable, else the offending field's name and why.
     pub fn check(&self) -> Option<(&'static str, &'static str)> {
         if !(self.min_opacity >= 0.0 && self.min_opacity.is_finite()) {
-            return Some(("min_opacity", "must be finite and ≥ 0 (above 1: no surfels)"));
+            return Some((
+                "min_opacity",
+                "must be finite and ≥ 0 (above 1: no surfels)",
+            ));
         }
         if !(self.max_flatness >= 0.0 && self.max_flatness.is_finite()) {
             return Some(("max_flatness", "must be finite and ≥ 0"));

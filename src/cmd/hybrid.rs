@@ -12,10 +12,10 @@ use std::path::PathBuf;
 use anyhow::{bail, Context};
 use serde_json::json;
 use splatbridge::pipeline::{render_frame, FrameRequest, FrameStats, Renderer, SurfelSplit};
+use splatbridge::split_auto::{choose, params_json, AutoChoice, AutoConfig, DEFAULT_MIN_PSNR};
 use splatbridge_hybrid::ges::{GesOptions, GesStats};
 use splatbridge_scene::effects_run::effects_of;
 use splatbridge_scene::image_io::save_frame;
-use splatbridge::split_auto::{choose, params_json, AutoChoice, AutoConfig, DEFAULT_MIN_PSNR};
 use splatbridge_scene::surfels::{
     looks_like_ges, SplitParams, DEFAULT_MAX_FLATNESS, DEFAULT_MAX_NEIGHBOUR_RATIO,
     DEFAULT_MAX_SCENE_FRACTION, DEFAULT_MIN_NEIGHBOURS, DEFAULT_MIN_OPACITY, FOOTPRINT_SIGMAS,
