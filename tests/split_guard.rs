@@ -208,7 +208,7 @@ fn split_is_the_same_twice_and_at_any_thread_count() {
     let (s4, g4, k4) = run(4);
     let (s4b, g4b, k4b) = run(4);
     assert!(k1.candidates > 1000, "{k1:?}");
-    assert!(s1.len() > 0 && s1.len() < k1.candidates, "{k1:?}");
+    assert!(!s1.is_empty() && s1.len() < k1.candidates, "{k1:?}");
     assert_eq!((&s1, &g1, k1), (&s4, &g4, k4));
     assert_eq!((&s4, &g4, k4), (&s4b, &g4b, k4b));
 }

@@ -233,7 +233,9 @@ fn judge(
             .collect();
         sizes.sort_by(f32::total_cmp);
         let median = sizes[k / 2];
-        if !(su <= p.max_neighbour_ratio * median) {
+        let limit = p.max_neighbour_ratio * median;
+        // A NaN neighbour size cannot vouch for the surfel.
+        if su.is_nan() || limit.is_nan() || su > limit {
             return Verdict::TooLargeForNeighbours;
         }
     }

@@ -151,10 +151,10 @@ impl SplitParams {
         if !(self.max_flatness >= 0.0 && self.max_flatness.is_finite()) {
             return Some(("max_flatness", "must be finite and ≥ 0"));
         }
-        if !(self.max_scene_fraction > 0.0) {
+        if self.max_scene_fraction.is_nan() || self.max_scene_fraction <= 0.0 {
             return Some(("max_scene_fraction", "must be > 0 (inf: off)"));
         }
-        if !(self.max_neighbour_ratio > 0.0) {
+        if self.max_neighbour_ratio.is_nan() || self.max_neighbour_ratio <= 0.0 {
             return Some(("max_neighbour_ratio", "must be > 0 (inf: off)"));
         }
         None
