@@ -169,13 +169,11 @@ pub fn settings(only: &[String]) -> Vec<(&'static str, String, Setting, bool)> {
             v.push((
                 "hybrid",
                 format!("opacity≥{a} flat≤{r}"),
-                Setting::Hybrid(SplitParams {
-                    min_opacity: a,
-                    max_flatness: r,
-                }),
+                Setting::Hybrid(SplitParams::guarded(a, r)),
                 false,
             ));
         }
+        v.extend(crate::split_auto::accuracy_rows());
     }
     v
 }

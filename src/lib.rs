@@ -10,3 +10,4 @@ pub mod heap;
 pub mod parity;
 pub mod pipeline;
 pub mod report;
+pub mod split_auto;

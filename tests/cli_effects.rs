@@ -119,10 +119,7 @@ fn splat_at(scene: &DynamicScene, hybrid: bool, t: f64, cam: &Camera) -> Rendere
         Renderer::hybrid(
             GesOptions::default(),
             SurfelSplit {
-                params: SplitParams {
-                    min_opacity: DEFAULT_MIN_OPACITY,
-                    max_flatness: DEFAULT_MAX_FLATNESS,
-                },
+                params: SplitParams::guarded(DEFAULT_MIN_OPACITY, DEFAULT_MAX_FLATNESS),
                 ges_ply: false,
                 detect_ges: true,
             },

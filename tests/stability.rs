@@ -547,10 +547,7 @@ fn hybrid_without_surfels_matches_native_on_a_single_gaussian() {
     );
     let camera = front(40, 30);
     let r = native_ref::reference_render(&c, &camera, &RenderOptions::default());
-    let none = SplitParams {
-        min_opacity: 2.0,
-        max_flatness: 0.0,
-    };
+    let none = SplitParams::none();
     let (h, _, _) = ges::render_cloud(
         &c,
         ges::SplitMode::Thresholds(none),

@@ -72,10 +72,9 @@ impl Default for SurfelOptions {
 
 impl SurfelOptions {
     pub fn params(&self) -> SplitParams {
-        SplitParams {
-            min_opacity: self.min_opacity,
-            max_flatness: self.max_flatness,
-        }
+        // The export judges each Gaussian on its own (per part, per frame): only the local
+        // test applies; the neighbourhood guards are the hybrid renderer's.
+        SplitParams::unguarded(self.min_opacity, self.max_flatness)
     }
 
     pub fn validate(&self) -> Result<(), crate::ConvertError> {

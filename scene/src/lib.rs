@@ -25,6 +25,7 @@ pub mod ply;
 pub mod rng;
 pub mod sh;
 pub mod sh_rotate;
+pub mod surfel_guard;
 pub mod surfels;
 pub mod trajectory;
 pub mod weather;

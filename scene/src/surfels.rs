@@ -19,7 +19,11 @@
 //! spans the two largest axes. GES itself turns Gaussians with opacity > 0.8 into surfels after
 //! its 2D training stage; an ordinary 3DGS scene has no such stage, so both thresholds are
 //! knobs. The defaults ([`DEFAULT_MIN_OPACITY`], [`DEFAULT_MAX_FLATNESS`]) come from the sweep of
-//! `splatbridge bench hybrid` on real scenes (see the constants).
+//! `splatbridge bench hybrid` on real scenes (see the constants). A Gaussian that passes this
+//! local test is then judged against its neighbourhood and the scene's scale
+//! ([`crate::surfel_guard`]: too large for the scene, much larger than its neighbours, or
+//! isolated, it stays a Gaussian); `docs/split.md` has the failures each guard prevents and
+//! the measurements behind their defaults.
 //!
 //! **GES PLY convention** ([`split_ges`]), read from GES's `GaussianModel.save_ply` and its viewer
 //! (`ges_viewer/src/gaussianCloud.cpp`): after training, opacities are linear (the joint stage
@@ -33,6 +37,7 @@
 use glam::{Mat3, Vec3};
 
 use crate::gaussians::{logit, sh_coeffs, GaussianCloud};
+use crate::surfel_guard::{guard, GuardCounts, GuardParams};
 
 /// Surfel footprint radius in standard deviations: `sqrt(2·ln 255)`, where a unit-peak Gaussian
 /// falls to 1/255 (GES's `−½|uv|² ≥ ln(1/255)`).
@@ -58,13 +63,34 @@ pub const DEFAULT_MIN_OPACITY: f32 = 0.8;
 /// [`DEFAULT_MIN_OPACITY`] for the measurement.
 pub const DEFAULT_MAX_FLATNESS: f32 = 0.3;
 
-/// Split thresholds.
+/// Default of [`SplitParams::max_scene_fraction`]; see `docs/split.md` for the measurement.
+pub const DEFAULT_MAX_SCENE_FRACTION: f32 = 0.05;
+
+/// Default of [`SplitParams::max_neighbour_ratio`]; see `docs/split.md` for the measurement.
+pub const DEFAULT_MAX_NEIGHBOUR_RATIO: f32 = 4.0;
+
+/// Default of [`SplitParams::min_neighbours`]; see `docs/split.md` for the measurement.
+pub const DEFAULT_MIN_NEIGHBOURS: u32 = 4;
+
+/// Split thresholds: the local test (opacity, flatness) and the guards of
+/// [`crate::surfel_guard`] (each one off at its "off" value).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SplitParams {
     /// Activated opacity at or above which a Gaussian may become a surfel.
     pub min_opacity: f32,
     /// Largest `s_min / s_mid` of a surfel (0 = only perfectly flat, 1 = any shape).
     pub max_flatness: f32,
+    /// Largest footprint radius (`FOOTPRINT_SIGMAS·s_u`) as a fraction of the scene's robust
+    /// extent. Prevents large flat opaque background or floater Gaussians from becoming
+    /// wall-sized hard discs. Off: `f32::INFINITY`.
+    pub max_scene_fraction: f32,
+    /// Largest `s_u` over the median largest scale of its nearest Gaussians inside the
+    /// footprint. Prevents a coarse Gaussian from painting a hard disc over the finer detail
+    /// around it. Off: `f32::INFINITY`.
+    pub max_neighbour_ratio: f32,
+    /// Fewest other Gaussian centres inside the footprint radius. Prevents isolated floaters
+    /// from becoming hard discs in the air. Off: 0.
+    pub min_neighbours: u32,
 }
 
 impl Default for SplitParams {
@@ -72,7 +98,66 @@ impl Default for SplitParams {
         SplitParams {
             min_opacity: DEFAULT_MIN_OPACITY,
             max_flatness: DEFAULT_MAX_FLATNESS,
+            max_scene_fraction: DEFAULT_MAX_SCENE_FRACTION,
+            max_neighbour_ratio: DEFAULT_MAX_NEIGHBOUR_RATIO,
+            min_neighbours: DEFAULT_MIN_NEIGHBOURS,
         }
+    }
+}
+
+impl SplitParams {
+    /// The local test alone (every guard off): the split before the guards existed.
+    pub fn unguarded(min_opacity: f32, max_flatness: f32) -> Self {
+        SplitParams {
+            min_opacity,
+            max_flatness,
+            max_scene_fraction: f32::INFINITY,
+            max_neighbour_ratio: f32::INFINITY,
+            min_neighbours: 0,
+        }
+    }
+
+    /// The local thresholds with the default guards.
+    pub fn guarded(min_opacity: f32, max_flatness: f32) -> Self {
+        SplitParams {
+            min_opacity,
+            max_flatness,
+            ..SplitParams::default()
+        }
+    }
+
+    /// No surfels at all (everything stays a Gaussian).
+    pub fn none() -> Self {
+        SplitParams::unguarded(2.0, 0.0)
+    }
+
+    /// The guard thresholds.
+    pub fn guard(&self) -> GuardParams {
+        GuardParams {
+            max_scene_fraction: self.max_scene_fraction,
+            max_neighbour_ratio: self.max_neighbour_ratio,
+            min_neighbours: self.min_neighbours,
+        }
+    }
+
+    /// Checked: `None` when every value is usable, else the offending field's name and why.
+    pub fn check(&self) -> Option<(&'static str, &'static str)> {
+        if !(self.min_opacity >= 0.0 && self.min_opacity.is_finite()) {
+            return Some((
+                "min_opacity",
+                "must be finite and ≥ 0 (above 1: no surfels)",
+            ));
+        }
+        if !(self.max_flatness >= 0.0 && self.max_flatness.is_finite()) {
+            return Some(("max_flatness", "must be finite and ≥ 0"));
+        }
+        if self.max_scene_fraction.is_nan() || self.max_scene_fraction <= 0.0 {
+            return Some(("max_scene_fraction", "must be > 0 (inf: off)"));
+        }
+        if self.max_neighbour_ratio.is_nan() || self.max_neighbour_ratio <= 0.0 {
+            return Some(("max_neighbour_ratio", "must be > 0 (inf: off)"));
+        }
+        None
     }
 }
 
@@ -184,13 +269,32 @@ fn push_gaussian(out: &mut GaussianCloud, cloud: &GaussianCloud, i: usize) {
     );
 }
 
-/// Split a trained 3DGS cloud: surfels from the Gaussians passing [`is_surfel`] (on their two
-/// largest axes), the rest as residual Gaussians in input order with stored values unchanged.
+/// Split a trained 3DGS cloud: surfels from the Gaussians passing [`is_surfel`] and the guards
+/// of [`crate::surfel_guard`] (on their two largest axes), the rest as residual Gaussians in
+/// input order with stored values unchanged.
 pub fn split(cloud: &GaussianCloud, params: &SplitParams) -> (SurfelCloud, GaussianCloud) {
+    let (s, g, _) = split_counted(cloud, params);
+    (s, g)
+}
+
+/// As [`split`], also returning why candidates stayed Gaussians.
+pub fn split_counted(
+    cloud: &GaussianCloud,
+    params: &SplitParams,
+) -> (SurfelCloud, GaussianCloud, GuardCounts) {
+    let candidates: Vec<(usize, f32)> = (0..cloud.len())
+        .filter(|&i| is_surfel(cloud, i, params))
+        .map(|i| (i, cloud.scale(i).max_element()))
+        .collect();
+    let (keep, counts) = guard(cloud, &candidates, &params.guard());
+    let mut is_s = vec![false; cloud.len()];
+    for (&(i, _), &k) in candidates.iter().zip(&keep) {
+        is_s[i] = k;
+    }
     let mut surfels = SurfelCloud::new(cloud.sh_degree);
     let mut rest = GaussianCloud::new(cloud.sh_degree);
-    for i in 0..cloud.len() {
-        if !is_surfel(cloud, i, params) {
+    for (i, &surfel) in is_s.iter().enumerate() {
+        if !surfel {
             push_gaussian(&mut rest, cloud, i);
             continue;
         }
@@ -209,7 +313,7 @@ pub fn split(cloud: &GaussianCloud, params: &SplitParams) -> (SurfelCloud, Gauss
             cloud.sh_of(i),
         );
     }
-    (surfels, rest)
+    (surfels, rest, counts)
 }
 
 /// What [`split_ges`] found.
@@ -302,10 +406,7 @@ mod tests {
             0.2,
             Vec3::ONE,
         );
-        let p = SplitParams {
-            min_opacity: 0.9,
-            max_flatness: 0.1,
-        };
+        let p = SplitParams::unguarded(0.9, 0.1);
         let (s, g) = split(&c, &p);
         assert_eq!((s.len(), g.len()), (1, 2));
         assert!((s.axes_u[0] - Vec3::Z).length() < 1e-6);

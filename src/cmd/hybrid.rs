@@ -12,13 +12,16 @@ use std::path::PathBuf;
 use anyhow::{bail, Context};
 use serde_json::json;
 use splatbridge::pipeline::{render_frame, FrameRequest, FrameStats, Renderer, SurfelSplit};
+use splatbridge::split_auto::{choose, params_json, AutoChoice, AutoConfig, DEFAULT_MIN_PSNR};
 use splatbridge_hybrid::ges::{GesOptions, GesStats};
 use splatbridge_scene::effects_run::effects_of;
 use splatbridge_scene::image_io::save_frame;
 use splatbridge_scene::surfels::{
-    SplitParams, DEFAULT_MAX_FLATNESS, DEFAULT_MIN_OPACITY, FOOTPRINT_SIGMAS, GES_EPSILON_FACTOR,
+    looks_like_ges, SplitParams, DEFAULT_MAX_FLATNESS, DEFAULT_MAX_NEIGHBOUR_RATIO,
+    DEFAULT_MAX_SCENE_FRACTION, DEFAULT_MIN_NEIGHBOURS, DEFAULT_MIN_OPACITY, FOOTPRINT_SIGMAS,
+    GES_EPSILON_FACTOR,
 };
-use splatbridge_scene::Camera;
+use splatbridge_scene::{Camera, GaussianCloud};
 
 use crate::cmd::common::{load, parse_rgb, CameraArgs};
 use crate::cmd::render::short;
@@ -41,9 +44,58 @@ pub fn parse_supersample(s: &str) -> Result<u32, String> {
     }
 }
 
+/// How `--split` chooses surfels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum SplitMode {
+    /// The opacity and flatness test plus the scene-scale, neighbourhood and isolation guards.
+    Guarded,
+    /// The opacity and flatness test alone (no guards).
+    Thresholds,
+    /// Measured per scene against native on a few small orbit views (`--min-psnr`).
+    Auto,
+}
+
+/// `--min-psnr`: a finite number of dB above 0.
+pub fn parse_min_psnr(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 && v <= 200.0 => Ok(v),
+        _ => Err(format!("'{s}': expected a PSNR in dB, in (0, 200]")),
+    }
+}
+
+/// A positive limit or `off` (infinity).
+fn parse_limit(s: &str) -> Result<f32, String> {
+    if s.trim() == "off" {
+        return Ok(f32::INFINITY);
+    }
+    match s.trim().parse::<f32>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("'{s}': expected a number > 0 or off")),
+    }
+}
+
 /// The hybrid's knobs, shared by `hybrid` and `bench hybrid`.
 #[derive(clap::Args, Clone, Debug)]
 pub struct HybridKnobs {
+    /// How surfels are chosen: guarded (the thresholds below), thresholds (opacity and
+    /// flatness alone, no guards) or auto (measured against native per scene, see --min-psnr).
+    #[arg(long, value_enum, default_value = "guarded")]
+    pub split: SplitMode,
+    /// With --split auto: the PSNR (dB against native, worst of 4 orbit views at 240×180)
+    /// the chosen split must keep.
+    #[arg(long, default_value_t = DEFAULT_MIN_PSNR, value_parser = parse_min_psnr)]
+    pub min_psnr: f64,
+    /// Guard: a surfel's footprint radius is at most this fraction of the scene's robust
+    /// extent (off: no limit).
+    #[arg(long, default_value_t = DEFAULT_MAX_SCENE_FRACTION, value_parser = parse_limit)]
+    pub surfel_scene_fraction: f32,
+    /// Guard: a surfel's largest scale is at most this multiple of its nearest neighbours'
+    /// median (off: no limit).
+    #[arg(long, default_value_t = DEFAULT_MAX_NEIGHBOUR_RATIO, value_parser = parse_limit)]
+    pub surfel_neighbour_ratio: f32,
+    /// Guard: at least this many other Gaussian centres lie within a surfel's footprint.
+    #[arg(long, default_value_t = DEFAULT_MIN_NEIGHBOURS)]
+    pub surfel_min_neighbours: u32,
     /// A Gaussian becomes a surfel when its opacity is at least A (above 1: no surfels) …
     #[arg(long, default_value_t = DEFAULT_MIN_OPACITY)]
     pub surfel_opacity: f32,
@@ -100,21 +152,57 @@ impl HybridKnobs {
         }
     }
 
-    /// How surfels are found (the thresholds are checked when a split uses them).
-    pub fn surfel_split(&self) -> SurfelSplit {
-        SurfelSplit {
-            params: SplitParams {
+    /// The thresholds the options name (`--split guarded` or `thresholds`).
+    pub fn split_params(&self) -> SplitParams {
+        match self.split {
+            SplitMode::Thresholds => {
+                SplitParams::unguarded(self.surfel_opacity, self.surfel_flatness)
+            }
+            SplitMode::Guarded | SplitMode::Auto => SplitParams {
                 min_opacity: self.surfel_opacity,
                 max_flatness: self.surfel_flatness,
+                max_scene_fraction: self.surfel_scene_fraction,
+                max_neighbour_ratio: self.surfel_neighbour_ratio,
+                min_neighbours: self.surfel_min_neighbours,
             },
+        }
+    }
+
+    /// How surfels are found (the thresholds are checked when a split uses them); with
+    /// `--split auto`, use [`HybridKnobs::resolve_split`].
+    pub fn surfel_split(&self) -> SurfelSplit {
+        SurfelSplit {
+            params: self.split_params(),
             ges_ply: self.ges_ply,
             detect_ges: true,
         }
     }
 
+    /// How surfels are found for `cloud`: with `--split auto`, the thresholds are chosen on it
+    /// (a GES PLY keeps its own flags and is not measured).
+    pub fn resolve_split(
+        &self,
+        cloud: &GaussianCloud,
+    ) -> anyhow::Result<(SurfelSplit, Option<AutoChoice>)> {
+        let mut s = self.surfel_split();
+        if self.split != SplitMode::Auto || self.ges_ply || looks_like_ges(cloud) {
+            return Ok((s, None));
+        }
+        let cfg = AutoConfig {
+            min_psnr: self.min_psnr,
+            ..AutoConfig::default()
+        };
+        let choice = choose(cloud, &self.options(), &cfg)?;
+        s.params = choice.params();
+        Ok((s, Some(choice)))
+    }
+
     /// The knobs as JSON (for `--json` reports).
     pub fn to_json(&self) -> serde_json::Value {
         json!({
+            "split": format!("{:?}", self.split).to_lowercase(),
+            "min_psnr": self.min_psnr,
+            "split_params": params_json(&self.split_params()),
             "surfel_opacity": short(self.surfel_opacity),
             "surfel_flatness": short(self.surfel_flatness),
             "epsilon": short(self.epsilon),
@@ -227,7 +315,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .camera
         .resolve(&scene.composite(t), &scene.cameras)
         .with_context(|| name.clone())?;
-    let mut renderer = Renderer::hybrid(args.knobs.options(), args.knobs.surfel_split())?;
+    let (split, auto) = args
+        .knobs
+        .resolve_split(&scene.composite(t))
+        .with_context(|| name.clone())?;
+    let mut renderer = Renderer::hybrid(args.knobs.options(), split)?;
     let req = FrameRequest {
         scene: Some(&scene),
         effects: &effects,
@@ -254,6 +346,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "time": t,
             "time_samples": r.time_samples,
             "surfels_by": how,
+            "split_auto": auto.as_ref().map(AutoChoice::to_json),
             "camera": {"name": cam.name, "width": cam.width, "height": cam.height},
             "knobs": args.knobs.to_json(),
             "stats": stats_json(stats, *split_ms),
@@ -261,6 +354,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         });
         println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
+    }
+    if let Some(a) = &auto {
+        print!("{}", a.summary());
     }
     println!("hybrid {name}: surfels by {how}; {}", args.knobs.describe());
     if r.time_samples > 1 {

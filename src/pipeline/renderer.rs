@@ -16,7 +16,9 @@ use splatbridge_hybrid::{RenderOptions as NativeOptions, RenderStats};
 use splatbridge_raytrace::{
     BackendKind, BuildPreset, GaussianTracer, MeshTracer, RenderOptions as TraceOptions, Stats,
 };
-use splatbridge_scene::surfels::{looks_like_ges, split, split_ges, SplitParams, SurfelCloud};
+use splatbridge_scene::surfels::{
+    looks_like_ges, split_counted, split_ges, SplitParams, SurfelCloud,
+};
 use splatbridge_scene::{Camera, Frame, GaussianCloud};
 
 use super::source::{Loaded, Prepared};
@@ -37,17 +39,20 @@ impl SurfelSplit {
     /// The thresholds, checked (finite and non-negative).
     pub fn checked_params(&self) -> anyhow::Result<SplitParams> {
         let p = &self.params;
-        if !(p.min_opacity >= 0.0 && p.min_opacity.is_finite()) {
-            bail!(
-                "--surfel-opacity {} must be finite and ≥ 0 (above 1: no surfels)",
-                p.min_opacity
-            );
-        }
-        if !(p.max_flatness >= 0.0 && p.max_flatness.is_finite()) {
-            bail!(
-                "--surfel-flatness {} must be finite and ≥ 0",
-                p.max_flatness
-            );
+        if let Some((field, why)) = p.check() {
+            let (option, value) = match field {
+                "min_opacity" => ("--surfel-opacity", p.min_opacity.to_string()),
+                "max_flatness" => ("--surfel-flatness", p.max_flatness.to_string()),
+                "max_scene_fraction" => {
+                    ("--surfel-scene-fraction", p.max_scene_fraction.to_string())
+                }
+                "max_neighbour_ratio" => (
+                    "--surfel-neighbour-ratio",
+                    p.max_neighbour_ratio.to_string(),
+                ),
+                other => (other, String::new()),
+            };
+            bail!("{option} {value} {why}");
         }
         Ok(*p)
     }
@@ -72,12 +77,18 @@ impl SurfelSplit {
             return Ok((s, g, how));
         }
         let p = &self.checked_params()?;
-        let (s, g) = split(cloud, p);
-        Ok((
-            s,
-            g,
-            format!("opacity ≥ {}, flatness ≤ {}", p.min_opacity, p.max_flatness),
-        ))
+        let (s, g, counts) = split_counted(cloud, p);
+        let mut how = crate::split_auto::describe_params(p);
+        if counts.candidates > s.len() {
+            how += &format!(
+                " ({} candidates: {} too large for the scene, {} isolated, {} too large for their neighbours)",
+                counts.candidates,
+                counts.too_large_for_scene,
+                counts.isolated,
+                counts.too_large_for_neighbours
+            );
+        }
+        Ok((s, g, how))
     }
 }
 

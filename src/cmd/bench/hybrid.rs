@@ -147,7 +147,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.repeat
     );
 
-    let p = args.knobs.surfel_split().checked_params()?;
+    let (surfel_split, auto) = args.knobs.resolve_split(&cloud)?;
+    if let Some(a) = &auto {
+        print!("{}", a.summary());
+    }
+    let p = surfel_split.checked_params()?;
     let t0 = Instant::now();
     let (s, g) = split(&cloud, &p);
     let split_time = t0.elapsed();
@@ -179,9 +183,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let ht = &hs.times;
     let hpsnr = psnr(&hframe, &native)?;
     println!(
-        "hybrid (opacity ≥ {}, flatness ≤ {}; {}): {} surfels, {} Gaussians; split {:.1} ms",
-        p.min_opacity,
-        p.max_flatness,
+        "hybrid ({}; {}): {} surfels, {} Gaussians; split {:.1} ms",
+        splatbridge::split_auto::describe_params(&p),
         args.knobs.describe(),
         s.len(),
         g.len(),
@@ -215,10 +218,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             );
             rows.push(r);
         };
-        let none = SplitParams {
-            min_opacity: 2.0,
-            max_flatness: 0.0,
-        };
+        let none = SplitParams::none();
         push(hybrid_row(
             "no surfels (pass 2 only)".into(),
             &cloud,
@@ -233,6 +233,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 let sp = SplitParams {
                     min_opacity: a,
                     max_flatness: r,
+                    ..p
                 };
                 push(hybrid_row(
                     format!("A={a} R={r}"),
@@ -312,6 +313,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "native_ms": ms(t_native), "hybrid_ms": ms(t_h), "split_ms": ms(split_time),
             "speed_ratio": ratio, "psnr_db": hpsnr, "surfels": s.len(),
             "min_opacity": p.min_opacity, "max_flatness": p.max_flatness,
+            "split_params": splatbridge::split_auto::params_json(&p),
+            "split_auto": auto.as_ref().map(|a| a.to_json()),
             "sweep": sweep,
         });
         println!("{v}");
