@@ -6,6 +6,10 @@
 pub mod accuracy;
 pub mod clients;
 pub mod describe;
+pub mod frame_store;
+pub mod memory;
+pub mod merge;
 pub mod parity;
 pub mod pipeline;
 pub mod report;
+pub mod shard;
