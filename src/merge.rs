@@ -45,7 +45,62 @@ pub struct PartialReport {
     pub files: Vec<String>,
     /// The shard's peak resident memory (bytes; 0 where not measured).
     pub peak_memory_bytes: u64,
+    #[serde(with = "exact")]
     pub records: Vec<Placed>,
+}
+
+/// Records with their floating-point fields also stored as IEEE-754 bits: serde_json's
+/// default float parser can be one unit in the last place off, and a merged report must hold
+/// the values the shard measured, bit for bit.
+mod exact {
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    use crate::parity::Placed;
+    use crate::report::Record;
+
+    #[derive(Serialize, Deserialize)]
+    struct Wire {
+        #[serde(flatten)]
+        placed: Placed,
+        /// time, psnr, ssim, tile_ssim, max_error, milliseconds.
+        bits: [u64; 6],
+    }
+
+    fn fields(r: &mut Record) -> [&mut f64; 6] {
+        [
+            &mut r.time,
+            &mut r.psnr,
+            &mut r.ssim,
+            &mut r.tile_ssim,
+            &mut r.max_error,
+            &mut r.milliseconds,
+        ]
+    }
+
+    pub fn serialize<S: Serializer>(v: &[Placed], s: S) -> Result<S::Ok, S::Error> {
+        let wire: Vec<Wire> = v
+            .iter()
+            .map(|p| {
+                let mut p = p.clone();
+                let bits = fields(&mut p.record).map(|f| f.to_bits());
+                Wire { placed: p, bits }
+            })
+            .collect();
+        wire.serialize(s)
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<Placed>, D::Error> {
+        let wire = Vec::<Wire>::deserialize(d)?;
+        Ok(wire
+            .into_iter()
+            .map(|mut w| {
+                for (f, b) in fields(&mut w.placed.record).into_iter().zip(w.bits) {
+                    *f = f64::from_bits(b);
+                }
+                w.placed
+            })
+            .collect())
+    }
 }
 
 #[derive(Debug, Error)]
