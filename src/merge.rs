@@ -381,9 +381,14 @@ pub fn write_report(merged: &Merged, out: &Path) -> anyhow::Result<&'static str>
             })?;
             Ok("accuracy.md")
         }
+        // Frames: the files are the result; there is no report to join.
+        "render" => {
+            write_merged(merged, out, &|_, _| Ok(()))?;
+            Ok("")
+        }
         other => Err(MergeError::Shard(
             PathBuf::from(REPORT),
-            format!("command '{other}' has no merge (compare, accuracy)"),
+            format!("command '{other}' has no merge (compare, accuracy, render)"),
         )
         .into()),
     }

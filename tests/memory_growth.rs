@@ -47,7 +47,10 @@ fn peak(dir: &Path, cameras: &str, profiles: &str, scene: &Path) -> u64 {
 }
 
 #[test]
-#[cfg_attr(not(target_os = "linux"), ignore = "peak memory is read from /proc (Linux)")]
+#[cfg_attr(
+    not(target_os = "linux"),
+    ignore = "peak memory is read from /proc (Linux)"
+)]
 fn compare_peak_does_not_grow_with_cameras_or_profiles() {
     let tmp = tempfile::tempdir().unwrap();
     let fixture = Command::new(env!("CARGO_BIN_EXE_splatbridge"))

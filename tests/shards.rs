@@ -230,3 +230,52 @@ fn slurm_and_kubernetes_shards_merge_into_one_run() {
     // A folder of an unsharded run is not a shard.
     refused(&[one.clone()], "not a shard's partial report");
 }
+
+/// `render --frames --shard I/N`: each shard renders its frames into its own folder; the merge
+/// holds exactly the unsharded sequence, bit for bit.
+#[test]
+fn render_frames_shards_merge_into_one_sequence() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = street(tmp.path());
+    let render = |out: &Path, shard: Option<&str>| {
+        let mut c = Command::new(bin());
+        c.arg("render").arg(&scene).args([
+            "--camera",
+            "orbit:4:1",
+            "--width",
+            "32",
+            "--height",
+            "24",
+            "--frames",
+        ]);
+        if let Some(s) = shard {
+            c.args(["--shard", s]);
+        }
+        ok(c.arg("-o").arg(out).output().unwrap(), "render --frames");
+    };
+    let one = tmp.path().join("one");
+    render(&one.join("f.png"), None);
+    let shards: Vec<PathBuf> = (0..3).map(|i| tmp.path().join(format!("s{i}"))).collect();
+    for (i, d) in shards.iter().enumerate() {
+        render(&d.join("f.png"), Some(&format!("{i}/3")));
+    }
+    let merged = tmp.path().join("merged");
+    ok(merge(&shards, &merged), "merge frames");
+    let list = |d: &Path| {
+        let mut v: Vec<String> = std::fs::read_dir(d)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    };
+    let frames = list(&one);
+    assert!(frames.len() > 3, "{frames:?}");
+    assert_eq!(frames, list(&merged));
+    for f in &frames {
+        assert!(
+            std::fs::read(one.join(f)).unwrap() == std::fs::read(merged.join(f)).unwrap(),
+            "{f} differs"
+        );
+    }
+}
