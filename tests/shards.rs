@@ -206,8 +206,8 @@ fn slurm_and_kubernetes_shards_merge_into_one_run() {
     let other = tmp.path().join("other");
     let mut c = Command::new(bin());
     c.arg("compare").arg(&scene).args(["--cameras", CAMERAS]);
-    c.args(ARGS.split_whitespace())
-        .args(["--width", "40", "--shard", "2/3", "-o"])
+    c.args(ARGS.replace("--width 32", "--width 40").split_whitespace())
+        .args(["--shard", "2/3", "-o"])
         .arg(&other);
     ok(c.output().unwrap(), "other shard");
     refused(
@@ -251,6 +251,7 @@ fn render_frames_shards_merge_into_one_sequence() {
         if let Some(s) = shard {
             c.args(["--shard", s]);
         }
+        std::fs::create_dir_all(out.parent().unwrap()).unwrap();
         ok(c.arg("-o").arg(out).output().unwrap(), "render --frames");
     };
     let one = tmp.path().join("one");
