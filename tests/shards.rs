@@ -228,7 +228,7 @@ fn slurm_and_kubernetes_shards_merge_into_one_run() {
         refused(&[shards[0].clone(), shards[1].clone(), edited], needle);
     }
     // A folder of an unsharded run is not a shard.
-    refused(&[one.clone()], "not a shard's partial report");
+    refused(std::slice::from_ref(&one), "not a shard's partial report");
 }
 
 /// `render --frames --shard I/N`: each shard renders its frames into its own folder; the merge
@@ -279,4 +279,51 @@ fn render_frames_shards_merge_into_one_sequence() {
             "{f} differs"
         );
     }
+}
+
+/// `accuracy --shard I/N`: the settings split across shards; the merge writes the unsharded
+/// sweep's `accuracy.json` (records in the same order, timings aside) and its plots.
+#[test]
+fn accuracy_shards_merge_into_one_sweep() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = street(tmp.path());
+    let sweep = |out: &Path, shard: Option<&str>| {
+        let mut c = Command::new(bin());
+        c.arg("accuracy").arg(&scene).args([
+            "--only",
+            "profile,format",
+            "--cameras",
+            "orbit:2",
+            "--width",
+            "32",
+            "--height",
+            "24",
+        ]);
+        if let Some(s) = shard {
+            c.args(["--shard", s]);
+        }
+        ok(c.arg("-o").arg(out).output().unwrap(), "accuracy");
+    };
+    let one = tmp.path().join("one");
+    sweep(&one, None);
+    let shards: Vec<PathBuf> = (0..3).map(|i| tmp.path().join(format!("s{i}"))).collect();
+    for (i, d) in shards.iter().enumerate() {
+        sweep(d, Some(&format!("{i}/3")));
+    }
+    let merged = tmp.path().join("merged");
+    ok(merge(&shards, &merged), "merge accuracy");
+    let read = |d: &Path| {
+        let text = std::fs::read_to_string(d.join("accuracy.json")).unwrap();
+        let mut v: Vec<serde_json::Value> = serde_json::from_str(&text).unwrap();
+        for r in &mut v {
+            let o = r.as_object_mut().unwrap();
+            o.remove("milliseconds");
+            o.remove("peak_memory_bytes");
+        }
+        v
+    };
+    let (a, b) = (read(&one), read(&merged));
+    assert!(a.len() > 5, "{} records", a.len());
+    assert_eq!(a, b);
+    assert!(merged.join("accuracy.md").exists() && merged.join("psnr_vs_time.png").exists());
 }
