@@ -253,10 +253,16 @@ fn write_outputs(out: &Path, what: &str, records: &[Record]) -> anyhow::Result<(
 pub fn commit_outputs(out: &Path, what: &str, records: &[Record]) -> anyhow::Result<()> {
     let mut set = splatbridge_scene::output::OutputSet::new();
     let stage = set.stage_dir(out)?;
-    write_records(&stage, records)?;
-    write_outputs(&stage, what, records)?;
+    write_staged(&stage, what, records)?;
     set.commit()?;
     Ok(())
+}
+
+/// Write `accuracy.json`, `accuracy.md` and the plots into a staging folder (a merge of
+/// sharded sweeps writes them this way too).
+pub fn write_staged(stage: &Path, what: &str, records: &[Record]) -> anyhow::Result<()> {
+    write_records(stage, records)?;
+    write_outputs(stage, what, records)
 }
 
 /// What one sweep measures: the cloud, the cameras and their reference frames, the time

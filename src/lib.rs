@@ -6,8 +6,12 @@
 pub mod accuracy;
 pub mod clients;
 pub mod describe;
+pub mod frame_store;
 pub mod heap;
+pub mod memory;
+pub mod merge;
 pub mod parity;
 pub mod pipeline;
 pub mod report;
+pub mod shard;
 pub mod split_auto;

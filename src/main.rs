@@ -50,6 +50,11 @@ enum Command {
     /// Sweep the accuracy knobs one at a time and plot error against time.
     #[command(after_help = "Example:\n  splatbridge accuracy scene.ply -o accuracy/")]
     Accuracy(cmd::accuracy::Args),
+    /// Join the output folders of a sharded compare or accuracy run (--shard I/N).
+    #[command(
+        after_help = "Example:\n  splatbridge merge out/shard-0 out/shard-1 out/shard-2 -o out/merged"
+    )]
+    Merge(cmd::merge::Args),
     /// Benchmarks: PLY load, native render, convert, trace, hybrid.
     #[command(
         after_help = "Example:\n  splatbridge bench render scene.ply --width 1920 --height 1080"
@@ -103,6 +108,7 @@ fn main() {
         Command::Hybrid(a) => cmd::hybrid::run(a),
         Command::Compare(a) => cmd::compare::run(a),
         Command::Accuracy(a) => cmd::accuracy::run(a),
+        Command::Merge(a) => cmd::merge::run(a),
         Command::Bench(a) => cmd::bench::run(a),
         Command::Demo(a) => cmd::demo::run(a),
     };

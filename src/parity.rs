@@ -5,6 +5,7 @@
 //! Stages never see each other: this module (in the CLI crate) converts with `convert`, writes
 //! the file, loads it with `raytrace`, and compares frames with `scene::metrics`.
 
+use std::borrow::Cow;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -19,6 +20,7 @@ use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::surfels::SplitParams;
 use splatbridge_scene::{metrics, Camera, Frame, GaussianCloud};
 
+use crate::frame_store::FrameStore;
 use crate::pipeline::{Renderer, SurfelSplit};
 use crate::report::Record;
 
@@ -206,6 +208,38 @@ fn save_pair(
     Ok(())
 }
 
+/// A record with its place in the unsharded run's `report.json`: `(time index, camera index,
+/// slot, sub-slot)`, where slots are 0 native, 1 hybrid, 2 Gaussian trace, 3 viewer clients
+/// (sub-slot: the result's index), then one per traced mesh file. Records of one comparison
+/// sort by it into the order of the loop `for time { for camera { for renderer } }`, whatever
+/// order the stages ran in and however the work was sharded.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct Placed {
+    pub order: [u64; 4],
+    /// A viewer client reported as unavailable (listed after every measured record, once per
+    /// client: the first by `order`).
+    #[serde(default)]
+    pub skipped: bool,
+    pub record: Record,
+}
+
+/// The records of a comparison in report order: measured ones by `order`, then the first
+/// unavailable-client note per client. `placed` may come from several shards.
+pub fn report_order(mut placed: Vec<Placed>) -> Vec<Record> {
+    placed.sort_by_key(|p| p.order);
+    let (skipped, measured): (Vec<Placed>, Vec<Placed>) =
+        placed.into_iter().partition(|p| p.skipped);
+    let mut out: Vec<Record> = measured.into_iter().map(|p| p.record).collect();
+    let mut seen: Vec<String> = Vec::new();
+    for p in skipped {
+        if !seen.contains(&p.record.renderer) {
+            seen.push(p.record.renderer.clone());
+            out.push(p.record);
+        }
+    }
+    out
+}
+
 /// Run the comparison over every camera × time; images and heat-maps go to `dir`.
 pub fn compare(
     scene: &DynamicScene,
@@ -215,115 +249,133 @@ pub fn compare(
     cfg: &CompareConfig,
     progress: &dyn Fn(&str),
 ) -> anyhow::Result<Vec<Record>> {
+    let placed = compare_selected(scene, cams, times, dir, cfg, &|_, _| true, progress)?;
+    Ok(report_order(placed))
+}
+
+/// The comparison of the (time index, camera index) items `owned` accepts (a shard's part).
+///
+/// Memory stays that of one stage, whatever the number of cameras, times and profiles: native
+/// references are rendered once per item and kept in a [`FrameStore`] on disk; then the
+/// Gaussian tracer is built, traces every item and is dropped; then each profile's GLB (and
+/// OBJ) is exported, loaded with its BVH, traces every item and is dropped before the next.
+/// Every image and heat-map is written as soon as it is measured. The scene's cloud is never
+/// copied for a static scene (its composite is its static cloud); a dynamic scene's composite
+/// exists for one time at a time.
+#[allow(clippy::too_many_arguments)]
+pub fn compare_selected(
+    scene: &DynamicScene,
+    cams: &[Camera],
+    times: &[f64],
+    dir: &Path,
+    cfg: &CompareConfig,
+    owned: &dyn Fn(usize, usize) -> bool,
+    progress: &dyn Fn(&str),
+) -> anyhow::Result<Vec<Placed>> {
     std::fs::create_dir_all(dir)
         .with_context(|| format!("{}: cannot create the output folder", dir.display()))?;
-    let mut records = Vec::new();
+    let items: Vec<(usize, usize)> = (0..times.len())
+        .flat_map(|ti| (0..cams.len()).map(move |ci| (ti, ci)))
+        .filter(|&(ti, ci)| owned(ti, ci))
+        .collect();
+    let mut placed = Vec::new();
+    if items.is_empty() {
+        return Ok(placed);
+    }
     let dynamic = !scene.objects.is_empty();
-    // Export every profile once; the files are what gets traced.
-    let mut meshes: Vec<(String, String, TracedMesh)> = Vec::new();
+    let tag = |ti: usize, ci: usize| format!("c{ci}_t{:.2}", times[ti]);
+    let slot = |ti: usize, ci: usize| ti * cams.len() + ci;
+    let named = |renderer: &str, ms: f64| Record {
+        renderer: renderer.into(),
+        milliseconds: ms,
+        ..Record::default()
+    };
+    // Measure `img` against the reference, save it and its heat-map as `name`, place the record.
+    let emit = |placed: &mut Vec<Placed>,
+                reference: &Frame,
+                (ti, ci): (usize, usize),
+                (s, sub): (u64, u64),
+                name: String,
+                img: &Frame,
+                r: Record|
+     -> anyhow::Result<()> {
+        let mut r = measure(
+            reference,
+            img,
+            Record {
+                camera: cams[ci].name.clone(),
+                time: times[ti],
+                ..r
+            },
+        )?;
+        save_pair(dir, &name, reference, img, &mut r)?;
+        r.peak_memory_bytes = crate::memory::peak_bytes().unwrap_or(0);
+        placed.push(Placed {
+            order: [ti as u64, ci as u64, s, sub],
+            skipped: false,
+            record: r,
+        });
+        Ok(())
+    };
+    // Mesh files traced for every item: (profile, format) in the order they are traced.
+    let mut mesh_files: Vec<(Profile, &'static str)> = Vec::new();
     let mut obj_profiles: Vec<Profile> = Vec::new();
     for &p in &cfg.profiles {
-        progress(&format!("export {}", p.name()));
-        let opts = ConvertOptions {
-            profile: p,
-            ..ConvertOptions::default()
-        };
-        let glb = dir.join(format!("mesh_{}.glb", p.name()));
-        meshes.push((
-            p.name().into(),
-            "glb".into(),
-            export_and_load(scene, &opts, &glb, cfg.backend, cfg.preset)?,
-        ));
+        mesh_files.push((p, "glb"));
         if cfg.obj && !dynamic {
-            let obj = dir.join(format!("mesh_{}.obj", p.name()));
-            meshes.push((
-                p.name().into(),
-                "obj".into(),
-                export_and_load(scene, &opts, &obj, cfg.backend, cfg.preset)?,
-            ));
+            mesh_files.push((p, "obj"));
         } else if cfg.obj {
             obj_profiles.push(p);
         }
     }
-    // One BVH per part of the scene for every time and camera: times re-pose the objects.
-    let mut gaussians = cfg
-        .gaussian_trace
-        .then(|| {
-            GaussianTracer::for_scene(
-                scene,
-                times.first().copied().unwrap_or(0.0),
-                cfg.backend,
-                cfg.preset,
-            )
-            .map(|tracer| Renderer::Gaussian {
-                tracer,
-                options: TraceOptions::default(),
-            })
-        })
-        .transpose()?;
     let client_files = if cfg.clients.is_empty() {
         None
     } else {
         progress("export for clients");
         Some(crate::clients::export(scene, cams, &cfg.clients, dir)?)
     };
+
+    // Stage 1, per time: the composite, then per camera the reference (stored), the hybrid,
+    // the viewer clients and a dynamic scene's per-frame OBJs, which all draw that composite.
+    let mut refs = FrameStore::new(times.len() * cams.len())?;
     let mut unavailable: Vec<crate::clients::Client> = Vec::new();
-    let mut skipped: Vec<Record> = Vec::new();
     for (ti, &t) in times.iter().enumerate() {
-        let cloud = scene.composite(t);
-        if let Some(g) = &mut gaussians {
-            g.set_time(t);
+        if !items.iter().any(|&(i, _)| i == ti) {
+            continue;
         }
-        for (ci, cam) in cams.iter().enumerate() {
-            let tag = format!("c{ci}_t{t:.2}");
+        let cloud: Cow<'_, GaussianCloud> = if dynamic {
+            Cow::Owned(scene.composite(t))
+        } else {
+            Cow::Borrowed(&scene.static_gaussians)
+        };
+        for &(_, ci) in items.iter().filter(|&&(i, _)| i == ti) {
+            let cam = &cams[ci];
+            let tag = tag(ti, ci);
             progress(&format!("native {tag}"));
             let reference = render_native(&cloud, cam, &cfg.native)?;
-            // Measure `img` against the reference, save it and its heat-map as `name`, record it.
-            let mut emit = |name: String, img: &Frame, r: Record| -> anyhow::Result<()> {
-                let mut r = measure(
-                    &reference.frame,
-                    img,
-                    Record {
-                        camera: cam.name.clone(),
-                        time: t,
-                        ..r
-                    },
-                )?;
-                save_pair(dir, &name, &reference.frame, img, &mut r)?;
-                records.push(r);
-                Ok(())
-            };
-            let named = |renderer: &str, ms: f64| Record {
-                renderer: renderer.into(),
-                milliseconds: ms,
-                ..Record::default()
-            };
+            let reference_frame = &reference.frame;
             emit(
+                &mut placed,
+                reference_frame,
+                (ti, ci),
+                (0, 0),
                 format!("native_{tag}"),
-                &reference.frame,
+                reference_frame,
                 named("native", reference.ms),
             )?;
             if cfg.hybrid {
                 progress(&format!("hybrid {tag}"));
                 let h = render_hybrid(&cloud, cam, cfg.split, &cfg.ges)?;
-                emit(format!("hybrid_{tag}"), &h.frame, named("hybrid", h.ms))?;
-            }
-            if let Some(tracer) = &mut gaussians {
-                progress(&format!("trace gaussians {tag}"));
-                let g = render_gaussians(tracer, cam, cfg.k)?;
                 emit(
-                    format!("tracegauss_{tag}"),
-                    &g.frame,
-                    named("trace-gaussian", g.ms),
+                    &mut placed,
+                    reference_frame,
+                    (ti, ci),
+                    (1, 0),
+                    format!("hybrid_{tag}"),
+                    &h.frame,
+                    named("hybrid", h.ms),
                 )?;
             }
-            let mesh_record = |profile: &str, format: &str, ms: f64, m: &TracedMesh| Record {
-                profile: profile.into(),
-                format: format.into(),
-                triangles: m.triangles,
-                bytes: m.bytes,
-                ..named("trace-mesh", ms)
-            };
             if let (Some(files), 0) = (&client_files, ti) {
                 let active: Vec<_> = cfg
                     .clients
@@ -340,7 +392,7 @@ pub fn compare(
                     cam,
                     progress,
                 )?;
-                for res in results {
+                for (sub, res) in results.into_iter().enumerate() {
                     let r = Record {
                         profile: res.kind.into(),
                         format: "glb".into(),
@@ -349,6 +401,10 @@ pub fn compare(
                     };
                     match res.outcome {
                         crate::clients::Outcome::Image(img) => emit(
+                            &mut placed,
+                            reference_frame,
+                            (ti, ci),
+                            (3, sub as u64),
                             format!("client_{}_{}_{tag}", res.client.name(), res.kind),
                             &img,
                             r,
@@ -356,45 +412,117 @@ pub fn compare(
                         crate::clients::Outcome::Unavailable(why) => {
                             if !unavailable.contains(&res.client) {
                                 unavailable.push(res.client);
-                                skipped.push(Record {
-                                    camera: cam.name.clone(),
-                                    time: t,
-                                    psnr: f64::NAN,
-                                    note: format!("skipped: {why}"),
-                                    ..r
+                                placed.push(Placed {
+                                    order: [ti as u64, ci as u64, 3, sub as u64],
+                                    skipped: true,
+                                    record: Record {
+                                        camera: cam.name.clone(),
+                                        time: t,
+                                        psnr: f64::NAN,
+                                        note: format!("skipped: {why}"),
+                                        ..r
+                                    },
                                 });
                             }
                         }
                     }
                 }
             }
-            for (profile, format, m) in &mut meshes {
-                progress(&format!("trace {profile}.{format} {tag}"));
-                let img = render_mesh(m, cam, t, cfg.k)?;
-                let r = mesh_record(profile, format, img.ms, m);
-                emit(format!("mesh_{profile}_{format}_{tag}"), &img.frame, r)?;
-            }
             // Dynamic scenes: OBJ has no animation, so the frame's own OBJ is exported and traced.
-            for &p in &obj_profiles {
+            for (pi, &p) in obj_profiles.iter().enumerate() {
                 let opts = ConvertOptions {
                     profile: p,
                     ..ConvertOptions::default()
                 };
-                let frame_scene = DynamicScene::from_static(cloud.clone());
+                let frame_scene = DynamicScene::from_static(cloud.clone().into_owned());
                 let obj = dir.join(format!("mesh_{}_{tag}.obj", p.name()));
                 let mut m = export_and_load(&frame_scene, &opts, &obj, cfg.backend, cfg.preset)?;
+                drop(frame_scene);
                 let img = render_mesh(&mut m, cam, 0.0, cfg.k)?;
                 let r = mesh_record(p.name(), "obj", img.ms, &m);
-                emit(format!("mesh_{}_obj_{tag}", p.name()), &img.frame, r)?;
+                emit(
+                    &mut placed,
+                    reference_frame,
+                    (ti, ci),
+                    (4 + (mesh_files.len() + pi) as u64, 0),
+                    format!("mesh_{}_obj_{tag}", p.name()),
+                    &img.frame,
+                    r,
+                )?;
                 // Per-frame OBJs are intermediates of the measurement (one per camera × time);
                 // the record keeps their size. Removing them keeps a comparison's folder small.
                 let _ = std::fs::remove_file(&obj);
                 let _ = std::fs::remove_file(obj.with_extension("mtl"));
             }
+            refs.put(slot(ti, ci), reference_frame)?;
         }
     }
-    records.append(&mut skipped);
-    Ok(records)
+
+    // Stage 2: one BVH per part of the scene for every time and camera (times re-pose the
+    // objects), dropped before the meshes are built.
+    if cfg.gaussian_trace {
+        let mut tracer = Renderer::Gaussian {
+            tracer: GaussianTracer::for_scene(scene, times[items[0].0], cfg.backend, cfg.preset)?,
+            options: TraceOptions::default(),
+        };
+        for &(ti, ci) in &items {
+            tracer.set_time(times[ti]);
+            let tag = tag(ti, ci);
+            progress(&format!("trace gaussians {tag}"));
+            let g = render_gaussians(&mut tracer, &cams[ci], cfg.k)?;
+            let reference = refs.get(slot(ti, ci))?;
+            emit(
+                &mut placed,
+                &reference,
+                (ti, ci),
+                (2, 0),
+                format!("tracegauss_{tag}"),
+                &g.frame,
+                named("trace-gaussian", g.ms),
+            )?;
+        }
+    }
+
+    // Stage 3: each mesh file exported, read back, traced at every item, then dropped.
+    for (mi, &(p, format)) in mesh_files.iter().enumerate() {
+        progress(&format!("export {} {format}", p.name()));
+        let opts = ConvertOptions {
+            profile: p,
+            ..ConvertOptions::default()
+        };
+        let path = dir.join(format!("mesh_{}.{format}", p.name()));
+        let mut m = export_and_load(scene, &opts, &path, cfg.backend, cfg.preset)?;
+        for &(ti, ci) in &items {
+            let tag = tag(ti, ci);
+            progress(&format!("trace {}.{format} {tag}", p.name()));
+            let img = render_mesh(&mut m, &cams[ci], times[ti], cfg.k)?;
+            let r = mesh_record(p.name(), format, img.ms, &m);
+            let reference = refs.get(slot(ti, ci))?;
+            emit(
+                &mut placed,
+                &reference,
+                (ti, ci),
+                (4 + mi as u64, 0),
+                format!("mesh_{}_{format}_{tag}", p.name()),
+                &img.frame,
+                r,
+            )?;
+        }
+    }
+    Ok(placed)
+}
+
+/// The record of a traced mesh file (measured fields filled by `emit`).
+fn mesh_record(profile: &str, format: &str, ms: f64, m: &TracedMesh) -> Record {
+    Record {
+        renderer: "trace-mesh".into(),
+        profile: profile.into(),
+        format: format.into(),
+        triangles: m.triangles,
+        bytes: m.bytes,
+        milliseconds: ms,
+        ..Record::default()
+    }
 }
 
 /// Write `report.json` and `report.md` for `records` into `dir`.

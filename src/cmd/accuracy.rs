@@ -9,7 +9,10 @@ use anyhow::Context;
 use splatbridge::accuracy::{
     commit_outputs, measure_setting, read_records, reference_frames, settings, Sweep,
 };
+use splatbridge::merge::{self, PartialReport};
+use splatbridge::parity::Placed;
 use splatbridge::report::Record;
+use splatbridge::shard::{Shard, WorkKey};
 use splatbridge_scene::{Camera, GaussianCloud};
 
 use super::common;
@@ -38,6 +41,10 @@ pub struct Args {
     /// Re-draw the plots and table from OUT/accuracy.json without measuring again.
     #[arg(long)]
     pub replot: bool,
+    /// Do only shard I of N (0 ≤ I < N) of the settings and write a partial report.json for
+    /// `splatbridge merge` (see docs/scale.md).
+    #[arg(long, value_name = "I/N")]
+    pub shard: Option<Shard>,
     #[arg(short, long, alias = "output")]
     pub out: PathBuf,
 }
@@ -63,9 +70,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("{}: cannot create the output folder", args.out.display()))?;
     let scene = common::load(&args.scene, args.drop_invalid)?;
-    let cloud: GaussianCloud = scene.composite(args.time);
-    let cams: Vec<Camera> =
-        resolve_cameras(&args.cameras, &cloud, &scene, args.width, args.height)?;
+    let scene_hash = args.shard.map(|_| merge::scene_hash(&scene));
+    // One cloud: a static scene's composite is its own cloud, handed over, not copied.
+    let cams: Vec<Camera>;
+    let cloud: GaussianCloud = if scene.objects.is_empty() {
+        cams = resolve_cameras(
+            &args.cameras,
+            &scene.static_gaussians,
+            &scene,
+            args.width,
+            args.height,
+        )?;
+        scene.into_composite(args.time)
+    } else {
+        let cloud = scene.composite(args.time);
+        cams = resolve_cameras(&args.cameras, &cloud, &scene, args.width, args.height)?;
+        cloud
+    };
     let refs = reference_frames(&cloud, &cams)?;
     let sweep = Sweep {
         cloud: &cloud,
@@ -78,15 +99,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let settings = settings(&args.only);
     let pb = common::progress(settings.len() as u64, "accuracy");
     let mut records = Vec::new();
-    for (family, value, setting, _baseline) in settings {
+    let mut placed = Vec::new();
+    for (index, (family, value, setting, _baseline)) in settings.into_iter().enumerate() {
+        if let (Some(shard), Some(hash)) = (args.shard, &scene_hash) {
+            let key = WorkKey {
+                scene: hash.clone(),
+                time: args.time,
+                camera: args.cameras.clone(),
+                setting: format!("{index}:{family}:{value}"),
+            };
+            if !shard.owns(&key) {
+                pb.inc(1);
+                continue;
+            }
+        }
         pb.set_message(format!("{family} {value}"));
-        records.push(measure_setting(
-            &sweep,
-            records.len(),
-            family,
-            &value,
-            &setting,
-        )?);
+        let r = measure_setting(&sweep, index, family, &value, &setting)?;
+        placed.push(Placed {
+            order: [index as u64, 0, 0, 0],
+            skipped: false,
+            record: r.clone(),
+        });
+        records.push(r);
         pb.inc(1);
     }
     pb.finish_and_clear();
@@ -98,6 +132,39 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.height,
         args.time
     );
+    if let (Some(shard), Some(scene_hash)) = (args.shard, scene_hash) {
+        let mut set = splatbridge_scene::output::OutputSet::new();
+        let stage = set.stage_dir(&args.out)?;
+        let options = format!(
+            "accuracy\ncameras={}\ntime={}\nsize={}x{}\nonly={:?}\ndrop_invalid={}",
+            args.cameras,
+            args.time.to_bits(),
+            args.width,
+            args.height,
+            args.only,
+            args.drop_invalid
+        );
+        let report = PartialReport {
+            format: merge::PARTIAL_FORMAT.into(),
+            command: "accuracy".into(),
+            version: env!("CARGO_PKG_VERSION").into(),
+            scene_hash,
+            options_hash: merge::options_hash(&options),
+            shard,
+            title: "Accuracy against cost".into(),
+            preamble: what,
+            files: Vec::new(),
+            peak_memory_bytes: 0,
+            records: placed,
+        };
+        merge::commit_shard(set, &stage, report)?;
+        print_records(&records);
+        println!(
+            "shard {shard}: wrote {}",
+            args.out.join(merge::REPORT).display()
+        );
+        return Ok(());
+    }
     commit_outputs(&args.out, &what, &records)?;
     print_records(&records);
     println!("wrote {}", args.out.join("accuracy.md").display());

@@ -5,7 +5,9 @@ use splatbridge_scene::output::OutputSet;
 use std::path::PathBuf;
 
 use anyhow::Context;
+use splatbridge::merge::{self, PartialReport};
 use splatbridge::parity::{self, CompareConfig};
+use splatbridge::shard::{Shard, WorkKey};
 use splatbridge_convert::Profile;
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::{Camera, GaussianCloud};
@@ -59,6 +61,10 @@ pub struct Args {
     /// The client dispatcher script (default: the repository's scripts/client-render.sh).
     #[arg(long, value_name = "PATH")]
     pub client_script: Option<PathBuf>,
+    /// Do only shard I of N (0 ≤ I < N) of the (time, camera) items and write a partial
+    /// report.json for `splatbridge merge` (see docs/scale.md).
+    #[arg(long, value_name = "I/N")]
+    pub shard: Option<Shard>,
     /// Output folder.
     #[arg(short, long, alias = "output")]
     pub out: PathBuf,
@@ -118,8 +124,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         args.times.clone()
     };
-    let frame0 = scene.composite(times[0]);
-    let cams = resolve_cameras(&args.cameras, &frame0, &scene, args.width, args.height)?;
+    // Orbit rigs frame the first time's composite; a static scene's is its own cloud, and a
+    // dynamic scene's copy is dropped before anything is rendered.
+    let cams = if scene.objects.is_empty() {
+        resolve_cameras(
+            &args.cameras,
+            &scene.static_gaussians,
+            &scene,
+            args.width,
+            args.height,
+        )?
+    } else {
+        let frame0 = scene.composite(times[0]);
+        resolve_cameras(&args.cameras, &frame0, &scene, args.width, args.height)?
+    };
     let cfg = CompareConfig {
         profiles: parse_profiles(&args.profiles)?,
         obj: !args.no_obj,
@@ -141,9 +159,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // and moved into place only when the whole comparison succeeded.
     let mut outputs = OutputSet::new();
     let stage = outputs.stage_dir(&args.out)?;
-    let records = parity::compare(&scene, &cams, &times, &stage, &cfg, &|m| {
-        pb.set_message(m.to_string())
-    })?;
+    let progress = |m: &str| pb.set_message(m.to_string());
+    let shard = args.shard;
+    let (placed, scene_hash) = match shard {
+        None => (
+            parity::compare_selected(&scene, &cams, &times, &stage, &cfg, &|_, _| true, &progress)?,
+            String::new(),
+        ),
+        Some(shard) => {
+            let hash = merge::scene_hash(&scene);
+            let key = |ti: usize, ci: usize| WorkKey {
+                scene: hash.clone(),
+                time: times[ti],
+                camera: format!("{ci}:{}", cams[ci].name),
+                setting: String::new(),
+            };
+            let owned = |ti: usize, ci: usize| shard.owns(&key(ti, ci));
+            let placed =
+                parity::compare_selected(&scene, &cams, &times, &stage, &cfg, &owned, &progress)?;
+            (placed, hash)
+        }
+    };
     pb.finish_and_clear();
     let preamble = format!(
         "Scene `{}`: {} cameras × {} times, {}×{} pixels. Reference: native splatting with reference settings. \
@@ -154,11 +190,53 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.width,
         args.height
     );
-    parity::write_reports(&stage, "splatbridge compare", &preamble, &records)?;
+    let title = "splatbridge compare";
+    let peak = splatbridge::memory::peak_bytes().unwrap_or(0) as f64 / 1e6;
+    if let Some(shard) = shard {
+        let n = placed.len();
+        let report = PartialReport {
+            format: merge::PARTIAL_FORMAT.into(),
+            command: "compare".into(),
+            version: env!("CARGO_PKG_VERSION").into(),
+            scene_hash,
+            options_hash: merge::options_hash(&options_text(&args, &times)),
+            shard,
+            title: title.into(),
+            preamble,
+            files: Vec::new(),
+            peak_memory_bytes: 0,
+            records: placed,
+        };
+        merge::commit_shard(outputs, &stage, report)?;
+        println!("shard {shard}: {n} records; peak memory {peak:.1} MB");
+        println!("wrote {}", args.out.join(merge::REPORT).display());
+        return Ok(());
+    }
+    let records = parity::report_order(placed);
+    parity::write_reports(&stage, title, &preamble, &records)?;
     outputs.commit()?;
     print_summary(&records);
+    println!("peak memory {peak:.1} MB");
     println!("wrote {}", args.out.join("report.md").display());
     Ok(())
+}
+
+/// Every option that changes a comparison's outputs, as text (hashed into a shard's report, so
+/// shards of differently configured runs do not merge). `--shard` and `--out` are not in it.
+fn options_text(args: &Args, times: &[f64]) -> String {
+    format!(
+        "compare\ncameras={}\ntimes={:?}\nprofiles={:?}\nsize={}x{}\nbackend={}\nk={}\nno_obj={}\ndrop_invalid={}\nclients={:?}",
+        args.cameras,
+        times.iter().map(|t| t.to_bits()).collect::<Vec<_>>(),
+        args.profiles,
+        args.width,
+        args.height,
+        args.backend,
+        args.k,
+        args.no_obj,
+        args.drop_invalid,
+        args.clients
+    )
 }
 
 /// Mean PSNR per renderer/profile/format, one line each.

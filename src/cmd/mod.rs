@@ -9,6 +9,7 @@ pub mod demo;
 pub mod fixture;
 pub mod hybrid;
 pub mod info;
+pub mod merge;
 pub mod ranges;
 pub mod render;
 pub mod trace;

@@ -124,6 +124,10 @@ pub struct Args {
     /// Render every frame of the scene's time range to OUT_0000.ext, OUT_0001.ext, ….
     #[arg(long, conflicts_with = "time")]
     pub frames: bool,
+    /// With --frames: render only shard I of N (0 ≤ I < N) of the frames and write a partial
+    /// report.json beside them for `splatbridge merge` (see docs/scale.md).
+    #[arg(long, value_name = "I/N", requires = "frames")]
+    pub shard: Option<splatbridge::shard::Shard>,
     #[command(flatten)]
     pub knobs: RenderKnobs,
     /// Drop invalid Gaussians (NaN, zero quaternion) with a counted warning instead of failing.
@@ -243,7 +247,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut frames_json = Vec::with_capacity(times.len());
     // A `--frames` sequence appears together or not at all (and never half old, half new).
     let mut outputs = OutputSet::new();
+    let scene_hash = args.shard.map(|_| splatbridge::merge::scene_hash(&scene));
+    let mut shard_files = Vec::new();
     for (i, &t) in times.iter().enumerate() {
+        if let (Some(shard), Some(hash)) = (args.shard, &scene_hash) {
+            let key = splatbridge::shard::WorkKey {
+                scene: hash.clone(),
+                time: t,
+                camera: cam.name.clone(),
+                setting: format!("render {i}"),
+            };
+            if !shard.owns(&key) {
+                continue;
+            }
+        }
         let req = FrameRequest {
             scene: Some(&scene),
             effects: &effects,
@@ -263,6 +280,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.out.clone()
         };
         stage_frame(&mut outputs, &out, &r.frame)?;
+        if let Some(name) = out.file_name() {
+            shard_files.push(name.to_string_lossy().into_owned());
+        }
         if args.json {
             frames_json.push(json!({
                 "output": out.display().to_string(),
@@ -283,6 +303,36 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }
             print_summary(&cam, stats, near);
         }
+    }
+    if let (Some(shard), Some(scene_hash)) = (args.shard, scene_hash) {
+        let options = format!(
+            "render\ncamera={:?}\nknobs={}\ndrop_invalid={}\nout={:?}",
+            cam,
+            args.knobs.describe(),
+            args.drop_invalid,
+            args.out.file_name()
+        );
+        let dir = match args.out.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        let report = splatbridge::merge::PartialReport {
+            format: splatbridge::merge::PARTIAL_FORMAT.into(),
+            command: "render".into(),
+            version: env!("CARGO_PKG_VERSION").into(),
+            scene_hash,
+            options_hash: splatbridge::merge::options_hash(&options),
+            shard,
+            title: String::new(),
+            preamble: String::new(),
+            files: shard_files,
+            peak_memory_bytes: splatbridge::memory::peak_bytes().unwrap_or(0),
+            records: Vec::new(),
+        };
+        outputs.write(
+            &dir.join(splatbridge::merge::REPORT),
+            serde_json::to_string_pretty(&report)?.as_bytes(),
+        )?;
     }
     outputs.commit()?;
     if args.json {

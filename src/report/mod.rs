@@ -38,6 +38,14 @@ pub struct Record {
     /// Why a row has no measurement (a viewer client that is not installed); empty otherwise.
     #[serde(skip_serializing_if = "String::is_empty")]
     pub note: String,
+    /// The process's peak resident memory (bytes, `VmHWM`) when this record was measured: like
+    /// `milliseconds`, a cost of the run, not part of the result (0: not recorded).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub peak_memory_bytes: u64,
+}
+
+fn is_zero(v: &u64) -> bool {
+    *v == 0
 }
 
 /// JSON has no infinity: serde_json writes +inf as null, read back here as +inf.

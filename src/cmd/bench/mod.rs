@@ -58,12 +58,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     ) {
         steady_state_allocator();
     }
-    match args.target {
+    let result = match args.target {
         Target::Ply(a) => ply::run(a),
         Target::Render(a) => render::run(a),
         Target::Convert(a) => convert::run(a),
         Target::Trace(a) => trace::run(a),
         Target::Hybrid(a) => hybrid::run(a),
         Target::Effects(a) => effects::run(a),
+    };
+    // On stderr, so a `--json` report on stdout stays one JSON document.
+    if let Some(peak) = splatbridge::memory::peak_bytes() {
+        eprintln!("peak memory {:.1} MB (VmHWM)", peak as f64 / 1e6);
     }
+    result
 }

@@ -55,18 +55,7 @@ fn encode(c: &GaussianCloud, e: EncodeArg) -> anyhow::Result<usize> {
     })
 }
 
-/// A `kB` field of `/proc/self/status`, in bytes (None off Linux).
-fn proc_status_bytes(field: &str) -> Option<u64> {
-    let s = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = s.lines().find(|l| l.starts_with(field))?;
-    let kb: u64 = line[field.len()..]
-        .trim()
-        .trim_end_matches("kB")
-        .trim()
-        .parse()
-        .ok()?;
-    Some(kb * 1024)
-}
+use splatbridge::memory::proc_status_bytes;
 
 /// Bytes held by the cloud's arrays (its "Gaussian data").
 pub fn cloud_bytes(c: &GaussianCloud) -> u64 {

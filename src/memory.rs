@@ -1,0 +1,38 @@
+//! Process memory figures for reports and benchmarks: the peak resident set (`VmHWM`) and the
+//! current one (`VmRSS`) from Linux's `/proc/self/status` (proc(5)). Other systems report
+//! nothing (`None`), never a guess.
+
+/// A `kB` field of `/proc/self/status`, in bytes.
+pub fn proc_status_bytes(field: &str) -> Option<u64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = s.lines().find(|l| l.starts_with(field))?;
+    let kb: u64 = line[field.len()..]
+        .trim()
+        .trim_end_matches("kB")
+        .trim()
+        .parse()
+        .ok()?;
+    Some(kb * 1024)
+}
+
+/// The process's peak resident memory so far, in bytes.
+pub fn peak_bytes() -> Option<u64> {
+    proc_status_bytes("VmHWM:")
+}
+
+/// The process's resident memory now, in bytes.
+pub fn resident_bytes() -> Option<u64> {
+    proc_status_bytes("VmRSS:")
+}
+
+#[cfg(test)]
+mod tests {
+    /// The peak is at least the current resident size, and both exist on Linux.
+    #[test]
+    #[cfg(target_os = "linux")]
+    fn peak_covers_resident() {
+        let rss = super::resident_bytes().unwrap();
+        let peak = super::peak_bytes().unwrap();
+        assert!(rss > 0 && peak >= rss, "{rss} {peak}");
+    }
+}
