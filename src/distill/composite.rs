@@ -62,34 +62,33 @@ pub struct Shading {
 #[inline]
 fn shade(h: &Rec, params: &[[f32; 4]], s: &Shading) -> (Vec3, Vec3, f32, f32) {
     let mut x = [0.0f32; 4];
-    for k in 0..3 {
-        let p = &params[h.v[k] as usize];
-        for (xc, pc) in x.iter_mut().zip(p) {
-            *xc += h.bary[k] * pc;
+    for (&v, &b) in h.v.iter().zip(&h.bary) {
+        for (xc, pc) in x.iter_mut().zip(&params[v as usize]) {
+            *xc += b * pc;
         }
     }
-    let mut c = Vec3::ZERO;
-    let mut dc = Vec3::ZERO;
-    for ch in 0..3 {
-        let v = x[ch];
+    let mut c = [0.0f32; 3];
+    let mut dc = [0.0f32; 3];
+    for ((&v, cc), dd) in x.iter().zip(c.iter_mut()).zip(dc.iter_mut()) {
         let inside = (0.0..=1.0).contains(&v);
         let v = v.clamp(0.0, 1.0);
         if s.encode {
-            c[ch] = linear_to_srgb(v);
+            *cc = linear_to_srgb(v);
             // The slope from the encoded value: above the linear toe,
             // d/dx (1.055·x^(1/2.4) − 0.055) = (c + 0.055) / (2.4·x), without a second powf.
-            dc[ch] = if !inside {
+            *dd = if !inside {
                 0.0
             } else if v <= 0.003_130_8 {
                 12.92
             } else {
-                (c[ch] + 0.055) / (2.4 * v)
+                (*cc + 0.055) / (2.4 * v)
             };
         } else {
-            c[ch] = v;
-            dc[ch] = if inside { 1.0 } else { 0.0 };
+            *cc = v;
+            *dd = if inside { 1.0 } else { 0.0 };
         }
     }
+    let (c, dc) = (Vec3::from_array(c), Vec3::from_array(dc));
     let a = h.fa * x[3];
     let da = if (0.0..=1.0).contains(&a) { h.fa } else { 0.0 };
     (c, dc, a.clamp(0.0, 1.0), da)
@@ -184,11 +183,9 @@ pub fn backward(
         let first = view.offsets[row * w] as usize;
         for (j, dh) in d.iter().enumerate() {
             let hit = &view.hits[first + j];
-            for k in 0..3 {
-                let b = hit.bary[k];
-                let gv = &mut grad[hit.v[k] as usize];
-                for c in 0..4 {
-                    gv[c] += b * dh[c];
+            for (&v, &b) in hit.v.iter().zip(&hit.bary) {
+                for (gc, dc) in grad[v as usize].iter_mut().zip(dh) {
+                    *gc += b * dc;
                 }
             }
         }

@@ -374,14 +374,15 @@ impl Distiller {
             .zip(self.v.par_iter_mut())
             .zip(grad.par_iter())
             .for_each(|(((p, m), v), g)| {
-                for c in 0..4 {
-                    if g[c] == 0.0 && m[c] == 0.0 {
+                let lanes = p.iter_mut().zip(m.iter_mut()).zip(v.iter_mut());
+                for (((p, m), v), (&g, &lr)) in lanes.zip(g.iter().zip(&lr)) {
+                    if g == 0.0 && *m == 0.0 {
                         continue;
                     }
-                    m[c] = b1 * m[c] + (1.0 - b1) * g[c];
-                    v[c] = b2 * v[c] + (1.0 - b2) * g[c] * g[c];
-                    let step = lr[c] * (m[c] / c1) / ((v[c] / c2).sqrt() + eps);
-                    p[c] = (p[c] - step).clamp(0.0, 1.0);
+                    *m = b1 * *m + (1.0 - b1) * g;
+                    *v = b2 * *v + (1.0 - b2) * g * g;
+                    let step = lr * (*m / c1) / ((*v / c2).sqrt() + eps);
+                    *p = (*p - step).clamp(0.0, 1.0);
                 }
             });
         self.history.push(Progress {
