@@ -4,8 +4,10 @@
 //! and the commands share it.
 
 pub mod accuracy;
+pub mod accuracy_distill;
 pub mod clients;
 pub mod describe;
+pub mod distill;
 pub mod frame_store;
 pub mod heap;
 pub mod memory;

@@ -165,6 +165,8 @@ pub struct Mesher<'a> {
     /// frame moves from the world origin (an object's track), for the coordinate bound.
     coplanar: bool,
     frame_reach: f32,
+    /// Fitted vertex colours that replace the profile's (mesh distillation).
+    fitted: Option<std::sync::Arc<crate::vertex_colours::VertexColours>>,
     pub counts: MeshCounts,
 }
 
@@ -196,6 +198,7 @@ impl<'a> Mesher<'a> {
             id_map: None,
             coplanar: opts.coplanar_offset,
             frame_reach: 0.0,
+            fitted: opts.vertex_colours.clone(),
             counts: MeshCounts {
                 name: name.to_string(),
                 gaussians_in: cloud.len() as u64,
@@ -242,7 +245,7 @@ impl<'a> Mesher<'a> {
         };
         let mut out = MeshSoup::default();
         let mut s = Scratch::default();
-        self.emit_frame(&f, Vec3::ONE, 0, volumetric, &mut out, &mut s);
+        self.emit_frame(&f, Vec3::ONE, 0, volumetric, None, &mut out, &mut s);
         out
     }
 
@@ -332,12 +335,14 @@ impl<'a> Mesher<'a> {
         sh::dc_color(coeffs)
     }
 
+    #[allow(clippy::too_many_arguments)]
     fn emit_frame<S: VertexSink>(
         &self,
         f: &Frame,
         rgb: Vec3,
         id: u32,
         volumetric: bool,
+        fitted: Option<&[[f32; 4]]>,
         out: &mut S,
         s: &mut Scratch,
     ) {
@@ -353,6 +358,8 @@ impl<'a> Mesher<'a> {
         s.keymap.clear();
         s.keymap.resize(1 + 6 * self.shape.rings.max(1), u32::MAX);
         let correct = volumetric && self.correct_three_fans;
+        // The Gaussian's own vertices in emission order: the key of fitted colours.
+        let mut own = 0usize;
         for &(a, b) in planes {
             let ea = f.axes[a] * f.scales[a];
             let eb = f.axes[b] * f.scales[b];
@@ -380,13 +387,12 @@ impl<'a> Mesher<'a> {
                 } else {
                     v.alpha
                 };
-                let idx = out.vertex(
-                    p,
-                    normal,
-                    [rgb.x, rgb.y, rgb.z, alpha.clamp(0.0, 1.0)],
-                    v.uv,
-                    id,
-                );
+                let rgba = match fitted.and_then(|c| c.get(own)) {
+                    Some(c) => *c,
+                    None => [rgb.x, rgb.y, rgb.z, alpha.clamp(0.0, 1.0)],
+                };
+                own += 1;
+                let idx = out.vertex(p, normal, rgba, v.uv, id);
                 if let Some(sl) = slot {
                     s.keymap[sl] = idx;
                 }
@@ -412,7 +418,7 @@ impl<'a> Mesher<'a> {
                 f.mean += f.normal() * crate::classify::coplanar_offset(id, reach);
             }
             if !S::FULL {
-                self.emit_frame(&f, Vec3::ZERO, 0, kind == Kind::Volumetric, out, s);
+                self.emit_frame(&f, Vec3::ZERO, 0, kind == Kind::Volumetric, None, out, s);
                 continue;
             }
             let mut rgb = self.display_colour(i, f.mean);
@@ -423,7 +429,8 @@ impl<'a> Mesher<'a> {
                     srgb_to_linear(rgb.z),
                 );
             }
-            self.emit_frame(&f, rgb, id, kind == Kind::Volumetric, out, s);
+            let fitted = self.fitted.as_deref().and_then(|v| v.of(id));
+            self.emit_frame(&f, rgb, id, kind == Kind::Volumetric, fitted, out, s);
         }
     }
 

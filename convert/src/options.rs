@@ -188,6 +188,12 @@ pub struct ConvertOptions {
     /// Name of the view-order camera, for the metadata.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub view_order_name: Option<String>,
+    /// Replace the profile's vertex colours with these (mesh distillation).
+    #[serde(skip)]
+    pub vertex_colours: Option<std::sync::Arc<crate::vertex_colours::VertexColours>>,
+    /// How the vertex colours were fitted, for the metadata (mesh distillation).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub distilled: Option<String>,
 }
 
 fn yes() -> bool {
@@ -216,6 +222,8 @@ impl Default for ConvertOptions {
             normals: true,
             view_order: None,
             view_order_name: None,
+            vertex_colours: None,
+            distilled: None,
         }
     }
 }

@@ -18,6 +18,7 @@ pub mod error;
 pub mod gaussian;
 pub mod geom;
 pub mod gltf_check;
+pub mod hit_record;
 pub mod kbuffer;
 pub mod lidar;
 pub mod model;

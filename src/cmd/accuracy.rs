@@ -33,7 +33,9 @@ pub struct Args {
     pub height: u32,
     /// Knob families to sweep (default: all): profile, segments, extent, k, native-extent,
     /// hybrid, sh-degree, format (each splat file format's quantisation: the cloud written by
-    /// our writer, read back and rendered natively).
+    /// our writer, read back and rendered natively), distill (only when named: each
+    /// profile's mesh distilled on 16 views between the orbit's, measured on these cameras
+    /// against distillation time; writes distill.md).
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
     #[arg(long)]
@@ -124,6 +126,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         pb.inc(1);
     }
     pb.finish_and_clear();
+    let curve = if args.only.iter().any(|o| o == "distill") {
+        let cfg = splatbridge::accuracy_distill::DistillSweep::default();
+        let pts = splatbridge::accuracy_distill::distill_rows(&sweep, &cfg)?;
+        records.extend(pts.iter().map(|p| p.record.clone()));
+        Some(pts)
+    } else {
+        None
+    };
     let what = format!(
         "`{}`: {} cameras at {}×{}, time {}",
         args.scene.display(),
@@ -166,6 +176,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return Ok(());
     }
     commit_outputs(&args.out, &what, &records)?;
+    if let Some(pts) = curve {
+        splatbridge::accuracy_distill::write_curve(&args.out, &what, &pts)?;
+        println!("wrote {}", args.out.join("distill.md").display());
+    }
     print_records(&records);
     println!("wrote {}", args.out.join("accuracy.md").display());
     Ok(())

@@ -230,6 +230,8 @@ pub struct Args {
     /// Print the report as JSON on stdout.
     #[arg(long)]
     pub json: bool,
+    #[command(flatten)]
+    pub distill: super::distill_args::DistillArgs,
 }
 
 impl From<FormatArg> for OutputFormat {
@@ -453,6 +455,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.output.display()
         );
     }
+    if args.distill.distill && (!gltf_mesh || args.frames) {
+        bail!(
+            "{}: --distill fits a mesh glTF (.glb or .gltf without --splats)",
+            args.output.display()
+        );
+    }
+    args.distill.apply(&scene, &mut opts)?;
     pb.set_message("converting");
     pb.inc(1);
     let kind = if args.splats {

@@ -6,6 +6,7 @@ pub mod common;
 pub mod compare;
 pub mod convert;
 pub mod demo;
+pub mod distill_args;
 pub mod fixture;
 pub mod hybrid;
 pub mod info;

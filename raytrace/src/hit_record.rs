@@ -1,0 +1,130 @@
+//! Ordered hit lists of mode-mesh rays: per pixel, the triangles a ray crossed in the order
+//! the compositor blends them (triangle, barycentrics, distance), for consumers that
+//! re-composite the same hits with other vertex colours (mesh distillation: the geometry is
+//! fixed while colours and opacities are fitted, so one trace serves every iteration).
+//!
+//! The walk is [`MeshTracer::trace`]'s: the same k-buffer rounds, keys and α > 0 filter, and
+//! front-to-back transmittance. It stops below `min_transmittance`, which a caller may set
+//! lower than the renderer's threshold to keep hits that become visible when opacities drop.
+
+use std::ops::ControlFlow;
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use crate::error::Result;
+use crate::kbuffer::{self, Accum, KBuffer};
+use crate::mesh_tracer::{with_thread_buffer, MeshTracer, PreparedInstance, TrianglePayload};
+use crate::render::camera_ray;
+use splatbridge_scene::Camera;
+
+/// One composited crossing.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RecordedHit {
+    /// Mesh index in the scene (`TriScene::meshes`).
+    pub mesh: u32,
+    /// Triangle index in that mesh.
+    pub tri: u32,
+    pub bary: [f32; 3],
+    /// World ray parameter.
+    pub t: f32,
+}
+
+/// Every pixel's hits, row-major: pixel `p`'s hits are `hits[offsets[p]..offsets[p + 1]]`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct HitLists {
+    pub width: u32,
+    pub height: u32,
+    pub offsets: Vec<u64>,
+    pub hits: Vec<RecordedHit>,
+}
+
+impl HitLists {
+    pub fn pixel(&self, p: usize) -> &[RecordedHit] {
+        &self.hits[self.offsets[p] as usize..self.offsets[p + 1] as usize]
+    }
+}
+
+impl MeshTracer {
+    /// Append the hits of one world ray (`d` unit length) in compositing order to `out`,
+    /// stopping once the transmittance falls below `min_transmittance`.
+    pub fn ordered_hits(
+        &self,
+        insts: &[PreparedInstance],
+        o: DVec3,
+        d: DVec3,
+        min_transmittance: f32,
+        buf: &mut KBuffer<TrianglePayload>,
+        out: &mut Vec<RecordedHit>,
+    ) {
+        let mut acc = Accum::default();
+        buf.shade_on_insert = true;
+        kbuffer::walk(
+            buf,
+            |after, buf| self.collect(insts, o, d, 0.0, f32::INFINITY, after, buf),
+            |h| {
+                let a = h.payload.rgba.w;
+                if a > 0.0 {
+                    out.push(RecordedHit {
+                        mesh: insts[h.instance as usize].mesh as u32,
+                        tri: h.payload.tri,
+                        bary: h.payload.bary,
+                        t: h.t,
+                    });
+                    acc.add(glam::Vec3::ZERO, a, h.t);
+                    if acc.tr < min_transmittance {
+                        return ControlFlow::Break(());
+                    }
+                }
+                ControlFlow::Continue(())
+            },
+        );
+        buf.shade_on_insert = false;
+    }
+
+    /// The hit lists of every pixel of `cam` at time `time` (rays through pixel centres, as
+    /// [`MeshTracer::render`] shoots them), with a k-buffer of `k`.
+    pub fn record_hits(
+        &self,
+        cam: &Camera,
+        time: f64,
+        k: usize,
+        min_transmittance: f32,
+    ) -> Result<HitLists> {
+        cam.validate()?;
+        let insts = self.prepare(time);
+        let (w, h) = (cam.width as usize, cam.height as usize);
+        let rows: Vec<(Vec<u32>, Vec<RecordedHit>)> = (0..h)
+            .into_par_iter()
+            .map(|j| {
+                let mut counts = Vec::with_capacity(w);
+                let mut hits = Vec::new();
+                for i in 0..w {
+                    let (o, d) = camera_ray(cam, i as f64 + 0.5, j as f64 + 0.5);
+                    let before = hits.len();
+                    with_thread_buffer(k.max(1), |b| {
+                        self.ordered_hits(&insts, o, d, min_transmittance, b, &mut hits)
+                    });
+                    counts.push((hits.len() - before) as u32);
+                }
+                (counts, hits)
+            })
+            .collect();
+        let total: usize = rows.iter().map(|r| r.1.len()).sum();
+        let mut out = HitLists {
+            width: cam.width,
+            height: cam.height,
+            offsets: Vec::with_capacity(w * h + 1),
+            hits: Vec::with_capacity(total),
+        };
+        out.offsets.push(0);
+        for (counts, hits) in rows {
+            for c in counts {
+                let last = *out.offsets.last().unwrap_or(&0);
+                out.offsets.push(last + c as u64);
+            }
+            out.hits.extend_from_slice(&hits);
+        }
+        Ok(out)
+    }
+}

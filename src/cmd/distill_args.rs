@@ -1,0 +1,97 @@
+//! `convert --distill` options: fit the exported mesh's vertex colours to native splatting
+//! (`splatbridge::distill`) before writing it.
+
+use anyhow::Context;
+use splatbridge::distill::run::{distill_export, ViewRequest};
+use splatbridge::distill::{DistillOptions, Loss};
+use splatbridge_convert::ConvertOptions;
+use splatbridge_scene::dynamic::DynamicScene;
+
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub enum LossArg {
+    /// MeshSplats' 0.6·L1 + 0.4·(1 − SSIM).
+    L1Ssim,
+    L1,
+    L2,
+}
+
+#[derive(clap::Args, Debug, Clone)]
+pub struct DistillArgs {
+    /// Fit the mesh's vertex colours and opacities to native splatting before writing
+    /// (glTF mesh outputs).
+    #[arg(long)]
+    pub distill: bool,
+    /// Fitting views: orbit:N, scene, PATH.json or single specs, comma-separated.
+    #[arg(
+        long,
+        value_name = "LIST",
+        default_value = "orbit:16",
+        requires = "distill"
+    )]
+    pub views: String,
+    /// Adam steps, each over every view.
+    #[arg(long, value_name = "K", default_value_t = DistillOptions::default().iterations, requires = "distill")]
+    pub iterations: usize,
+    /// Stop fitting after this many seconds (set-up included).
+    #[arg(long, value_name = "S", requires = "distill")]
+    pub distill_time: Option<f64>,
+    /// Fitting image width and height.
+    #[arg(long, value_name = "W", default_value_t = 240, requires = "distill")]
+    pub distill_width: u32,
+    #[arg(long, value_name = "H", default_value_t = 180, requires = "distill")]
+    pub distill_height: u32,
+    #[arg(long, value_enum, default_value = "l1-ssim", requires = "distill")]
+    pub distill_loss: LossArg,
+    /// Held-back views (between the orbit's fitting views) measured before and after.
+    #[arg(long, value_name = "M", default_value_t = 4, requires = "distill")]
+    pub held_back: usize,
+}
+
+impl DistillArgs {
+    /// Fit when asked, setting the options' vertex colours; prints what it did.
+    pub fn apply(&self, scene: &DynamicScene, opts: &mut ConvertOptions) -> anyhow::Result<()> {
+        if !self.distill {
+            return Ok(());
+        }
+        let d = DistillOptions {
+            time: scene.time.start,
+            iterations: self.iterations,
+            max_seconds: self.distill_time,
+            loss: match self.distill_loss {
+                LossArg::L1Ssim => Loss::L1Ssim(0.4),
+                LossArg::L1 => Loss::L1,
+                LossArg::L2 => Loss::L2,
+            },
+            ..DistillOptions::default()
+        };
+        let req = ViewRequest {
+            spec: self.views.clone(),
+            width: self.distill_width,
+            height: self.distill_height,
+            held_back: self.held_back,
+        };
+        let pb = super::common::progress(self.iterations as u64, "distilling");
+        let out = distill_export(scene, opts, &req, &d, |_| pb.inc(1))
+            .with_context(|| format!("--distill (views {})", self.views))?;
+        pb.finish_and_clear();
+        let r = &out.report;
+        eprintln!("distilled: {}", out.description);
+        eprintln!(
+            "  set-up {:.1} s, {} hits ({} views kept, {} streamed, {:.0} MB), loss {:.4} → {:.4}",
+            r.setup_seconds,
+            r.hits,
+            r.stored_views,
+            r.streamed_views,
+            r.hit_bytes as f64 / 1e6,
+            r.loss_first,
+            r.loss_last
+        );
+        if let Some((a, b)) = out.held_back {
+            eprintln!(
+                "  held-back PSNR against native ({} views): {a:.2} dB → {b:.2} dB",
+                out.held_back_views
+            );
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,578 @@
+//! Mesh distillation: fit the exported mesh's per-vertex RGBA to native splatting, as
+//! MeshSplats (arXiv 2502.07754) fine-tunes its converted meshes, without a GPU, training
+//! images or an autodiff framework.
+//!
+//! 1. Targets: native splatting (reference settings) of `composite(time)` from the fitting
+//!    views.
+//! 2. The mesh: the glTF export built in memory with the export's own options
+//!    (`convert::glb_bytes`, the same bytes the file gets) and loaded by the tracer, so the
+//!    fitted vertices are the written vertices.
+//! 3. Hits: per view and pixel, the ordered hit list the compositor uses
+//!    (`raytrace::hit_record`), recorded once (the geometry is fixed; only colours and
+//!    opacities change) down to a transmittance of `record_transmittance`, below the
+//!    tracer's 1e-4, so hits that show when opacities drop are kept.
+//! 4. Iterations: every view is composited from its hits with the current vertex RGBA
+//!    ([`composite`]), the loss ([`loss`]) and its image gradient are computed, the gradient is
+//!    carried back through front-to-back compositing analytically to the vertices, and one
+//!    Adam step (full batch over the views, projected onto [0, 1]) updates them.
+//! 5. The fitted colours go back to the writers as a [`VertexColours`] table keyed by
+//!    `_GAUSSIAN_ID` and template vertex, so the export is written by the same code as
+//!    any other (and is traced to the image the fit saw; tested).
+//!
+//! Memory: hit lists are kept while their total stays within `hit_budget` bytes; views
+//! beyond it are re-traced in every iteration (streamed: one view's hits at a time). The
+//! optimiser holds three RGBA arrays per vertex (values, Adam's two moments) and one for the
+//! gradient.
+//!
+//! Dynamic scenes are fitted at one time (`time`): objects take their pose at that time.
+//! Per-frame content (weather) is not part of the fitted mesh.
+
+pub mod composite;
+pub mod loss;
+pub mod run;
+pub mod views;
+
+use std::time::Instant;
+
+use glam::Vec3;
+use rayon::prelude::*;
+use splatbridge_convert::vertex_colours::VertexColours;
+use splatbridge_convert::ConvertOptions;
+use splatbridge_hybrid::native::RenderOptions as NativeOptions;
+use splatbridge_raytrace::model::TriScene;
+use splatbridge_raytrace::{BackendKind, BuildPreset, MeshTracer, RenderOptions};
+use splatbridge_scene::dynamic::DynamicScene;
+use splatbridge_scene::{Camera, Frame};
+
+use composite::{Rec, Shading, ViewHits};
+pub use loss::Loss;
+
+/// Errors of distillation.
+#[derive(Debug, thiserror::Error)]
+pub enum DistillError {
+    #[error(transparent)]
+    Convert(#[from] splatbridge_convert::ConvertError),
+    #[error(transparent)]
+    Trace(#[from] splatbridge_raytrace::TraceError),
+    #[error(transparent)]
+    Native(#[from] splatbridge_hybrid::native::RenderError),
+    #[error(transparent)]
+    Scene(#[from] splatbridge_scene::SceneError),
+    #[error("{0}")]
+    Invalid(String),
+}
+
+pub type Result<T, E = DistillError> = std::result::Result<T, E>;
+
+/// What to fit and how.
+#[derive(Clone, Debug)]
+pub struct DistillOptions {
+    /// Scene time the views are fitted at.
+    pub time: f64,
+    /// Adam steps (each over every view).
+    pub iterations: usize,
+    /// Stop fitting once this many seconds have passed since the start (set-up included).
+    pub max_seconds: Option<f64>,
+    pub loss: Loss,
+    /// Adam step sizes for the linear RGB and the alpha of a vertex.
+    pub lr_colour: f32,
+    pub lr_alpha: f32,
+    /// The tracer's k-buffer size.
+    pub k: usize,
+    /// Bytes of hit lists kept between iterations; views beyond are re-traced each time.
+    pub hit_budget: u64,
+    /// Hits are recorded until the transmittance falls below this.
+    pub record_transmittance: f32,
+}
+
+impl Default for DistillOptions {
+    fn default() -> Self {
+        DistillOptions {
+            time: 0.0,
+            iterations: 60,
+            max_seconds: None,
+            loss: Loss::default(),
+            lr_colour: 0.02,
+            lr_alpha: 0.02,
+            k: 16,
+            hit_budget: 2 << 30,
+            record_transmittance: 1e-6,
+        }
+    }
+}
+
+impl DistillOptions {
+    pub fn validate(&self) -> Result<()> {
+        let bad = |m: String| Err(DistillError::Invalid(m));
+        if !(self.lr_colour > 0.0 && self.lr_colour.is_finite())
+            || !(self.lr_alpha >= 0.0 && self.lr_alpha.is_finite())
+        {
+            return bad("distillation step sizes must be finite and positive".into());
+        }
+        if let Some(s) = self.max_seconds {
+            if !(s >= 0.0 && s.is_finite()) {
+                return bad(format!("--distill-time {s} must be a finite number ≥ 0"));
+            }
+        }
+        if !(1..=1024).contains(&self.k) {
+            return bad(format!("k-buffer size {} is outside 1..=1024", self.k));
+        }
+        if !(self.record_transmittance > 0.0 && self.record_transmittance < 1.0) {
+            return bad("record transmittance must be in (0, 1)".into());
+        }
+        if let Loss::L1Ssim(l) = self.loss {
+            if !(0.0..=1.0).contains(&l) {
+                return bad(format!("SSIM weight {l} is outside [0, 1]"));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// One point of the fit's progress.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Progress {
+    pub iteration: usize,
+    /// Seconds since the distiller was created (set-up included).
+    pub seconds: f64,
+    /// Mean loss over the views before this step.
+    pub loss: f64,
+}
+
+/// What the fit did.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct DistillReport {
+    pub views: usize,
+    pub width: u32,
+    pub height: u32,
+    pub loss: String,
+    pub vertices: usize,
+    pub iterations: usize,
+    pub setup_seconds: f64,
+    pub seconds: f64,
+    pub hits: u64,
+    pub stored_views: usize,
+    pub streamed_views: usize,
+    pub hit_bytes: u64,
+    pub loss_first: f64,
+    pub loss_last: f64,
+}
+
+struct View {
+    camera: Camera,
+    target: Vec<f32>,
+    hits: Option<ViewHits>,
+}
+
+/// The fitting state: the in-memory export and its tracer, the vertex RGBA being fitted, the
+/// optimiser's moments and the views.
+pub struct Distiller {
+    tracer: MeshTracer,
+    /// First global vertex of each mesh.
+    base: Vec<usize>,
+    params: Vec<[f32; 4]>,
+    m: Vec<[f32; 4]>,
+    v: Vec<[f32; 4]>,
+    views: Vec<View>,
+    shading: Shading,
+    opts: DistillOptions,
+    start: Instant,
+    pub history: Vec<Progress>,
+    report: DistillReport,
+}
+
+impl Distiller {
+    /// Build the export in memory, render the targets and record the hits of `cameras`.
+    pub fn new(
+        scene: &DynamicScene,
+        convert: &ConvertOptions,
+        cameras: &[Camera],
+        opts: &DistillOptions,
+    ) -> Result<Self> {
+        let start = Instant::now();
+        opts.validate()?;
+        if cameras.is_empty() {
+            return Err(DistillError::Invalid(
+                "distillation needs at least one view".into(),
+            ));
+        }
+        if convert.surfels.is_some() {
+            return Err(DistillError::Invalid(
+                "distillation fits the profile's vertex colours; it does not take --surfels".into(),
+            ));
+        }
+        let mut fit_opts = convert.clone();
+        fit_opts.vertex_colours = None;
+        let (bytes, _) = splatbridge_convert::glb_bytes(scene, None, &fit_opts)?;
+        let mut tri = splatbridge_raytrace::scene_load::load_glb_bytes(
+            &bytes,
+            std::path::Path::new("<distillation mesh>"),
+        )?;
+        drop(bytes);
+        // The cameras are in the capture frame, like the native targets.
+        tri.to_capture_frame();
+        check_white(&tri)?;
+        let shading = Shading {
+            encode: tri.colors_linear,
+            background: RenderOptions::default().background,
+        };
+        let mut base = Vec::with_capacity(tri.meshes.len());
+        let mut params = Vec::new();
+        for m in &tri.meshes {
+            if !m.has_gaussian_ids && !m.tris.is_empty() {
+                return Err(DistillError::Invalid(
+                    "distillation needs _GAUSSIAN_ID (do not pass --no-ids)".into(),
+                ));
+            }
+            base.push(params.len());
+            params.extend(m.colors.iter().map(|c| c.to_array()));
+        }
+        let tracer = MeshTracer::new(tri, BackendKind::default(), BuildPreset::default())?;
+        let cloud = scene.composite(opts.time);
+        let native = NativeOptions::default();
+        let mut renderer = splatbridge_hybrid::native::Renderer::new();
+        let n = params.len();
+        let mut d = Distiller {
+            tracer,
+            base,
+            params,
+            m: vec![[0.0; 4]; n],
+            v: vec![[0.0; 4]; n],
+            views: Vec::with_capacity(cameras.len()),
+            shading,
+            opts: opts.clone(),
+            start,
+            history: Vec::new(),
+            report: DistillReport {
+                views: cameras.len(),
+                width: cameras[0].width,
+                height: cameras[0].height,
+                loss: opts.loss.to_string(),
+                vertices: n,
+                ..Default::default()
+            },
+        };
+        let mut stored = 0u64;
+        for cam in cameras {
+            let (frame, _) = renderer.render(&cloud, cam, &native)?;
+            let hits = d.record(cam)?;
+            d.report.hits += hits.hits.len() as u64;
+            let keep = stored + hits.bytes() <= opts.hit_budget;
+            if keep {
+                stored += hits.bytes();
+                d.report.stored_views += 1;
+            } else {
+                d.report.streamed_views += 1;
+            }
+            d.views.push(View {
+                camera: cam.clone(),
+                target: frame.rgb,
+                hits: keep.then_some(hits),
+            });
+        }
+        d.report.hit_bytes = stored;
+        d.report.setup_seconds = start.elapsed().as_secs_f64();
+        Ok(d)
+    }
+
+    /// Trace one view's hit lists with the tracer's current colours.
+    fn record(&self, cam: &Camera) -> Result<ViewHits> {
+        let lists = self.tracer.record_hits(
+            cam,
+            self.opts.time,
+            self.opts.k,
+            self.opts.record_transmittance,
+        )?;
+        let scene = &self.tracer.scene;
+        let hits = lists
+            .hits
+            .iter()
+            .map(|h| {
+                let mesh = &scene.meshes[h.mesh as usize];
+                let tri = mesh.tris[h.tri as usize];
+                let b = self.base[h.mesh as usize] as u32;
+                Rec {
+                    v: tri.map(|i| b + i),
+                    bary: h.bary,
+                    fa: hit_alpha_factor(scene, h.mesh as usize, h.tri as usize, h.bary),
+                }
+            })
+            .collect();
+        Ok(ViewHits {
+            width: lists.width,
+            height: lists.height,
+            offsets: lists.offsets,
+            hits,
+        })
+    }
+
+    /// The vertex RGBA being fitted (linear RGB as the file stores it, alpha), in the
+    /// tracer's mesh order.
+    pub fn params(&self) -> &[[f32; 4]] {
+        &self.params
+    }
+
+    pub fn params_mut(&mut self) -> &mut [[f32; 4]] {
+        &mut self.params
+    }
+
+    pub fn shading(&self) -> Shading {
+        self.shading
+    }
+
+    /// The recorded hits of view `i` (None when it is streamed).
+    pub fn view_hits(&self, i: usize) -> Option<&ViewHits> {
+        self.views.get(i).and_then(|v| v.hits.as_ref())
+    }
+
+    /// Mean loss over the views and its gradient with respect to every vertex's RGBA.
+    pub fn loss_and_gradient(&mut self) -> Result<(f64, Vec<[f32; 4]>)> {
+        let mut grad = vec![[0.0f32; 4]; self.params.len()];
+        let nviews = self.views.len() as f64;
+        let mut total = 0.0;
+        let streamed = self.views.iter().any(|v| v.hits.is_none());
+        if streamed {
+            self.apply();
+        }
+        for i in 0..self.views.len() {
+            let owned;
+            let hits = match &self.views[i].hits {
+                Some(h) => h,
+                None => {
+                    owned = self.record(&self.views[i].camera)?;
+                    &owned
+                }
+            };
+            let (w, h) = (hits.width as usize, hits.height as usize);
+            let img = composite::render(hits, &self.params, &self.shading);
+            let (l, mut dimg) =
+                loss::loss_and_grad(&img, &self.views[i].target, w, h, self.opts.loss);
+            total += l / nviews;
+            let s = (1.0 / nviews) as f32;
+            dimg.iter_mut().for_each(|g| *g *= s);
+            composite::backward(hits, &self.params, &self.shading, &dimg, &mut grad);
+        }
+        Ok((total, grad))
+    }
+
+    /// One Adam step over every view; returns the loss before the step.
+    pub fn step(&mut self) -> Result<f64> {
+        let (loss, grad) = self.loss_and_gradient()?;
+        let t = self.history.len() as i32 + 1;
+        let (b1, b2, eps) = (0.9f32, 0.999f32, 1e-8f32);
+        let c1 = 1.0 - b1.powi(t);
+        let c2 = 1.0 - b2.powi(t);
+        let lr = [
+            self.opts.lr_colour,
+            self.opts.lr_colour,
+            self.opts.lr_colour,
+            self.opts.lr_alpha,
+        ];
+        self.params
+            .par_iter_mut()
+            .zip(self.m.par_iter_mut())
+            .zip(self.v.par_iter_mut())
+            .zip(grad.par_iter())
+            .for_each(|(((p, m), v), g)| {
+                let lanes = p.iter_mut().zip(m.iter_mut()).zip(v.iter_mut());
+                for (((p, m), v), (&g, &lr)) in lanes.zip(g.iter().zip(&lr)) {
+                    if g == 0.0 && *m == 0.0 {
+                        continue;
+                    }
+                    *m = b1 * *m + (1.0 - b1) * g;
+                    *v = b2 * *v + (1.0 - b2) * g * g;
+                    let step = lr * (*m / c1) / ((*v / c2).sqrt() + eps);
+                    *p = (*p - step).clamp(0.0, 1.0);
+                }
+            });
+        self.history.push(Progress {
+            iteration: self.history.len(),
+            seconds: self.start.elapsed().as_secs_f64(),
+            loss,
+        });
+        if self.report.loss_first == 0.0 && self.history.len() == 1 {
+            self.report.loss_first = loss;
+        }
+        self.report.loss_last = loss;
+        self.report.iterations = self.history.len();
+        self.report.seconds = self.start.elapsed().as_secs_f64();
+        Ok(loss)
+    }
+
+    /// Whether the iteration count or the time budget is used up.
+    pub fn done(&self) -> bool {
+        self.history.len() >= self.opts.iterations
+            || self
+                .opts
+                .max_seconds
+                .is_some_and(|s| self.start.elapsed().as_secs_f64() >= s)
+    }
+
+    /// Step until [`Distiller::done`], calling `on_step` after each.
+    pub fn run(&mut self, mut on_step: impl FnMut(&Progress)) -> Result<()> {
+        while !self.done() {
+            self.step()?;
+            if let Some(p) = self.history.last() {
+                on_step(p);
+            }
+        }
+        Ok(())
+    }
+
+    /// Write the fitted colours into the tracer's meshes, quantised as the file stores them
+    /// (normalized u16), so its renders are the export's.
+    pub fn apply(&mut self) {
+        for (mi, m) in self.tracer.scene.meshes.iter_mut().enumerate() {
+            let b = self.base[mi];
+            for (j, c) in m.colors.iter_mut().enumerate() {
+                let p = self.params[b + j].map(|x| (x.clamp(0.0, 1.0) * 65535.0).round() / 65535.0);
+                *c = glam::Vec4::from_array(p);
+            }
+        }
+    }
+
+    /// Trace the fitted mesh from `cam` (the tracer's defaults, k as fitted).
+    pub fn render(&mut self, cam: &Camera) -> Result<Frame> {
+        self.apply();
+        let opts = RenderOptions {
+            k: self.opts.k,
+            ..RenderOptions::default()
+        };
+        Ok(self.tracer.render(cam, self.opts.time, &opts)?.0)
+    }
+
+    /// The fitted colours as the writers take them.
+    pub fn vertex_colours(&self) -> Result<VertexColours> {
+        let scene = &self.tracer.scene;
+        let mut ids = 0usize;
+        let mut per_vertex: Vec<Vec<u32>> = Vec::with_capacity(scene.meshes.len());
+        for m in &scene.meshes {
+            let mut g = vec![u32::MAX; m.positions.len()];
+            for (t, tri) in m.tris.iter().enumerate() {
+                for &v in tri {
+                    g[v as usize] = m.tri_gaussian[t];
+                }
+            }
+            // A vertex no triangle uses belongs to the Gaussian emitted around it.
+            let mut last = u32::MAX;
+            for x in g.iter_mut() {
+                if *x == u32::MAX {
+                    *x = last;
+                } else {
+                    last = *x;
+                }
+                if *x != u32::MAX {
+                    ids = ids.max(*x as usize + 1);
+                }
+            }
+            per_vertex.push(g);
+        }
+        let mut vc = VertexColours::new(ids);
+        for (mi, g) in per_vertex.iter().enumerate() {
+            let b = self.base[mi];
+            let mut s = 0;
+            while s < g.len() {
+                let mut e = s + 1;
+                while e < g.len() && g[e] == g[s] {
+                    e += 1;
+                }
+                if g[s] != u32::MAX {
+                    vc.set(g[s], &self.params[b + s..b + e])
+                        .map_err(DistillError::Invalid)?;
+                }
+                s = e;
+            }
+        }
+        Ok(vc)
+    }
+
+    pub fn report(&self) -> DistillReport {
+        self.report.clone()
+    }
+
+    /// Triangles of the fitted mesh (index-buffer triangles, every winding counted).
+    pub fn triangles(&self) -> u64 {
+        self.tracer
+            .scene
+            .meshes
+            .iter()
+            .map(|m| m.tris.len() as u64)
+            .sum()
+    }
+
+    /// Seconds since the distiller was created.
+    pub fn elapsed(&self) -> f64 {
+        self.start.elapsed().as_secs_f64()
+    }
+}
+
+/// The material and texture alpha of a hit: what `Mesh::shade` multiplies the interpolated
+/// vertex alpha by.
+fn hit_alpha_factor(scene: &TriScene, mesh: usize, tri: usize, bary: [f32; 3]) -> f32 {
+    let m = &scene.meshes[mesh];
+    let Some(mat) = scene.materials.get(m.tri_material[tri] as usize) else {
+        return 1.0;
+    };
+    let mut a = mat.base_color.w;
+    if let (Some(tex), Some(uvs)) = (mat.texture.and_then(|t| scene.textures.get(t)), &m.uvs) {
+        let [i0, i1, i2] = m.tris[tri].map(|i| i as usize);
+        let uv = uvs[i0] * bary[0] + uvs[i1] * bary[1] + uvs[i2] * bary[2];
+        a *= tex.sample(uv).w;
+    }
+    a
+}
+
+/// The fit assumes the materials and textures leave colour alone (white, as splatbridge
+/// writes them) and blend: the vertex colour is the hit's colour.
+fn check_white(scene: &TriScene) -> Result<()> {
+    let white = |v: Vec3| (v - Vec3::ONE).abs().max_element() < 1e-6;
+    let mut used = vec![false; scene.materials.len()];
+    for m in &scene.meshes {
+        for &t in &m.tri_material {
+            if let Some(u) = used.get_mut(t as usize) {
+                *u = true;
+            }
+        }
+    }
+    for (m, _) in scene.materials.iter().zip(&used).filter(|(_, &u)| u) {
+        if !white(m.base_color.truncate()) {
+            return Err(DistillError::Invalid(
+                "distillation needs white materials (the vertex colour is the hit's colour)".into(),
+            ));
+        }
+        if !matches!(m.alpha_mode, splatbridge_raytrace::AlphaMode::Blend) {
+            return Err(DistillError::Invalid(
+                "distillation needs blended materials".into(),
+            ));
+        }
+        if let Some(t) = m.texture.and_then(|t| scene.textures.get(t)) {
+            if t.texels.iter().any(|c| !white(c.truncate())) {
+                return Err(DistillError::Invalid(
+                    "distillation needs white textures (the falloff texture carries alpha only)"
+                        .into(),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Mean PSNR of the fitted mesh against `targets` from `cameras`.
+pub fn mean_psnr(d: &mut Distiller, cameras: &[Camera], targets: &[Frame]) -> Result<f64> {
+    let mut s = 0.0;
+    for (c, t) in cameras.iter().zip(targets) {
+        let img = d.render(c)?;
+        s += splatbridge_scene::metrics::psnr(&img, t)?;
+    }
+    Ok(s / cameras.len().max(1) as f64)
+}
+
+/// Native targets (reference settings) of `scene` at `time` from `cameras`.
+pub fn native_targets(scene: &DynamicScene, time: f64, cameras: &[Camera]) -> Result<Vec<Frame>> {
+    let cloud = scene.composite(time);
+    let mut r = splatbridge_hybrid::native::Renderer::new();
+    cameras
+        .iter()
+        .map(|c| Ok(r.render(&cloud, c, &NativeOptions::default())?.0))
+        .collect()
+}
