@@ -1,6 +1,6 @@
 //! The accuracy sweep behind `splatbridge accuracy`: the named knobs one at a time around the
 //! defaults (meshing profile, segments, extent, k-buffer size, native extent, SH degree, file
-//! format quantisation, hybrid split), each measured against the reference (native splatting,
+//! format quantisation, hybrid split, the ray-traced Gaussians' footprint and samples), each measured against the reference (native splatting,
 //! reference settings) at the same cameras, with time; then `accuracy.json`, `accuracy.md`
 //! and plots of PSNR against time and against triangles with the Pareto front and the
 //! MeshSplats default marked.
@@ -11,6 +11,9 @@ use anyhow::Context;
 use splatbridge_convert::{ConvertOptions, Profile};
 use splatbridge_hybrid::native::RenderOptions as NativeOptions;
 use splatbridge_hybrid::project::Extent;
+use splatbridge_raytrace::{
+    Footprint, GaussianTracer, RenderOptions as TraceOptions, SampleFootprint,
+};
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::formats::spz::SpzOptions;
 use splatbridge_scene::formats::write::{write_cloud, CloudFormat};
@@ -29,6 +32,8 @@ pub enum Setting {
     Hybrid(SplitParams),
     /// Write the cloud in this format, read it back, render natively.
     Format(CloudFormat),
+    /// Ray-trace the Gaussians with these tracer options (footprint, spp).
+    Gaussian(TraceOptions),
 }
 
 /// A file name ending for a single-cloud format (the loader detects by content; the name is
@@ -160,6 +165,29 @@ pub fn settings(only: &[String]) -> Vec<(&'static str, String, Setting, bool)> {
             ("SPZ v2", spz(2)),
         ] {
             v.push(("format", label.into(), Setting::Format(f), false));
+        }
+    }
+    if want("footprint") {
+        // The ray-traced Gaussians with and without the pixel footprint, at 1 and 4 samples
+        // per pixel (the sub-pixel's footprint, and the whole pixel's on every sample).
+        for (label, footprint, spp, sample_footprint) in [
+            ("off spp=1", Footprint::Off, 1, SampleFootprint::Subpixel),
+            ("on spp=1", Footprint::On, 1, SampleFootprint::Subpixel),
+            ("off spp=4", Footprint::Off, 4, SampleFootprint::Subpixel),
+            ("on spp=4 subpixel", Footprint::On, 4, SampleFootprint::Subpixel),
+            ("on spp=4 pixel", Footprint::On, 4, SampleFootprint::Pixel),
+        ] {
+            v.push((
+                "footprint",
+                label.into(),
+                Setting::Gaussian(TraceOptions {
+                    footprint,
+                    spp,
+                    sample_footprint,
+                    ..TraceOptions::default()
+                }),
+                false,
+            ));
         }
     }
     if want("hybrid") {
@@ -363,6 +391,18 @@ pub fn measure_setting(
                 push(&img.frame, reference, img.ms, c, 0, bytes)?;
             }
             "native"
+        }
+        Setting::Gaussian(o) => {
+            let tracer = GaussianTracer::new(s.cloud.clone(), cfg.backend, cfg.preset)?;
+            let mut r = crate::pipeline::Renderer::Gaussian {
+                tracer,
+                options: o.clone(),
+            };
+            for (c, reference) in views {
+                let img = parity::render_gaussians_with(&mut r, c, o.clone())?;
+                push(&img.frame, reference, img.ms, c, 0, 0)?;
+            }
+            "trace-gaussian"
         }
         Setting::Hybrid(split) => {
             for (c, reference) in views {

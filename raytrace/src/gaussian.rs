@@ -34,9 +34,10 @@ use splatbridge_scene::{sh, Camera, Frame, GaussianCloud};
 
 use crate::backend::{build_boxes, fits_bvh, Accel, BackendKind, BuildPreset, EmptyAccel};
 use crate::error::Result;
+use crate::footprint::{pad_for, Footprint, RayFootprint};
 use crate::geom::{ray_box, transformed_box};
 use crate::kbuffer::{self, Accum, Hit, KBuffer, Key, Payload};
-use crate::render::{render_frame, PixelOut, RenderOptions, Stats};
+use crate::render::{render_frame_spp, PixelOut, RenderOptions, Stats};
 
 /// The rasterizer's near cull (default of `RenderOptions::near`): view-space depth of the
 /// mean must exceed this.
@@ -77,6 +78,10 @@ struct Part {
     mean: Vec<Vec3>,
     /// `S⁻¹Rᵀ`.
     inv: Vec<Mat3>,
+    /// `R·S` (`Σ = M·Mᵀ`), for the footprint-widened response.
+    m: Vec<Mat3>,
+    /// Each proxy's box (anchor-relative), to pad per camera when the footprint is on.
+    boxes: Vec<(Vec3, Vec3)>,
     opacity: Vec<f32>,
     /// Squared extent in standard deviations, `2·ln(255·o)`.
     r2: Vec<f32>,
@@ -149,6 +154,8 @@ impl Part {
             index: Vec::new(),
             mean: Vec::new(),
             inv: Vec::new(),
+            m: Vec::new(),
+            boxes: Vec::new(),
             opacity: Vec::new(),
             r2: Vec::new(),
             accel: Box::new(EmptyAccel),
@@ -193,10 +200,12 @@ impl Part {
             t.index.push(i as u32);
             t.mean.push(mu);
             t.inv.push(inv);
+            t.m.push(rot * Mat3::from_diagonal(s));
             t.opacity.push(o);
             t.r2.push(r2);
         }
         t.accel = build_boxes(backend, preset, &boxes)?;
+        t.boxes = boxes;
         t.cloud = cloud;
         Ok(t)
     }
@@ -245,6 +254,67 @@ impl Part {
         let t = (-og.dot(dg) / dd).max(0.0) + 0.0;
         t.is_finite().then_some((t, alpha))
     }
+
+    /// As [`Part::response`] with the Gaussian widened by the ray's footprint at its mean's
+    /// view depth (see [`crate::footprint`]): the 2-D marginal `C` of the Gaussian on the plane
+    /// ⊥ d plus `z²·F`, evaluated at the mean's offset in that plane; peak opacity unchanged,
+    /// as in native splatting. The hit distance stays the unwidened `t*`.
+    #[inline]
+    fn response_fp(&self, p: usize, o: Vec3, d: Vec3, fp: &LocalFootprint) -> Option<(f32, f32)> {
+        let inv = self.inv[p];
+        let og = inv * (o - self.mean[p]);
+        let dg = inv * d;
+        let dd = dg.length_squared();
+        if !(dd > 0.0 && dd.is_finite()) {
+            return None;
+        }
+        let rel = self.mean[p] - o;
+        let z = rel.dot(fp.forward);
+        let z2 = z * z;
+        let mt = self.m[p].transpose();
+        let (a1, a2) = (mt * fp.e1, mt * fp.e2);
+        let (g0, g1, g2) = (a1.dot(a1), a1.dot(a2), a2.dot(a2));
+        let [f0, f1, f2] = fp.cov;
+        let (c0, c1, c2) = (g0 + z2 * f0, g1 + z2 * f1, g2 + z2 * f2);
+        // det(G + z²F) expanded so that no term cancels: det G = |a1 × a2|² (Lagrange's
+        // identity) rather than g0·g2 − g1², which loses everything for a needle seen end-on.
+        let det = a1.cross(a2).length_squared()
+            + z2 * (g0 * f2 + g2 * f0 - 2.0 * g1 * f1)
+            + z2 * z2 * fp.det;
+        if !(det > 0.0 && det.is_finite()) {
+            return None;
+        }
+        let (x0, x1) = (rel.dot(fp.e1), rel.dot(fp.e2));
+        let q = (c2 * x0 * x0 - 2.0 * c1 * x0 * x1 + c0 * x1 * x1) / det;
+        if !(q <= self.r2[p]) {
+            return None;
+        }
+        let alpha = (self.opacity[p] * (-0.5 * q).exp()).min(0.99);
+        if !(alpha >= 1.0 / 255.0) {
+            return None;
+        }
+        let t = (-og.dot(dg) / dd).max(0.0) + 0.0;
+        t.is_finite().then_some((t, alpha))
+    }
+}
+
+/// A ray's footprint in one part's frame (f32), with `det F`.
+#[derive(Clone, Copy, Debug)]
+struct LocalFootprint {
+    forward: Vec3,
+    e1: Vec3,
+    e2: Vec3,
+    cov: [f32; 3],
+    det: f32,
+}
+
+/// Per-camera BVHs over the proxies padded by the footprint (one per part), and each moving
+/// part's padded world bounds.
+pub struct Padded {
+    accels: Vec<Box<dyn Accel>>,
+    bounds: Vec<Option<(DVec3, DVec3)>>,
+    /// Seconds spent building them.
+    pub build_seconds: f64,
 }
 
 impl GaussianTracer {
@@ -391,13 +461,33 @@ impl GaussianTracer {
         after: Option<Key>,
         buf: &mut KBuffer<GaussianPayload>,
     ) {
+        self.collect_fp(o, d, near, None, tmax, after, buf)
+    }
+
+    /// As [`GaussianTracer::collect`]; `fp`: the ray's footprint and the padded BVHs of the
+    /// camera it belongs to (primary rays with the footprint on).
+    #[allow(clippy::too_many_arguments)]
+    fn collect_fp(
+        &self,
+        o: DVec3,
+        d: DVec3,
+        near: Option<(DVec3, f32)>,
+        fp: Option<(&RayFootprint, &Padded)>,
+        tmax: f32,
+        after: Option<Key>,
+        buf: &mut KBuffer<GaussianPayload>,
+    ) {
         buf.clear();
         for (pi, part) in self.parts.iter().enumerate() {
             if part.index.is_empty() {
                 continue;
             }
             if let Some(pl) = &self.placed[pi] {
-                match ray_box(o, d, pl.lo, pl.hi) {
+                let (lo, hi) = match fp.and_then(|(_, pad)| pad.bounds[pi]) {
+                    Some(b) => b,
+                    None => (pl.lo, pl.hi),
+                };
+                match ray_box(o, d, lo, hi) {
                     Some((b0, b1)) if b1 >= 0.0 && b0 <= buf.cull(tmax) as f64 => {}
                     _ => continue,
                 }
@@ -408,8 +498,22 @@ impl GaussianTracer {
                 forward: self.local_dir(pi, f),
                 near,
             });
+            let local = fp.map(|(f, _)| {
+                let cov = f.cov.map(|v| v as f32);
+                LocalFootprint {
+                    forward: self.local_dir(pi, f.forward),
+                    e1: self.local_dir(pi, f.e1),
+                    e2: self.local_dir(pi, f.e2),
+                    cov,
+                    det: (f.cov[0] * f.cov[2] - f.cov[1] * f.cov[1]) as f32,
+                }
+            });
+            let accel = match fp {
+                Some((_, pad)) => &pad.accels[pi],
+                None => &part.accel,
+            };
             let cull0 = buf.cull(tmax);
-            part.accel.traverse(ro, rd, cull0, &mut |p, _, cull| {
+            accel.traverse(ro, rd, cull0, &mut |p, _, cull| {
                 buf.candidates = buf.candidates.wrapping_add(1);
                 let p = p as usize;
                 if let Some(n) = near {
@@ -417,7 +521,11 @@ impl GaussianTracer {
                         return;
                     }
                 }
-                let Some((t, alpha)) = part.response(p, ro, rd) else {
+                let r = match &local {
+                    Some(f) => part.response_fp(p, ro, rd, f),
+                    None => part.response(p, ro, rd),
+                };
+                let Some((t, alpha)) = r else {
                     return;
                 };
                 if t > tmax {
@@ -496,6 +604,20 @@ impl GaussianTracer {
         opts: &RenderOptions,
         buf: &mut KBuffer<GaussianPayload>,
     ) -> PixelOut {
+        self.trace_fp(o, d, forward, None, opts, buf)
+    }
+
+    /// As [`GaussianTracer::trace`] for a primary ray carrying its footprint `fp` (with the
+    /// camera's padded BVHs from [`GaussianTracer::padded`]).
+    pub fn trace_fp(
+        &self,
+        o: DVec3,
+        d: DVec3,
+        forward: Option<DVec3>,
+        fp: Option<(&RayFootprint, &Padded)>,
+        opts: &RenderOptions,
+        buf: &mut KBuffer<GaussianPayload>,
+    ) -> PixelOut {
         let near = forward.map(|f| (f, opts.near));
         let mut out = PixelOut::default();
         let mut acc = Accum::default();
@@ -503,7 +625,7 @@ impl GaussianTracer {
         buf.candidates = 0;
         let (rounds, _) = kbuffer::walk(
             buf,
-            |after, buf| self.collect(o, d, near, f32::INFINITY, after, buf),
+            |after, buf| self.collect_fp(o, d, near, fp, f32::INFINITY, after, buf),
             |h| {
                 let a = h.payload.alpha;
                 // Native splatting's rule: a Gaussian that would take T below the threshold
@@ -525,12 +647,76 @@ impl GaussianTracer {
         out
     }
 
-    /// Render `cam` at the current time.
+    /// BVHs for `cam` at the current time over proxies padded by the largest footprint of a
+    /// low-pass of `variance_px2` pixels² ([`pad_for`]), so that no Gaussian the widening
+    /// brings onto a ray is missed. Built per camera (and pose), like native's projection.
+    pub fn padded(&self, cam: &Camera, variance_px2: f64) -> Result<Padded> {
+        let start = Instant::now();
+        let forward = cam.world_to_cam.row(2);
+        let mut accels = Vec::with_capacity(self.parts.len());
+        let mut bounds = Vec::with_capacity(self.parts.len());
+        for (part, placed) in self.parts.iter().zip(&self.placed) {
+            let mut lo = DVec3::splat(f64::INFINITY);
+            let mut hi = DVec3::splat(f64::NEG_INFINITY);
+            let boxes: Vec<(Vec3, Vec3)> = part
+                .boxes
+                .iter()
+                .enumerate()
+                .map(|(p, &(blo, bhi))| {
+                    let m = part.mean[p].as_dvec3() + part.anchor;
+                    let w = match placed {
+                        Some(pl) => pl.to_world.transform_point3(m),
+                        None => m,
+                    };
+                    let z = (w - cam.centre).dot(forward);
+                    let pad = pad_for(cam, variance_px2, z, part.r2[p].sqrt() as f64);
+                    // Relative 1e-5 and one f32 ulp of the box, as the unpadded boxes are
+                    // padded, so rounding cannot clip the widened proxy.
+                    let pad = (pad * (1.0 + 1e-5)) as f32
+                        + blo.abs().max(bhi.abs()).max_element() * 1.2e-7;
+                    let b = (blo - Vec3::splat(pad), bhi + Vec3::splat(pad));
+                    lo = lo.min(b.0.as_dvec3() + part.anchor);
+                    hi = hi.max(b.1.as_dvec3() + part.anchor);
+                    b
+                })
+                .collect();
+            accels.push(if boxes.is_empty() {
+                Box::new(EmptyAccel) as Box<dyn Accel>
+            } else {
+                build_boxes(self.backend, self.preset, &boxes)?
+            });
+            bounds.push(match placed {
+                Some(pl) if !boxes.is_empty() => Some(transformed_box(&pl.to_world, lo, hi)),
+                _ => None,
+            });
+        }
+        Ok(Padded {
+            accels,
+            bounds,
+            build_seconds: start.elapsed().as_secs_f64(),
+        })
+    }
+
+    /// Render `cam` at the current time, with `opts.spp` samples per pixel and, when
+    /// `opts.footprint` is on, each primary ray's footprint (the per-camera padded BVHs are
+    /// built first and their build time is counted in the render's seconds).
     pub fn render(&self, cam: &Camera, opts: &RenderOptions) -> Result<(Frame, Stats)> {
         opts.validate()?;
         let forward = cam.world_to_cam.row(2);
-        render_frame(cam, |o, d| {
-            with_thread_buffer(opts.k, |b| self.trace(o, d, Some(forward), opts, b))
-        })
+        let variance = opts.sample_footprint.variance_px2(opts.spp);
+        let padded = match opts.footprint {
+            Footprint::On => Some(self.padded(cam, variance)?),
+            Footprint::Off => None,
+        };
+        let (frame, mut stats) = render_frame_spp(cam, opts.spp, |o, d| {
+            let fp = padded
+                .as_ref()
+                .and_then(|p| RayFootprint::pinhole(cam, d, variance).map(|f| (f, p)));
+            with_thread_buffer(opts.k, |b| {
+                self.trace_fp(o, d, Some(forward), fp.as_ref().map(|(f, p)| (f, *p)), opts, b)
+            })
+        })?;
+        stats.seconds += padded.map_or(0.0, |p| p.build_seconds);
+        Ok((frame, stats))
     }
 }

@@ -30,7 +30,8 @@ pub struct Args {
     pub height: u32,
     /// Knob families to sweep (default: all): profile, segments, extent, k, native-extent,
     /// hybrid, sh-degree, format (each splat file format's quantisation: the cloud written by
-    /// our writer, read back and rendered natively).
+    /// our writer, read back and rendered natively), footprint (ray-traced Gaussians with the
+    /// pixel footprint off/on at 1 and 4 samples per pixel).
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
     #[arg(long)]

@@ -30,7 +30,9 @@ use splatbridge::pipeline::{
     render_frame, FrameRequest, LidarRequest, Prepared, Renderer, TraceMode, TraceSource,
 };
 use splatbridge_convert::Profile;
-use splatbridge_raytrace::{BackendKind, BuildPreset, Compositing, RenderOptions};
+use splatbridge_raytrace::{
+    BackendKind, BuildPreset, Compositing, Footprint, RenderOptions, SampleFootprint,
+};
 use splatbridge_scene::image_io::save_frame;
 
 use crate::cmd::common::{parse_rgb, print_warning, CameraArgs};
@@ -87,6 +89,20 @@ pub enum CompositingArg {
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OnOff {
+    On,
+    Off,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SampleFootprintArg {
+    /// Each of N samples carries its sub-pixel's footprint (0.3/N px²).
+    Subpixel,
+    /// Each sample carries the whole pixel's footprint (0.3 px²).
+    Pixel,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ProfileArg {
     Meshsplats,
     Rings,
@@ -121,6 +137,17 @@ pub struct TraceInput {
     /// Mode mesh: display (compare with native splatting) or viewer (as Blender shows it).
     #[arg(long, value_enum, default_value_t = CompositingArg::Display)]
     pub compositing: CompositingArg,
+    /// Mode gaussian: primary rays carry their pixel footprint, widening each Gaussian like
+    /// native splatting's 0.3-pixel low-pass (default on in mode gaussian; mode mesh has none).
+    #[arg(long, value_enum)]
+    pub footprint: Option<OnOff>,
+    /// Samples per pixel (both modes): a fixed stratified pattern (k×k grid when N = k²),
+    /// box-filtered; 1 samples the pixel centre.
+    #[arg(long, default_value_t = 1, value_parser = super::ranges::spp)]
+    pub spp: u32,
+    /// With --spp > 1 and the footprint on: the sub-pixel's footprint or the whole pixel's.
+    #[arg(long, value_enum, default_value_t = SampleFootprintArg::Subpixel)]
+    pub sample_footprint: SampleFootprintArg,
     /// Keep the glTF world frame of a splatbridge export (default: the capture's frame).
     #[arg(long)]
     pub gltf_frame: bool,
@@ -179,6 +206,12 @@ impl TraceInput {
                     CompositingArg::Display => Compositing::Display,
                     CompositingArg::Viewer => Compositing::Viewer,
                 },
+                footprint: self.footprint(),
+                spp: self.spp,
+                sample_footprint: match self.sample_footprint {
+                    SampleFootprintArg::Subpixel => SampleFootprint::Subpixel,
+                    SampleFootprintArg::Pixel => SampleFootprint::Pixel,
+                },
             },
             gltf_frame: self.gltf_frame,
             profile: self.profile.map(|p| match p {
@@ -189,6 +222,15 @@ impl TraceInput {
             drop_invalid: self.drop_invalid,
             effects_from: self.effects_from.clone(),
         })
+    }
+
+    /// `--footprint`, defaulting to on in mode gaussian (the parity mode) and off in mode mesh
+    /// (triangles are not widened).
+    pub fn footprint(&self) -> Footprint {
+        match (self.footprint, self.mode) {
+            (Some(OnOff::On), _) | (None, Mode::Gaussian) => Footprint::On,
+            (Some(OnOff::Off), _) | (None, Mode::Mesh) => Footprint::Off,
+        }
     }
 
     pub fn prepare(&self) -> anyhow::Result<Prepared> {
@@ -266,6 +308,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 "preset": args.input.preset.to_possible_value().map(|v| v.get_name().to_string()),
                 "background": p.options.background.to_array().map(short),
                 "near": short(p.options.near),
+                "footprint": p.options.footprint == Footprint::On,
+                "spp": p.options.spp,
+                "sample_footprint": match p.options.sample_footprint {
+                    SampleFootprint::Subpixel => "subpixel",
+                    SampleFootprint::Pixel => "pixel",
+                },
                 "compositing": match p.options.compositing {
                     Compositing::Display => "display",
                     Compositing::Viewer => "viewer",
