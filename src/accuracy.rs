@@ -12,7 +12,8 @@ use splatbridge_convert::{ConvertOptions, Profile};
 use splatbridge_hybrid::native::RenderOptions as NativeOptions;
 use splatbridge_hybrid::project::Extent;
 use splatbridge_raytrace::{
-    Footprint, GaussianTracer, RenderOptions as TraceOptions, SampleFootprint,
+    Footprint, GaussianTracer, HitOrder, RenderOptions as TraceOptions, SampleFootprint,
+    ShDirection,
 };
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::formats::spz::SpzOptions;
@@ -34,6 +35,8 @@ pub enum Setting {
     Format(CloudFormat),
     /// Ray-trace the Gaussians with these tracer options (footprint, spp).
     Gaussian(TraceOptions),
+    /// Convert, read back and trace the mesh with these tracer options (spp).
+    MeshWith(Box<ConvertOptions>, TraceOptions),
 }
 
 /// A file name ending for a single-cloud format (the loader detects by content; the name is
@@ -168,24 +171,28 @@ pub fn settings(only: &[String]) -> Vec<(&'static str, String, Setting, bool)> {
         }
     }
     if want("footprint") {
-        // The ray-traced Gaussians with and without the pixel footprint, at 1 and 4 samples
-        // per pixel (the sub-pixel's footprint, and the whole pixel's on every sample).
-        for (label, footprint, spp, sample_footprint) in [
-            ("off spp=1", Footprint::Off, 1, SampleFootprint::Subpixel),
-            ("on spp=1", Footprint::On, 1, SampleFootprint::Subpixel),
-            ("off spp=4", Footprint::Off, 4, SampleFootprint::Subpixel),
-            ("on spp=4 subpixel", Footprint::On, 4, SampleFootprint::Subpixel),
-            ("on spp=4 pixel", Footprint::On, 4, SampleFootprint::Pixel),
-        ] {
+        footprint_rows(&mut v, FOOTPRINT);
+    }
+    if want("footprint-spp") {
+        footprint_rows(&mut v, FOOTPRINT_SPP);
+    }
+    if want("footprint-causes") {
+        footprint_rows(&mut v, FOOTPRINT_CAUSES);
+    }
+    if want("mesh-spp") {
+        // The MeshSplats mesh traced with 1 and 4 samples per pixel: triangles get no
+        // footprint, so supersampling is the mesh's only filter.
+        for spp in [1, 4] {
             v.push((
-                "footprint",
-                label.into(),
-                Setting::Gaussian(TraceOptions {
-                    footprint,
-                    spp,
-                    sample_footprint,
-                    ..TraceOptions::default()
-                }),
+                "mesh-spp",
+                format!("meshsplats spp={spp}"),
+                Setting::MeshWith(
+                    Box::new(base.clone()),
+                    TraceOptions {
+                        spp,
+                        ..TraceOptions::default()
+                    },
+                ),
                 false,
             ));
         }
@@ -206,6 +213,59 @@ pub fn settings(only: &[String]) -> Vec<(&'static str, String, Setting, bool)> {
         }
     }
     v
+}
+
+/// One footprint row: label, footprint, spp, sample footprint, hit order, SH direction.
+type FootprintRow = (
+    &'static str,
+    Footprint,
+    u32,
+    SampleFootprint,
+    HitOrder,
+    ShDirection,
+);
+
+const SUB: SampleFootprint = SampleFootprint::Subpixel;
+
+/// The ray-traced Gaussians with and without the pixel footprint.
+const FOOTPRINT: &[FootprintRow] = &[
+    ("off spp=1", Footprint::Off, 1, SUB, HitOrder::Hit, ShDirection::Ray),
+    ("on spp=1", Footprint::On, 1, SUB, HitOrder::Hit, ShDirection::Ray),
+];
+
+/// At 4 samples per pixel: without the footprint, with the sub-pixel's footprint, and with
+/// the whole pixel's on every sample.
+const FOOTPRINT_SPP: &[FootprintRow] = &[
+    ("off spp=4", Footprint::Off, 4, SUB, HitOrder::Hit, ShDirection::Ray),
+    ("on spp=4 subpixel", Footprint::On, 4, SUB, HitOrder::Hit, ShDirection::Ray),
+    ("on spp=4 pixel", Footprint::On, 4, SampleFootprint::Pixel, HitOrder::Hit, ShDirection::Ray),
+];
+
+/// What the 3-D footprint cannot remove, one native rule at a time (native's hit order, its
+/// SH direction), and the projected mode (native's 2-D conic) with both.
+const FOOTPRINT_CAUSES: &[FootprintRow] = &[
+    ("on + mean-depth order", Footprint::On, 1, SUB, HitOrder::MeanDepth, ShDirection::Ray),
+    ("on + SH toward mean", Footprint::On, 1, SUB, HitOrder::Hit, ShDirection::Mean),
+    ("on + both", Footprint::On, 1, SUB, HitOrder::MeanDepth, ShDirection::Mean),
+    ("projected", Footprint::Projected, 1, SUB, HitOrder::MeanDepth, ShDirection::Mean),
+];
+
+fn footprint_rows(v: &mut Vec<(&'static str, String, Setting, bool)>, rows: &[FootprintRow]) {
+    for &(label, footprint, spp, sample_footprint, order, sh_direction) in rows {
+        v.push((
+            "footprint",
+            label.into(),
+            Setting::Gaussian(TraceOptions {
+                footprint,
+                spp,
+                sample_footprint,
+                order,
+                sh_direction,
+                ..TraceOptions::default()
+            }),
+            false,
+        ));
+    }
 }
 
 fn mean(v: &[f64]) -> f64 {
@@ -391,6 +451,22 @@ pub fn measure_setting(
                 push(&img.frame, reference, img.ms, c, 0, bytes)?;
             }
             "native"
+        }
+        Setting::MeshWith(opts, o) => {
+            let path = s.work_dir.join(format!("sweep_{index}.glb"));
+            let mut m = parity::export_and_load(
+                &DynamicScene::from_static(s.cloud.clone()),
+                opts,
+                &path,
+                cfg.backend,
+                cfg.preset,
+            )?;
+            for (c, reference) in views {
+                let img = parity::render_mesh_with(&mut m, c, 0.0, o.clone())?;
+                push(&img.frame, reference, img.ms, c, m.triangles, m.bytes)?;
+            }
+            let _ = std::fs::remove_file(&path);
+            "trace-mesh"
         }
         Setting::Gaussian(o) => {
             let tracer = GaussianTracer::new(s.cloud.clone(), cfg.backend, cfg.preset)?;

@@ -185,6 +185,16 @@ pub fn render_mesh(
     render_traced(&mut m.tracer, cam, time, k)
 }
 
+/// As [`render_mesh`] with every tracer option given (spp).
+pub fn render_mesh_with(
+    m: &mut TracedMesh,
+    cam: &Camera,
+    time: f64,
+    opts: TraceOptions,
+) -> anyhow::Result<Rendered> {
+    render_traced_with(&mut m.tracer, cam, time, opts)
+}
+
 /// Ray-trace the Gaussians themselves (3DGRT-style) with a tracer built once and posed at
 /// each time (`Renderer::set_time`), with the pixel footprint on (the parity mode, as
 /// `trace --mode gaussian` defaults to).

@@ -57,6 +57,29 @@ pub enum Footprint {
     Off,
     /// Each Gaussian widened by the ray's pixel footprint at its depth (native's low-pass).
     On,
+    /// Each Gaussian evaluated as native's projection does: the EWA 2-D conic with the
+    /// low-pass at the ray's pixel (pinhole primary rays; see `gaussian::camera`).
+    Projected,
+}
+
+/// Order of a primary ray's hits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum HitOrder {
+    /// By the distance of maximum response along the ray, `t*` (3DGRT's).
+    #[default]
+    Hit,
+    /// By the view depth of the Gaussian's mean, as native splatting's global sort.
+    MeanDepth,
+}
+
+/// Direction a primary ray's hit evaluates the Gaussian's SH in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum ShDirection {
+    /// The ray's direction (3DGRT's).
+    #[default]
+    Ray,
+    /// From the camera centre toward the Gaussian's mean, as native splatting.
+    Mean,
 }
 
 /// Which footprint a sub-pixel sample carries when `spp > 1`.
@@ -88,6 +111,8 @@ pub struct RayFootprint {
     pub e2: DVec3,
     /// `(a, b, c)` of the symmetric `s·(A₁ᵀA₁)⁻¹` (world units² per unit depth²).
     pub cov: [f64; 3],
+    /// The ray's continuous pixel position `(u, v)` (pixel `i` spans `[i, i + 1)`).
+    pub pixel: (f64, f64),
 }
 
 impl RayFootprint {
@@ -116,11 +141,13 @@ impl RayFootprint {
         }
         let inv = g.inverse() * variance_px2;
         let cov = [inv.x_axis.x, inv.y_axis.x, inv.y_axis.y];
+        let pixel = (cam.fx * pc.x + cam.cx, cam.fy * pc.y + cam.cy);
         cov.iter().all(|v| v.is_finite()).then_some(RayFootprint {
             forward,
             e1,
             e2,
             cov,
+            pixel,
         })
     }
 }

@@ -34,10 +34,14 @@ use splatbridge_scene::{sh, Camera, Frame, GaussianCloud};
 
 use crate::backend::{build_boxes, fits_bvh, Accel, BackendKind, BuildPreset, EmptyAccel};
 use crate::error::Result;
-use crate::footprint::{pad_for, Footprint, RayFootprint};
+use crate::footprint::{Footprint, HitOrder, RayFootprint, ShDirection};
 use crate::geom::{ray_box, transformed_box};
 use crate::kbuffer::{self, Accum, Hit, KBuffer, Key, Payload};
 use crate::render::{render_frame_spp, PixelOut, RenderOptions, Stats};
+
+mod camera;
+use camera::LocalFootprint;
+pub use camera::Padded;
 
 /// The rasterizer's near cull (default of `RenderOptions::near`): view-space depth of the
 /// mean must exceed this.
@@ -254,67 +258,6 @@ impl Part {
         let t = (-og.dot(dg) / dd).max(0.0) + 0.0;
         t.is_finite().then_some((t, alpha))
     }
-
-    /// As [`Part::response`] with the Gaussian widened by the ray's footprint at its mean's
-    /// view depth (see [`crate::footprint`]): the 2-D marginal `C` of the Gaussian on the plane
-    /// ⊥ d plus `z²·F`, evaluated at the mean's offset in that plane; peak opacity unchanged,
-    /// as in native splatting. The hit distance stays the unwidened `t*`.
-    #[inline]
-    fn response_fp(&self, p: usize, o: Vec3, d: Vec3, fp: &LocalFootprint) -> Option<(f32, f32)> {
-        let inv = self.inv[p];
-        let og = inv * (o - self.mean[p]);
-        let dg = inv * d;
-        let dd = dg.length_squared();
-        if !(dd > 0.0 && dd.is_finite()) {
-            return None;
-        }
-        let rel = self.mean[p] - o;
-        let z = rel.dot(fp.forward);
-        let z2 = z * z;
-        let mt = self.m[p].transpose();
-        let (a1, a2) = (mt * fp.e1, mt * fp.e2);
-        let (g0, g1, g2) = (a1.dot(a1), a1.dot(a2), a2.dot(a2));
-        let [f0, f1, f2] = fp.cov;
-        let (c0, c1, c2) = (g0 + z2 * f0, g1 + z2 * f1, g2 + z2 * f2);
-        // det(G + z²F) expanded so that no term cancels: det G = |a1 × a2|² (Lagrange's
-        // identity) rather than g0·g2 − g1², which loses everything for a needle seen end-on.
-        let det = a1.cross(a2).length_squared()
-            + z2 * (g0 * f2 + g2 * f0 - 2.0 * g1 * f1)
-            + z2 * z2 * fp.det;
-        if !(det > 0.0 && det.is_finite()) {
-            return None;
-        }
-        let (x0, x1) = (rel.dot(fp.e1), rel.dot(fp.e2));
-        let q = (c2 * x0 * x0 - 2.0 * c1 * x0 * x1 + c0 * x1 * x1) / det;
-        if !(q <= self.r2[p]) {
-            return None;
-        }
-        let alpha = (self.opacity[p] * (-0.5 * q).exp()).min(0.99);
-        if !(alpha >= 1.0 / 255.0) {
-            return None;
-        }
-        let t = (-og.dot(dg) / dd).max(0.0) + 0.0;
-        t.is_finite().then_some((t, alpha))
-    }
-}
-
-/// A ray's footprint in one part's frame (f32), with `det F`.
-#[derive(Clone, Copy, Debug)]
-struct LocalFootprint {
-    forward: Vec3,
-    e1: Vec3,
-    e2: Vec3,
-    cov: [f32; 3],
-    det: f32,
-}
-
-/// Per-camera BVHs over the proxies padded by the footprint (one per part), and each moving
-/// part's padded world bounds.
-pub struct Padded {
-    accels: Vec<Box<dyn Accel>>,
-    bounds: Vec<Option<(DVec3, DVec3)>>,
-    /// Seconds spent building them.
-    pub build_seconds: f64,
 }
 
 impl GaussianTracer {
@@ -461,11 +404,12 @@ impl GaussianTracer {
         after: Option<Key>,
         buf: &mut KBuffer<GaussianPayload>,
     ) {
-        self.collect_fp(o, d, near, None, tmax, after, buf)
+        self.collect_fp(o, d, near, None, HitOrder::Hit, tmax, after, buf)
     }
 
-    /// As [`GaussianTracer::collect`]; `fp`: the ray's footprint and the padded BVHs of the
-    /// camera it belongs to (primary rays with the footprint on).
+    /// As [`GaussianTracer::collect`]; `fp`: the ray's footprint and the grown BVHs of the
+    /// camera it belongs to (primary rays with the footprint on); `order`: the hit order of a
+    /// primary ray.
     #[allow(clippy::too_many_arguments)]
     fn collect_fp(
         &self,
@@ -473,6 +417,7 @@ impl GaussianTracer {
         d: DVec3,
         near: Option<(DVec3, f32)>,
         fp: Option<(&RayFootprint, &Padded)>,
+        order: HitOrder,
         tmax: f32,
         after: Option<Key>,
         buf: &mut KBuffer<GaussianPayload>,
@@ -498,19 +443,30 @@ impl GaussianTracer {
                 forward: self.local_dir(pi, f),
                 near,
             });
-            let local = fp.map(|(f, _)| {
-                let cov = f.cov.map(|v| v as f32);
-                LocalFootprint {
-                    forward: self.local_dir(pi, f.forward),
-                    e1: self.local_dir(pi, f.e1),
-                    e2: self.local_dir(pi, f.e2),
-                    cov,
-                    det: (f.cov[0] * f.cov[2] - f.cov[1] * f.cov[1]) as f32,
-                }
+            let local = fp.map(|(f, _)| LocalFootprint {
+                forward: self.local_dir(pi, f.forward),
+                e1: self.local_dir(pi, f.e1),
+                e2: self.local_dir(pi, f.e2),
+                cov: f.cov.map(|v| v as f32),
+                det: (f.cov[0] * f.cov[2] - f.cov[1] * f.cov[1]) as f32,
+                pixel: (f.pixel.0 as f32, f.pixel.1 as f32),
             });
-            let accel = match fp {
-                Some((_, pad)) => &pad.accels[pi],
-                None => &part.accel,
+            let (accel, pboxes, splats, mode) = match fp {
+                Some((_, pad)) => (
+                    &pad.accels[pi],
+                    pad.boxes[pi].as_slice(),
+                    pad.splats[pi].as_slice(),
+                    pad.mode,
+                ),
+                None => (&part.accel, &[][..], &[][..], Footprint::Off),
+            };
+            // Re-keyed hits (mean depth) may sit before their proxy's entry, so the traversal
+            // must not skip nodes beyond the k-th key: the cull distance is left alone (which
+            // only costs work). Projected hits are keyed at the mean's depth already, and
+            // their flat proxy is entered there.
+            let order = match (near, mode) {
+                (None, _) | (_, Footprint::Projected) => HitOrder::Hit,
+                _ => order,
             };
             let cull0 = buf.cull(tmax);
             accel.traverse(ro, rd, cull0, &mut |p, _, cull| {
@@ -521,13 +477,23 @@ impl GaussianTracer {
                         return;
                     }
                 }
-                let r = match &local {
-                    Some(f) => part.response_fp(p, ro, rd, f),
-                    None => part.response(p, ro, rd),
+                let r = match (&local, mode) {
+                    (Some(f), Footprint::Projected) => {
+                        part.response_projected(p, ro, rd, f, &splats[p])
+                    }
+                    (Some(f), _) => part.response_fp(p, ro, rd, f, pboxes[p]),
+                    (None, _) => part.response(p, ro, rd),
                 };
-                let Some((t, alpha)) = r else {
+                let Some((mut t, alpha)) = r else {
                     return;
                 };
+                if let Some(n) = near {
+                    if let Some(k) =
+                        camera::mean_depth_key(order, part.mean[p], ro, rd, n.forward)
+                    {
+                        t = k;
+                    }
+                }
                 if t > tmax {
                     return;
                 }
@@ -544,7 +510,10 @@ impl GaussianTracer {
                 if after.is_some_and(|a| h.key() <= a) {
                     return;
                 }
-                *cull = buf.insert(h, tmax);
+                let c = buf.insert(h, tmax);
+                if order == HitOrder::Hit {
+                    *cull = c;
+                }
             });
         }
     }
@@ -559,6 +528,20 @@ impl GaussianTracer {
             part.cloud.sh_of(h.payload.index as usize),
             self.local_dir(i, d),
         )
+    }
+
+    /// Colour of a hit seen from world point `o` toward the Gaussian's mean (native's SH
+    /// direction; an object's SH in its local frame).
+    pub fn hit_color_toward_mean(&self, h: &GaussianHit, o: DVec3) -> Vec3 {
+        let i = h.instance as usize;
+        let part = &self.parts[i];
+        let g = h.payload.index as usize;
+        let from = match &self.placed[i] {
+            None => o,
+            Some(p) => p.to_local.transform_point3(o) + part.anchor,
+        };
+        let dir = (part.cloud.means[g].as_dvec3() - from).normalize_or_zero();
+        sh::eval_color(part.cloud.sh_degree, part.cloud.sh_of(g), dir.as_vec3())
     }
 
     /// World normal of a hit Gaussian: its shortest axis.
@@ -625,7 +608,7 @@ impl GaussianTracer {
         buf.candidates = 0;
         let (rounds, _) = kbuffer::walk(
             buf,
-            |after, buf| self.collect_fp(o, d, near, fp, f32::INFINITY, after, buf),
+            |after, buf| self.collect_fp(o, d, near, fp, opts.order, f32::INFINITY, after, buf),
             |h| {
                 let a = h.payload.alpha;
                 // Native splatting's rule: a Gaussian that would take T below the threshold
@@ -634,7 +617,11 @@ impl GaussianTracer {
                     return ControlFlow::Break(());
                 }
                 hits += 1;
-                acc.add(self.hit_color(h, d), a, h.t);
+                let color = match (opts.sh_direction, forward) {
+                    (ShDirection::Mean, Some(_)) => self.hit_color_toward_mean(h, o),
+                    _ => self.hit_color(h, d),
+                };
+                acc.add(color, a, h.t);
                 ControlFlow::Continue(())
             },
         );
@@ -647,56 +634,6 @@ impl GaussianTracer {
         out
     }
 
-    /// BVHs for `cam` at the current time over proxies padded by the largest footprint of a
-    /// low-pass of `variance_px2` pixels² ([`pad_for`]), so that no Gaussian the widening
-    /// brings onto a ray is missed. Built per camera (and pose), like native's projection.
-    pub fn padded(&self, cam: &Camera, variance_px2: f64) -> Result<Padded> {
-        let start = Instant::now();
-        let forward = cam.world_to_cam.row(2);
-        let mut accels = Vec::with_capacity(self.parts.len());
-        let mut bounds = Vec::with_capacity(self.parts.len());
-        for (part, placed) in self.parts.iter().zip(&self.placed) {
-            let mut lo = DVec3::splat(f64::INFINITY);
-            let mut hi = DVec3::splat(f64::NEG_INFINITY);
-            let boxes: Vec<(Vec3, Vec3)> = part
-                .boxes
-                .iter()
-                .enumerate()
-                .map(|(p, &(blo, bhi))| {
-                    let m = part.mean[p].as_dvec3() + part.anchor;
-                    let w = match placed {
-                        Some(pl) => pl.to_world.transform_point3(m),
-                        None => m,
-                    };
-                    let z = (w - cam.centre).dot(forward);
-                    let pad = pad_for(cam, variance_px2, z, part.r2[p].sqrt() as f64);
-                    // Relative 1e-5 and one f32 ulp of the box, as the unpadded boxes are
-                    // padded, so rounding cannot clip the widened proxy.
-                    let pad = (pad * (1.0 + 1e-5)) as f32
-                        + blo.abs().max(bhi.abs()).max_element() * 1.2e-7;
-                    let b = (blo - Vec3::splat(pad), bhi + Vec3::splat(pad));
-                    lo = lo.min(b.0.as_dvec3() + part.anchor);
-                    hi = hi.max(b.1.as_dvec3() + part.anchor);
-                    b
-                })
-                .collect();
-            accels.push(if boxes.is_empty() {
-                Box::new(EmptyAccel) as Box<dyn Accel>
-            } else {
-                build_boxes(self.backend, self.preset, &boxes)?
-            });
-            bounds.push(match placed {
-                Some(pl) if !boxes.is_empty() => Some(transformed_box(&pl.to_world, lo, hi)),
-                _ => None,
-            });
-        }
-        Ok(Padded {
-            accels,
-            bounds,
-            build_seconds: start.elapsed().as_secs_f64(),
-        })
-    }
-
     /// Render `cam` at the current time, with `opts.spp` samples per pixel and, when
     /// `opts.footprint` is on, each primary ray's footprint (the per-camera padded BVHs are
     /// built first and their build time is counted in the render's seconds).
@@ -704,10 +641,7 @@ impl GaussianTracer {
         opts.validate()?;
         let forward = cam.world_to_cam.row(2);
         let variance = opts.sample_footprint.variance_px2(opts.spp);
-        let padded = match opts.footprint {
-            Footprint::On => Some(self.padded(cam, variance)?),
-            Footprint::Off => None,
-        };
+        let padded = self.for_camera(cam, opts.footprint, variance)?;
         let (frame, mut stats) = render_frame_spp(cam, opts.spp, |o, d| {
             let fp = padded
                 .as_ref()

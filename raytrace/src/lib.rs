@@ -32,7 +32,7 @@ pub mod tri;
 
 pub use backend::{BackendKind, BuildPreset};
 pub use error::{Result, TraceError};
-pub use footprint::{Footprint, SampleFootprint};
+pub use footprint::{Footprint, HitOrder, SampleFootprint, ShDirection};
 pub use gaussian::GaussianTracer;
 pub use mesh_tracer::MeshTracer;
 pub use model::{AlphaMode, TriScene};

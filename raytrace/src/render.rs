@@ -11,7 +11,7 @@ use rayon::prelude::*;
 use splatbridge_scene::{Camera, Frame};
 
 use crate::error::{Result, TraceError};
-use crate::footprint::{sample_offsets, Footprint, SampleFootprint};
+use crate::footprint::{sample_offsets, Footprint, HitOrder, SampleFootprint, ShDirection};
 pub use crate::geom::{ray_box, transformed_box};
 
 /// How mode `mesh` turns vertex colours into the image.
@@ -49,6 +49,10 @@ pub struct RenderOptions {
     pub spp: u32,
     /// With `spp > 1` and the footprint on: the sub-pixel's footprint or the whole pixel's.
     pub sample_footprint: SampleFootprint,
+    /// Mode `gaussian`, primary rays: hit order (3DGRT's `t*`, or native's mean depth).
+    pub order: HitOrder,
+    /// Mode `gaussian`, primary rays: SH direction (the ray, or toward the mean as native).
+    pub sh_direction: ShDirection,
 }
 
 /// Largest `spp` accepted (a 32×32 grid).
@@ -65,6 +69,8 @@ impl Default for RenderOptions {
             footprint: Footprint::Off,
             spp: 1,
             sample_footprint: SampleFootprint::Subpixel,
+            order: HitOrder::Hit,
+            sh_direction: ShDirection::Ray,
         }
     }
 }

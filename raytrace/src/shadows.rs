@@ -34,7 +34,7 @@ use splatbridge_scene::{Camera, Frame};
 use crate::error::{Result, TraceError};
 use crate::gaussian::GaussianTracer;
 use crate::mesh_tracer::MeshTracer;
-use crate::footprint::{Footprint, RayFootprint};
+use crate::footprint::RayFootprint;
 use crate::render::{render_frame_spp, PixelOut, RenderOptions, Stats};
 use crate::secondary::SecondaryRays;
 
@@ -148,10 +148,7 @@ pub fn render_gaussian_shadowed(
     let nanos = AtomicU64::new(0);
     // Primary rays carry their footprint as in `GaussianTracer::render`; shadow rays none.
     let variance = opts.sample_footprint.variance_px2(opts.spp);
-    let padded = match opts.footprint {
-        Footprint::On => Some(tracer.padded(cam, variance)?),
-        Footprint::Off => None,
-    };
+    let padded = tracer.for_camera(cam, opts.footprint, variance)?;
     let (frame, mut stats) = render_frame_spp(cam, opts.spp, |o, d| {
         let fp = padded
             .as_ref()

@@ -31,7 +31,8 @@ use splatbridge::pipeline::{
 };
 use splatbridge_convert::Profile;
 use splatbridge_raytrace::{
-    BackendKind, BuildPreset, Compositing, Footprint, RenderOptions, SampleFootprint,
+    BackendKind, BuildPreset, Compositing, Footprint, HitOrder, RenderOptions, SampleFootprint,
+    ShDirection,
 };
 use splatbridge_scene::image_io::save_frame;
 
@@ -89,9 +90,29 @@ pub enum CompositingArg {
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum OnOff {
+pub enum FootprintArg {
+    /// Each Gaussian widened in 3-D by the ray's pixel footprint (native's 0.3-px low-pass).
     On,
+    /// The exact point-sampled 3-D response (3DGRT's).
     Off,
+    /// Each Gaussian evaluated as native's projection does (EWA 2-D conic at the pixel).
+    Projected,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OrderArg {
+    /// By the distance of maximum response along the ray (3DGRT's).
+    Hit,
+    /// By the view depth of the Gaussian's mean (native's sort).
+    MeanDepth,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ShDirectionArg {
+    /// The ray's direction (3DGRT's).
+    Ray,
+    /// From the camera toward the Gaussian's mean (native's).
+    Mean,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -138,9 +159,18 @@ pub struct TraceInput {
     #[arg(long, value_enum, default_value_t = CompositingArg::Display)]
     pub compositing: CompositingArg,
     /// Mode gaussian: primary rays carry their pixel footprint, widening each Gaussian like
-    /// native splatting's 0.3-pixel low-pass (default on in mode gaussian; mode mesh has none).
+    /// native splatting's 0.3-pixel low-pass: on (3-D, default in mode gaussian), off, or
+    /// projected (native's 2-D conic at the pixel). Mode mesh has none.
     #[arg(long, value_enum)]
-    pub footprint: Option<OnOff>,
+    pub footprint: Option<FootprintArg>,
+    /// Mode gaussian: order of a primary ray's hits (default: hit; mean-depth with
+    /// --footprint projected).
+    #[arg(long, value_enum)]
+    pub order: Option<OrderArg>,
+    /// Mode gaussian: SH direction of a primary ray's hits (default: ray; mean with
+    /// --footprint projected).
+    #[arg(long, value_enum)]
+    pub sh_direction: Option<ShDirectionArg>,
     /// Samples per pixel (both modes): a fixed stratified pattern (k×k grid when N = k²),
     /// box-filtered; 1 samples the pixel centre.
     #[arg(long, default_value_t = 1, value_parser = super::ranges::spp)]
@@ -207,6 +237,18 @@ impl TraceInput {
                     CompositingArg::Viewer => Compositing::Viewer,
                 },
                 footprint: self.footprint(),
+                order: match self.order {
+                    Some(OrderArg::Hit) => HitOrder::Hit,
+                    Some(OrderArg::MeanDepth) => HitOrder::MeanDepth,
+                    None if self.footprint() == Footprint::Projected => HitOrder::MeanDepth,
+                    None => HitOrder::Hit,
+                },
+                sh_direction: match self.sh_direction {
+                    Some(ShDirectionArg::Ray) => ShDirection::Ray,
+                    Some(ShDirectionArg::Mean) => ShDirection::Mean,
+                    None if self.footprint() == Footprint::Projected => ShDirection::Mean,
+                    None => ShDirection::Ray,
+                },
                 spp: self.spp,
                 sample_footprint: match self.sample_footprint {
                     SampleFootprintArg::Subpixel => SampleFootprint::Subpixel,
@@ -228,8 +270,9 @@ impl TraceInput {
     /// (triangles are not widened).
     pub fn footprint(&self) -> Footprint {
         match (self.footprint, self.mode) {
-            (Some(OnOff::On), _) | (None, Mode::Gaussian) => Footprint::On,
-            (Some(OnOff::Off), _) | (None, Mode::Mesh) => Footprint::Off,
+            (Some(FootprintArg::On), _) | (None, Mode::Gaussian) => Footprint::On,
+            (Some(FootprintArg::Off), _) | (None, Mode::Mesh) => Footprint::Off,
+            (Some(FootprintArg::Projected), _) => Footprint::Projected,
         }
     }
 
@@ -308,7 +351,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 "preset": args.input.preset.to_possible_value().map(|v| v.get_name().to_string()),
                 "background": p.options.background.to_array().map(short),
                 "near": short(p.options.near),
-                "footprint": p.options.footprint == Footprint::On,
+                "footprint": match p.options.footprint {
+                    Footprint::Off => "off",
+                    Footprint::On => "on",
+                    Footprint::Projected => "projected",
+                },
+                "order": match p.options.order {
+                    HitOrder::Hit => "hit",
+                    HitOrder::MeanDepth => "mean-depth",
+                },
+                "sh_direction": match p.options.sh_direction {
+                    ShDirection::Ray => "ray",
+                    ShDirection::Mean => "mean",
+                },
                 "spp": p.options.spp,
                 "sample_footprint": match p.options.sample_footprint {
                     SampleFootprint::Subpixel => "subpixel",
