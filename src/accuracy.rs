@@ -229,25 +229,88 @@ const SUB: SampleFootprint = SampleFootprint::Subpixel;
 
 /// The ray-traced Gaussians with and without the pixel footprint.
 const FOOTPRINT: &[FootprintRow] = &[
-    ("off spp=1", Footprint::Off, 1, SUB, HitOrder::Hit, ShDirection::Ray),
-    ("on spp=1", Footprint::On, 1, SUB, HitOrder::Hit, ShDirection::Ray),
+    (
+        "off spp=1",
+        Footprint::Off,
+        1,
+        SUB,
+        HitOrder::Hit,
+        ShDirection::Ray,
+    ),
+    (
+        "on spp=1",
+        Footprint::On,
+        1,
+        SUB,
+        HitOrder::Hit,
+        ShDirection::Ray,
+    ),
 ];
 
 /// At 4 samples per pixel: without the footprint, with the sub-pixel's footprint, and with
 /// the whole pixel's on every sample.
 const FOOTPRINT_SPP: &[FootprintRow] = &[
-    ("off spp=4", Footprint::Off, 4, SUB, HitOrder::Hit, ShDirection::Ray),
-    ("on spp=4 subpixel", Footprint::On, 4, SUB, HitOrder::Hit, ShDirection::Ray),
-    ("on spp=4 pixel", Footprint::On, 4, SampleFootprint::Pixel, HitOrder::Hit, ShDirection::Ray),
+    (
+        "off spp=4",
+        Footprint::Off,
+        4,
+        SUB,
+        HitOrder::Hit,
+        ShDirection::Ray,
+    ),
+    (
+        "on spp=4 subpixel",
+        Footprint::On,
+        4,
+        SUB,
+        HitOrder::Hit,
+        ShDirection::Ray,
+    ),
+    (
+        "on spp=4 pixel",
+        Footprint::On,
+        4,
+        SampleFootprint::Pixel,
+        HitOrder::Hit,
+        ShDirection::Ray,
+    ),
 ];
 
 /// What the 3-D footprint cannot remove, one native rule at a time (native's hit order, its
 /// SH direction), and the projected mode (native's 2-D conic) with both.
 const FOOTPRINT_CAUSES: &[FootprintRow] = &[
-    ("on + mean-depth order", Footprint::On, 1, SUB, HitOrder::MeanDepth, ShDirection::Ray),
-    ("on + SH toward mean", Footprint::On, 1, SUB, HitOrder::Hit, ShDirection::Mean),
-    ("on + both", Footprint::On, 1, SUB, HitOrder::MeanDepth, ShDirection::Mean),
-    ("projected", Footprint::Projected, 1, SUB, HitOrder::MeanDepth, ShDirection::Mean),
+    (
+        "on + mean-depth order",
+        Footprint::On,
+        1,
+        SUB,
+        HitOrder::MeanDepth,
+        ShDirection::Ray,
+    ),
+    (
+        "on + SH toward mean",
+        Footprint::On,
+        1,
+        SUB,
+        HitOrder::Hit,
+        ShDirection::Mean,
+    ),
+    (
+        "on + both",
+        Footprint::On,
+        1,
+        SUB,
+        HitOrder::MeanDepth,
+        ShDirection::Mean,
+    ),
+    (
+        "projected",
+        Footprint::Projected,
+        1,
+        SUB,
+        HitOrder::MeanDepth,
+        ShDirection::Mean,
+    ),
 ];
 
 fn footprint_rows(v: &mut Vec<(&'static str, String, Setting, bool)>, rows: &[FootprintRow]) {

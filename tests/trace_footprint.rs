@@ -27,8 +27,8 @@ fn footprint_is_closer_to_native_at_low_resolution() {
     let (lo, hi) = cloud.bounds().unwrap();
     let c = 0.5 * (lo + hi).as_dvec3();
     let r = (hi - lo).as_dvec3().length();
-    let tracer = GaussianTracer::new(cloud.clone(), BackendKind::Obvhs, BuildPreset::default())
-        .unwrap();
+    let tracer =
+        GaussianTracer::new(cloud.clone(), BackendKind::Obvhs, BuildPreset::default()).unwrap();
     for (w, h) in [(48u32, 36u32), (96, 72)] {
         let eye = c + DVec3::new(0.45, -0.25, -0.6) * r;
         let cam = Camera::look_at(eye, c, DVec3::NEG_Y, 60.0, w, h).unwrap();
@@ -61,8 +61,8 @@ fn trace_options_reach_the_tracer_and_bad_values_exit_2() {
     let out = dir.join("x.png");
     let o = out.to_str().unwrap();
     let base = [
-        "trace", &scene, "--mode", "gaussian", "--camera", "scene:0", "--width", "32",
-        "--height", "24",
+        "trace", &scene, "--mode", "gaussian", "--camera", "scene:0", "--width", "32", "--height",
+        "24",
     ];
     for (knob, value) in [
         ("--spp", "0"),
@@ -92,7 +92,10 @@ fn trace_options_reach_the_tracer_and_bad_values_exit_2() {
         serde_json::from_slice(&r.stdout).unwrap()
     };
     let d = json(&[]);
-    assert_eq!(d["options"]["footprint"], "on", "on by default in mode gaussian");
+    assert_eq!(
+        d["options"]["footprint"], "on",
+        "on by default in mode gaussian"
+    );
     assert_eq!(d["options"]["spp"], 1);
     let on = std::fs::read(&out).unwrap();
     let d = json(&["--footprint", "off", "--spp", "4"]);

@@ -252,7 +252,10 @@ mod tests {
     fn offsets_are_stratified_and_fixed() {
         assert_eq!(sample_offsets(1), vec![(0.5, 0.5)]);
         let g = sample_offsets(4);
-        assert_eq!(g, vec![(0.25, 0.25), (0.75, 0.25), (0.25, 0.75), (0.75, 0.75)]);
+        assert_eq!(
+            g,
+            vec![(0.25, 0.25), (0.75, 0.25), (0.25, 0.75), (0.75, 0.75)]
+        );
         for n in [2u32, 3, 5, 8] {
             let s = sample_offsets(n);
             assert_eq!(s.len(), n as usize);

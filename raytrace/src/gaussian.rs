@@ -488,8 +488,7 @@ impl GaussianTracer {
                     return;
                 };
                 if let Some(n) = near {
-                    if let Some(k) =
-                        camera::mean_depth_key(order, part.mean[p], ro, rd, n.forward)
+                    if let Some(k) = camera::mean_depth_key(order, part.mean[p], ro, rd, n.forward)
                     {
                         t = k;
                     }
@@ -647,7 +646,14 @@ impl GaussianTracer {
                 .as_ref()
                 .and_then(|p| RayFootprint::pinhole(cam, d, variance).map(|f| (f, p)));
             with_thread_buffer(opts.k, |b| {
-                self.trace_fp(o, d, Some(forward), fp.as_ref().map(|(f, p)| (f, *p)), opts, b)
+                self.trace_fp(
+                    o,
+                    d,
+                    Some(forward),
+                    fp.as_ref().map(|(f, p)| (f, *p)),
+                    opts,
+                    b,
+                )
             })
         })?;
         stats.seconds += padded.map_or(0.0, |p| p.build_seconds);

@@ -32,9 +32,9 @@ use splatbridge_scene::effects::Shadows;
 use splatbridge_scene::{Camera, Frame};
 
 use crate::error::{Result, TraceError};
+use crate::footprint::RayFootprint;
 use crate::gaussian::GaussianTracer;
 use crate::mesh_tracer::MeshTracer;
-use crate::footprint::RayFootprint;
 use crate::render::{render_frame_spp, PixelOut, RenderOptions, Stats};
 use crate::secondary::SecondaryRays;
 
@@ -154,7 +154,14 @@ pub fn render_gaussian_shadowed(
             .as_ref()
             .and_then(|p| RayFootprint::pinhole(cam, d, variance).map(|f| (f, p)));
         let mut px = crate::gaussian::with_thread_buffer(opts.k, |b| {
-            tracer.trace_fp(o, d, Some(forward), fp.as_ref().map(|(f, p)| (f, *p)), opts, b)
+            tracer.trace_fp(
+                o,
+                d,
+                Some(forward),
+                fp.as_ref().map(|(f, p)| (f, *p)),
+                opts,
+                b,
+            )
         });
         let start = Instant::now();
         if sun.shade_pixel(tracer, o, d, opts.background, &mut px) {

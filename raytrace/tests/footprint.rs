@@ -27,7 +27,11 @@ fn random_cloud(seed: u64, n: usize) -> GaussianCloud {
         let m = Vec3::new(r.range(-1.0, 1.0), r.range(-1.0, 1.0), r.range(-1.0, 1.0));
         // Many sub-pixel Gaussians at 32×32 (a pixel is ~0.08 units at the cloud's depth), the
         // case the footprint exists for, and some larger ones.
-        let s = Vec3::new(r.range(0.005, 0.1), r.range(0.005, 0.1), r.range(0.002, 0.1));
+        let s = Vec3::new(
+            r.range(0.005, 0.1),
+            r.range(0.005, 0.1),
+            r.range(0.002, 0.1),
+        );
         let q = Quat::from_xyzw(
             r.range(-1.0, 1.0),
             r.range(-1.0, 1.0),
@@ -128,8 +132,7 @@ fn head_on_gaussian_matches_the_closed_form() {
 fn vanishing_footprint_is_todays_image() {
     let cloud = random_cloud(7, 300);
     let cam = look(DVec3::new(0.3, -0.2, -4.0), DVec3::ZERO, 50.0, 32, 32);
-    let tracer =
-        GaussianTracer::new(cloud, BackendKind::Obvhs, BuildPreset::default()).unwrap();
+    let tracer = GaussianTracer::new(cloud, BackendKind::Obvhs, BuildPreset::default()).unwrap();
     let o = RenderOptions::default();
     let (today, _) = tracer.render(&cam, &o).unwrap();
     let tiny = 1e-12;
@@ -160,7 +163,10 @@ fn vanishing_footprint_is_todays_image() {
     // The two forms of the response agree to f32 rounding (~1e-6 relative); 1e-4 allows the
     // compositing of ~20 hits to accumulate it. A Gaussian whose α sits within rounding of the
     // 1/255 cut could flip and move a pixel by up to ~1/255·colour, which would show here.
-    assert!(worst < 1e-4, "worst {worst}, {differ} pixels differ by > 1e-5");
+    assert!(
+        worst < 1e-4,
+        "worst {worst}, {differ} pixels differ by > 1e-5"
+    );
 }
 
 /// `spp = 1` is today's image bit for bit, with the footprint off; and the footprint changes it.
@@ -168,8 +174,7 @@ fn vanishing_footprint_is_todays_image() {
 fn spp_one_is_todays_image() {
     let cloud = random_cloud(11, 300);
     let cam = look(DVec3::new(-0.5, 0.4, -3.5), DVec3::ZERO, 55.0, 24, 20);
-    let tracer =
-        GaussianTracer::new(cloud, BackendKind::Obvhs, BuildPreset::default()).unwrap();
+    let tracer = GaussianTracer::new(cloud, BackendKind::Obvhs, BuildPreset::default()).unwrap();
     let o = RenderOptions::default();
     let (img, _) = tracer.render(&cam, &o).unwrap();
     let forward = cam.world_to_cam.row(2);
@@ -192,8 +197,7 @@ fn spp_one_is_todays_image() {
 fn spp_is_the_mean_of_its_samples_and_thread_independent() {
     let cloud = random_cloud(23, 250);
     let cam = look(DVec3::new(0.2, 0.1, -3.8), DVec3::ZERO, 50.0, 16, 12);
-    let tracer =
-        GaussianTracer::new(cloud, BackendKind::Obvhs, BuildPreset::default()).unwrap();
+    let tracer = GaussianTracer::new(cloud, BackendKind::Obvhs, BuildPreset::default()).unwrap();
     let forward = cam.world_to_cam.row(2);
     for (fp, spp, sf) in [
         (Footprint::Off, 4, SampleFootprint::Subpixel),
@@ -215,7 +219,8 @@ fn spp_is_the_mean_of_its_samples_and_thread_independent() {
                     let (org, d) = camera_ray(&cam, i as f64 + du, j as f64 + dv);
                     let f = RayFootprint::pinhole(&cam, d, var).unwrap();
                     let with = (fp == Footprint::On).then_some((&f, &padded));
-                    let px = tracer.trace_fp(org, d, Some(forward), with, &o, &mut KBuffer::new(o.k));
+                    let px =
+                        tracer.trace_fp(org, d, Some(forward), with, &o, &mut KBuffer::new(o.k));
                     for c in 0..3 {
                         sum[c] += px.rgb[c];
                     }
@@ -246,8 +251,12 @@ fn spp_is_the_mean_of_its_samples_and_thread_independent() {
 /// Options out of range are refused, not clamped.
 #[test]
 fn bad_spp_is_refused() {
-    let tracer = GaussianTracer::new(random_cloud(3, 10), BackendKind::Obvhs, BuildPreset::default())
-        .unwrap();
+    let tracer = GaussianTracer::new(
+        random_cloud(3, 10),
+        BackendKind::Obvhs,
+        BuildPreset::default(),
+    )
+    .unwrap();
     let cam = look(DVec3::new(0.0, 0.0, -4.0), DVec3::ZERO, 50.0, 8, 8);
     for spp in [0, 1025] {
         assert!(tracer.render(&cam, &opts(Footprint::On, spp)).is_err());

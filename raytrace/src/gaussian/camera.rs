@@ -138,7 +138,10 @@ impl Part {
         s: &Splat2d,
     ) -> Option<(f32, f32)> {
         let (u, v) = fp.pixel;
-        let (i, j) = ((u.floor() as i32).div_euclid(16), (v.floor() as i32).div_euclid(16));
+        let (i, j) = (
+            (u.floor() as i32).div_euclid(16),
+            (v.floor() as i32).div_euclid(16),
+        );
         if !(i >= s.rect[0] && i < s.rect[2] && j >= s.rect[1] && j < s.rect[3]) {
             return None;
         }
@@ -361,6 +364,12 @@ fn splat_2d(
 
 /// The hit key of a primary ray's hit under `order` (None: keep the hit's own `t`).
 #[inline]
-pub(super) fn mean_depth_key(order: HitOrder, mean: Vec3, o: Vec3, d: Vec3, f: Vec3) -> Option<f32> {
+pub(super) fn mean_depth_key(
+    order: HitOrder,
+    mean: Vec3,
+    o: Vec3,
+    d: Vec3,
+    f: Vec3,
+) -> Option<f32> {
     (order == HitOrder::MeanDepth).then(|| (mean - o).dot(f) / d.dot(f))
 }
