@@ -180,12 +180,12 @@ pub fn settings(only: &[String]) -> Vec<(&'static str, String, Setting, bool)> {
         footprint_rows(&mut v, FOOTPRINT_CAUSES);
     }
     if want("mesh-spp") {
-        // The MeshSplats mesh traced with 1 and 4 samples per pixel: triangles get no
+        // The default profile's mesh traced with 1 and 4 samples per pixel: triangles get no
         // footprint, so supersampling is the mesh's only filter.
         for spp in [1, 4] {
             v.push((
                 "mesh-spp",
-                format!("meshsplats spp={spp}"),
+                format!("{} spp={spp}", base.profile.name()),
                 Setting::MeshWith(
                     Box::new(base.clone()),
                     TraceOptions {

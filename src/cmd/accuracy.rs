@@ -32,8 +32,8 @@ pub struct Args {
     /// hybrid, sh-degree, format (each splat file format's quantisation: the cloud written by
     /// our writer, read back and rendered natively), footprint (ray-traced Gaussians with the
     /// pixel footprint off/on), footprint-spp (the same at 4 samples per pixel), footprint-causes (native's hit
-    /// order and SH direction on top, and the projected mode), mesh-spp (the MeshSplats mesh
-    /// traced at 1 and 4 samples per pixel).
+    /// order and SH direction on top, and the projected mode), mesh-spp (the default profile's
+    /// mesh traced at 1 and 4 samples per pixel).
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
     #[arg(long)]
