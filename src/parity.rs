@@ -196,12 +196,13 @@ pub fn render_mesh_with(
 }
 
 /// Ray-trace the Gaussians themselves (3DGRT-style) with a tracer built once and posed at
-/// each time (`Renderer::set_time`), with the pixel footprint on (the parity mode, as
-/// `trace --mode gaussian` defaults to).
+/// each time (`Renderer::set_time`), with the pixel footprint on and native's hit order (the
+/// parity mode, as `trace --mode gaussian` defaults to).
 pub fn render_gaussians(tracer: &mut Renderer, cam: &Camera, k: usize) -> anyhow::Result<Rendered> {
     let opts = TraceOptions {
         k,
         footprint: splatbridge_raytrace::Footprint::On,
+        order: splatbridge_raytrace::HitOrder::MeanDepth,
         ..TraceOptions::default()
     };
     render_traced_with(tracer, cam, 0.0, opts)

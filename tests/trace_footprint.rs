@@ -97,9 +97,11 @@ fn trace_options_reach_the_tracer_and_bad_values_exit_2() {
         "on by default in mode gaussian"
     );
     assert_eq!(d["options"]["spp"], 1);
+    assert_eq!(d["options"]["order"], "mean-depth");
     let on = std::fs::read(&out).unwrap();
     let d = json(&["--footprint", "off", "--spp", "4"]);
     assert_eq!(d["options"]["footprint"], "off");
+    assert_eq!(d["options"]["order"], "hit");
     assert_eq!(d["options"]["spp"], 4);
     assert_eq!(d["stats"]["rays"], 32 * 24 * 4);
     assert_ne!(std::fs::read(&out).unwrap(), on);

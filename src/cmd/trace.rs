@@ -163,8 +163,8 @@ pub struct TraceInput {
     /// projected (native's 2-D conic at the pixel). Mode mesh has none.
     #[arg(long, value_enum)]
     pub footprint: Option<FootprintArg>,
-    /// Mode gaussian: order of a primary ray's hits (default: hit; mean-depth with
-    /// --footprint projected).
+    /// Mode gaussian: order of a primary ray's hits: hit (3DGRT's t*) or mean-depth (native's;
+    /// the default with a footprint, hit with --footprint off).
     #[arg(long, value_enum)]
     pub order: Option<OrderArg>,
     /// Mode gaussian: SH direction of a primary ray's hits (default: ray; mean with
@@ -240,7 +240,8 @@ impl TraceInput {
                 order: match self.order {
                     Some(OrderArg::Hit) => HitOrder::Hit,
                     Some(OrderArg::MeanDepth) => HitOrder::MeanDepth,
-                    None if self.footprint() == Footprint::Projected => HitOrder::MeanDepth,
+                    // With a footprint the trace is the parity mode: native's order too.
+                    None if self.footprint() != Footprint::Off => HitOrder::MeanDepth,
                     None => HitOrder::Hit,
                 },
                 sh_direction: match self.sh_direction {
