@@ -223,17 +223,22 @@ fn spp_is_the_mean_of_its_samples_and_thread_independent() {
                     let with = (fp == Footprint::On).then_some((&f, &padded));
                     let px =
                         tracer.trace_fp(org, d, Some(forward), with, &o, &mut KBuffer::new(o.k));
-                    for c in 0..3 {
-                        sum[c] += px.rgb[c];
+                    for (acc, v) in sum
+                        .iter_mut()
+                        .zip(px.rgb.to_array().into_iter().chain([px.alpha]))
+                    {
+                        *acc += v;
                     }
-                    sum[3] += px.alpha;
                 }
                 let k = (j * 16 + i) as usize;
-                for c in 0..3 {
-                    // Same sums in the same order, then one multiplication by 1/spp.
-                    assert_eq!(img.rgb[3 * k + c], sum[c] * (1.0 / spp as f32));
-                }
-                assert_eq!(img.alpha[k], sum[3] * (1.0 / spp as f32));
+                // Same sums in the same order, then one multiplication by 1/spp.
+                let got = [
+                    img.rgb[3 * k],
+                    img.rgb[3 * k + 1],
+                    img.rgb[3 * k + 2],
+                    img.alpha[k],
+                ];
+                assert_eq!(got, sum.map(|v| v * (1.0 / spp as f32)));
             }
         }
         let in_pool = |n: usize| {

@@ -341,7 +341,7 @@ fn splat_2d(
         return None;
     }
     // The reference's getRect, truncating toward zero and clamped to the grid.
-    let clamp = |v: f64, g: f64| (v.trunc()).clamp(0.0, g) as i32;
+    let clamp = |v: f64, g: f64| v.trunc().clamp(0.0, g) as i32;
     let rect = [
         clamp((x - radius) / TILE, grid[0]),
         clamp((y - radius) / TILE, grid[1]),
