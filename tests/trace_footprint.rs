@@ -61,7 +61,15 @@ fn trace_options_reach_the_tracer_and_bad_values_exit_2() {
     let out = dir.join("x.png");
     let o = out.to_str().unwrap();
     let base = [
-        "trace", &scene, "--mode", "gaussian", "--camera", "scene:0", "--width", "32", "--height",
+        "trace",
+        scene.as_str(),
+        "--mode",
+        "gaussian",
+        "--camera",
+        "scene:0",
+        "--width",
+        "32",
+        "--height",
         "24",
     ];
     for (knob, value) in [
