@@ -432,8 +432,13 @@ impl GaussianTracer {
                     Some(b) => b,
                     None => (pl.lo, pl.hi),
                 };
+                // Hits re-keyed by mean depth may come before the part's box entry (below).
+                let rekeyed = near.is_some()
+                    && order == HitOrder::MeanDepth
+                    && fp.is_none_or(|(_, pad)| pad.mode != Footprint::Projected);
+                let cull = if rekeyed { tmax } else { buf.cull(tmax) };
                 match ray_box(o, d, lo, hi) {
-                    Some((b0, b1)) if b1 >= 0.0 && b0 <= buf.cull(tmax) as f64 => {}
+                    Some((b0, b1)) if b1 >= 0.0 && b0 <= cull as f64 => {}
                     _ => continue,
                 }
             }
