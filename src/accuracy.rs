@@ -1,6 +1,6 @@
 //! The accuracy sweep behind `splatbridge accuracy`: the named knobs one at a time around the
 //! defaults (meshing profile, segments, extent, k-buffer size, native extent, SH degree, file
-//! format quantisation, hybrid split), each measured against the reference (native splatting,
+//! format quantisation, hybrid split, the ray-traced Gaussians' footprint and samples), each measured against the reference (native splatting,
 //! reference settings) at the same cameras, with time; then `accuracy.json`, `accuracy.md`
 //! and plots of PSNR against time and against triangles with the Pareto front and the
 //! MeshSplats default marked.
@@ -11,6 +11,10 @@ use anyhow::Context;
 use splatbridge_convert::{ConvertOptions, Profile};
 use splatbridge_hybrid::native::RenderOptions as NativeOptions;
 use splatbridge_hybrid::project::Extent;
+use splatbridge_raytrace::{
+    Footprint, GaussianTracer, HitOrder, RenderOptions as TraceOptions, SampleFootprint,
+    ShDirection,
+};
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::formats::spz::SpzOptions;
 use splatbridge_scene::formats::write::{write_cloud, CloudFormat};
@@ -29,6 +33,10 @@ pub enum Setting {
     Hybrid(SplitParams),
     /// Write the cloud in this format, read it back, render natively.
     Format(CloudFormat),
+    /// Ray-trace the Gaussians with these tracer options (footprint, spp).
+    Gaussian(TraceOptions),
+    /// Convert, read back and trace the mesh with these tracer options (spp).
+    MeshWith(Box<ConvertOptions>, TraceOptions),
 }
 
 /// A file name ending for a single-cloud format (the loader detects by content; the name is
@@ -162,6 +170,33 @@ pub fn settings(only: &[String]) -> Vec<(&'static str, String, Setting, bool)> {
             v.push(("format", label.into(), Setting::Format(f), false));
         }
     }
+    if want("footprint") {
+        footprint_rows(&mut v, FOOTPRINT);
+    }
+    if want("footprint-spp") {
+        footprint_rows(&mut v, FOOTPRINT_SPP);
+    }
+    if want("footprint-causes") {
+        footprint_rows(&mut v, FOOTPRINT_CAUSES);
+    }
+    if want("mesh-spp") {
+        // The default profile's mesh traced with 1 and 4 samples per pixel: triangles get no
+        // footprint, so supersampling is the mesh's only filter.
+        for spp in [1, 4] {
+            v.push((
+                "mesh-spp",
+                format!("{} spp={spp}", base.profile.name()),
+                Setting::MeshWith(
+                    Box::new(base.clone()),
+                    TraceOptions {
+                        spp,
+                        ..TraceOptions::default()
+                    },
+                ),
+                false,
+            ));
+        }
+    }
     if want("hybrid") {
         // Around the defaults (opacity ≥ 0.8, flatness ≤ 0.3), including GES's own 0.8 rule
         // with a stricter flatness and the setting that ignores flatness.
@@ -176,6 +211,122 @@ pub fn settings(only: &[String]) -> Vec<(&'static str, String, Setting, bool)> {
         v.extend(crate::split_auto::accuracy_rows());
     }
     v
+}
+
+/// One footprint row: label, footprint, spp, sample footprint, hit order, SH direction.
+type FootprintRow = (
+    &'static str,
+    Footprint,
+    u32,
+    SampleFootprint,
+    HitOrder,
+    ShDirection,
+);
+
+const SUB: SampleFootprint = SampleFootprint::Subpixel;
+
+/// The ray-traced Gaussians with and without the pixel footprint.
+const FOOTPRINT: &[FootprintRow] = &[
+    (
+        "off spp=1",
+        Footprint::Off,
+        1,
+        SUB,
+        HitOrder::Hit,
+        ShDirection::Ray,
+    ),
+    (
+        "on spp=1",
+        Footprint::On,
+        1,
+        SUB,
+        HitOrder::Hit,
+        ShDirection::Ray,
+    ),
+];
+
+/// At 4 samples per pixel: without the footprint, with the sub-pixel's footprint, and with
+/// the whole pixel's on every sample.
+const FOOTPRINT_SPP: &[FootprintRow] = &[
+    (
+        "off spp=4",
+        Footprint::Off,
+        4,
+        SUB,
+        HitOrder::Hit,
+        ShDirection::Ray,
+    ),
+    (
+        "on spp=4 subpixel",
+        Footprint::On,
+        4,
+        SUB,
+        HitOrder::Hit,
+        ShDirection::Ray,
+    ),
+    (
+        "on spp=4 pixel",
+        Footprint::On,
+        4,
+        SampleFootprint::Pixel,
+        HitOrder::Hit,
+        ShDirection::Ray,
+    ),
+];
+
+/// What the 3-D footprint cannot remove, one native rule at a time (native's hit order, its
+/// SH direction), and the projected mode (native's 2-D conic) with both.
+const FOOTPRINT_CAUSES: &[FootprintRow] = &[
+    (
+        "on + mean-depth order",
+        Footprint::On,
+        1,
+        SUB,
+        HitOrder::MeanDepth,
+        ShDirection::Ray,
+    ),
+    (
+        "on + SH toward mean",
+        Footprint::On,
+        1,
+        SUB,
+        HitOrder::Hit,
+        ShDirection::Mean,
+    ),
+    (
+        "on + both",
+        Footprint::On,
+        1,
+        SUB,
+        HitOrder::MeanDepth,
+        ShDirection::Mean,
+    ),
+    (
+        "projected",
+        Footprint::Projected,
+        1,
+        SUB,
+        HitOrder::MeanDepth,
+        ShDirection::Mean,
+    ),
+];
+
+fn footprint_rows(v: &mut Vec<(&'static str, String, Setting, bool)>, rows: &[FootprintRow]) {
+    for &(label, footprint, spp, sample_footprint, order, sh_direction) in rows {
+        v.push((
+            "footprint",
+            label.into(),
+            Setting::Gaussian(TraceOptions {
+                footprint,
+                spp,
+                sample_footprint,
+                order,
+                sh_direction,
+                ..TraceOptions::default()
+            }),
+            false,
+        ));
+    }
 }
 
 fn mean(v: &[f64]) -> f64 {
@@ -367,6 +518,34 @@ pub fn measure_setting(
                 push(&img.frame, reference, img.ms, c, 0, bytes)?;
             }
             "native"
+        }
+        Setting::MeshWith(opts, o) => {
+            let path = s.work_dir.join(format!("sweep_{index}.glb"));
+            let mut m = parity::export_and_load(
+                &DynamicScene::from_static(s.cloud.clone()),
+                opts,
+                &path,
+                cfg.backend,
+                cfg.preset,
+            )?;
+            for (c, reference) in views {
+                let img = parity::render_mesh_with(&mut m, c, 0.0, o.clone())?;
+                push(&img.frame, reference, img.ms, c, m.triangles, m.bytes)?;
+            }
+            let _ = std::fs::remove_file(&path);
+            "trace-mesh"
+        }
+        Setting::Gaussian(o) => {
+            let tracer = GaussianTracer::new(s.cloud.clone(), cfg.backend, cfg.preset)?;
+            let mut r = crate::pipeline::Renderer::Gaussian {
+                tracer,
+                options: o.clone(),
+            };
+            for (c, reference) in views {
+                let img = parity::render_gaussians_with(&mut r, c, o.clone())?;
+                push(&img.frame, reference, img.ms, c, 0, 0)?;
+            }
+            "trace-gaussian"
         }
         Setting::Hybrid(split) => {
             for (c, reference) in views {

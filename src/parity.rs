@@ -152,11 +152,22 @@ pub fn export_and_load(
 
 /// Trace a renderer's prebuilt scene at (camera, time) with a k-buffer of `k` hits.
 fn render_traced(r: &mut Renderer, cam: &Camera, time: f64, k: usize) -> anyhow::Result<Rendered> {
+    let opts = TraceOptions {
+        k,
+        ..TraceOptions::default()
+    };
+    render_traced_with(r, cam, time, opts)
+}
+
+/// Trace a renderer's prebuilt scene at (camera, time) with `opts`.
+fn render_traced_with(
+    r: &mut Renderer,
+    cam: &Camera,
+    time: f64,
+    opts: TraceOptions,
+) -> anyhow::Result<Rendered> {
     if let Some(o) = r.trace_options_mut() {
-        *o = TraceOptions {
-            k,
-            ..TraceOptions::default()
-        };
+        *o = opts;
     }
     let t0 = Instant::now();
     let (frame, _) = r.render_traced(cam, time)?;
@@ -176,10 +187,36 @@ pub fn render_mesh(
     render_traced(&mut m.tracer, cam, time, k)
 }
 
+/// As [`render_mesh`] with every tracer option given (spp).
+pub fn render_mesh_with(
+    m: &mut TracedMesh,
+    cam: &Camera,
+    time: f64,
+    opts: TraceOptions,
+) -> anyhow::Result<Rendered> {
+    render_traced_with(&mut m.tracer, cam, time, opts)
+}
+
 /// Ray-trace the Gaussians themselves (3DGRT-style) with a tracer built once and posed at
-/// each time (`Renderer::set_time`).
+/// each time (`Renderer::set_time`), with the pixel footprint on and native's hit order (the
+/// parity mode, as `trace --mode gaussian` defaults to).
 pub fn render_gaussians(tracer: &mut Renderer, cam: &Camera, k: usize) -> anyhow::Result<Rendered> {
-    render_traced(tracer, cam, 0.0, k)
+    let opts = TraceOptions {
+        k,
+        footprint: splatbridge_raytrace::Footprint::On,
+        order: splatbridge_raytrace::HitOrder::MeanDepth,
+        ..TraceOptions::default()
+    };
+    render_traced_with(tracer, cam, 0.0, opts)
+}
+
+/// As [`render_gaussians`] with every tracer option given (footprint, spp).
+pub fn render_gaussians_with(
+    tracer: &mut Renderer,
+    cam: &Camera,
+    opts: TraceOptions,
+) -> anyhow::Result<Rendered> {
+    render_traced_with(tracer, cam, 0.0, opts)
 }
 
 /// Fill the metric fields of `r` from `img` against `reference`.

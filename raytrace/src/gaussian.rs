@@ -34,9 +34,14 @@ use splatbridge_scene::{sh, Camera, Frame, GaussianCloud};
 
 use crate::backend::{build_boxes, fits_bvh, Accel, BackendKind, BuildPreset, EmptyAccel};
 use crate::error::Result;
+use crate::footprint::{Footprint, HitOrder, RayFootprint, ShDirection};
 use crate::geom::{ray_box, transformed_box};
 use crate::kbuffer::{self, Accum, Hit, KBuffer, Key, Payload};
-use crate::render::{render_frame, PixelOut, RenderOptions, Stats};
+use crate::render::{render_frame_spp, PixelOut, RenderOptions, Stats};
+
+mod camera;
+use camera::LocalFootprint;
+pub use camera::Padded;
 
 /// The rasterizer's near cull (default of `RenderOptions::near`): view-space depth of the
 /// mean must exceed this.
@@ -77,6 +82,10 @@ struct Part {
     mean: Vec<Vec3>,
     /// `S⁻¹Rᵀ`.
     inv: Vec<Mat3>,
+    /// `R·S` (`Σ = M·Mᵀ`), for the footprint-widened response.
+    m: Vec<Mat3>,
+    /// Each proxy's box (anchor-relative), to pad per camera when the footprint is on.
+    boxes: Vec<(Vec3, Vec3)>,
     opacity: Vec<f32>,
     /// Squared extent in standard deviations, `2·ln(255·o)`.
     r2: Vec<f32>,
@@ -149,6 +158,8 @@ impl Part {
             index: Vec::new(),
             mean: Vec::new(),
             inv: Vec::new(),
+            m: Vec::new(),
+            boxes: Vec::new(),
             opacity: Vec::new(),
             r2: Vec::new(),
             accel: Box::new(EmptyAccel),
@@ -193,10 +204,12 @@ impl Part {
             t.index.push(i as u32);
             t.mean.push(mu);
             t.inv.push(inv);
+            t.m.push(rot * Mat3::from_diagonal(s));
             t.opacity.push(o);
             t.r2.push(r2);
         }
         t.accel = build_boxes(backend, preset, &boxes)?;
+        t.boxes = boxes;
         t.cloud = cloud;
         Ok(t)
     }
@@ -391,14 +404,41 @@ impl GaussianTracer {
         after: Option<Key>,
         buf: &mut KBuffer<GaussianPayload>,
     ) {
+        self.collect_fp(o, d, near, None, HitOrder::Hit, tmax, after, buf)
+    }
+
+    /// As [`GaussianTracer::collect`]; `fp`: the ray's footprint and the grown BVHs of the
+    /// camera it belongs to (primary rays with the footprint on); `order`: the hit order of a
+    /// primary ray.
+    #[allow(clippy::too_many_arguments)]
+    fn collect_fp(
+        &self,
+        o: DVec3,
+        d: DVec3,
+        near: Option<(DVec3, f32)>,
+        fp: Option<(&RayFootprint, &Padded)>,
+        order: HitOrder,
+        tmax: f32,
+        after: Option<Key>,
+        buf: &mut KBuffer<GaussianPayload>,
+    ) {
         buf.clear();
         for (pi, part) in self.parts.iter().enumerate() {
             if part.index.is_empty() {
                 continue;
             }
             if let Some(pl) = &self.placed[pi] {
-                match ray_box(o, d, pl.lo, pl.hi) {
-                    Some((b0, b1)) if b1 >= 0.0 && b0 <= buf.cull(tmax) as f64 => {}
+                let (lo, hi) = match fp.and_then(|(_, pad)| pad.bounds[pi]) {
+                    Some(b) => b,
+                    None => (pl.lo, pl.hi),
+                };
+                // Hits re-keyed by mean depth may come before the part's box entry (below).
+                let rekeyed = near.is_some()
+                    && order == HitOrder::MeanDepth
+                    && fp.is_none_or(|(_, pad)| pad.mode != Footprint::Projected);
+                let cull = if rekeyed { tmax } else { buf.cull(tmax) };
+                match ray_box(o, d, lo, hi) {
+                    Some((b0, b1)) if b1 >= 0.0 && b0 <= cull as f64 => {}
                     _ => continue,
                 }
             }
@@ -408,8 +448,33 @@ impl GaussianTracer {
                 forward: self.local_dir(pi, f),
                 near,
             });
+            let local = fp.map(|(f, _)| LocalFootprint {
+                forward: self.local_dir(pi, f.forward),
+                e1: self.local_dir(pi, f.e1),
+                e2: self.local_dir(pi, f.e2),
+                cov: f.cov.map(|v| v as f32),
+                det: (f.cov[0] * f.cov[2] - f.cov[1] * f.cov[1]) as f32,
+                pixel: (f.pixel.0 as f32, f.pixel.1 as f32),
+            });
+            let (accel, pboxes, splats, mode) = match fp {
+                Some((_, pad)) => (
+                    &pad.accels[pi],
+                    pad.boxes[pi].as_slice(),
+                    pad.splats[pi].as_slice(),
+                    pad.mode,
+                ),
+                None => (&part.accel, &[][..], &[][..], Footprint::Off),
+            };
+            // Re-keyed hits (mean depth) may sit before their proxy's entry, so the traversal
+            // must not skip nodes beyond the k-th key: the cull distance is left alone (which
+            // only costs work). Projected hits are keyed at the mean's depth already, and
+            // their flat proxy is entered there.
+            let order = match (near, mode) {
+                (None, _) | (_, Footprint::Projected) => HitOrder::Hit,
+                _ => order,
+            };
             let cull0 = buf.cull(tmax);
-            part.accel.traverse(ro, rd, cull0, &mut |p, _, cull| {
+            accel.traverse(ro, rd, cull0, &mut |p, _, cull| {
                 buf.candidates = buf.candidates.wrapping_add(1);
                 let p = p as usize;
                 if let Some(n) = near {
@@ -417,9 +482,22 @@ impl GaussianTracer {
                         return;
                     }
                 }
-                let Some((t, alpha)) = part.response(p, ro, rd) else {
+                let r = match (&local, mode) {
+                    (Some(f), Footprint::Projected) => {
+                        part.response_projected(p, ro, rd, f, &splats[p])
+                    }
+                    (Some(f), _) => part.response_fp(p, ro, rd, f, pboxes[p]),
+                    (None, _) => part.response(p, ro, rd),
+                };
+                let Some((mut t, alpha)) = r else {
                     return;
                 };
+                if let Some(n) = near {
+                    if let Some(k) = camera::mean_depth_key(order, part.mean[p], ro, rd, n.forward)
+                    {
+                        t = k;
+                    }
+                }
                 if t > tmax {
                     return;
                 }
@@ -436,7 +514,10 @@ impl GaussianTracer {
                 if after.is_some_and(|a| h.key() <= a) {
                     return;
                 }
-                *cull = buf.insert(h, tmax);
+                let c = buf.insert(h, tmax);
+                if order == HitOrder::Hit {
+                    *cull = c;
+                }
             });
         }
     }
@@ -451,6 +532,20 @@ impl GaussianTracer {
             part.cloud.sh_of(h.payload.index as usize),
             self.local_dir(i, d),
         )
+    }
+
+    /// Colour of a hit seen from world point `o` toward the Gaussian's mean (native's SH
+    /// direction; an object's SH in its local frame).
+    pub fn hit_color_toward_mean(&self, h: &GaussianHit, o: DVec3) -> Vec3 {
+        let i = h.instance as usize;
+        let part = &self.parts[i];
+        let g = h.payload.index as usize;
+        let from = match &self.placed[i] {
+            None => o,
+            Some(p) => p.to_local.transform_point3(o) + part.anchor,
+        };
+        let dir = (part.cloud.means[g].as_dvec3() - from).normalize_or_zero();
+        sh::eval_color(part.cloud.sh_degree, part.cloud.sh_of(g), dir.as_vec3())
     }
 
     /// World normal of a hit Gaussian: its shortest axis.
@@ -496,6 +591,20 @@ impl GaussianTracer {
         opts: &RenderOptions,
         buf: &mut KBuffer<GaussianPayload>,
     ) -> PixelOut {
+        self.trace_fp(o, d, forward, None, opts, buf)
+    }
+
+    /// As [`GaussianTracer::trace`] for a primary ray carrying its footprint `fp` (with the
+    /// camera's padded BVHs from [`GaussianTracer::padded`]).
+    pub fn trace_fp(
+        &self,
+        o: DVec3,
+        d: DVec3,
+        forward: Option<DVec3>,
+        fp: Option<(&RayFootprint, &Padded)>,
+        opts: &RenderOptions,
+        buf: &mut KBuffer<GaussianPayload>,
+    ) -> PixelOut {
         let near = forward.map(|f| (f, opts.near));
         let mut out = PixelOut::default();
         let mut acc = Accum::default();
@@ -503,7 +612,7 @@ impl GaussianTracer {
         buf.candidates = 0;
         let (rounds, _) = kbuffer::walk(
             buf,
-            |after, buf| self.collect(o, d, near, f32::INFINITY, after, buf),
+            |after, buf| self.collect_fp(o, d, near, fp, opts.order, f32::INFINITY, after, buf),
             |h| {
                 let a = h.payload.alpha;
                 // Native splatting's rule: a Gaussian that would take T below the threshold
@@ -512,7 +621,11 @@ impl GaussianTracer {
                     return ControlFlow::Break(());
                 }
                 hits += 1;
-                acc.add(self.hit_color(h, d), a, h.t);
+                let color = match (opts.sh_direction, forward) {
+                    (ShDirection::Mean, Some(_)) => self.hit_color_toward_mean(h, o),
+                    _ => self.hit_color(h, d),
+                };
+                acc.add(color, a, h.t);
                 ControlFlow::Continue(())
             },
         );
@@ -525,12 +638,30 @@ impl GaussianTracer {
         out
     }
 
-    /// Render `cam` at the current time.
+    /// Render `cam` at the current time, with `opts.spp` samples per pixel and, when
+    /// `opts.footprint` is on, each primary ray's footprint (the per-camera padded BVHs are
+    /// built first and their build time is counted in the render's seconds).
     pub fn render(&self, cam: &Camera, opts: &RenderOptions) -> Result<(Frame, Stats)> {
         opts.validate()?;
         let forward = cam.world_to_cam.row(2);
-        render_frame(cam, |o, d| {
-            with_thread_buffer(opts.k, |b| self.trace(o, d, Some(forward), opts, b))
-        })
+        let variance = opts.sample_footprint.variance_px2(opts.spp);
+        let padded = self.for_camera(cam, opts.footprint, variance)?;
+        let (frame, mut stats) = render_frame_spp(cam, opts.spp, |o, d| {
+            let fp = padded
+                .as_ref()
+                .and_then(|p| RayFootprint::pinhole(cam, d, variance).map(|f| (f, p)));
+            with_thread_buffer(opts.k, |b| {
+                self.trace_fp(
+                    o,
+                    d,
+                    Some(forward),
+                    fp.as_ref().map(|(f, p)| (f, *p)),
+                    opts,
+                    b,
+                )
+            })
+        })?;
+        stats.seconds += padded.map_or(0.0, |p| p.build_seconds);
+        Ok((frame, stats))
     }
 }

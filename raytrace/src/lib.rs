@@ -15,6 +15,7 @@ pub mod dedup;
 #[cfg(feature = "embree")]
 pub mod embree_backend;
 pub mod error;
+pub mod footprint;
 pub mod gaussian;
 pub mod geom;
 pub mod gltf_check;
@@ -32,6 +33,7 @@ pub mod tri;
 
 pub use backend::{BackendKind, BuildPreset};
 pub use error::{Result, TraceError};
+pub use footprint::{Footprint, HitOrder, SampleFootprint, ShDirection};
 pub use gaussian::GaussianTracer;
 pub use mesh_tracer::MeshTracer;
 pub use model::{AlphaMode, TriScene};

@@ -39,7 +39,7 @@ use crate::geom::{ray_box, transformed_box};
 pub use crate::kbuffer::Key;
 use crate::kbuffer::{self, Accum, Hit, KBuffer, Payload};
 use crate::model::{linear_to_srgb, srgb_to_linear, TriScene};
-use crate::render::{render_frame, Compositing, PixelOut, RenderOptions, Stats};
+use crate::render::{render_frame_spp, Compositing, PixelOut, RenderOptions, Stats};
 use crate::tri::WRay;
 use splatbridge_scene::{Camera, Frame};
 
@@ -413,7 +413,7 @@ impl MeshTracer {
     pub fn render(&self, cam: &Camera, time: f64, opts: &RenderOptions) -> Result<(Frame, Stats)> {
         opts.validate()?;
         let insts = self.prepare(time);
-        render_frame(cam, |o, d| {
+        render_frame_spp(cam, opts.spp, |o, d| {
             with_thread_buffer(opts.k, |b| self.trace(&insts, o, d, opts, b))
         })
     }

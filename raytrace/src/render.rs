@@ -11,6 +11,7 @@ use rayon::prelude::*;
 use splatbridge_scene::{Camera, Frame};
 
 use crate::error::{Result, TraceError};
+use crate::footprint::{sample_offsets, Footprint, HitOrder, SampleFootprint, ShDirection};
 pub use crate::geom::{ray_box, transformed_box};
 
 /// How mode `mesh` turns vertex colours into the image.
@@ -39,7 +40,23 @@ pub struct RenderOptions {
     pub near: f32,
     /// Mode `mesh`: colour handling (see [`Compositing`]).
     pub compositing: Compositing,
+    /// Mode `gaussian`: whether primary rays carry their pixel footprint (native's low-pass;
+    /// see [`crate::footprint`]). Off by default here, the exact 3DGRT response; the `trace`
+    /// command turns it on for mode gaussian.
+    pub footprint: Footprint,
+    /// Samples per pixel (both modes), on the fixed stratified pattern of
+    /// [`crate::footprint::sample_offsets`], box-filtered. 1 is the pixel centre.
+    pub spp: u32,
+    /// With `spp > 1` and the footprint on: the sub-pixel's footprint or the whole pixel's.
+    pub sample_footprint: SampleFootprint,
+    /// Mode `gaussian`, primary rays: hit order (3DGRT's `t*`, or native's mean depth).
+    pub order: HitOrder,
+    /// Mode `gaussian`, primary rays: SH direction (the ray, or toward the mean as native).
+    pub sh_direction: ShDirection,
 }
+
+/// Largest `spp` accepted (a 32×32 grid).
+pub const MAX_SPP: u32 = 1024;
 
 impl Default for RenderOptions {
     fn default() -> Self {
@@ -49,6 +66,11 @@ impl Default for RenderOptions {
             min_transmittance: 1e-4,
             near: crate::gaussian::NEAR_CULL,
             compositing: Compositing::Display,
+            footprint: Footprint::Off,
+            spp: 1,
+            sample_footprint: SampleFootprint::Subpixel,
+            order: HitOrder::Hit,
+            sh_direction: ShDirection::Ray,
         }
     }
 }
@@ -59,6 +81,12 @@ impl RenderOptions {
             return Err(TraceError::Invalid(format!(
                 "k = {} is outside 1..=4096",
                 self.k
+            )));
+        }
+        if self.spp == 0 || self.spp > MAX_SPP {
+            return Err(TraceError::Invalid(format!(
+                "spp = {} is outside 1..={MAX_SPP}",
+                self.spp
             )));
         }
         if !(self.min_transmittance > 0.0 && self.min_transmittance < 1.0)
@@ -117,20 +145,58 @@ pub fn render_frame<F>(cam: &Camera, trace: F) -> Result<(Frame, Stats)>
 where
     F: Fn(DVec3, DVec3) -> PixelOut + Sync,
 {
+    render_frame_spp(cam, 1, trace)
+}
+
+/// As [`render_frame`] with `spp` samples per pixel at the fixed offsets of
+/// [`sample_offsets`], averaged with a box filter (colour, alpha and depth, in the values the
+/// frame holds, as motion-blur samples are averaged). `spp = 1` is exactly [`render_frame`].
+/// Each pixel's samples are traced in a fixed order by one task, so the image does not depend
+/// on the thread count.
+pub fn render_frame_spp<F>(cam: &Camera, spp: u32, trace: F) -> Result<(Frame, Stats)>
+where
+    F: Fn(DVec3, DVec3) -> PixelOut + Sync,
+{
     cam.validate()?;
+    if spp == 0 || spp > MAX_SPP {
+        return Err(TraceError::Invalid(format!(
+            "spp = {spp} is outside 1..={MAX_SPP}"
+        )));
+    }
     let start = std::time::Instant::now();
     let (w, h) = (cam.width as usize, cam.height as usize);
     let forward = cam.world_to_cam.row(2);
+    let offsets = sample_offsets(spp);
+    let sample = |u: f64, v: f64| {
+        let (o, d) = camera_ray(cam, u, v);
+        let mut p = trace(o, d);
+        // Ray parameter t along a unit direction → view-space depth t·(d·forward).
+        p.depth *= d.dot(forward) as f32;
+        p
+    };
     let rows: Vec<Vec<PixelOut>> = (0..h)
         .into_par_iter()
         .map(|j| {
             let row: Vec<PixelOut> = (0..w)
                 .map(|i| {
-                    let (o, d) = camera_ray(cam, i as f64 + 0.5, j as f64 + 0.5);
-                    let mut p = trace(o, d);
-                    // Ray parameter t along a unit direction → view-space depth t·(d·forward).
-                    p.depth *= d.dot(forward) as f32;
-                    p
+                    if spp == 1 {
+                        return sample(i as f64 + 0.5, j as f64 + 0.5);
+                    }
+                    let mut acc = PixelOut::default();
+                    for &(du, dv) in &offsets {
+                        let p = sample(i as f64 + du, j as f64 + dv);
+                        acc.rgb += p.rgb;
+                        acc.alpha += p.alpha;
+                        acc.depth += p.depth;
+                        acc.hits = acc.hits.saturating_add(p.hits);
+                        acc.traversals = acc.traversals.saturating_add(p.traversals);
+                        acc.candidates = acc.candidates.wrapping_add(p.candidates);
+                    }
+                    let inv = 1.0 / spp as f32;
+                    acc.rgb *= inv;
+                    acc.alpha *= inv;
+                    acc.depth *= inv;
+                    acc
                 })
                 .collect();
             row
@@ -151,7 +217,7 @@ where
             stats.candidates += p.candidates as u64;
         }
     }
-    stats.rays = (w * h) as u64;
+    stats.rays = (w * h) as u64 * spp as u64;
     stats.seconds = start.elapsed().as_secs_f64();
     Ok((frame, stats))
 }

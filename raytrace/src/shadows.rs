@@ -32,9 +32,10 @@ use splatbridge_scene::effects::Shadows;
 use splatbridge_scene::{Camera, Frame};
 
 use crate::error::{Result, TraceError};
+use crate::footprint::RayFootprint;
 use crate::gaussian::GaussianTracer;
 use crate::mesh_tracer::MeshTracer;
-use crate::render::{render_frame, PixelOut, RenderOptions, Stats};
+use crate::render::{render_frame_spp, PixelOut, RenderOptions, Stats};
 use crate::secondary::SecondaryRays;
 
 /// The sun and how shadow rays are cast.
@@ -145,9 +146,22 @@ pub fn render_gaussian_shadowed(
     let forward = cam.world_to_cam.row(2);
     let rays = AtomicU64::new(0);
     let nanos = AtomicU64::new(0);
-    let (frame, stats) = render_frame(cam, |o, d| {
+    // Primary rays carry their footprint as in `GaussianTracer::render`; shadow rays none.
+    let variance = opts.sample_footprint.variance_px2(opts.spp);
+    let padded = tracer.for_camera(cam, opts.footprint, variance)?;
+    let (frame, mut stats) = render_frame_spp(cam, opts.spp, |o, d| {
+        let fp = padded
+            .as_ref()
+            .and_then(|p| RayFootprint::pinhole(cam, d, variance).map(|f| (f, p)));
         let mut px = crate::gaussian::with_thread_buffer(opts.k, |b| {
-            tracer.trace(o, d, Some(forward), opts, b)
+            tracer.trace_fp(
+                o,
+                d,
+                Some(forward),
+                fp.as_ref().map(|(f, p)| (f, *p)),
+                opts,
+                b,
+            )
         });
         let start = Instant::now();
         if sun.shade_pixel(tracer, o, d, opts.background, &mut px) {
@@ -156,6 +170,7 @@ pub fn render_gaussian_shadowed(
         }
         px
     })?;
+    stats.seconds += padded.map_or(0.0, |p| p.build_seconds);
     Ok((
         frame,
         stats,
@@ -180,7 +195,7 @@ pub fn render_mesh_shadowed(
     frozen.k = opts.k;
     let rays = AtomicU64::new(0);
     let nanos = AtomicU64::new(0);
-    let (frame, stats) = render_frame(cam, |o, d| {
+    let (frame, stats) = render_frame_spp(cam, opts.spp, |o, d| {
         let mut px = crate::mesh_tracer::with_thread_buffer(opts.k, |b| {
             tracer.trace(&frozen.insts, o, d, opts, b)
         });

@@ -33,9 +33,12 @@ pub struct Args {
     pub height: u32,
     /// Knob families to sweep (default: all): profile, segments, extent, k, native-extent,
     /// hybrid, sh-degree, format (each splat file format's quantisation: the cloud written by
-    /// our writer, read back and rendered natively), distill (only when named: each
-    /// profile's mesh distilled on 16 views between the orbit's, measured on these cameras
-    /// against distillation time; writes distill.md).
+    /// our writer, read back and rendered natively), footprint (ray-traced Gaussians with the
+    /// pixel footprint off/on), footprint-spp (the same at 4 samples per pixel),
+    /// footprint-causes (native's hit order and SH direction on top, and the projected mode),
+    /// mesh-spp (the default profile's mesh traced at 1 and 4 samples per pixel), distill (only
+    /// when named: each profile's mesh distilled on 16 views between the orbit's, measured on
+    /// these cameras against distillation time; writes distill.md).
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
     #[arg(long)]

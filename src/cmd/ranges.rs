@@ -39,6 +39,11 @@ pub fn time(s: &str) -> Result<f64, String> {
     Ok(t)
 }
 
+/// `--spp`: samples per pixel, 1..=`MAX_SPP` (`splatbridge_raytrace::render::MAX_SPP`).
+pub fn spp(s: &str) -> Result<u32, String> {
+    in_range(s, 1, splatbridge_raytrace::render::MAX_SPP as usize).map(|v| v as u32)
+}
+
 fn in_range(s: &str, lo: usize, hi: usize) -> Result<usize, String> {
     let v: usize = s
         .trim()

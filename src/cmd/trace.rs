@@ -30,7 +30,10 @@ use splatbridge::pipeline::{
     render_frame, FrameRequest, LidarRequest, Prepared, Renderer, TraceMode, TraceSource,
 };
 use splatbridge_convert::Profile;
-use splatbridge_raytrace::{BackendKind, BuildPreset, Compositing, RenderOptions};
+use splatbridge_raytrace::{
+    BackendKind, BuildPreset, Compositing, Footprint, HitOrder, RenderOptions, SampleFootprint,
+    ShDirection,
+};
 use splatbridge_scene::image_io::save_frame;
 
 use crate::cmd::common::{parse_rgb, print_warning, CameraArgs};
@@ -87,6 +90,40 @@ pub enum CompositingArg {
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FootprintArg {
+    /// Each Gaussian widened in 3-D by the ray's pixel footprint (native's 0.3-px low-pass).
+    On,
+    /// The exact point-sampled 3-D response (3DGRT's).
+    Off,
+    /// Each Gaussian evaluated as native's projection does (EWA 2-D conic at the pixel).
+    Projected,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OrderArg {
+    /// By the distance of maximum response along the ray (3DGRT's).
+    Hit,
+    /// By the view depth of the Gaussian's mean (native's sort).
+    MeanDepth,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ShDirectionArg {
+    /// The ray's direction (3DGRT's).
+    Ray,
+    /// From the camera toward the Gaussian's mean (native's).
+    Mean,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SampleFootprintArg {
+    /// Each of N samples carries its sub-pixel's footprint (0.3/N px²).
+    Subpixel,
+    /// Each sample carries the whole pixel's footprint (0.3 px²).
+    Pixel,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ProfileArg {
     Meshsplats,
     Rings,
@@ -121,6 +158,26 @@ pub struct TraceInput {
     /// Mode mesh: display (compare with native splatting) or viewer (as Blender shows it).
     #[arg(long, value_enum, default_value_t = CompositingArg::Display)]
     pub compositing: CompositingArg,
+    /// Mode gaussian: primary rays carry their pixel footprint, widening each Gaussian like
+    /// native splatting's 0.3-pixel low-pass: on (3-D, default in mode gaussian), off, or
+    /// projected (native's 2-D conic at the pixel). Mode mesh has none.
+    #[arg(long, value_enum)]
+    pub footprint: Option<FootprintArg>,
+    /// Mode gaussian: order of a primary ray's hits: hit (3DGRT's t*) or mean-depth (native's;
+    /// the default with a footprint, hit with --footprint off).
+    #[arg(long, value_enum)]
+    pub order: Option<OrderArg>,
+    /// Mode gaussian: SH direction of a primary ray's hits (default: ray; mean with
+    /// --footprint projected).
+    #[arg(long, value_enum)]
+    pub sh_direction: Option<ShDirectionArg>,
+    /// Samples per pixel (both modes): a fixed stratified pattern (k×k grid when N = k²),
+    /// box-filtered; 1 samples the pixel centre.
+    #[arg(long, default_value_t = 1, value_parser = super::ranges::spp)]
+    pub spp: u32,
+    /// With --spp > 1 and the footprint on: the sub-pixel's footprint or the whole pixel's.
+    #[arg(long, value_enum, default_value_t = SampleFootprintArg::Subpixel)]
+    pub sample_footprint: SampleFootprintArg,
     /// Keep the glTF world frame of a splatbridge export (default: the capture's frame).
     #[arg(long)]
     pub gltf_frame: bool,
@@ -179,6 +236,25 @@ impl TraceInput {
                     CompositingArg::Display => Compositing::Display,
                     CompositingArg::Viewer => Compositing::Viewer,
                 },
+                footprint: self.footprint(),
+                order: match self.order {
+                    Some(OrderArg::Hit) => HitOrder::Hit,
+                    Some(OrderArg::MeanDepth) => HitOrder::MeanDepth,
+                    // With a footprint the trace is the parity mode: native's order too.
+                    None if self.footprint() != Footprint::Off => HitOrder::MeanDepth,
+                    None => HitOrder::Hit,
+                },
+                sh_direction: match self.sh_direction {
+                    Some(ShDirectionArg::Ray) => ShDirection::Ray,
+                    Some(ShDirectionArg::Mean) => ShDirection::Mean,
+                    None if self.footprint() == Footprint::Projected => ShDirection::Mean,
+                    None => ShDirection::Ray,
+                },
+                spp: self.spp,
+                sample_footprint: match self.sample_footprint {
+                    SampleFootprintArg::Subpixel => SampleFootprint::Subpixel,
+                    SampleFootprintArg::Pixel => SampleFootprint::Pixel,
+                },
             },
             gltf_frame: self.gltf_frame,
             profile: self.profile.map(|p| match p {
@@ -189,6 +265,16 @@ impl TraceInput {
             drop_invalid: self.drop_invalid,
             effects_from: self.effects_from.clone(),
         })
+    }
+
+    /// `--footprint`, defaulting to on in mode gaussian (the parity mode) and off in mode mesh
+    /// (triangles are not widened).
+    pub fn footprint(&self) -> Footprint {
+        match (self.footprint, self.mode) {
+            (Some(FootprintArg::On), _) | (None, Mode::Gaussian) => Footprint::On,
+            (Some(FootprintArg::Off), _) | (None, Mode::Mesh) => Footprint::Off,
+            (Some(FootprintArg::Projected), _) => Footprint::Projected,
+        }
     }
 
     pub fn prepare(&self) -> anyhow::Result<Prepared> {
@@ -266,6 +352,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 "preset": args.input.preset.to_possible_value().map(|v| v.get_name().to_string()),
                 "background": p.options.background.to_array().map(short),
                 "near": short(p.options.near),
+                "footprint": match p.options.footprint {
+                    Footprint::Off => "off",
+                    Footprint::On => "on",
+                    Footprint::Projected => "projected",
+                },
+                "order": match p.options.order {
+                    HitOrder::Hit => "hit",
+                    HitOrder::MeanDepth => "mean-depth",
+                },
+                "sh_direction": match p.options.sh_direction {
+                    ShDirection::Ray => "ray",
+                    ShDirection::Mean => "mean",
+                },
+                "spp": p.options.spp,
+                "sample_footprint": match p.options.sample_footprint {
+                    SampleFootprint::Subpixel => "subpixel",
+                    SampleFootprint::Pixel => "pixel",
+                },
                 "compositing": match p.options.compositing {
                     Compositing::Display => "display",
                     Compositing::Viewer => "viewer",

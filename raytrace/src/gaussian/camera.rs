@@ -1,0 +1,375 @@
+//! Per-camera preparation of mode `gaussian` for primary rays that carry a pixel footprint
+//! ([`crate::footprint`]): BVHs over proxies grown to hold what the footprint brings onto a ray,
+//! and the two footprint responses.
+//!
+//! - [`Footprint::On`], the general path: the Gaussian widened in 3-D by the ray's footprint at
+//!   its mean's depth (`response_fp`); proxies padded by `pad_for`.
+//! - [`Footprint::Projected`]: the Gaussian evaluated the way native's projection evaluates it
+//!   (`hybrid::project` / the reference's `preprocessCUDA` and `renderCUDA`): the EWA 2-D
+//!   covariance `J·W·Σ·Wᵀ·Jᵀ` at the mean with the `1.3·tan(fov/2)` Jacobian clamp, plus the
+//!   low-pass, its conic evaluated at the ray's pixel position; the pixel is skipped outside the
+//!   tiles of the `ceil(3·sqrt(λ))` rectangle, as native skips it. The proxy is the flat box of
+//!   the screen square holding the splat's `α ≥ 1/255` ellipse, back-projected to the mean's
+//!   depth: every ray through a pixel the splat can reach crosses it, at the ray parameter of
+//!   the mean's depth, which is the hit's ordering key under [`HitOrder::MeanDepth`]. It is a
+//!   pinhole-camera mode for primary rays only, and a reference for what the 3-D path cannot
+//!   match (see `docs/footprint.md`).
+
+use std::time::Instant;
+
+use glam::{DMat3, DVec3, Vec3};
+use splatbridge_scene::Camera;
+
+use super::{GaussianTracer, Part};
+use crate::backend::{build_boxes, Accel, EmptyAccel};
+use crate::error::Result;
+use crate::footprint::{pad_for, Footprint, HitOrder};
+use crate::geom::transformed_box;
+
+/// Native's tile edge in pixels (the reference's `BLOCK_X = BLOCK_Y`).
+const TILE: f64 = 16.0;
+
+/// A ray's footprint in one part's frame (f32): the widening `F` (with `det F`) in the basis
+/// `(e1, e2)` of the plane ⊥ d, the camera's forward axis, and the ray's continuous pixel.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct LocalFootprint {
+    pub forward: Vec3,
+    pub e1: Vec3,
+    pub e2: Vec3,
+    pub cov: [f32; 3],
+    pub det: f32,
+    pub pixel: (f32, f32),
+}
+
+/// One Gaussian as native's projection sees it from the camera (mode `projected`).
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct Splat2d {
+    /// Screen position of the mean, pixel `i` sampled at `i`.
+    x: f32,
+    y: f32,
+    conic: [f32; 3],
+    /// Tile rectangle `[x0, y0, x1, y1)` (empty: never drawn).
+    rect: [i32; 4],
+}
+
+/// Per-camera BVHs over the grown proxies (one per part), each moving part's grown world
+/// bounds, and in mode `projected` each proxy's splat.
+pub struct Padded {
+    pub(super) mode: Footprint,
+    pub(super) accels: Vec<Box<dyn Accel>>,
+    /// Each part's grown proxy boxes (anchor-relative, in the part's frame).
+    pub(super) boxes: Vec<Vec<(Vec3, Vec3)>>,
+    pub(super) bounds: Vec<Option<(DVec3, DVec3)>>,
+    pub(super) splats: Vec<Vec<Splat2d>>,
+    /// Seconds spent building them.
+    pub build_seconds: f64,
+}
+
+impl Part {
+    /// As [`Part::response`] with the Gaussian widened by the ray's footprint at its mean's
+    /// view depth (see [`crate::footprint`]): the 2-D marginal `C` of the Gaussian on the plane
+    /// ⊥ d plus `z²·F`, evaluated at the mean's offset in that plane; peak opacity unchanged,
+    /// as in native splatting. The hit distance is the unwidened `t*`, clamped into the ray's
+    /// interval inside the padded proxy `bx`: a ray that meets only the widened Gaussian can
+    /// have its unwidened `t*` outside the box, and the k-buffer's cull distance must never be
+    /// passed by a hit whose box the traversal has not entered yet.
+    #[inline]
+    pub(super) fn response_fp(
+        &self,
+        p: usize,
+        o: Vec3,
+        d: Vec3,
+        fp: &LocalFootprint,
+        bx: (Vec3, Vec3),
+    ) -> Option<(f32, f32)> {
+        let inv = self.inv[p];
+        let og = inv * (o - self.mean[p]);
+        let dg = inv * d;
+        let dd = dg.length_squared();
+        if !(dd > 0.0 && dd.is_finite()) {
+            return None;
+        }
+        let rel = self.mean[p] - o;
+        let z = rel.dot(fp.forward);
+        let z2 = z * z;
+        let mt = self.m[p].transpose();
+        let (a1, a2) = (mt * fp.e1, mt * fp.e2);
+        let (g0, g1, g2) = (a1.dot(a1), a1.dot(a2), a2.dot(a2));
+        let [f0, f1, f2] = fp.cov;
+        let (c0, c1, c2) = (g0 + z2 * f0, g1 + z2 * f1, g2 + z2 * f2);
+        // det(G + z²F) expanded so that no term cancels: det G = |a1 × a2|² (Lagrange's
+        // identity) rather than g0·g2 − g1², which loses everything for a needle seen end-on.
+        let det = a1.cross(a2).length_squared()
+            + z2 * (g0 * f2 + g2 * f0 - 2.0 * g1 * f1)
+            + z2 * z2 * fp.det;
+        if !(det > 0.0 && det.is_finite()) {
+            return None;
+        }
+        let (x0, x1) = (rel.dot(fp.e1), rel.dot(fp.e2));
+        let q = (c2 * x0 * x0 - 2.0 * c1 * x0 * x1 + c0 * x1 * x1) / det;
+        if !(q <= self.r2[p]) {
+            return None;
+        }
+        let alpha = (self.opacity[p] * (-0.5 * q).exp()).min(0.99);
+        if !(alpha >= 1.0 / 255.0) {
+            return None;
+        }
+        let t = (-og.dot(dg) / dd).max(0.0) + 0.0;
+        let (t0, t1) = slab(o, d, bx);
+        let t = if t0 <= t1 {
+            t.clamp(t0.max(0.0), t1.max(0.0))
+        } else {
+            t
+        };
+        t.is_finite().then_some((t, alpha))
+    }
+
+    /// Native's response of proxy `p` at the ray's pixel (mode `projected`): the splat's conic
+    /// at `(u − ½, v − ½)` (pixel `i` sampled at `i`), skipped outside its tile rectangle,
+    /// where `power > 0` and below α = 1/255, α clamped at 0.99. The hit distance is the ray
+    /// parameter at the mean's view depth.
+    #[inline]
+    pub(super) fn response_projected(
+        &self,
+        p: usize,
+        o: Vec3,
+        d: Vec3,
+        fp: &LocalFootprint,
+        s: &Splat2d,
+    ) -> Option<(f32, f32)> {
+        let (u, v) = fp.pixel;
+        let (i, j) = (
+            (u.floor() as i32).div_euclid(16),
+            (v.floor() as i32).div_euclid(16),
+        );
+        if !(i >= s.rect[0] && i < s.rect[2] && j >= s.rect[1] && j < s.rect[3]) {
+            return None;
+        }
+        let (dx, dy) = (s.x - (u - 0.5), s.y - (v - 0.5));
+        let [c0, c1, c2] = s.conic;
+        let power = -0.5 * ((c0 * dx) * dx + (c2 * dy) * dy) - dx * (c1 * dy);
+        if !(power <= 0.0) {
+            return None;
+        }
+        let alpha = (self.opacity[p] * power.exp()).min(0.99);
+        if !(alpha >= 1.0 / 255.0) {
+            return None;
+        }
+        let t = (self.mean[p] - o).dot(fp.forward) / d.dot(fp.forward);
+        (t.is_finite() && t >= 0.0).then_some((t, alpha))
+    }
+}
+
+/// The ray's parameter interval inside a box (f32 slab test; empty when `t0 > t1`).
+#[inline]
+fn slab(o: Vec3, d: Vec3, (lo, hi): (Vec3, Vec3)) -> (f32, f32) {
+    let inv = d.recip();
+    let (a, b) = ((lo - o) * inv, (hi - o) * inv);
+    let (near, far) = (a.min(b), a.max(b));
+    // An axis the ray is parallel to gives NaN or ±inf; f32::max/min ignore NaN.
+    (near.max_element(), far.min_element())
+}
+
+/// One f32 ulp of the box's coordinates plus a relative 1e-5 of its size, as the unpadded
+/// proxies are padded, so rounding cannot clip a grown proxy.
+fn slack(lo: Vec3, hi: Vec3) -> Vec3 {
+    (hi - lo).abs() * 1e-5 + Vec3::splat(lo.abs().max(hi.abs()).max_element() * 1.2e-7)
+}
+
+impl GaussianTracer {
+    /// What a render of `cam` with `footprint` and a low-pass of `variance_px2` pixels² needs
+    /// beyond the tracer's own BVHs (None with the footprint off).
+    pub fn for_camera(
+        &self,
+        cam: &Camera,
+        footprint: Footprint,
+        variance_px2: f64,
+    ) -> Result<Option<Padded>> {
+        match footprint {
+            Footprint::Off => Ok(None),
+            Footprint::On => self.padded(cam, variance_px2).map(Some),
+            Footprint::Projected => self.projected(cam, variance_px2).map(Some),
+        }
+    }
+
+    /// BVHs for `cam` at the current time over proxies padded by the largest footprint of a
+    /// low-pass of `variance_px2` pixels² ([`pad_for`]), so that no Gaussian the widening
+    /// brings onto a ray is missed. Built per camera (and pose), like native's projection.
+    pub fn padded(&self, cam: &Camera, variance_px2: f64) -> Result<Padded> {
+        let forward = cam.world_to_cam.row(2);
+        self.grown(Footprint::On, |part, pi, p, (blo, bhi)| {
+            let w = self.world_mean(pi, part, p);
+            let z = (w - cam.centre).dot(forward);
+            let pad = pad_for(cam, variance_px2, z, part.r2[p].sqrt() as f64);
+            let pad = Vec3::splat((pad * (1.0 + 1e-5)) as f32) + slack(blo, bhi);
+            ((blo - pad, bhi + pad), Splat2d::default())
+        })
+    }
+
+    /// Native's projection of every proxy for `cam` with a low-pass of `variance_px2` pixels²,
+    /// and BVHs over the flat back-projected boxes of their screen footprints (mode
+    /// `projected`).
+    pub fn projected(&self, cam: &Camera, variance_px2: f64) -> Result<Padded> {
+        let w = cam.world_to_cam;
+        let grid = [
+            (cam.width as f64 / TILE).ceil(),
+            (cam.height as f64 / TILE).ceil(),
+        ];
+        self.grown(Footprint::Projected, |part, pi, p, own| {
+            let world = self.world_mean(pi, part, p);
+            let t = w * (world - cam.centre);
+            // The part's rotation carries the Gaussian's axes into the world.
+            let rot = match &self.placed[pi] {
+                Some(pl) => pl.to_world.matrix3,
+                None => DMat3::IDENTITY,
+            };
+            let m = rot * part.m[p].as_dmat3();
+            let Some((s, half)) = splat_2d(cam, t, &m, variance_px2, part.r2[p] as f64, grid)
+            else {
+                return (own, Splat2d::default());
+            };
+            // The screen square holding the α ≥ 1/255 ellipse, back-projected to depth t.z.
+            let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+            for (sx, sy) in [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0)] {
+                let (u, v) = (s.x as f64 + 0.5 + sx * half, s.y as f64 + 0.5 + sy * half);
+                let pc = DVec3::new((u - cam.cx) / cam.fx, (v - cam.cy) / cam.fy, 1.0) * t.z;
+                let q = self.local_point(pi, cam.centre + w.transpose() * pc);
+                lo = lo.min(q);
+                hi = hi.max(q);
+            }
+            let pad = slack(lo, hi);
+            if !(lo.is_finite() && hi.is_finite()) {
+                return (own, Splat2d::default());
+            }
+            ((lo - pad, hi + pad), s)
+        })
+    }
+
+    /// World position of proxy `p`'s mean at the current pose.
+    fn world_mean(&self, pi: usize, part: &Part, p: usize) -> DVec3 {
+        let m = part.mean[p].as_dvec3() + part.anchor;
+        match &self.placed[pi] {
+            Some(pl) => pl.to_world.transform_point3(m),
+            None => m,
+        }
+    }
+
+    /// Build per-part BVHs over `grow(part, part index, proxy, own box)` boxes.
+    fn grown<F>(&self, mode: Footprint, grow: F) -> Result<Padded>
+    where
+        F: Fn(&Part, usize, usize, (Vec3, Vec3)) -> ((Vec3, Vec3), Splat2d),
+    {
+        let start = Instant::now();
+        let n = self.parts.len();
+        let mut out = Padded {
+            mode,
+            accels: Vec::with_capacity(n),
+            boxes: Vec::with_capacity(n),
+            bounds: Vec::with_capacity(n),
+            splats: Vec::with_capacity(n),
+            build_seconds: 0.0,
+        };
+        for (pi, part) in self.parts.iter().enumerate() {
+            let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+            let mut boxes = Vec::with_capacity(part.boxes.len());
+            let mut splats = Vec::new();
+            for (p, &b) in part.boxes.iter().enumerate() {
+                let (b, s) = grow(part, pi, p, b);
+                lo = lo.min(b.0.as_dvec3() + part.anchor);
+                hi = hi.max(b.1.as_dvec3() + part.anchor);
+                boxes.push(b);
+                if mode == Footprint::Projected {
+                    splats.push(s);
+                }
+            }
+            out.accels.push(if boxes.is_empty() {
+                Box::new(EmptyAccel) as Box<dyn Accel>
+            } else {
+                build_boxes(self.backend, self.preset, &boxes)?
+            });
+            out.bounds.push(match &self.placed[pi] {
+                Some(pl) if !boxes.is_empty() => Some(transformed_box(&pl.to_world, lo, hi)),
+                _ => None,
+            });
+            out.boxes.push(boxes);
+            out.splats.push(splats);
+        }
+        out.build_seconds = start.elapsed().as_secs_f64();
+        Ok(out)
+    }
+}
+
+/// Native's projection of a Gaussian with `Σ = M·Mᵀ` (world) whose mean is at camera-space
+/// `t`: the splat and the half-size in pixels of the square holding its `r2` ellipse (plus a
+/// pixel of slack for the f32 evaluation). None where native culls it (behind, degenerate,
+/// off-screen).
+fn splat_2d(
+    cam: &Camera,
+    t: DVec3,
+    m: &DMat3,
+    variance_px2: f64,
+    r2: f64,
+    grid: [f64; 2],
+) -> Option<(Splat2d, f64)> {
+    if !(t.z > 0.0) || !t.is_finite() {
+        return None;
+    }
+    let limx = 1.3 * 0.5 * cam.width as f64 / cam.fx;
+    let limy = 1.3 * 0.5 * cam.height as f64 / cam.fy;
+    let tx = (t.x / t.z).clamp(-limx, limx) * t.z;
+    let ty = (t.y / t.z).clamp(-limy, limy) * t.z;
+    let tz2 = t.z * t.z;
+    let wt = cam.world_to_cam.transpose();
+    let m0 = wt * DVec3::new(cam.fx / t.z, 0.0, -cam.fx * tx / tz2);
+    let m1 = wt * DVec3::new(0.0, cam.fy / t.z, -cam.fy * ty / tz2);
+    let (a0, a1) = (m.transpose() * m0, m.transpose() * m1);
+    let (a, b, c) = (
+        a0.dot(a0) + variance_px2,
+        a0.dot(a1),
+        a1.dot(a1) + variance_px2,
+    );
+    let det = a * c - b * b;
+    if !(det > 0.0 && det.is_finite()) {
+        return None;
+    }
+    let mid = 0.5 * (a + c);
+    let lambda = mid + (mid * mid - det).max(0.1).sqrt();
+    let radius = (3.0 * lambda.sqrt()).ceil();
+    let x = cam.fx * t.x / t.z + cam.cx - 0.5;
+    let y = cam.fy * t.y / t.z + cam.cy - 0.5;
+    if !(radius.is_finite() && x.is_finite() && y.is_finite()) {
+        return None;
+    }
+    // The reference's getRect, truncating toward zero and clamped to the grid.
+    let clamp = |v: f64, g: f64| v.trunc().clamp(0.0, g) as i32;
+    let rect = [
+        clamp((x - radius) / TILE, grid[0]),
+        clamp((y - radius) / TILE, grid[1]),
+        clamp((x + radius + TILE - 1.0) / TILE, grid[0]),
+        clamp((y + radius + TILE - 1.0) / TILE, grid[1]),
+    ];
+    if rect[2] <= rect[0] || rect[3] <= rect[1] {
+        return None;
+    }
+    let lmax = mid + (mid * mid - det).max(0.0).sqrt();
+    let half = (r2 * lmax).sqrt() + 1.0;
+    let splat = Splat2d {
+        x: x as f32,
+        y: y as f32,
+        conic: [(c / det) as f32, (-b / det) as f32, (a / det) as f32],
+        rect,
+    };
+    half.is_finite().then_some((splat, half))
+}
+
+/// The hit key of a primary ray's hit under `order` (None: keep the hit's own `t`).
+#[inline]
+pub(super) fn mean_depth_key(
+    order: HitOrder,
+    mean: Vec3,
+    o: Vec3,
+    d: Vec3,
+    f: Vec3,
+) -> Option<f32> {
+    (order == HitOrder::MeanDepth).then(|| (mean - o).dot(f) / d.dot(f))
+}
