@@ -9,3 +9,4 @@ pub mod describe;
 pub mod parity;
 pub mod pipeline;
 pub mod report;
+pub mod tiles;

@@ -53,6 +53,7 @@ pub mod profile;
 pub mod splats_gltf;
 pub mod surfels;
 pub mod texture;
+pub mod tiles;
 
 use std::io::Write;
 use std::path::{Path, PathBuf};

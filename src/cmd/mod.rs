@@ -11,6 +11,7 @@ pub mod hybrid;
 pub mod info;
 pub mod ranges;
 pub mod render;
+pub mod tiles;
 pub mod trace;
 
 /// Print an error chain as `error: …` and map it to the exit status: 0 success, 2 error.
