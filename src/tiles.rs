@@ -26,7 +26,7 @@ use std::path::Path;
 use glam::DVec3;
 use splatbridge_convert::tiles::{write_tileset, TileOptions, TilesetReport};
 use splatbridge_convert::{ConvertError, UpAxis};
-use splatbridge_hybrid::native::{Renderer, RenderOptions};
+use splatbridge_hybrid::native::{RenderOptions, Renderer};
 use splatbridge_scene::blocks::Aabb;
 use splatbridge_scene::camera::Camera;
 use splatbridge_scene::dynamic::DynamicScene;
@@ -56,15 +56,8 @@ fn camera(bounds: &Aabb, up: DVec3, d: f64, side: u32) -> Result<Camera, Convert
     let target = bounds.centre().as_dvec3();
     let across = if up.x.abs() < 0.5 { DVec3::X } else { DVec3::Z };
     let dir = (up + across).normalize();
-    Camera::look_at(
-        target + d * dir,
-        target,
-        up,
-        MEASURE_FOV_DEG,
-        side,
-        side,
-    )
-    .map_err(ConvertError::from)
+    Camera::look_at(target + d * dir, target, up, MEASURE_FOV_DEG, side, side)
+        .map_err(ConvertError::from)
 }
 
 /// One measurement (see the module documentation): the world size of a pixel at the
@@ -118,8 +111,7 @@ pub fn write_tiles(
 ) -> Result<TilesetReport, ConvertError> {
     let up = up_vector(opts.convert.up);
     let mut renderer = Renderer::new();
-    let mut meter = |p: &GaussianCloud, c: &GaussianCloud, b: &Aabb| {
-        measure_error(&mut renderer, p, c, b, up)
-    };
+    let mut meter =
+        |p: &GaussianCloud, c: &GaussianCloud, b: &Aabb| measure_error(&mut renderer, p, c, b, up);
     write_tileset(dir, scene, opts, &mut meter)
 }

@@ -22,10 +22,18 @@ const BIN: &str = env!("CARGO_BIN_EXE_splatbridge");
 fn clusters(n: usize) -> GaussianCloud {
     let mut rng = Rng::new(42);
     let mut c = GaussianCloud::new(1);
-    let centres = [Vec3::new(2.0, -0.5, 3.0), Vec3::new(20.0, -1.0, 2.0), Vec3::new(38.0, 0.0, 4.0)];
+    let centres = [
+        Vec3::new(2.0, -0.5, 3.0),
+        Vec3::new(20.0, -1.0, 2.0),
+        Vec3::new(38.0, 0.0, 4.0),
+    ];
     for i in 0..n {
         let m = centres[i % 3] + 1.5 * Vec3::new(rng.normal(), 0.3 * rng.normal(), rng.normal());
-        let s = Vec3::new(rng.range(0.03, 0.12), rng.range(0.03, 0.12), rng.range(0.01, 0.05));
+        let s = Vec3::new(
+            rng.range(0.03, 0.12),
+            rng.range(0.03, 0.12),
+            rng.range(0.01, 0.05),
+        );
         let q = Quat::from_xyzw(rng.normal(), rng.normal(), rng.normal(), rng.normal()).normalize();
         let rgb = Vec3::new(rng.f32(), rng.f32(), rng.f32());
         c.push_activated(m, s, q, rng.range(0.3, 0.95), rgb);
@@ -49,7 +57,10 @@ fn glb_json(path: &Path) -> Value {
     assert!(b.len() >= 20, "{}: too short for a GLB", path.display());
     assert_eq!(&b[0..4], b"glTF", "{}: GLB magic", path.display());
     assert_eq!(u32::from_le_bytes(b[4..8].try_into().unwrap()), 2);
-    assert_eq!(u32::from_le_bytes(b[8..12].try_into().unwrap()) as usize, b.len());
+    assert_eq!(
+        u32::from_le_bytes(b[8..12].try_into().unwrap()) as usize,
+        b.len()
+    );
     let len = u32::from_le_bytes(b[12..16].try_into().unwrap()) as usize;
     assert_eq!(&b[16..20], b"JSON");
     serde_json::from_slice(&b[20..20 + len]).unwrap()
@@ -104,13 +115,23 @@ fn walk(dir: &Path, tile: &Value, frame: &glam::Mat3, content: TileContent, w: &
             }
         }
     } else {
-        assert!(!children.is_empty(), "a tile without content must have children");
+        assert!(
+            !children.is_empty(),
+            "a tile without content must have children"
+        );
     }
     if children.is_empty() {
         assert_eq!(err, 0.0, "leaves have no error");
     } else {
         let refine = tile["refine"].as_str().unwrap();
-        assert_eq!(refine, if content == TileContent::Splats { "REPLACE" } else { "ADD" });
+        assert_eq!(
+            refine,
+            if content == TileContent::Splats {
+                "REPLACE"
+            } else {
+                "ADD"
+            }
+        );
     }
     for ch in &children {
         let ce = walk(dir, ch, frame, content, w);
@@ -120,7 +141,8 @@ fn walk(dir: &Path, tile: &Value, frame: &glam::Mat3, content: TileContent, w: &
 }
 
 fn check_tileset(dir: &Path, opts: &TileOptions, input: &GaussianCloud) -> Walk {
-    let ts: Value = serde_json::from_slice(&std::fs::read(dir.join("tileset.json")).unwrap()).unwrap();
+    let ts: Value =
+        serde_json::from_slice(&std::fs::read(dir.join("tileset.json")).unwrap()).unwrap();
     assert_eq!(ts["asset"]["version"], "1.1");
     let transform = ts["root"]["transform"].as_array().unwrap();
     assert_eq!(transform.len(), 16);
@@ -134,7 +156,11 @@ fn check_tileset(dir: &Path, opts: &TileOptions, input: &GaussianCloud) -> Walk 
     let files = std::fs::read_dir(dir).unwrap().count();
     if opts.content == TileContent::Splats {
         assert_eq!(files, w.tiles + 1, "one GLB per tile plus tileset.json");
-        assert_eq!(w.leaf_points.len(), input.len(), "every Gaussian in one leaf");
+        assert_eq!(
+            w.leaf_points.len(),
+            input.len(),
+            "every Gaussian in one leaf"
+        );
     }
     w
 }
@@ -174,7 +200,10 @@ fn spz_and_mesh_tilesets_are_structurally_sound() {
         serde_json::from_slice(&std::fs::read(dir.path().join("tileset.json")).unwrap()).unwrap();
     assert_eq!(
         ts["extensions"]["3DTILES_content_gltf"]["extensionsRequired"],
-        serde_json::json!(["KHR_gaussian_splatting", "KHR_gaussian_splatting_compression_spz_2"])
+        serde_json::json!([
+            "KHR_gaussian_splatting",
+            "KHR_gaussian_splatting_compression_spz_2"
+        ])
     );
     let dir = tempfile::tempdir().unwrap();
     let opts = options(TileContent::Mesh, KhrCompression::None, 200);
@@ -205,27 +234,53 @@ fn a_failed_tileset_leaves_the_directory_as_it_was() {
         .map(|e| e.unwrap().file_name().into_string().unwrap())
         .collect();
     assert_eq!(names, vec!["tileset.json".to_string()]);
-    assert_eq!(std::fs::read(dir.path().join("tileset.json")).unwrap(), b"old");
+    assert_eq!(
+        std::fs::read(dir.path().join("tileset.json")).unwrap(),
+        b"old"
+    );
 }
 
 fn cli(args: &[&str]) -> std::process::Output {
-    Command::new(BIN).args(args).output().expect("splatbridge runs")
+    Command::new(BIN)
+        .args(args)
+        .output()
+        .expect("splatbridge runs")
 }
 
 #[test]
 fn cli_writes_tiles_and_reports_blocks() {
     let dir = tempfile::tempdir().unwrap();
     let ply = dir.path().join("in.ply");
-    splatbridge_scene::ply::write_ply(&ply, &clusters(900), splatbridge_scene::ply::PlyFormat::BinaryLittleEndian).unwrap();
+    splatbridge_scene::ply::write_ply(
+        &ply,
+        &clusters(900),
+        splatbridge_scene::ply::PlyFormat::BinaryLittleEndian,
+    )
+    .unwrap();
     let p = ply.to_str().unwrap();
     let out = dir.path().join("tiles");
     let o = out.to_str().unwrap();
-    let r = cli(&["convert", p, "--tiles", o, "--max-gaussians-per-tile", "150", "--json"]);
+    let r = cli(&[
+        "convert",
+        p,
+        "--tiles",
+        o,
+        "--max-gaussians-per-tile",
+        "150",
+        "--json",
+    ]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let rep: Value = serde_json::from_slice(&r.stdout).unwrap();
     assert_eq!(rep["gaussians"], 900);
     assert!(out.join("tileset.json").is_file());
-    let r = cli(&["info", p, "--blocks", "--max-gaussians-per-tile", "150", "--json"]);
+    let r = cli(&[
+        "info",
+        p,
+        "--blocks",
+        "--max-gaussians-per-tile",
+        "150",
+        "--json",
+    ]);
     assert!(r.status.success());
     let info: Value = serde_json::from_slice(&r.stdout).unwrap();
     assert_eq!(info["blocks"]["leaves"], rep["leaves"]);
@@ -240,7 +295,9 @@ fn cli_writes_tiles_and_reports_blocks() {
 
 #[cfg_attr(not(web_clients), allow(dead_code))]
 fn script(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts").join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scripts")
+        .join(name)
 }
 
 #[test]
@@ -273,7 +330,11 @@ fn cesium_renders_the_splat_tileset_close_to_native() {
     let out = dir.path().join("cesium.png");
     let st = Command::new("node")
         .arg(script("tiles-render.mjs"))
-        .args(["cesium", dir.path().join("tileset.json").to_str().unwrap(), out.to_str().unwrap()])
+        .args([
+            "cesium",
+            dir.path().join("tileset.json").to_str().unwrap(),
+            out.to_str().unwrap(),
+        ])
         .args(["--eye", &f(eye), "--target", &f(target), "--up", &f(up)])
         .args(["--fov", "50", "--size", "320x240", "--sse", "0"])
         .status()
@@ -282,7 +343,10 @@ fn cesium_renders_the_splat_tileset_close_to_native() {
     let a = splatbridge_scene::image_io::load_png(&native_png).unwrap();
     let b = splatbridge_scene::image_io::load_png(&out).unwrap();
     let p = splatbridge_scene::metrics::psnr(&a, &b).unwrap();
-    assert!(p >= CESIUM_FLOOR, "CesiumJS tileset {p:.2} dB against native");
+    assert!(
+        p >= CESIUM_FLOOR,
+        "CesiumJS tileset {p:.2} dB against native"
+    );
 }
 
 /// Measured on this scene and camera with CesiumJS 1.145 on SwiftShader: see docs/tiles.md.

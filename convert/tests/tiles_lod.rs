@@ -11,8 +11,16 @@ fn random_cloud(n: usize, seed: u64) -> GaussianCloud {
     let mut rng = Rng::new(seed);
     let mut c = GaussianCloud::new(1);
     for _ in 0..n {
-        let mean = Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-0.2, 0.2));
-        let ls = Vec3::new(rng.range(-4.0, -2.0), rng.range(-4.0, -2.0), rng.range(-5.0, -2.0));
+        let mean = Vec3::new(
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+            rng.range(-0.2, 0.2),
+        );
+        let ls = Vec3::new(
+            rng.range(-4.0, -2.0),
+            rng.range(-4.0, -2.0),
+            rng.range(-5.0, -2.0),
+        );
         let q = Quat::from_xyzw(rng.normal(), rng.normal(), rng.normal(), rng.normal());
         let sh: Vec<Vec3> = (0..4)
             .map(|_| Vec3::new(rng.normal(), rng.normal(), rng.normal()))
@@ -29,9 +37,21 @@ fn slow_cov(log_scale: Vec3, q: Quat) -> DMat3 {
     let n = (q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z).sqrt();
     let (w, x, y, z) = (q.w / n, q.x / n, q.y / n, q.z / n);
     let r = [
-        [1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y)],
-        [2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x)],
-        [2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)],
+        [
+            1.0 - 2.0 * (y * y + z * z),
+            2.0 * (x * y - w * z),
+            2.0 * (x * z + w * y),
+        ],
+        [
+            2.0 * (x * y + w * z),
+            1.0 - 2.0 * (x * x + z * z),
+            2.0 * (y * z - w * x),
+        ],
+        [
+            2.0 * (x * z - w * y),
+            2.0 * (y * z + w * x),
+            1.0 - 2.0 * (x * x + y * y),
+        ],
     ];
     let s = log_scale.as_dvec3();
     let s2 = [(2.0 * s.x).exp(), (2.0 * s.y).exp(), (2.0 * s.z).exp()];
@@ -60,7 +80,12 @@ fn max_abs(m: DMat3) -> f64 {
 #[test]
 fn merge_preserves_mass_mean_covariance_and_colour() {
     let c = random_cloud(40, 11);
-    for group in [vec![0u32], vec![1, 2], (3..11).collect::<Vec<u32>>(), (0..40).collect()] {
+    for group in [
+        vec![0u32],
+        vec![1, 2],
+        (3..11).collect::<Vec<u32>>(),
+        (0..40).collect(),
+    ] {
         // Reference moments.
         let mut wsum = 0.0;
         let mut mean = DVec3::ZERO;
@@ -100,7 +125,10 @@ fn merge_preserves_mass_mean_covariance_and_colour() {
         assert!((out.sh_of(0)[0].as_dvec3() - dc).length() <= 1e-5 * dc.length().max(1.0));
         let alpha = sigmoid(out.opacity_logits[0] as f64);
         let mass = alpha * cov.determinant().powf(1.0 / 3.0);
-        assert!(alpha < lod::MAX_MERGED_OPACITY as f64, "test groups stay below the cap");
+        assert!(
+            alpha < lod::MAX_MERGED_OPACITY as f64,
+            "test groups stay below the cap"
+        );
         assert!((mass - wsum).abs() <= 1e-4 * wsum, "mass {mass} vs {wsum}");
     }
 }

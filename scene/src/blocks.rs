@@ -136,7 +136,9 @@ impl Blocks {
         let mut blocks = Vec::new();
         if !order.is_empty() {
             let mut cell = Aabb::EMPTY;
-            order.iter().for_each(|&i| cell.grow(cloud.means[i as usize]));
+            order
+                .iter()
+                .for_each(|&i| cell.grow(cloud.means[i as usize]));
             let mut scratch = vec![0u32; order.len()];
             let n = order.len();
             split(
@@ -322,7 +324,9 @@ mod tests {
             for &i in b.indices(leaf) {
                 seen[i as usize] += 1;
                 assert!(leaf.cell.contains(pts[i as usize]));
-                assert!(leaf.footprint.contains(pts[i as usize] + Vec3::splat(0.149)));
+                assert!(leaf
+                    .footprint
+                    .contains(pts[i as usize] + Vec3::splat(0.149)));
             }
         }
         assert!(seen.iter().all(|&s| s == 1));

@@ -121,7 +121,14 @@ pub struct Args {
     /// Input scene: a 3DGS PLY, a splatbridge-scene/1 manifest, or a KHR_gaussian_splatting glTF.
     pub scene: PathBuf,
     /// Output file: .glb, .gltf, .obj, .ply, .compressed.ply, .splat or .spz.
-    #[arg(short, long = "out", alias = "output", required_unless_present = "tiles", default_value = ".", hide_default_value = true)]
+    #[arg(
+        short,
+        long = "out",
+        alias = "output",
+        required_unless_present = "tiles",
+        default_value = ".",
+        hide_default_value = true
+    )]
     pub output: PathBuf,
     /// Output format, instead of the one -o's extension implies. Mesh and glTF formats must
     /// agree with the extension; splat formats may be written under any name.

@@ -33,7 +33,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.blocks {
         let n = args
             .max_gaussians_per_tile
-            .map_or(splatbridge_scene::blocks::DEFAULT_MAX_PER_BLOCK, |n| n as usize);
+            .map_or(splatbridge_scene::blocks::DEFAULT_MAX_PER_BLOCK, |n| {
+                n as usize
+            });
         // The cloud `convert --tiles` partitions: objects placed at the scene's start.
         let cloud = if scene.objects.is_empty() {
             std::borrow::Cow::Borrowed(&scene.static_gaussians)
@@ -145,7 +147,10 @@ fn print_blocks(b: &Value) {
     );
     println!(
         "leaf size   min {}  median {}  max {}; leaves per depth {}",
-        b["leaf_size"]["min"], b["leaf_size"]["median"], b["leaf_size"]["max"], b["leaves_per_depth"]
+        b["leaf_size"]["min"],
+        b["leaf_size"]["median"],
+        b["leaf_size"]["max"],
+        b["leaves_per_depth"]
     );
     println!(
         "block cell  min {}  max {}",

@@ -78,9 +78,16 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         bail!("--tiles writes a directory of files; drop -o");
     }
     if args.splats || args.frames || args.surfels || args.first.is_some() {
-        bail!("--tiles: --splats, --frames, --surfels and --first do not apply (use --tile-content)");
+        bail!(
+            "--tiles: --splats, --frames, --surfels and --first do not apply (use --tile-content)"
+        );
     }
-    let origin = args.tiles.tiles_origin.as_deref().map(parse_origin).transpose()?;
+    let origin = args
+        .tiles
+        .tiles_origin
+        .as_deref()
+        .map(parse_origin)
+        .transpose()?;
     let t0 = Instant::now();
     let scene = load_export_input(&args.scene, args.drop_invalid, &common::print_warning)?;
     let content = match args.tiles.tile_content {

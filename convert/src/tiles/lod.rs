@@ -142,10 +142,7 @@ pub fn merge_into(cloud: &GaussianCloud, group: &[u32], out: &mut GaussianCloud)
     }
     let area = (vals.x * vals.y * vals.z).powf(1.0 / 3.0);
     // Equal-weight fallback groups (all transparent) stay transparent.
-    let alpha = if group
-        .iter()
-        .any(|&i| weight(cloud, i as usize) > 0.0)
-    {
+    let alpha = if group.iter().any(|&i| weight(cloud, i as usize) > 0.0) {
         (m.weight / area).min(MAX_MERGED_OPACITY as f64) as f32
     } else {
         0.0

@@ -121,7 +121,11 @@ pub fn enu_to_ecef(lon_deg: f64, lat_deg: f64, height: f64) -> [f64; 16] {
     let (lon, lat) = (lon_deg.to_radians(), lat_deg.to_radians());
     let (sl, cl, sp, cp) = (lon.sin(), lon.cos(), lat.sin(), lat.cos());
     let n = A / (1.0 - E2 * sp * sp).sqrt();
-    let p = DVec3::new((n + height) * cp * cl, (n + height) * cp * sl, (n * (1.0 - E2) + height) * sp);
+    let p = DVec3::new(
+        (n + height) * cp * cl,
+        (n + height) * cp * sl,
+        (n * (1.0 - E2) + height) * sp,
+    );
     let east = DVec3::new(-sl, cl, 0.0);
     let north = DVec3::new(-sp * cl, -sp * sl, cp);
     let up = DVec3::new(cp * cl, cp * sl, sp);
@@ -172,7 +176,7 @@ impl Writer<'_, '_> {
         })?;
         let mut w = BufWriter::new(file);
         let rep = match self.opts.content {
-            TileContent::Splats => crate::splats_gltf::write_glb_with(
+            TileContent::Splats => crate::splats_gltf::write_tile_glb(
                 &mut w,
                 &scene,
                 &self.opts.convert,
@@ -321,12 +325,19 @@ pub fn write_tileset(
     // picks its splat renderer from this list, not from the GLBs).
     let gltf_ext: Vec<&str> = match (opts.content, opts.compression) {
         (TileContent::Splats, KhrCompression::Spz) => {
-            vec!["KHR_gaussian_splatting", "KHR_gaussian_splatting_compression_spz_2"]
+            vec![
+                "KHR_gaussian_splatting",
+                "KHR_gaussian_splatting_compression_spz_2",
+            ]
         }
         (TileContent::Splats, KhrCompression::None) => vec!["KHR_gaussian_splatting"],
         (TileContent::Mesh, _) => vec![],
     };
-    let required = if opts.compression == KhrCompression::Spz { gltf_ext.clone() } else { vec![] };
+    let required = if opts.compression == KhrCompression::Spz {
+        gltf_ext.clone()
+    } else {
+        vec![]
+    };
     let mut doc = json!({
         "asset": {
             "version": "1.1",
@@ -348,7 +359,8 @@ pub fn write_tileset(
         doc["extensionsUsed"] = json!(["3DTILES_content_gltf"]);
         doc["extensions"] = json!({"3DTILES_content_gltf": {"extensionsUsed": gltf_ext, "extensionsRequired": required}});
     }
-    let bytes = serde_json::to_vec_pretty(&doc).map_err(|e| ConvertError::Invalid(e.to_string()))?;
+    let bytes =
+        serde_json::to_vec_pretty(&doc).map_err(|e| ConvertError::Invalid(e.to_string()))?;
     set.write(&dir.join("tileset.json"), &bytes)?;
     report.files += 1;
     report.bytes += bytes.len() as u64;
