@@ -108,7 +108,7 @@ fn merge_preserves_mass_mean_covariance_and_colour() {
             cov += (slow_cov(c.log_scales[i], c.rotations[i]) + outer) * ws[k];
             dc += ws[k] * c.sh_of(i)[0].as_dvec3();
         }
-        cov = cov * (1.0 / wsum);
+        cov *= 1.0 / wsum;
         dc /= wsum;
 
         let mut out = GaussianCloud::new(1);

@@ -126,7 +126,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     };
     let pb = common::progress(1, "writing tiles");
     let rep = splatbridge::tiles::write_tiles(dir, &scene, &opts)
-        .with_context(|| format!("{}", dir.display()))?;
+        .with_context(|| dir.display().to_string())?;
     pb.finish_and_clear();
     let secs = t0.elapsed().as_secs_f64();
     if args.json {
