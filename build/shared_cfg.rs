@@ -68,7 +68,14 @@ fn emit_shared_cfgs(workspace: &str) {
     if let Some(web) = web {
         let modules = web.join("node_modules");
         let chromium = std::path::Path::new("/usr/bin/chromium");
-        let packages = ["three", "@babylonjs/core", "@babylonjs/loaders", "puppeteer-core"];
+        let packages = [
+            "three",
+            "@babylonjs/core",
+            "@babylonjs/loaders",
+            "puppeteer-core",
+            "cesium",
+            "3d-tiles-renderer",
+        ];
         let installed = |p: &&str| modules.join(p).join("package.json").is_file();
         if chromium.is_file() && packages.iter().all(installed) {
             println!("cargo::rustc-cfg=web_clients");

@@ -17,3 +17,4 @@ pub mod pipeline;
 pub mod report;
 pub mod shard;
 pub mod split_auto;
+pub mod tiles;

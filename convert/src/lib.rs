@@ -53,6 +53,7 @@ pub mod profile;
 pub mod splats_gltf;
 pub mod surfels;
 pub mod texture;
+pub mod tiles;
 pub mod vertex_colours;
 
 use std::io::Write;

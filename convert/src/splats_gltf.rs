@@ -151,7 +151,30 @@ pub fn write_glb_with<W: Write>(
     opts: &ConvertOptions,
     compression: KhrCompression,
 ) -> crate::Result<ConvertReport> {
-    let (json, small, plans, bin_len, mut report) = plan(scene, opts, None, compression)?;
+    write_glb_impl(w, scene, opts, compression, false)
+}
+
+/// A tile's GLB (3D Tiles content): [`write_glb_with`], except that a static scene's one
+/// primitive sits on the root node itself, which carries the up-axis rotation. CesiumJS's
+/// splat tiles read only the first scene node's primitive and that node's own matrix, so the
+/// usual root → mesh node hierarchy would lose both the Gaussians and the up axis.
+pub fn write_tile_glb<W: Write>(
+    w: &mut W,
+    scene: &DynamicScene,
+    opts: &ConvertOptions,
+    compression: KhrCompression,
+) -> crate::Result<ConvertReport> {
+    write_glb_impl(w, scene, opts, compression, true)
+}
+
+fn write_glb_impl<W: Write>(
+    w: &mut W,
+    scene: &DynamicScene,
+    opts: &ConvertOptions,
+    compression: KhrCompression,
+    flat: bool,
+) -> crate::Result<ConvertReport> {
+    let (json, small, plans, bin_len, mut report) = plan(scene, opts, None, compression, flat)?;
     let bytes = glb_container(w, &json, bin_len, |w| stream(w, &small, &plans)).map_err(|e| {
         ConvertError::Io {
             path: "<memory>".into(),
@@ -204,7 +227,8 @@ pub fn write_file_with(
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
-        let (json, small, plans, _bin_len, mut report) = plan(scene, opts, Some(uri), compression)?;
+        let (json, small, plans, _bin_len, mut report) =
+            plan(scene, opts, Some(uri), compression, false)?;
         let mut n = 0;
         // The .gltf and its .bin appear together or not at all.
         let mut set = splatbridge_scene::output::OutputSet::new();
@@ -231,6 +255,7 @@ fn plan<'a>(
     opts: &ConvertOptions,
     bin_uri: Option<String>,
     compression: KhrCompression,
+    flat: bool,
 ) -> crate::Result<Planned<'a>> {
     let mut report = ConvertReport::new("splats", opts);
     report.profile = "splats".into();
@@ -278,6 +303,20 @@ fn plan<'a>(
     }
     let cameras = camera_nodes(scene, &mut nodes, &mut children);
     nodes[0] = root_node(children, opts);
+    if flat && scene.objects.is_empty() && cameras.is_empty() && nodes.len() == 2 {
+        let mesh = nodes[1]["mesh"].clone();
+        let mut root = root_node(Vec::new(), opts);
+        if let Some(o) = root.as_object_mut() {
+            o.remove("children");
+            // As a matrix: CesiumJS's splat tiles read the node's `matrix`, not its TRS.
+            if o.remove("rotation").is_some() {
+                let m = glam::Mat4::from_quat(opts.up.root_rotation());
+                o.insert("matrix".into(), json!(m.to_cols_array()));
+            }
+        }
+        root["mesh"] = mesh;
+        nodes = vec![root];
+    }
     let bin_len = offset;
     let mut doc = json!({
         "asset": {"version": "2.0", "generator": concat!("splatbridge ", env!("CARGO_PKG_VERSION")), "extras": {"splatbridge": report.metadata(opts)}},

@@ -6,6 +6,7 @@
 //! activated through accessors, SH coefficients are coefficient-major (RGB interleaved per
 //! coefficient), cameras use the OpenCV frame (x right, y down, z forward).
 
+pub mod blocks;
 pub mod camera;
 pub mod camera_spec;
 pub mod dynamic;

@@ -121,7 +121,14 @@ pub struct Args {
     /// Input scene: a 3DGS PLY, a splatbridge-scene/1 manifest, or a KHR_gaussian_splatting glTF.
     pub scene: PathBuf,
     /// Output file: .glb, .gltf, .obj, .ply, .compressed.ply, .splat or .spz.
-    #[arg(short, long = "out", alias = "output")]
+    #[arg(
+        short,
+        long = "out",
+        alias = "output",
+        required_unless_present = "tiles",
+        default_value = ".",
+        hide_default_value = true
+    )]
     pub output: PathBuf,
     /// Output format, instead of the one -o's extension implies. Mesh and glTF formats must
     /// agree with the extension; splat formats may be written under any name.
@@ -232,6 +239,8 @@ pub struct Args {
     pub json: bool,
     #[command(flatten)]
     pub distill: super::distill_args::DistillArgs,
+    #[command(flatten)]
+    pub tiles: super::tiles::TileArgs,
 }
 
 impl From<FormatArg> for OutputFormat {
@@ -319,6 +328,9 @@ pub enum KhrCompressionArg {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.tiles.tiles.is_some() {
+        return super::tiles::run(&args);
+    }
     if args.khr_compression != KhrCompressionArg::None && !args.splats {
         bail!("--khr-compression: applies to --splats glTF outputs only");
     }

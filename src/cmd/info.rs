@@ -19,15 +19,38 @@ pub struct Args {
     /// Drop invalid Gaussians (NaN, zero quaternion) with a counted warning instead of failing.
     #[arg(long)]
     pub drop_invalid: bool,
+    /// Also report the spatial blocks (the tiles of `convert --tiles`): counts, depths, bounds.
+    #[arg(long)]
+    pub blocks: bool,
+    /// Gaussian budget of a block (with --blocks).
+    #[arg(long, value_name = "N", requires = "blocks", value_parser = clap::value_parser!(u32).range(1..=16_777_216))]
+    pub max_gaussians_per_tile: Option<u32>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let (scene, info) = load_with_info(&args.file, args.drop_invalid)?;
-    let out = splatbridge::describe::describe(&args.file, &scene, &info);
+    let mut out = splatbridge::describe::describe(&args.file, &scene, &info);
+    if args.blocks {
+        let n = args
+            .max_gaussians_per_tile
+            .map_or(splatbridge_scene::blocks::DEFAULT_MAX_PER_BLOCK, |n| {
+                n as usize
+            });
+        // The cloud `convert --tiles` partitions: objects placed at the scene's start.
+        let cloud = if scene.objects.is_empty() {
+            std::borrow::Cow::Borrowed(&scene.static_gaussians)
+        } else {
+            std::borrow::Cow::Owned(scene.composite(scene.time.start))
+        };
+        out["blocks"] = splatbridge_scene::blocks::Blocks::build(&cloud, n).summary();
+    }
     if args.json {
         println!("{out}");
     } else {
         print_text(&out);
+        if args.blocks {
+            print_blocks(&out["blocks"]);
+        }
     }
     Ok(())
 }
@@ -115,4 +138,28 @@ fn print_text(v: &Value) {
             );
         }
     }
+}
+
+fn print_blocks(b: &Value) {
+    println!(
+        "blocks      {} blocks, {} leaves of at most {} Gaussians ({} over budget), depth {}",
+        b["blocks"], b["leaves"], b["max_per_block"], b["leaves_over_budget"], b["max_depth"]
+    );
+    println!(
+        "leaf size   min {}  median {}  max {}; leaves per depth {}",
+        b["leaf_size"]["min"],
+        b["leaf_size"]["median"],
+        b["leaf_size"]["max"],
+        b["leaves_per_depth"]
+    );
+    println!(
+        "block cell  min {}  max {}",
+        fmt3(&b["cell"]["min"]),
+        fmt3(&b["cell"]["max"])
+    );
+    println!(
+        "footprint   min {}  max {}  (3σ boxes of every Gaussian)",
+        fmt3(&b["footprint"]["min"]),
+        fmt3(&b["footprint"]["max"])
+    );
 }

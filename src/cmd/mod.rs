@@ -13,6 +13,7 @@ pub mod info;
 pub mod merge;
 pub mod ranges;
 pub mod render;
+pub mod tiles;
 pub mod trace;
 
 /// Print an error chain as `error: …` and map it to the exit status: 0 success, 2 error.

@@ -1,0 +1,373 @@
+//! OGC 3D Tiles 1.1 tilesets of a scene's Gaussians (moving objects placed at the scene's
+//! start): `tileset.json` plus one GLB per
+//! tile, each with `KHR_gaussian_splatting` splats (our [`crate::splats_gltf`] writer) or our
+//! mesh profile, written as one set (a staging directory committed with
+//! [`OutputSet`]).
+//!
+//! - Partition: [`splatbridge_scene::blocks`] (adaptive octree by Gaussian count, each
+//!   Gaussian in one leaf by its centre, bounding volumes grown to contain 3σ footprints).
+//! - Splat tiles: leaves hold their Gaussians as they are; every inner tile holds a reduced
+//!   set merged from its children's contents ([`lod`], at most half of them and at most the
+//!   tile budget) and refines with `REPLACE`. Its `geometricError` is measured by the
+//!   caller's [`ErrorMeter`] (the root crate renders parent and children natively) and added
+//!   to the largest child error, so errors strictly decrease towards the leaves (whose error
+//!   is 0).
+//! - Mesh tiles: leaves hold their Gaussians meshed; inner tiles hold nothing and refine with
+//!   `ADD`; an empty tile's error is its footprint box's diagonal (what is missing when
+//!   nothing is drawn), which is larger than any of its children's.
+//! - Frames: glTF content is Y-up and 3D Tiles applies the Y-up → Z-up rotation (+90° about
+//!   X, 3D Tiles 1.1 §"glTF transforms") after the content's own nodes; our content keeps
+//!   the capture frame under the `splatbridge_root` node, so bounding volumes are expressed
+//!   through `M = R_x(+90°) · R_up` (the capture's up axis becomes the tileset's +Z). The root
+//!   `transform` is the identity, or with an origin (longitude, latitude, height on WGS84)
+//!   the east-north-up frame there, so the capture stands upright on the globe.
+//! - Memory: the cloud is read once; the partition is a permutation of indices; tiles are
+//!   visited depth first and a tile's content is dropped once its parent is merged, so beyond
+//!   the input cloud at most (tree depth × 8) tile contents are held.
+
+pub mod lod;
+
+use std::io::{BufWriter, Write};
+use std::path::Path;
+
+use glam::{DVec3, Mat3, Quat, Vec3};
+use serde_json::{json, Value};
+use splatbridge_scene::blocks::{footprint, Aabb, Block, Blocks};
+use splatbridge_scene::dynamic::DynamicScene;
+use splatbridge_scene::output::OutputSet;
+use splatbridge_scene::GaussianCloud;
+
+use crate::options::ConvertOptions;
+use crate::splats_gltf::KhrCompression;
+use crate::{ConvertError, Result};
+
+/// What a tile's GLB holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TileContent {
+    /// `KHR_gaussian_splatting` points, with merged levels of detail.
+    Splats,
+    /// The conversion profile's triangle meshes, leaves only (refine ADD).
+    Mesh,
+}
+
+impl TileContent {
+    pub fn name(self) -> &'static str {
+        match self {
+            TileContent::Splats => "splats",
+            TileContent::Mesh => "mesh",
+        }
+    }
+}
+
+/// Options of a tileset.
+#[derive(Clone, Debug)]
+pub struct TileOptions {
+    pub max_per_tile: usize,
+    pub content: TileContent,
+    /// (longitude°, latitude°, height m) of the capture's origin on WGS84, for the root
+    /// transform; `None` writes the identity.
+    pub origin: Option<[f64; 3]>,
+    /// The conversion options of every tile's GLB (up axis, mesh profile, …).
+    pub convert: ConvertOptions,
+    /// Splat attribute storage. CesiumJS (1.134 on) reads `KHR_gaussian_splatting` only with
+    /// `KHR_gaussian_splatting_compression_spz_2`, so tilesets default to SPZ.
+    pub compression: KhrCompression,
+}
+
+/// Measures an inner tile's geometric error (world units): `parent` is its merged content,
+/// `children` the union of its children's contents, `bounds` the tile's footprint box.
+pub type ErrorMeter<'a> = dyn FnMut(&GaussianCloud, &GaussianCloud, &Aabb) -> Result<f64> + 'a;
+
+/// What was written.
+#[derive(Clone, Debug, Default)]
+pub struct TilesetReport {
+    pub tiles: usize,
+    pub files: usize,
+    pub bytes: u64,
+    pub leaves: usize,
+    pub max_depth: u32,
+    pub gaussians: usize,
+    /// Gaussians written in inner (level-of-detail) tiles.
+    pub lod_gaussians: usize,
+    pub invalid_left_out: usize,
+    /// Moving objects written where they are at the scene's start.
+    pub objects_at_start: usize,
+    pub root_error: f64,
+}
+
+/// The tileset frame's map from the capture frame: glTF's Y-up → Z-up after the content's
+/// up-axis root rotation.
+pub fn capture_to_tileset(opts: &ConvertOptions) -> Mat3 {
+    Mat3::from_quat(Quat::from_rotation_x(std::f32::consts::FRAC_PI_2))
+        * Mat3::from_quat(opts.up.root_rotation())
+}
+
+/// A `boundingVolume.box` (centre, then the three half-axis vectors) of a capture-frame box.
+pub fn box_volume(b: &Aabb, m: &Mat3) -> [f64; 12] {
+    let c = (*m * b.centre()).as_dvec3();
+    let h = b.half_extent();
+    let ax = [Vec3::X * h.x, Vec3::Y * h.y, Vec3::Z * h.z].map(|v| (*m * v).as_dvec3());
+    [
+        c.x, c.y, c.z, ax[0].x, ax[0].y, ax[0].z, ax[1].x, ax[1].y, ax[1].z, ax[2].x, ax[2].y,
+        ax[2].z,
+    ]
+}
+
+/// The east-north-up → Earth-centred, Earth-fixed transform (column-major 4×4) at a WGS84
+/// longitude, latitude (degrees) and ellipsoidal height (metres).
+pub fn enu_to_ecef(lon_deg: f64, lat_deg: f64, height: f64) -> [f64; 16] {
+    const A: f64 = 6_378_137.0;
+    const E2: f64 = 6.694_379_990_141_316e-3;
+    let (lon, lat) = (lon_deg.to_radians(), lat_deg.to_radians());
+    let (sl, cl, sp, cp) = (lon.sin(), lon.cos(), lat.sin(), lat.cos());
+    let n = A / (1.0 - E2 * sp * sp).sqrt();
+    let p = DVec3::new(
+        (n + height) * cp * cl,
+        (n + height) * cp * sl,
+        (n * (1.0 - E2) + height) * sp,
+    );
+    let east = DVec3::new(-sl, cl, 0.0);
+    let north = DVec3::new(-sp * cl, -sp * sl, cp);
+    let up = DVec3::new(cp * cl, cp * sl, sp);
+    [
+        east.x, east.y, east.z, 0.0, north.x, north.y, north.z, 0.0, up.x, up.y, up.z, 0.0, p.x,
+        p.y, p.z, 1.0,
+    ]
+}
+
+/// The Gaussians `idx` of `cloud` as a cloud of their own.
+fn subset(cloud: &GaussianCloud, idx: &[u32]) -> GaussianCloud {
+    let mut out = GaussianCloud::with_capacity(cloud.sh_degree, idx.len());
+    for &i in idx {
+        let i = i as usize;
+        out.push(
+            cloud.means[i],
+            cloud.log_scales[i],
+            cloud.rotations[i],
+            cloud.opacity_logits[i],
+            cloud.sh_of(i),
+        );
+    }
+    out
+}
+
+/// The 3σ footprint box of a whole cloud.
+fn cloud_footprint(c: &GaussianCloud) -> Aabb {
+    (0..c.len()).fold(Aabb::EMPTY, |a, i| a.union(&footprint(c, i)))
+}
+
+struct Writer<'a, 'm> {
+    cloud: &'a GaussianCloud,
+    blocks: &'a Blocks,
+    opts: &'a TileOptions,
+    meter: &'a mut ErrorMeter<'m>,
+    stage: &'a Path,
+    frame: Mat3,
+    report: TilesetReport,
+}
+
+impl Writer<'_, '_> {
+    fn write_glb(&mut self, name: &str, content: GaussianCloud) -> Result<GaussianCloud> {
+        let path = self.stage.join(name);
+        let scene = DynamicScene::from_static(content);
+        let file = std::fs::File::create(&path).map_err(|e| ConvertError::Io {
+            path: path.clone(),
+            err: e,
+        })?;
+        let mut w = BufWriter::new(file);
+        let rep = match self.opts.content {
+            TileContent::Splats => crate::splats_gltf::write_tile_glb(
+                &mut w,
+                &scene,
+                &self.opts.convert,
+                self.opts.compression,
+            )?,
+            TileContent::Mesh => crate::write_glb(&mut w, &scene, None, &self.opts.convert)?,
+        };
+        w.flush().map_err(|e| ConvertError::Io { path, err: e })?;
+        self.report.files += 1;
+        self.report.bytes += rep.bytes;
+        Ok(scene.static_gaussians)
+    }
+
+    /// Write block `b`'s subtree; returns its tile JSON, its error and (for splats) its
+    /// content, which the parent merges.
+    fn visit(&mut self, b: usize) -> Result<(Value, f64, Option<GaussianCloud>)> {
+        let block: &Block = &self.blocks.blocks[b];
+        self.report.tiles += 1;
+        self.report.max_depth = self.report.max_depth.max(block.depth);
+        let name = format!("tile_{b}.glb");
+        if block.is_leaf() {
+            self.report.leaves += 1;
+            let content = subset(self.cloud, self.blocks.indices(block));
+            self.report.gaussians += content.len();
+            let content = self.write_glb(&name, content)?;
+            let tile = json!({
+                "boundingVolume": {"box": box_volume(&block.footprint, &self.frame)},
+                "geometricError": 0.0,
+                "content": {"uri": name},
+            });
+            let keep = (self.opts.content == TileContent::Splats).then_some(content);
+            return Ok((tile, 0.0, keep));
+        }
+        let mut children = Vec::with_capacity(block.children.len());
+        let mut child_error = 0.0f64;
+        let mut union: Option<GaussianCloud> = None;
+        for &c in &block.children {
+            let (tile, err, content) = self.visit(c)?;
+            children.push(tile);
+            child_error = child_error.max(err);
+            if let Some(content) = content {
+                match &mut union {
+                    Some(u) => u.extend_from(&content, None),
+                    None => union = Some(content),
+                }
+            }
+        }
+        let mut bounds = block.footprint;
+        let (tile, error, content) = match (self.opts.content, union) {
+            (TileContent::Splats, Some(union)) => {
+                let target = self.opts.max_per_tile.min(union.len().div_ceil(2)).max(1);
+                let parent = lod::reduce(&union, target);
+                bounds = bounds.union(&cloud_footprint(&parent));
+                let measured = (self.meter)(&parent, &union, &bounds)?;
+                if !measured.is_finite() || measured < 0.0 {
+                    return Err(ConvertError::Invalid(format!(
+                        "tile {b}: measured geometric error {measured} is not a finite non-negative number"
+                    )));
+                }
+                // Errors add along a refinement chain; the parent's must exceed its children's.
+                let error = next_above(child_error + measured, child_error);
+                self.report.lod_gaussians += parent.len();
+                let parent = self.write_glb(&name, parent)?;
+                let tile = json!({
+                    "boundingVolume": {"box": box_volume(&bounds, &self.frame)},
+                    "geometricError": error,
+                    "refine": "REPLACE",
+                    "content": {"uri": name},
+                    "children": children,
+                });
+                (tile, error, Some(parent))
+            }
+            _ => {
+                let d = 2.0 * bounds.half_extent().length() as f64;
+                let error = next_above(d, child_error);
+                let tile = json!({
+                    "boundingVolume": {"box": box_volume(&bounds, &self.frame)},
+                    "geometricError": error,
+                    "refine": "ADD",
+                    "children": children,
+                });
+                (tile, error, None)
+            }
+        };
+        Ok((tile, error, content))
+    }
+}
+
+/// `x` if it exceeds `floor`, else the smallest value that does (relative step 1e-9).
+fn next_above(x: f64, floor: f64) -> f64 {
+    if x > floor {
+        x
+    } else {
+        floor + floor.abs().max(1e-9) * 1e-9
+    }
+}
+
+/// Write the tileset of `scene` (objects at the scene's start) into `dir` (`tileset.json` and
+/// `tile_N.glb`, N the block's index in pre-order), all or nothing.
+pub fn write_tileset(
+    dir: &Path,
+    scene: &DynamicScene,
+    opts: &TileOptions,
+    meter: &mut ErrorMeter<'_>,
+) -> Result<TilesetReport> {
+    // Tiles are static content: moving objects are placed at the scene's start.
+    let composite;
+    let cloud = if scene.objects.is_empty() {
+        &scene.static_gaussians
+    } else {
+        composite = scene.composite(scene.time.start);
+        &composite
+    };
+    cloud.check_shape()?;
+    let blocks = Blocks::build(cloud, opts.max_per_tile);
+    if blocks.blocks.is_empty() {
+        return Err(ConvertError::Format {
+            path: dir.into(),
+            what: "--tiles: the scene has no valid Gaussians".into(),
+        });
+    }
+    let mut set = OutputSet::new();
+    let stage = set.stage_dir(dir)?;
+    let mut w = Writer {
+        cloud,
+        blocks: &blocks,
+        opts,
+        meter,
+        stage: &stage,
+        frame: capture_to_tileset(&opts.convert),
+        report: TilesetReport {
+            invalid_left_out: blocks.invalid,
+            objects_at_start: scene.objects.len(),
+            ..Default::default()
+        },
+    };
+    let (mut root, root_error, _) = w.visit(0)?;
+    let mut report = w.report;
+    report.root_error = root_error;
+    root["transform"] = json!(match opts.origin {
+        Some([lon, lat, h]) => enu_to_ecef(lon, lat, h),
+        None => IDENTITY4,
+    });
+    let diag = 2.0 * blocks.blocks[0].footprint.half_extent().length() as f64;
+    // The glTF extensions of the content, declared through `3DTILES_content_gltf` (CesiumJS
+    // picks its splat renderer from this list, not from the GLBs).
+    let gltf_ext: Vec<&str> = match (opts.content, opts.compression) {
+        (TileContent::Splats, KhrCompression::Spz) => {
+            vec![
+                "KHR_gaussian_splatting",
+                "KHR_gaussian_splatting_compression_spz_2",
+            ]
+        }
+        (TileContent::Splats, KhrCompression::None) => vec!["KHR_gaussian_splatting"],
+        (TileContent::Mesh, _) => vec![],
+    };
+    let required = if opts.compression == KhrCompression::Spz {
+        gltf_ext.clone()
+    } else {
+        vec![]
+    };
+    let mut doc = json!({
+        "asset": {
+            "version": "1.1",
+            "generator": concat!("splatbridge ", env!("CARGO_PKG_VERSION")),
+            "extras": {"splatbridge": {
+                "content": opts.content.name(),
+                "maxGaussiansPerTile": opts.max_per_tile,
+                "up": opts.convert.up.name(),
+                "khrCompression": opts.compression.name(),
+                "gaussians": report.gaussians,
+                "lodGaussians": report.lod_gaussians,
+                "invalidLeftOut": report.invalid_left_out,
+            }},
+        },
+        "geometricError": next_above(diag, root_error),
+        "root": root,
+    });
+    if !gltf_ext.is_empty() {
+        doc["extensionsUsed"] = json!(["3DTILES_content_gltf"]);
+        doc["extensions"] = json!({"3DTILES_content_gltf": {"extensionsUsed": gltf_ext, "extensionsRequired": required}});
+    }
+    let bytes =
+        serde_json::to_vec_pretty(&doc).map_err(|e| ConvertError::Invalid(e.to_string()))?;
+    set.write(&dir.join("tileset.json"), &bytes)?;
+    report.files += 1;
+    report.bytes += bytes.len() as u64;
+    set.commit()?;
+    Ok(report)
+}
+
+const IDENTITY4: [f64; 16] = [
+    1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0,
+];
