@@ -86,7 +86,7 @@ fn eevee_and_cycles_render_the_street_export_close_to_our_tracer() {
     }
 }
 
-/// The same check on a real capture: the first 5,000 Gaussians of `plant` (a cut keeps
+/// The same check on a real capture: the first 2,000 Gaussians of `plant` (a cut keeps
 /// Blender to about a minute), exported by `convert` with an orbit camera embedded, rendered
 /// by EEVEE and Cycles through it and by our tracer through the same embedded camera.
 #[test]
@@ -118,7 +118,7 @@ fn eevee_and_cycles_render_a_real_capture_close_to_our_tracer() {
         real.to_str().unwrap(),
         "--splats",
         "--first",
-        "5000",
+        "2000",
         "-o",
         &cut,
     ]);

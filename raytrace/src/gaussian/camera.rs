@@ -21,7 +21,7 @@ use glam::{DMat3, DVec3, Vec3};
 use splatbridge_scene::Camera;
 
 use super::{GaussianTracer, Part};
-use crate::backend::{build_boxes, Accel, EmptyAccel};
+use crate::backend::{build_boxes, fits_bvh, Accel, EmptyAccel};
 use crate::error::Result;
 use crate::footprint::{pad_for, Footprint, HitOrder};
 use crate::geom::transformed_box;
@@ -273,8 +273,15 @@ impl GaussianTracer {
             let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
             let mut boxes = Vec::with_capacity(part.boxes.len());
             let mut splats = Vec::new();
-            for (p, &b) in part.boxes.iter().enumerate() {
-                let (b, s) = grow(part, pi, p, b);
+            for (p, &own) in part.boxes.iter().enumerate() {
+                let (mut b, s) = grow(part, pi, p, own);
+                // A footprint so wide that the grown box leaves what an f32 BVH holds (a camera
+                // ~1e12 away, framing an outlier) covers far less than a pixel there: keep the
+                // Gaussian's own box rather than refuse the render (the tracer's own BVHs cull
+                // such boxes the same way, `Part::new`).
+                if !(fits_bvh(b.0) && fits_bvh(b.1)) {
+                    b = own;
+                }
                 lo = lo.min(b.0.as_dvec3() + part.anchor);
                 hi = hi.max(b.1.as_dvec3() + part.anchor);
                 boxes.push(b);
