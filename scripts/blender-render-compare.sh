@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Blender EEVEE and Cycles renders of a GLB export against native splatting, next to our
-# tracer on the same file: PSNR (scene::metrics, via the image_psnr example) and wall time.
+# tracer on the same file: PSNR (scene::metrics, via the image_stats example) and wall time.
 #
 # Usage: scripts/blender-render-compare.sh [SCENE] [--camera N] [--size WxH] [--samples N]
 #                                          [--time T] [--engines eevee,cycles] [--out DIR]
@@ -36,9 +36,9 @@ w=${size%x*}; h=${size#*x}
 if [[ -n $out ]]; then mkdir -p "$out"; else out=$(mktemp -d); trap 'rm -rf "$out"' EXIT; fi
 command -v blender >/dev/null || { echo "blender-render-compare: blender not found" >&2; exit 3; }
 
-(cd "$repo" && cargo build -q --release --bin splatbridge && cargo build -q --release -p splatbridge-convert --example image_psnr) >&2
+(cd "$repo" && cargo build -q --release --bin splatbridge && cargo build -q --release -p splatbridge-convert --example image_stats) >&2
 sb=$repo/target/release/splatbridge
-psnr=$repo/target/release/examples/image_psnr
+psnr=$repo/target/release/examples/image_stats
 
 if [[ -z $scene ]]; then
   "$sb" fixture street -o "$out/street" >/dev/null

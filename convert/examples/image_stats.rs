@@ -1,5 +1,5 @@
 //! PSNR between two PNG images of the same size (scene::metrics), for the render comparison
-//! scripts: `image_psnr A.png B.png` prints one JSON line with the PSNR (dB, RGB in [0, 1]),
+//! scripts: `image_stats A.png B.png` prints one JSON line with the PSNR (dB, RGB in [0, 1]),
 //! the mean of each image and the mean signed difference A − B.
 
 use splatbridge_scene::image_io::load_png;
@@ -8,7 +8,7 @@ use splatbridge_scene::metrics;
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     if args.len() != 3 {
-        eprintln!("usage: image_psnr A.png B.png");
+        eprintln!("usage: image_stats A.png B.png");
         std::process::exit(2);
     }
     let load = |p: &str| {
