@@ -106,6 +106,11 @@ export async function render(url, o) {
   });
   widget.resolutionScale = 1;
   widget.useBrowserRecommendedResolution = false;
+  // Without Cesium's widget CSS the canvas keeps the browser's default 300×150 CSS size, and
+  // the widget sizes its drawing buffer from that: give the canvas the requested size.
+  widget.canvas.style.width = o.width + "px";
+  widget.canvas.style.height = o.height + "px";
+  widget.resize();
   const scene = widget.scene;
   scene.backgroundColor = C.Color.BLACK;
   scene.highDynamicRange = false;

@@ -300,8 +300,12 @@ fn script(name: &str) -> PathBuf {
         .join(name)
 }
 
+/// CesiumJS renders the splat tileset through a stated camera; Babylon.js renders the same
+/// Gaussians as one `KHR_gaussian_splatting` file through the same camera; both are measured
+/// against native splatting of the whole scene, and CesiumJS must stay within 1 dB of
+/// Babylon.js (the tiles goal).
 #[test]
-#[ignore = "unfinished: CesiumJS loads and renders the tileset but its canvas comes out 300×150 (the default canvas size), not the requested size; the PSNR floor is not measured yet"]
+#[ignore = "unfinished: CesiumJS draws the tileset at the requested size now, but misplaced (the content sits at the left edge): 20.6 dB against native where Babylon.js scores 31.0 dB on the same Gaussians and camera"]
 fn cesium_renders_the_splat_tileset_close_to_native() {
     use splatbridge_scene::camera::Camera;
     let dir = tempfile::tempdir().unwrap();
@@ -337,12 +341,40 @@ fn cesium_renders_the_splat_tileset_close_to_native() {
         .status()
         .unwrap();
     assert!(st.success(), "CesiumJS failed");
+    // The same Gaussians as one float KHR file with the camera embedded, in Babylon.js.
+    let mut one = scene.clone();
+    one.cameras = vec![cam];
+    let khr = dir.path().join("one.glb");
+    splatbridge_convert::splats_gltf::write_file_with(
+        &khr,
+        &one,
+        &Default::default(),
+        KhrCompression::None,
+    )
+    .unwrap();
+    let bab = dir.path().join("babylon.png");
+    let st = Command::new(script("client-render.sh"))
+        .args(["babylon", khr.to_str().unwrap(), bab.to_str().unwrap()])
+        .args(["--camera", "0", "--size", "320x240"])
+        .status()
+        .unwrap();
+    assert!(st.success(), "Babylon.js failed");
     let a = splatbridge_scene::image_io::load_png(&native_png).unwrap();
     let b = splatbridge_scene::image_io::load_png(&out).unwrap();
+    assert_eq!((b.width, b.height), (w, h), "CesiumJS image size");
     let p = splatbridge_scene::metrics::psnr(&a, &b).unwrap();
+    let pb =
+        splatbridge_scene::metrics::psnr(&a, &splatbridge_scene::image_io::load_png(&bab).unwrap())
+            .unwrap();
+    println!("CesiumJS tileset {p:.2} dB, Babylon.js one KHR file {pb:.2} dB against native");
     assert!(
         p >= CESIUM_FLOOR,
         "CesiumJS tileset {p:.2} dB against native"
+    );
+    // The goal: CesiumJS within 1 dB of Babylon.js on the same Gaussians and camera.
+    assert!(
+        p >= pb - 1.0,
+        "CesiumJS {p:.2} dB is more than 1 dB below Babylon.js's {pb:.2} dB"
     );
 }
 
