@@ -435,6 +435,33 @@ pub fn reference_frames(cloud: &GaussianCloud, cameras: &[Camera]) -> anyhow::Re
         .collect()
 }
 
+/// Export `opts` of the sweep's cloud, read the file back and trace it through every sweep
+/// camera with `trace`, handing each image to `push` (frame, reference, ms, camera, triangles,
+/// bytes). The `trace-mesh` rows of both mesh settings.
+fn trace_sweep_mesh(
+    s: &Sweep<'_>,
+    cfg: &CompareConfig,
+    index: usize,
+    opts: &ConvertOptions,
+    trace: TraceOptions,
+    push: &mut impl FnMut(&Frame, &Frame, f64, &Camera, u64, u64) -> anyhow::Result<()>,
+) -> anyhow::Result<&'static str> {
+    let path = s.work_dir.join(format!("sweep_{index}.glb"));
+    let mut m = parity::export_and_load(
+        &DynamicScene::from_static(s.cloud.clone()),
+        opts,
+        &path,
+        cfg.backend,
+        cfg.preset,
+    )?;
+    for (c, reference) in s.cameras.iter().zip(s.references) {
+        let img = parity::render_mesh_with(&mut m, c, 0.0, trace.clone())?;
+        push(&img.frame, reference, img.ms, c, m.triangles, m.bytes)?;
+    }
+    let _ = std::fs::remove_file(&path);
+    Ok("trace-mesh")
+}
+
 /// Measure one setting at every camera: one record (the first camera's, with PSNR and
 /// milliseconds the means over cameras). `index` names its temporary files.
 pub fn measure_setting(
@@ -480,20 +507,11 @@ pub fn measure_setting(
     let views = s.cameras.iter().zip(s.references);
     let renderer = match setting {
         Setting::Mesh(opts, k) => {
-            let path = s.work_dir.join(format!("sweep_{index}.glb"));
-            let mut m = parity::export_and_load(
-                &DynamicScene::from_static(s.cloud.clone()),
-                opts,
-                &path,
-                cfg.backend,
-                cfg.preset,
-            )?;
-            for (c, reference) in views {
-                let img = parity::render_mesh(&mut m, c, 0.0, *k)?;
-                push(&img.frame, reference, img.ms, c, m.triangles, m.bytes)?;
-            }
-            let _ = std::fs::remove_file(&path);
-            "trace-mesh"
+            let o = TraceOptions {
+                k: *k,
+                ..TraceOptions::default()
+            };
+            trace_sweep_mesh(s, &cfg, index, opts, o, &mut push)?
         }
         Setting::Native(o) => {
             for (c, reference) in views {
@@ -519,22 +537,7 @@ pub fn measure_setting(
             }
             "native"
         }
-        Setting::MeshWith(opts, o) => {
-            let path = s.work_dir.join(format!("sweep_{index}.glb"));
-            let mut m = parity::export_and_load(
-                &DynamicScene::from_static(s.cloud.clone()),
-                opts,
-                &path,
-                cfg.backend,
-                cfg.preset,
-            )?;
-            for (c, reference) in views {
-                let img = parity::render_mesh_with(&mut m, c, 0.0, o.clone())?;
-                push(&img.frame, reference, img.ms, c, m.triangles, m.bytes)?;
-            }
-            let _ = std::fs::remove_file(&path);
-            "trace-mesh"
-        }
+        Setting::MeshWith(opts, o) => trace_sweep_mesh(s, &cfg, index, opts, o.clone(), &mut push)?,
         Setting::Gaussian(o) => {
             let tracer = GaussianTracer::new(s.cloud.clone(), cfg.backend, cfg.preset)?;
             let mut r = crate::pipeline::Renderer::Gaussian {

@@ -4,22 +4,35 @@
 //! runtime costs: code pages faulted in on first use, thread stacks, per-thread malloc arenas.
 //! On small clouds those fixed costs weigh as much as the data, and they do not grow with it.
 //!
-//! The counters are relaxed atomics: one `fetch_add`/`fetch_sub` and one `fetch_max` per
-//! allocation. The binary installs it (`main.rs`); library users and tests that do not see
-//! counters of zero.
+//! Counting is off until [`enable`] (only `bench` turns it on), so every other command's
+//! allocations, the renderers' worker threads included, pay one relaxed load of a flag that
+//! never changes under them, not a contended `fetch_max`. The binary installs it (`main.rs`);
+//! library users and tests that do not see counters of zero.
 
 use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
+use std::sync::atomic::{AtomicBool, AtomicIsize, Ordering::Relaxed};
 
-static CURRENT: AtomicUsize = AtomicUsize::new(0);
-static PEAK: AtomicUsize = AtomicUsize::new(0);
+static ENABLED: AtomicBool = AtomicBool::new(false);
+// Signed: blocks allocated before `enable` are freed after it, so the count of bytes
+// allocated since then may go below zero; differences and peaks stay right.
+static CURRENT: AtomicIsize = AtomicIsize::new(0);
+static PEAK: AtomicIsize = AtomicIsize::new(0);
 
 /// The system allocator, counted.
 pub struct Counting;
 
 fn grew(by: usize) {
-    let now = CURRENT.fetch_add(by, Relaxed) + by;
-    PEAK.fetch_max(now, Relaxed);
+    if ENABLED.load(Relaxed) {
+        let by = by as isize;
+        let now = CURRENT.fetch_add(by, Relaxed) + by;
+        PEAK.fetch_max(now, Relaxed);
+    }
+}
+
+fn shrank(by: usize) {
+    if ENABLED.load(Relaxed) {
+        CURRENT.fetch_sub(by as isize, Relaxed);
+    }
 }
 
 // SAFETY: every method forwards to `System` with the caller's arguments unchanged, so the
@@ -46,7 +59,7 @@ unsafe impl GlobalAlloc for Counting {
     unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
         // SAFETY: forwarded unchanged (see the impl's note).
         unsafe { System.dealloc(ptr, layout) };
-        CURRENT.fetch_sub(layout.size(), Relaxed);
+        shrank(layout.size());
     }
 
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
@@ -56,20 +69,26 @@ unsafe impl GlobalAlloc for Counting {
             if new_size >= layout.size() {
                 grew(new_size - layout.size());
             } else {
-                CURRENT.fetch_sub(layout.size() - new_size, Relaxed);
+                shrank(layout.size() - new_size);
             }
         }
         p
     }
 }
 
-/// Heap bytes allocated now (0 when [`Counting`] is not the global allocator).
-pub fn current() -> usize {
+/// Start counting (from zero bytes): what follows is measured by [`current`] and [`peak`].
+pub fn enable() {
+    ENABLED.store(true, Relaxed);
+}
+
+/// Heap bytes allocated since [`enable`], net of those freed (0 when [`Counting`] is not the
+/// global allocator or counting is off).
+pub fn current() -> isize {
     CURRENT.load(Relaxed)
 }
 
-/// The most heap bytes held at once since the last [`reset_peak`].
-pub fn peak() -> usize {
+/// The most of [`current`] at once since the last [`reset_peak`].
+pub fn peak() -> isize {
     PEAK.load(Relaxed)
 }
 

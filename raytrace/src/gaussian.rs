@@ -251,12 +251,17 @@ impl Part {
         if !(d2 <= self.r2[p]) {
             return None;
         }
-        let alpha = (self.opacity[p] * (-0.5 * d2).exp()).min(0.99);
-        if !(alpha >= 1.0 / 255.0) {
-            return None;
-        }
+        let alpha = self.alpha(p, d2)?;
         let t = (-og.dot(dg) / dd).max(0.0) + 0.0;
         t.is_finite().then_some((t, alpha))
+    }
+
+    /// Proxy `p`'s α at squared Mahalanobis distance `q` from its mean: the rasterizer's
+    /// clamp at 0.99 and cut below 1/255 (None).
+    #[inline]
+    pub(crate) fn alpha(&self, p: usize, q: f32) -> Option<f32> {
+        let alpha = (self.opacity[p] * (-0.5 * q).exp()).min(0.99);
+        (alpha >= 1.0 / 255.0).then_some(alpha)
     }
 }
 

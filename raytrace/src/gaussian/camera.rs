@@ -110,10 +110,7 @@ impl Part {
         if !(q <= self.r2[p]) {
             return None;
         }
-        let alpha = (self.opacity[p] * (-0.5 * q).exp()).min(0.99);
-        if !(alpha >= 1.0 / 255.0) {
-            return None;
-        }
+        let alpha = self.alpha(p, q)?;
         let t = (-og.dot(dg) / dd).max(0.0) + 0.0;
         let (t0, t1) = slab(o, d, bx);
         let t = if t0 <= t1 {
@@ -151,10 +148,8 @@ impl Part {
         if !(power <= 0.0) {
             return None;
         }
-        let alpha = (self.opacity[p] * power.exp()).min(0.99);
-        if !(alpha >= 1.0 / 255.0) {
-            return None;
-        }
+        // −2·power is exact, so −½ of it is `power` again, bit for bit.
+        let alpha = self.alpha(p, -2.0 * power)?;
         let t = (self.mean[p] - o).dot(fp.forward) / d.dot(fp.forward);
         (t.is_finite() && t >= 0.0).then_some((t, alpha))
     }

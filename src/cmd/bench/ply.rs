@@ -15,6 +15,7 @@ use std::time::Instant;
 
 use anyhow::Context;
 use splatbridge::heap;
+use splatbridge::memory::proc_status_bytes;
 use splatbridge_scene::formats::{compressed_ply, load_cloud, splat, spz};
 use splatbridge_scene::ply::ReadOptions;
 use splatbridge_scene::GaussianCloud;
@@ -55,8 +56,6 @@ fn encode(c: &GaussianCloud, e: EncodeArg) -> anyhow::Result<usize> {
     })
 }
 
-use splatbridge::memory::proc_status_bytes;
-
 /// Bytes held by the cloud's arrays (its "Gaussian data").
 pub fn cloud_bytes(c: &GaussianCloud) -> u64 {
     use std::mem::size_of_val;
@@ -83,6 +82,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     drop(cloud);
     let mut times = Vec::with_capacity(args.repeat.max(1));
     // The most any one load held on the heap above what was allocated before it.
+    heap::enable();
     let mut heap_peak = 0usize;
     for _ in 0..args.repeat.max(1) {
         let base = heap::current();
@@ -90,7 +90,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let t = Instant::now();
         let loaded = load_cloud(&args.file, &opts)?;
         times.push(t.elapsed().as_secs_f64());
-        heap_peak = heap_peak.max(heap::peak().saturating_sub(base));
+        heap_peak = heap_peak.max((heap::peak() - base).max(0) as usize);
         drop(loaded);
     }
     let heap_ratio = heap_peak as f64 / data.max(1) as f64;
