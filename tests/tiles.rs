@@ -378,6 +378,8 @@ fn cesium_renders_the_splat_tileset_close_to_native() {
     );
 }
 
-/// Measured on this scene and camera with CesiumJS 1.145 on SwiftShader: see docs/tiles.md.
+/// Not a measured floor: CesiumJS 1.145 on SwiftShader scores 20.6 dB here with its image
+/// misplaced (docs/tiles.md), so this only catches a blank image; the gate that matters is
+/// the 1 dB to Babylon.js below, which fails today and keeps the test ignored.
 #[cfg_attr(not(web_clients), allow(dead_code))]
 const CESIUM_FLOOR: f64 = 20.0;
