@@ -193,6 +193,31 @@ impl GaussianCloud {
         }
     }
 
+    /// A conservative screen for [`Self::invalid_reason`]: false means no Gaussian is
+    /// invalid, true means some may be (the per-Gaussian pass then decides). One pass over
+    /// each array with no early exit and only integer ORs, so it runs at memory speed: a float
+    /// is ±∞ or NaN exactly when its 8 exponent bits are all ones (IEEE 754 binary32).
+    pub fn may_have_invalid(&self) -> bool {
+        const EXP: u32 = 0x7f80_0000;
+        // Over flat f32 slices, so the compare-and-OR vectorises.
+        let any = |v: &[f32]| v.iter().fold(false, |a, x| a | (x.to_bits() & EXP == EXP));
+        // ±∞ opacity logits are valid; NaN is not.
+        let opacity = self
+            .opacity_logits
+            .iter()
+            .fold(false, |a, &o| a | o.is_nan());
+        let zero_rotation = self
+            .rotations
+            .iter()
+            .fold(false, |a, q| a | (q.length_squared() == 0.0));
+        any(bytemuck::cast_slice(&self.means))
+            || any(bytemuck::cast_slice(&self.log_scales))
+            || any(bytemuck::cast_slice(&self.sh))
+            || any(bytemuck::cast_slice(&self.rotations))
+            || opacity
+            || zero_rotation
+    }
+
     /// Why Gaussian `i` is invalid under the project's policy, if it is: NaN in any value,
     /// infinite means/log-scales/SH, or a zero (or non-finite) quaternion. ±inf opacity logits
     /// are valid (fully opaque / fully transparent); so are tiny log-scales such as −23.
@@ -353,5 +378,55 @@ mod tests {
         );
         assert_eq!(a.invalid_reason(0), Some("zero quaternion"));
         assert_eq!(a.unit_rotation(0), Quat::IDENTITY);
+    }
+
+    /// The screen against the per-Gaussian rule it stands in for: every poisoned value in
+    /// every array is caught (no false negative), and a clean cloud (±∞ opacities included,
+    /// which are valid) is not flagged.
+    #[test]
+    fn invalid_screen_never_misses_what_the_per_gaussian_rule_finds() {
+        let clean = || {
+            let mut a = GaussianCloud::new(1);
+            for i in 0..9 {
+                a.push_activated(
+                    Vec3::new(i as f32, -1.0, 2.0),
+                    Vec3::splat(0.1),
+                    Quat::from_rotation_y(i as f32),
+                    0.5,
+                    Vec3::new(0.2, 0.3, 0.4),
+                );
+            }
+            a.opacity_logits[1] = f32::INFINITY;
+            a.opacity_logits[2] = f32::NEG_INFINITY;
+            a
+        };
+        let base = clean();
+        assert!((0..base.len()).all(|i| base.invalid_reason(i).is_none()));
+        assert!(!base.may_have_invalid());
+        let bad_values = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY];
+        type Poison = fn(&mut GaussianCloud, usize, f32);
+        let poisons: [Poison; 7] = [
+            |c, i, x| c.means[i].y = x,
+            |c, i, x| c.log_scales[i].z = x,
+            |c, i, x| c.rotations[i].w = x,
+            |c, i, x| c.opacity_logits[i] = x,
+            |c, i, x| c.sh[i * 4 + 3].x = x,
+            |c, i, _| c.rotations[i] = Quat::from_xyzw(0.0, 0.0, 0.0, 0.0),
+            |c, i, x| c.means[i] = Vec3::new(x, -x, 0.0),
+        ];
+        for poison in poisons {
+            for x in bad_values {
+                for i in [0, 4, 8] {
+                    let mut c = clean();
+                    poison(&mut c, i, x);
+                    if c.invalid_reason(i).is_some() {
+                        assert!(
+                            c.may_have_invalid(),
+                            "missed Gaussian {i} poisoned with {x}"
+                        );
+                    }
+                }
+            }
+        }
     }
 }

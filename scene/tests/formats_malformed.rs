@@ -134,6 +134,21 @@ fn cases() -> Vec<(String, Vec<u8>, &'static str)> {
     // The first table entry's uncompressed size (bytes 40..48): 300·9 = 2700 → 2701.
     v4_size[40..48].copy_from_slice(&2701u64.to_le_bytes());
     add("spz_v4_stream_size.spz", v4_size, "need 2700");
+    // The positions stream replaced by a zstd frame that asks for a 2 GiB window: refused
+    // before the decoder allocates it (`v4_with_first_stream`'s control test loads the
+    // same frame with a small window).
+    add(
+        "spz_v4_window_bomb.spz",
+        v4_with_first_stream(&v4, &raw_zstd_frame(21, &[7u8; 2700])),
+        "stream 0 does not decompress",
+    );
+    let mut not_zstd = raw_zstd_frame(2, &[7u8; 2700]);
+    not_zstd[0] ^= 0xff;
+    add(
+        "spz_v4_not_zstd.spz",
+        v4_with_first_stream(&v4, &not_zstd),
+        "stream 0 is not zstd",
+    );
 
     // --- .splat ---
     let ok = splat_record([0.1, 0.2, 0.3], [0.01, 0.02, 0.03], [255, 128, 128, 128]);
@@ -257,6 +272,47 @@ fn cases() -> Vec<(String, Vec<u8>, &'static str)> {
         "element 'sh'",
     );
     v
+}
+
+/// A zstd frame (RFC 8878 §3.1.1) holding `data` as one raw block, with no content size, so
+/// its Window_Descriptor decides the window: 2^(10 + `exponent`) bytes.
+fn raw_zstd_frame(exponent: u8, data: &[u8]) -> Vec<u8> {
+    let mut f = vec![0x28, 0xb5, 0x2f, 0xfd, 0x00, exponent << 3];
+    // Block header: last block, raw, its size (little-endian, 3 bytes).
+    let h = 1 | ((data.len() as u32) << 3);
+    f.extend_from_slice(&h.to_le_bytes()[..3]);
+    f.extend_from_slice(data);
+    f
+}
+
+/// `v4` (an SPZ version-4 file) with its first stream replaced and the table of contents
+/// updated to the new stream's compressed size.
+fn v4_with_first_stream(v4: &[u8], first: &[u8]) -> Vec<u8> {
+    let u64_at = |o: usize| u64::from_le_bytes(v4[o..o + 8].try_into().unwrap()) as usize;
+    let toc = u32::from_le_bytes(v4[16..20].try_into().unwrap()) as usize;
+    let toc_end = toc + 16 * v4[15] as usize;
+    let old = u64_at(toc);
+    let mut out = v4[..toc_end].to_vec();
+    out[toc..toc + 8].copy_from_slice(&(first.len() as u64).to_le_bytes());
+    out.extend_from_slice(first);
+    out.extend_from_slice(&v4[toc_end + old..]);
+    out
+}
+
+/// The control for the window and magic cases: the same hand-made frame with a 4 KiB window
+/// loads, so those files fail for the reason they name, not for a malformed frame.
+#[test]
+fn a_hand_made_zstd_stream_with_a_small_window_loads() {
+    let v4 = std::fs::read(fixtures().join("cut300.spz")).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("small_window.spz");
+    std::fs::write(
+        &path,
+        v4_with_first_stream(&v4, &raw_zstd_frame(2, &[7u8; 2700])),
+    )
+    .unwrap();
+    let (scene, _) = load(&path, &ReadOptions::default()).unwrap();
+    assert_eq!(scene.static_gaussians.len(), 300);
 }
 
 #[test]

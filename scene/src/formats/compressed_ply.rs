@@ -176,11 +176,12 @@ fn parse_header(bytes: &[u8], path: &Path) -> Result<(Vec<Element>, usize)> {
     Ok((elements, end))
 }
 
-/// Read a compressed PLY file.
-pub fn read_compressed_ply(path: &Path) -> Result<GaussianCloud> {
+/// Read a compressed PLY file. The flag is the decoder's validity screen (see
+/// [`decode_screened`]): false when no Gaussian can be invalid.
+pub fn read_compressed_ply(path: &Path) -> Result<(GaussianCloud, bool)> {
     // 2^32 Gaussians of 16 bytes plus their chunks and SH bound any real file.
     let bytes = read_file_capped(path, 1 << 40)?;
-    decode_compressed_ply(&bytes, path)
+    decode_screened(&bytes, path)
 }
 
 fn f32_at(b: &[u8], o: usize) -> f32 {
@@ -221,6 +222,21 @@ fn lerp(a: f32, b: f32, t: f32) -> f32 {
 
 /// Decode a compressed PLY held in memory.
 pub fn decode_compressed_ply(bytes: &[u8], path: &Path) -> Result<GaussianCloud> {
+    decode_screened(bytes, path).map(|(cloud, _)| cloud)
+}
+
+/// Chunk bounds at most this large in magnitude cannot overflow when interpolated: a convex
+/// combination stays within its ends, up to the last bit's rounding, which only matters
+/// within an ulp of `f32::MAX`.
+const SAFE_BOUND: f32 = f32::MAX / 2.0;
+
+/// [`decode_compressed_ply`], with a conservative validity flag that saves the loader a
+/// pass over the decoded cloud: every value is interpolated between finite chunk bounds
+/// (checked below), SH come from bytes, and a smallest-three quaternion never has zero
+/// length (its largest component is √(1 − the others' squares) when they sum below one).
+/// So only bounds near `f32::MAX`, whose interpolation could round to ±∞, make a Gaussian
+/// suspect. Debug builds check the claim against the per-Gaussian rule on every load.
+pub fn decode_screened(bytes: &[u8], path: &Path) -> Result<(GaussianCloud, bool)> {
     let bad = |what: String| SceneError::format(path, what);
     let (elements, header_len) = parse_header(bytes, path)?;
     let find = |name: &str| elements.iter().position(|e| e.name == name);
@@ -324,6 +340,7 @@ pub fn decode_compressed_ply(bytes: &[u8], path: &Path) -> Result<GaussianCloud>
     };
 
     // Chunk bounds: read and check once per chunk.
+    let mut suspect = false;
     let cstride = chunk.stride();
     let mut bounds: Vec<[f32; 18]> = Vec::with_capacity(need_chunks as usize);
     for c in 0..need_chunks as usize {
@@ -351,6 +368,7 @@ pub fn decode_compressed_ply(bytes: &[u8], path: &Path) -> Result<GaussianCloud>
                 b[j]
             )));
         }
+        suspect |= b.iter().any(|v| v.abs() > SAFE_BOUND);
         bounds.push(b);
     }
 
@@ -401,7 +419,7 @@ pub fn decode_compressed_ply(bytes: &[u8], path: &Path) -> Result<GaussianCloud>
                 .extend((0..kr).map(|c| Vec3::new(v(c), v(kr + c), v(2 * kr + c))));
         }
     }
-    Ok(cloud)
+    Ok((cloud, suspect))
 }
 
 fn pack_unorm(v: f32, bits: u32) -> u32 {

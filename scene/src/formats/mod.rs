@@ -425,12 +425,19 @@ fn read_single(
     format: &mut SplatFormat,
     opts: &ReadOptions,
 ) -> Result<(GaussianCloud, Vec<String>)> {
+    // `screened`: the decoder's own validity flag where it has one (false: no Gaussian can be
+    // invalid), else None and the generic screen runs over the decoded arrays.
+    let mut screened = None;
     let (mut cloud, mut warnings) = match *format {
         SplatFormat::Ply => {
             let (cloud, report) = read_ply(path, opts)?;
             return Ok((cloud, report.warnings));
         }
-        SplatFormat::CompressedPly => (compressed_ply::read_compressed_ply(path)?, Vec::new()),
+        SplatFormat::CompressedPly => {
+            let (cloud, suspect) = compressed_ply::read_compressed_ply(path)?;
+            screened = Some(suspect);
+            (cloud, Vec::new())
+        }
         SplatFormat::Splat => (splat::read_splat(path)?, Vec::new()),
         SplatFormat::Spz { .. } => spz::read_spz(path)?,
         SplatFormat::Sog { .. } => {
@@ -446,7 +453,8 @@ fn read_single(
         }
     };
     let mut report = crate::ply::ReadReport::default();
-    crate::ply::validate(&mut cloud, true, path, opts, &mut report)?;
+    let suspect = screened.unwrap_or_else(|| cloud.may_have_invalid());
+    crate::ply::validate(&mut cloud, suspect, path, opts, &mut report)?;
     warnings.append(&mut report.warnings);
     Ok((cloud, warnings))
 }

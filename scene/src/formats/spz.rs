@@ -19,7 +19,7 @@
 //! table of contents, 12 reserved bytes), optional extension records, the table of contents
 //! (per stream: compressed and uncompressed size, u64 each) and the same six attribute planes
 //! as separate zstd streams (empty planes, such as SH at degree 0, are left out). It is read
-//! (pure-Rust `ruzstd`), not written: version 3 is what every reader decodes. SPZ stores the RUB axis convention (x right, y up, z back; OpenGL, three.js),
+//! (the reference C `libzstd`), not written: version 3 is what every reader decodes. SPZ stores the RUB axis convention (x right, y up, z back; OpenGL, three.js),
 //! the 3DGS PLY RDF (x right, y down, z forward): reading and writing flip y and z — positions,
 //! the quaternion's y and z parts, and every SH coefficient odd in y·z ([`SH_FLIP`]) — so a
 //! scene read from SPZ lines up with the PLY it came from. SH degree 4 (allowed by v3) is cut
@@ -29,7 +29,7 @@
 //! checked against what the compressed size can hold (deflate expands at most 1032:1) before
 //! anything is allocated, and the stream is read through `Read::take` with that size.
 
-use std::io::{BufReader, Read, Seek, SeekFrom, Write};
+use std::io::{BufRead, BufReader, Read, Seek, SeekFrom, Write};
 use std::path::Path;
 
 use flate2::read::GzDecoder;
@@ -392,9 +392,21 @@ fn decode_v4<R: Read + Seek + Send>(
                 ))
             })?;
         src.seek(SeekFrom::Start(at)).map_err(io_err)?;
-        let stream = BufReader::with_capacity(1 << 16, (&mut src).take(csize));
-        let dec_z = ruzstd::decoding::StreamingDecoder::new(stream)
-            .map_err(|e| bad(format!("SPZ v4 stream {k} is not zstd: {e}")))?;
+        let mut stream = BufReader::with_capacity(1 << 16, (&mut src).take(csize));
+        // Checked here rather than left to the decoder, whose error for a wrong magic is a
+        // bare "Unknown frame descriptor".
+        if !stream.fill_buf().map_err(io_err)?.starts_with(&ZSTD_MAGIC) {
+            return Err(bad(format!(
+                "SPZ v4 stream {k} is not zstd (no zstd frame magic)"
+            )));
+        }
+        let mut dec_z = zstd::stream::read::Decoder::with_buffer(stream)
+            .map_err(|e| bad(format!("SPZ v4 stream {k}: zstd decoder: {e}")))?;
+        // A frame may declare a window of up to 2 GiB, which the decoder would allocate
+        // before producing a byte (a cheap bomb). No window need exceed the plane itself.
+        dec_z
+            .window_log_max(window_log_for(want))
+            .map_err(|e| bad(format!("SPZ v4 stream {k}: zstd decoder: {e}")))?;
         let before = dec.got;
         let short = |got: u64| {
             bad(format!(
@@ -437,6 +449,18 @@ fn decode_v4<R: Read + Seek + Send>(
         warnings.push(SH4_WARNING.into());
     }
     Ok((dec.finish(), warnings))
+}
+
+/// The zstd frame magic number (RFC 8878, section 3.1.1), little-endian.
+const ZSTD_MAGIC: [u8; 4] = [0x28, 0xb5, 0x2f, 0xfd];
+
+/// The largest zstd window (as log₂ bytes) accepted for a stream of `want` decompressed
+/// bytes. A window never has to exceed the content, but an encoder that streams without
+/// knowing the size declares its level's window (2²³ up to level 19), so that is the floor;
+/// 2²⁷ (libzstd's own default limit) is the ceiling, so no file can ask for more.
+fn window_log_for(want: u64) -> u32 {
+    let bits = 64 - want.max(1).saturating_sub(1).leading_zeros();
+    bits.clamp(23, 27)
 }
 
 fn decode_gzip<R: Read + Send>(
