@@ -64,6 +64,7 @@ fn street_exports_are_validator_clean() {
             min_opacity: 0.0,
             max_flatness: f32::MAX,
             segments: 6,
+            guarded: false,
         }),
         ..Default::default()
     };
