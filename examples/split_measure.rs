@@ -7,7 +7,8 @@
 //! each configuration of `CONFIGS`, a comma-separated list of `SPLIT:BLEND` (SPLIT `unguarded`,
 //! the split before the guards, or `guarded`, the default; BLEND `sorted` or `unsorted`) or
 //! `auto` (`--split auto`: split and blend measured), and prints one line per (scene, rig,
-//! camera, configuration): PSNR, surfels, the guard counts, the split and render milliseconds.
+//! camera, configuration); `SPLIT:BLEND:eps=F:fp=S` also sets the ε factor and the surfel
+//! footprint in σ): PSNR, surfels, the guard counts, the split and render milliseconds.
 //! The worst camera of each (scene, configuration) is written as PNGs (native, hybrid) into
 //! `OUT_DIR` for a person to look at.
 //!
@@ -56,12 +57,28 @@ fn run(args: &[String]) -> anyhow::Result<()> {
                 eprint!("{name}: {}", auto.summary());
                 eprintln!("{name}: auto in {:.0} ms", t0.elapsed().as_secs_f64() * 1e3);
                 let label = format!("auto ({})", blend_name(auto.blend()));
-                splits.push((label, auto.params(), auto.blend()));
+                let o = GesOptions {
+                    blend: auto.blend(),
+                    ..ges
+                };
+                splits.push((label, auto.params(), o));
                 continue;
             }
-            let (split, blend) = c
-                .split_once(':')
-                .ok_or_else(|| anyhow::anyhow!("'{c}': expected SPLIT:BLEND or auto"))?;
+            let mut fields = c.split(':');
+            let (split, blend) = (
+                fields.next().unwrap_or_default(),
+                fields
+                    .next()
+                    .ok_or_else(|| anyhow::anyhow!("'{c}': expected SPLIT:BLEND or auto"))?,
+            );
+            let mut o = ges;
+            for f in fields {
+                match f.split_once('=') {
+                    Some(("eps", v)) => o.epsilon_factor = v.parse()?,
+                    Some(("fp", v)) => o.footprint_sigmas = v.parse()?,
+                    _ => anyhow::bail!("'{f}': eps=F or fp=S"),
+                }
+            }
             let p = match split {
                 "unguarded" => SplitParams::unguarded(d.min_opacity, d.max_flatness),
                 "guarded" => d,
@@ -73,7 +90,7 @@ fn run(args: &[String]) -> anyhow::Result<()> {
                 "unsorted" => Blend::Unsorted,
                 _ => anyhow::bail!("'{blend}': sorted or unsorted"),
             };
-            splits.push((c.clone(), p, b));
+            splits.push((c.clone(), p, GesOptions { blend: b, ..o }));
         }
         let mut cams = Vec::new();
         for &n in &rigs {
@@ -98,12 +115,11 @@ fn run(args: &[String]) -> anyhow::Result<()> {
             .iter()
             .map(|(_, _, c)| Ok(render(&cloud, c, &nopts)?.0))
             .collect::<anyhow::Result<_>>()?;
-        for (label, p, blend) in splits {
+        for (label, p, opts) in splits {
             let ts = std::time::Instant::now();
             let (s, g, k) = split_counted(&cloud, &p);
             let split_ms = ts.elapsed().as_secs_f64() * 1e3;
             let mut worst: Option<(f64, usize, Frame)> = None;
-            let opts = GesOptions { blend, ..ges };
             for (ci, ((n, i, cam), reference)) in cams.iter().zip(&natives).enumerate() {
                 let tr = std::time::Instant::now();
                 let (img, _) = render_ges(&s, &g, cam, &opts)?;

@@ -6,8 +6,8 @@
 //! one with the best worst view is kept and the choice says so.
 //!
 //! "Cheapest" is the hybrid's counted work summed over the views (pixel–Gaussian blends plus
-//! tile–Gaussian pairs, which its blending and binning time follow, plus the Gaussians the
-//! sorted blend sorts), not the measured
+//! tile–Gaussian pairs, which its blending and binning time follow; a sorted blend counts
+//! 5/2, its measured cost, and the Gaussians it sorts are added), not the measured
 //! milliseconds: the counters make the choice the same on every run and under any load, and
 //! the measured times are reported beside them. The cost of choosing (wall milliseconds, views,
 //! renders) is part of the result, so a caller can report it.
@@ -52,6 +52,12 @@ impl Default for AutoConfig {
         }
     }
 }
+
+/// Cost of one sorted blend in unsorted blends, times 2: the sorted pass's tile loop (native's,
+/// with the transmittance chain and its masked lanes) measured 2.4–2.5× the unsorted pass's
+/// time per counted blend at 1080p (`bench hybrid`, `fourth_st` 53.7 / 21.6 ns, `plant`
+/// 70.7 / 29.3 ns; `docs/blend.md`), so a sorted blend counts as 5/2 unsorted ones.
+const SORTED_BLEND_COST: u64 = 5;
 
 /// One rung of the ladder, measured.
 #[derive(Clone, Debug)]
@@ -181,7 +187,12 @@ pub fn choose_from(
             for (cam, reference) in cams.iter().zip(&native) {
                 let (img, st) = render_ges(&s, &g, cam, &opts)?;
                 psnrs.push(psnr(reference, &img)?);
-                work += st.blends + st.tile_pairs + st.sorted as u64;
+                work += match blend {
+                    Blend::Unsorted => st.blends + st.tile_pairs,
+                    Blend::Sorted => {
+                        SORTED_BLEND_COST * st.blends / 2 + st.tile_pairs + st.sorted as u64
+                    }
+                };
             }
             let worst = psnrs.iter().copied().fold(f64::INFINITY, f64::min);
             candidates.push(Candidate {

@@ -61,16 +61,17 @@ fn hybrid(out: &Path, knobs: &[&str]) -> Value {
 fn hybrid_blend_knob_reaches_the_renderer() {
     let dir = temp_dir("hybrid");
     let (s, u) = (dir.join("s.png"), dir.join("u.png"));
-    let js = hybrid(&s, &[]);
-    let ju = hybrid(&u, &["--blend", "unsorted"]);
-    assert_eq!(js["knobs"]["blend"], "sorted", "the default");
-    assert_eq!(ju["knobs"]["blend"], "unsorted");
+    let js = hybrid(&s, &["--blend", "sorted"]);
+    let ju = hybrid(&u, &[]);
+    assert_eq!(js["knobs"]["blend"], "sorted");
+    assert_eq!(ju["knobs"]["blend"], "unsorted", "the default");
     // Only the sorted blend sorts.
     assert!(js["stats"]["sorted"].as_u64().unwrap() > 0);
     assert_eq!(ju["stats"]["sorted"], 0);
     assert_ne!(std::fs::read(&s).unwrap(), std::fs::read(&u).unwrap());
-    let js2 = hybrid(&dir.join("s2.png"), &["--blend", "sorted"]);
-    assert_eq!(js2["knobs"]["blend"], "sorted");
+    let ju2 = hybrid(&dir.join("u2.png"), &["--blend", "unsorted"]);
+    assert_eq!(ju2["knobs"]["blend"], "unsorted");
+    assert_eq!(std::fs::read(&u).unwrap(), std::fs::read(dir.join("u2.png")).unwrap());
 }
 
 #[test]
@@ -159,8 +160,8 @@ fn compare_hybrid_psnr(dir: &Path, knobs: &[&str]) -> f64 {
 #[test]
 fn compare_takes_the_split_and_the_blend() {
     let dir = temp_dir("compare");
-    let sorted = compare_hybrid_psnr(&dir.join("s"), &[]);
-    let unsorted = compare_hybrid_psnr(&dir.join("u"), &["--blend", "unsorted"]);
+    let sorted = compare_hybrid_psnr(&dir.join("s"), &["--blend", "sorted"]);
+    let unsorted = compare_hybrid_psnr(&dir.join("u"), &[]);
     let unguarded = compare_hybrid_psnr(
         &dir.join("t"),
         &["--split", "thresholds", "--blend", "unsorted"],

@@ -238,8 +238,11 @@ fn surfel_glb_splits_assigns_materials_and_keeps_ids() {
 #[test]
 fn surfel_fans_reach_the_footprint_in_the_object_frame() {
     let scene = common::street(200);
+    // The local test alone: the fan geometry is the point here, and the guards judge the
+    // 200-Gaussian fixture's small car cloud too sparse for any surfel.
     let so = SurfelOptions {
         segments: 12,
+        guarded: false,
         ..Default::default()
     };
     let opts = ConvertOptions {

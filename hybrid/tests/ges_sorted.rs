@@ -117,8 +117,12 @@ fn wall_scene() -> (SurfelCloud, GaussianCloud, Camera, f64) {
     (s, g, cam, 5.0 + eps)
 }
 
-/// f64 projection of Gaussian `i` of `g`, camera at the origin (as in `ges.rs`).
-fn project(cam: &Camera, g: &GaussianCloud, i: usize) -> (f64, f64, [f64; 3], f64) {
+/// f64 projection of Gaussian `i` of `g`, camera at the origin (as in `ges.rs`): screen
+/// centre, conic, view depth, and the reference's tile rectangle `[x0, y0, x1, y1)` (its
+/// `getRect` of the `α ≥ 1/255` radius: tiles from `⌊(c − r)/16⌋` to `⌊(c + r + 15)/16⌋`
+/// exclusive, which can leave out the last pixel row or column the radius reaches; native
+/// splatting inherits that, so the reference must too).
+fn project(cam: &Camera, g: &GaussianCloud, i: usize) -> (f64, f64, [f64; 3], f64, [i64; 4]) {
     let t = cam.world_to_cam * (g.means[i].as_dvec3() - cam.centre);
     let r = glam::DMat3::from_quat(g.unit_rotation(i).as_dquat());
     let s = glam::DMat3::from_diagonal(g.scale(i).as_dvec3());
@@ -133,12 +137,17 @@ fn project(cam: &Camera, g: &GaussianCloud, i: usize) -> (f64, f64, [f64; 3], f6
         j1.dot(sigma * j1) + 0.3,
     );
     let det = a * c - b * b;
-    (
-        fx * t.x / t.z + cam.cx - 0.5,
-        fy * t.y / t.z + cam.cy - 0.5,
-        [c / det, -b / det, a / det],
-        t.z,
-    )
+    let (x, y) = (fx * t.x / t.z + cam.cx - 0.5, fy * t.y / t.z + cam.cy - 0.5);
+    let mid = 0.5 * (a + c);
+    let lambda = mid + (mid * mid - det).max(0.1).sqrt();
+    let r = ((2.0 * (255.0 * g.opacity(i) as f64).ln()).sqrt() * lambda.sqrt()).ceil();
+    let rect = [
+        ((x - r) / 16.0) as i64,
+        ((y - r) / 16.0) as i64,
+        ((x + r + 15.0) / 16.0) as i64,
+        ((y + r + 15.0) / 16.0) as i64,
+    ];
+    (x, y, [c / det, -b / det, a / det], t.z, rect)
 }
 
 /// Every pixel against the f64 front-to-back reference: the Gaussians with depth ≤ `D_S + ε` in
@@ -158,8 +167,12 @@ fn surfel_wall_is_an_opaque_layer_behind_sorted_gaussians() {
         for px in 0..cam.width as usize {
             let (mut c, mut t) = (DVec3::ZERO, 1.0f64);
             let mut ambiguous = false;
+            let (tx, ty) = ((px / 16) as i64, (py / 16) as i64);
             for &i in &order {
-                let (x, y, q, z) = proj[i];
+                let (x, y, q, z, rect) = proj[i];
+                if !(rect[0] <= tx && tx < rect[2] && rect[1] <= ty && ty < rect[3]) {
+                    continue;
+                }
                 let (dx, dy) = (x - px as f64, y - py as f64);
                 let a = g.opacity(i) as f64
                     * (-0.5 * (q[0] * dx * dx + q[2] * dy * dy) - q[1] * dx * dy).exp();

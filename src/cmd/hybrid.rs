@@ -105,9 +105,10 @@ pub struct HybridKnobs {
     /// the chosen split must keep.
     #[arg(long, default_value_t = DEFAULT_MIN_PSNR, value_parser = parse_min_psnr)]
     pub min_psnr: f64,
-    /// How the Gaussians left after the surfels are blended: sorted (front to back, as native;
-    /// the default) or unsorted (GES's weighted blend, no sort). With --split auto and no
-    /// --blend, both are measured and the cheaper one that keeps --min-psnr is used.
+    /// How the Gaussians left after the surfels are blended: unsorted (GES's weighted blend, no
+    /// sort; the default) or sorted (front to back as native: accurate, about native's speed).
+    /// With --split auto and no --blend, both are measured and the cheaper one that keeps
+    /// --min-psnr is used.
     #[arg(long, value_enum)]
     pub blend: Option<BlendMode>,
     /// Guard: a surfel's footprint radius is at most this fraction of the scene's robust

@@ -21,8 +21,8 @@ pub struct SplitArgs {
     /// chosen split and blend must keep.
     #[arg(long, default_value_t = DEFAULT_MIN_PSNR, value_parser = parse_min_psnr)]
     pub min_psnr: f64,
-    /// How the hybrid blends the Gaussians left after the surfels: sorted (default) or
-    /// unsorted; with --split auto and no --blend, both are measured.
+    /// How the hybrid blends the Gaussians left after the surfels: unsorted (default) or
+    /// sorted; with --split auto and no --blend, both are measured.
     #[arg(long, value_enum)]
     pub blend: Option<BlendMode>,
 }

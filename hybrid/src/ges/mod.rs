@@ -1,6 +1,7 @@
 //! The GES-style hybrid renderer (Gaussian-enhanced Surfels, arXiv 2504.17545, `YessionCC/GES`;
 //! facts in `../shared/reference/meshsplats-and-ges.md`): opaque surfels carry the coarse
-//! geometry and appearance, the residual Gaussians the detail, and nothing is sorted.
+//! geometry and appearance, the residual Gaussians the detail, and nothing is sorted (unless
+//! [`Blend::Sorted`] asks for native's order in pass 2, [`sorted_pass`]).
 //!
 //! 1. [`surfel_pass`]: surfels through a per-sample z-buffer (ray–plane intersection, exact
 //!    ellipse coverage), optional 4× supersampling, optional 3×3 colour blur.
@@ -74,11 +75,14 @@ pub struct GesOptions {
 /// How pass 2 blends the Gaussians that the surfels leave.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Blend {
-    /// GES's order-independent weighted blend ([`gauss_pass`], [`composite`]): no sort.
+    /// GES's order-independent weighted blend ([`gauss_pass`], [`composite`]): no sort. The
+    /// default: it is where the hybrid's speed comes from (about half the cost per blend of
+    /// the sorted pass, measured in `docs/blend.md`).
+    #[default]
     Unsorted,
     /// Sorted front to back and blended as the native renderer does, the surfel an opaque layer
-    /// behind them ([`sorted_pass`]); with no surfels, the native image.
-    #[default]
+    /// behind them ([`sorted_pass`]); with no surfels, the native image. Accurate, but about
+    /// as slow as native splatting on trained captures.
     Sorted,
 }
 

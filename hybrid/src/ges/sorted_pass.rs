@@ -9,9 +9,10 @@
 //! Why: the unsorted pass (GES's weighted mean `C_G/W_G`) is exact for one Gaussian per pixel
 //! but not for a stack of them, and a real capture stacks many semi-transparent Gaussians in
 //! front of every surface; measured on `tile_lod1` with no surfels at all the unsorted pass
-//! alone scores 19.6 dB against native. Sorting restores native's order; the surfels still
-//! remove most of the work, since the Gaussians behind them never reach a tile list
-//! ([`super::project_gauss`], [`super::tiles`]) and only the survivors are sorted.
+//! alone scores 19.6 dB against native. Sorting restores native's order. The Gaussians behind
+//! the surfels still never reach a tile list ([`super::project_gauss`], [`super::tiles`]) and
+//! only the survivors are sorted, but on trained captures the surfels hide few of them, so
+//! this pass costs about what native splatting does (figures in `docs/blend.md`).
 //!
 //! With no surfels the image is the native renderer's bit for bit (same projection, same
 //! depth order with the same tie rule, same tile loop); `hybrid/tests/ges_sorted.rs` checks it.
