@@ -137,6 +137,8 @@ fn compare_hybrid_psnr(dir: &Path, knobs: &[&str]) -> f64 {
         &scene,
         "--cameras",
         "scene:0",
+        "--times",
+        "0",
         "--width",
         "32",
         "--height",
@@ -208,12 +210,18 @@ fn accuracy_has_a_blend_family_and_takes_the_split() {
     ] {
         assert!(values.contains(&want), "{want:?} not in {values:?}");
     }
-    // No surfels and the sorted blend is native itself: the reference, exactly.
+    // No surfels and the sorted blend is native's order and blend; what is left is the
+    // hybrid's tile extent (α ≥ 1/255) against the reference's 3σ square at a few pixels:
+    // measured 101 dB here and 76–80 dB on `tile_lod1`, so 60 dB separates it from the
+    // unsorted blend (below).
     let native_row = recs
         .iter()
         .find(|r| r["value"] == "no surfels, sorted")
         .unwrap();
-    assert!(native_row["psnr"].is_null(), "{native_row}");
+    assert!(
+        native_row["psnr"].as_f64().is_none_or(|p| p > 60.0),
+        "{native_row}"
+    );
     let unsorted_row = recs
         .iter()
         .find(|r| r["value"] == "no surfels, unsorted")
