@@ -139,7 +139,10 @@ fn run(args: &[String]) -> anyhow::Result<()> {
             }
             if let Some((db, ci, img)) = worst {
                 let (n, i, _) = &cams[ci];
-                let stem = format!("{name}-{}-orbit{n}_{i}", label.replace([':', ' ', '(', ')'], "_"));
+                let stem = format!(
+                    "{name}-{}-orbit{n}_{i}",
+                    label.replace([':', ' ', '(', ')'], "_")
+                );
                 splatbridge_scene::image_io::save_frame(
                     &out.join(format!("{stem}-hybrid-{db:.1}dB.png")),
                     &img,

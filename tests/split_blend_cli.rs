@@ -71,7 +71,10 @@ fn hybrid_blend_knob_reaches_the_renderer() {
     assert_ne!(std::fs::read(&s).unwrap(), std::fs::read(&u).unwrap());
     let ju2 = hybrid(&dir.join("u2.png"), &["--blend", "unsorted"]);
     assert_eq!(ju2["knobs"]["blend"], "unsorted");
-    assert_eq!(std::fs::read(&u).unwrap(), std::fs::read(dir.join("u2.png")).unwrap());
+    assert_eq!(
+        std::fs::read(&u).unwrap(),
+        std::fs::read(dir.join("u2.png")).unwrap()
+    );
 }
 
 #[test]
@@ -80,7 +83,10 @@ fn split_auto_measures_both_blends_unless_one_is_pinned() {
     let both = hybrid(&dir.join("a.png"), &["--split", "auto", "--min-psnr", "20"]);
     let cands = both["split_auto"]["candidates"].as_array().unwrap();
     let blends: Vec<&str> = cands.iter().map(|c| c["blend"].as_str().unwrap()).collect();
-    assert!(blends.contains(&"sorted") && blends.contains(&"unsorted"), "{blends:?}");
+    assert!(
+        blends.contains(&"sorted") && blends.contains(&"unsorted"),
+        "{blends:?}"
+    );
     // The renderer uses the blend the choice names.
     assert_eq!(both["split_auto"]["blend"], both["knobs"]["blend"]);
     let pinned = hybrid(

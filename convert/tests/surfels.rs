@@ -419,12 +419,23 @@ fn export_applies_the_guards() {
         },
     );
     let (g, u) = (&guarded.parts[0], &unguarded.parts[0]);
-    assert_eq!(u.surfel_ids.len(), c.len(), "every Gaussian passes the local test");
+    assert_eq!(
+        u.surfel_ids.len(),
+        c.len(),
+        "every Gaussian passes the local test"
+    );
     assert_eq!(u.guarded_out, 0);
     assert!(u.surfel_ids.contains(&floater));
-    assert!(g.residual_ids.contains(&floater), "the floater stays a Gaussian");
+    assert!(
+        g.residual_ids.contains(&floater),
+        "the floater stays a Gaussian"
+    );
     assert!(!g.surfel_ids.contains(&floater));
     assert_eq!(g.guarded_out as usize, c.len() - g.surfel_ids.len());
     // The wall itself is a fair surfel split: the guards keep nearly all of it.
-    assert!(g.surfel_ids.len() * 10 >= c.len() * 9, "{}", g.surfel_ids.len());
+    assert!(
+        g.surfel_ids.len() * 10 >= c.len() * 9,
+        "{}",
+        g.surfel_ids.len()
+    );
 }

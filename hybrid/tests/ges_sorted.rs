@@ -61,7 +61,11 @@ fn no_surfels_sorted_blend_is_native() {
     for (what, cam) in [("outside", camera(120, 90)), ("inside", inside)] {
         let (h, stats) = render_ges(&SurfelCloud::new(1), &cloud, &cam, &opts).unwrap();
         let (n, nstats) = render(&cloud, &cam, &native).unwrap();
-        assert!(stats.blends > 10_000, "{what}: only {} blends", stats.blends);
+        assert!(
+            stats.blends > 10_000,
+            "{what}: only {} blends",
+            stats.blends
+        );
         assert_eq!(stats.blends, nstats.blends, "{what}: blends");
         assert_bit_identical(&h, &n, what);
     }
@@ -100,7 +104,11 @@ fn wall_scene() -> (SurfelCloud, GaussianCloud, Camera, f64) {
             1 => rng.range(6.0, 8.0),
             _ => rng.range(2.0, 4.9),
         };
-        let m = Vec3::new(rng.range(-0.8, 0.8) * z / 3.0, rng.range(-0.6, 0.6) * z / 3.0, z);
+        let m = Vec3::new(
+            rng.range(-0.8, 0.8) * z / 3.0,
+            rng.range(-0.6, 0.6) * z / 3.0,
+            z,
+        );
         g.push_activated(
             m,
             Vec3::new(
@@ -213,7 +221,10 @@ fn surfel_wall_is_an_opaque_layer_behind_sorted_gaussians() {
         }
     }
     // The scene must exercise the cut: Gaussians behind the limit that would otherwise show.
-    assert!(behind_lit > 200, "only {behind_lit} pixels with a hidden Gaussian");
+    assert!(
+        behind_lit > 200,
+        "only {behind_lit} pixels with a hidden Gaussian"
+    );
     assert!(checked > 4000, "only {checked} pixels checked");
     // As the unsorted pass's formula tests: f32 projection and the polynomial exp against f64,
     // 3e-5 absolute on values ≤ 1.

@@ -2,9 +2,7 @@
 //! renderers (`compare`, `accuracy`): the same choices as `hybrid`'s own
 //! ([`super::hybrid::HybridKnobs`]), with the other hybrid knobs at their defaults.
 
-use splatbridge::split_auto::{
-    blend_name, choose, AutoChoice, AutoConfig, DEFAULT_MIN_PSNR,
-};
+use splatbridge::split_auto::{blend_name, choose, AutoChoice, AutoConfig, DEFAULT_MIN_PSNR};
 use splatbridge_hybrid::ges::{Blend, GesOptions};
 use splatbridge_scene::surfels::SplitParams;
 use splatbridge_scene::GaussianCloud;

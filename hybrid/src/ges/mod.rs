@@ -37,9 +37,7 @@ use splatbridge_scene::surfels::{
 };
 use splatbridge_scene::{Camera, Frame, GaussianCloud};
 
-use crate::native::{
-    RenderError, RenderOptions, ALPHA_CLAMP_REFERENCE, MAX_PAIRS, NEAR_REFERENCE,
-};
+use crate::native::{RenderError, RenderOptions, ALPHA_CLAMP_REFERENCE, MAX_PAIRS, NEAR_REFERENCE};
 use crate::project::{Extent, Splat, ViewParams};
 use crate::raster::BlendParams;
 

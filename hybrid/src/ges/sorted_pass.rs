@@ -53,7 +53,11 @@ pub fn sort_by_depth(
         }
         if end - start > 1 {
             order[start..end].sort_by(|&a, &b| {
-                stored_cmp(cloud, index[a as usize] as usize, index[b as usize] as usize)
+                stored_cmp(
+                    cloud,
+                    index[a as usize] as usize,
+                    index[b as usize] as usize,
+                )
             });
         }
         start = end;
