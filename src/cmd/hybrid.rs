@@ -1,5 +1,6 @@
 //! `splatbridge hybrid`: render with the GES-style hybrid (opaque surfels through a z-buffer,
-//! then the residual Gaussians unsorted; `splatbridge_hybrid::ges`). Surfels come from a split
+//! then the residual Gaussians, unsorted or with `--blend sorted` in native's order;
+//! `splatbridge_hybrid::ges`). Surfels come from a split
 //! of the trained cloud by opacity and flatness, or from a GES PLY's own flags.
 //!
 //! The frame comes from `splatbridge::pipeline::render_frame` (the composite plus declared
