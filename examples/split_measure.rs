@@ -1,21 +1,24 @@
 //! The hybrid against native splatting per orbit camera, for several surfel splits: the
 //! measurement behind `docs/split.md`.
 //!
-//! `cargo run --release --example split_measure -- OUT_DIR WIDTH HEIGHT RIGS SCENE [SCENE …]`
+//! `cargo run --release --example split_measure -- OUT_DIR WIDTH HEIGHT RIGS CONFIGS SCENE [SCENE …]`
 //! loads each scene once, renders native splatting and the GES hybrid (default options) at
 //! every camera of the rigs (`RIGS` is a comma-separated list of orbit sizes, e.g. `4,8`) with
-//! the unguarded split (opacity ≥ 0.8, flatness ≤ 0.3, the split before the guards), the
-//! guarded default split and `--split auto`, and prints one line per (scene, rig, camera,
-//! split): PSNR, surfels and the guard counts. The worst camera of each (scene, split) is
-//! written as PNGs (native, hybrid) into `OUT_DIR` for a person to look at.
+//! each configuration of `CONFIGS`, a comma-separated list of `SPLIT:BLEND` (SPLIT `unguarded`,
+//! the split before the guards, or `guarded`, the default; BLEND `sorted` or `unsorted`) or
+//! `auto` (`--split auto`: split and blend measured), and prints one line per (scene, rig,
+//! camera, configuration); `SPLIT:BLEND:eps=F:fp=S` also sets the ε factor and the surfel
+//! footprint in σ): PSNR, surfels, the guard counts, the split and render milliseconds.
+//! The worst camera of each (scene, configuration) is written as PNGs (native, hybrid) into
+//! `OUT_DIR` for a person to look at.
 //!
 //! An example rather than a CLI subcommand: it is an instrument of the documentation.
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use splatbridge::split_auto::{choose, AutoConfig};
-use splatbridge_hybrid::ges::{render_ges, GesOptions};
+use splatbridge::split_auto::{blend_name, choose, AutoConfig};
+use splatbridge_hybrid::ges::{render_ges, Blend, GesOptions};
 use splatbridge_hybrid::{render, RenderOptions};
 use splatbridge_scene::camera_spec::{CameraRequest, CameraSource, CameraSpec};
 use splatbridge_scene::metrics::psnr;
@@ -24,8 +27,8 @@ use splatbridge_scene::Frame;
 
 fn run(args: &[String]) -> anyhow::Result<()> {
     anyhow::ensure!(
-        args.len() >= 5,
-        "usage: OUT_DIR WIDTH HEIGHT RIGS SCENE [SCENE …]"
+        args.len() >= 6,
+        "usage: OUT_DIR WIDTH HEIGHT RIGS CONFIGS SCENE [SCENE …]"
     );
     let out = PathBuf::from(&args[0]);
     std::fs::create_dir_all(&out)?;
@@ -34,8 +37,9 @@ fn run(args: &[String]) -> anyhow::Result<()> {
         .split(',')
         .map(|s| s.parse())
         .collect::<Result<_, _>>()?;
+    let configs: Vec<String> = args[4].split(',').map(str::to_string).collect();
     let ges = GesOptions::default();
-    for path in &args[4..] {
+    for path in &args[5..] {
         let scene = splatbridge::pipeline::load_scene_warn(Path::new(path), false, &|m| {
             eprintln!("warning: {m}")
         })?;
@@ -44,19 +48,50 @@ fn run(args: &[String]) -> anyhow::Result<()> {
             .file_name()
             .map(|n| n.to_string_lossy().to_string())
             .unwrap_or_default();
-        let t0 = std::time::Instant::now();
-        let auto = choose(&cloud, &ges, &AutoConfig::default())?;
-        eprint!("{name}: {}", auto.summary());
         let d = SplitParams::default();
-        let splits = [
-            (
-                "unguarded",
-                SplitParams::unguarded(d.min_opacity, d.max_flatness),
-            ),
-            ("guarded", d),
-            ("auto", auto.params()),
-        ];
-        eprintln!("{name}: auto in {:.0} ms", t0.elapsed().as_secs_f64() * 1e3);
+        let mut splits = Vec::new();
+        for c in &configs {
+            if c == "auto" {
+                let t0 = std::time::Instant::now();
+                let auto = choose(&cloud, &ges, &AutoConfig::default())?;
+                eprint!("{name}: {}", auto.summary());
+                eprintln!("{name}: auto in {:.0} ms", t0.elapsed().as_secs_f64() * 1e3);
+                let label = format!("auto ({})", blend_name(auto.blend()));
+                let o = GesOptions {
+                    blend: auto.blend(),
+                    ..ges
+                };
+                splits.push((label, auto.params(), o));
+                continue;
+            }
+            let mut fields = c.split(':');
+            let (split, blend) = (
+                fields.next().unwrap_or_default(),
+                fields
+                    .next()
+                    .ok_or_else(|| anyhow::anyhow!("'{c}': expected SPLIT:BLEND or auto"))?,
+            );
+            let mut o = ges;
+            for f in fields {
+                match f.split_once('=') {
+                    Some(("eps", v)) => o.epsilon_factor = v.parse()?,
+                    Some(("fp", v)) => o.footprint_sigmas = v.parse()?,
+                    _ => anyhow::bail!("'{f}': eps=F or fp=S"),
+                }
+            }
+            let p = match split {
+                "unguarded" => SplitParams::unguarded(d.min_opacity, d.max_flatness),
+                "guarded" => d,
+                "none" => SplitParams::none(),
+                _ => anyhow::bail!("'{split}': unguarded, guarded or none"),
+            };
+            let b = match blend {
+                "sorted" => Blend::Sorted,
+                "unsorted" => Blend::Unsorted,
+                _ => anyhow::bail!("'{blend}': sorted or unsorted"),
+            };
+            splits.push((c.clone(), p, GesOptions { blend: b, ..o }));
+        }
         let mut cams = Vec::new();
         for &n in &rigs {
             for index in 0..n {
@@ -80,16 +115,18 @@ fn run(args: &[String]) -> anyhow::Result<()> {
             .iter()
             .map(|(_, _, c)| Ok(render(&cloud, c, &nopts)?.0))
             .collect::<anyhow::Result<_>>()?;
-        for (label, p) in splits {
+        for (label, p, opts) in splits {
             let ts = std::time::Instant::now();
             let (s, g, k) = split_counted(&cloud, &p);
             let split_ms = ts.elapsed().as_secs_f64() * 1e3;
             let mut worst: Option<(f64, usize, Frame)> = None;
             for (ci, ((n, i, cam), reference)) in cams.iter().zip(&natives).enumerate() {
-                let (img, _) = render_ges(&s, &g, cam, &ges)?;
+                let tr = std::time::Instant::now();
+                let (img, _) = render_ges(&s, &g, cam, &opts)?;
+                let render_ms = tr.elapsed().as_secs_f64() * 1e3;
                 let db = psnr(reference, &img)?;
                 println!(
-                    "{name}\t{label}\torbit:{n}:{i}\t{db:.2}\t{}\t{}\t{}\t{}\t{}\t{split_ms:.0}",
+                    "{name}\t{label}\torbit:{n}:{i}\t{db:.2}\t{}\t{}\t{}\t{}\t{}\t{split_ms:.0}\t{render_ms:.0}",
                     s.len(),
                     k.candidates,
                     k.too_large_for_scene,
@@ -102,7 +139,10 @@ fn run(args: &[String]) -> anyhow::Result<()> {
             }
             if let Some((db, ci, img)) = worst {
                 let (n, i, _) = &cams[ci];
-                let stem = format!("{name}-{label}-orbit{n}_{i}");
+                let stem = format!(
+                    "{name}-{}-orbit{n}_{i}",
+                    label.replace([':', ' ', '(', ')'], "_")
+                );
                 splatbridge_scene::image_io::save_frame(
                     &out.join(format!("{stem}-hybrid-{db:.1}dB.png")),
                     &img,

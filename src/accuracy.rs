@@ -9,6 +9,7 @@ use std::path::Path;
 
 use anyhow::Context;
 use splatbridge_convert::{ConvertOptions, Profile};
+use splatbridge_hybrid::ges::GesOptions;
 use splatbridge_hybrid::native::RenderOptions as NativeOptions;
 use splatbridge_hybrid::project::Extent;
 use splatbridge_raytrace::{
@@ -31,6 +32,8 @@ pub enum Setting {
     Mesh(Box<ConvertOptions>, usize),
     Native(NativeOptions),
     Hybrid(SplitParams),
+    /// The hybrid with this split and these options (the blend rows, a chosen `--split`).
+    HybridWith(SplitParams, GesOptions),
     /// Write the cloud in this format, read it back, render natively.
     Format(CloudFormat),
     /// Ray-trace the Gaussians with these tracer options (footprint, spp).
@@ -179,6 +182,21 @@ pub fn settings(only: &[String]) -> Vec<(&'static str, String, Setting, bool)> {
     if want("footprint-causes") {
         footprint_rows(&mut v, FOOTPRINT_CAUSES);
     }
+    // `trace`'s default for mode gaussian alone (footprint on, mean-depth order), only when
+    // named: the one row to measure on large scenes and at large sizes.
+    if only.iter().any(|o| o == "footprint-default") {
+        footprint_rows(
+            &mut v,
+            &[(
+                "on + mean-depth order",
+                Footprint::On,
+                1,
+                SUB,
+                HitOrder::MeanDepth,
+                ShDirection::Ray,
+            )],
+        );
+    }
     if want("mesh-spp") {
         // The default profile's mesh traced with 1 and 4 samples per pixel: triangles get no
         // footprint, so supersampling is the mesh's only filter.
@@ -209,6 +227,9 @@ pub fn settings(only: &[String]) -> Vec<(&'static str, String, Setting, bool)> {
             ));
         }
         v.extend(crate::split_auto::accuracy_rows());
+    }
+    if want("hybrid") || want("blend") {
+        v.extend(crate::split_auto::blend_accuracy_rows());
     }
     v
 }
@@ -553,6 +574,13 @@ pub fn measure_setting(
         Setting::Hybrid(split) => {
             for (c, reference) in views {
                 let img = parity::render_hybrid(s.cloud, c, *split, &cfg.ges)?;
+                push(&img.frame, reference, img.ms, c, 0, 0)?;
+            }
+            "hybrid"
+        }
+        Setting::HybridWith(split, ges) => {
+            for (c, reference) in views {
+                let img = parity::render_hybrid(s.cloud, c, *split, ges)?;
                 push(&img.frame, reference, img.ms, c, 0, 0)?;
             }
             "hybrid"

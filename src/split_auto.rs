@@ -1,11 +1,13 @@
-//! `--split auto`: choose the surfel split per scene by measuring it. Native splatting (the
-//! reference) and the GES hybrid render the scene from a few orbit views at a small size, for
-//! each split of a short ladder ([`ladder`]); the split kept is the cheapest whose worst view
-//! stays at or above the requested PSNR. When none does, the one with the best worst view is
-//! kept and the choice says so.
+//! `--split auto`: choose the surfel split and the Gaussian blend per scene by measuring them.
+//! Native splatting (the reference) and the GES hybrid render the scene from a few orbit views
+//! at a small size, for each split of a short ladder ([`ladder`]) with each blend of
+//! [`AutoConfig::blends`] (unsorted and sorted unless `--blend` pins one); the combination kept
+//! is the cheapest whose worst view stays at or above the requested PSNR. When none does, the
+//! one with the best worst view is kept and the choice says so.
 //!
 //! "Cheapest" is the hybrid's counted work summed over the views (pixel–Gaussian blends plus
-//! tile–Gaussian pairs, which its blending and binning time follow), not the measured
+//! tile–Gaussian pairs, which its blending and binning time follow; a sorted blend counts
+//! 5/2, its measured cost, and the Gaussians it sorts are added), not the measured
 //! milliseconds: the counters make the choice the same on every run and under any load, and
 //! the measured times are reported beside them. The cost of choosing (wall milliseconds, views,
 //! renders) is part of the result, so a caller can report it.
@@ -14,7 +16,7 @@ use std::time::Instant;
 
 use anyhow::Context;
 use serde_json::json;
-use splatbridge_hybrid::ges::{render_ges, GesOptions};
+use splatbridge_hybrid::ges::{render_ges, Blend, GesOptions};
 use splatbridge_hybrid::RenderOptions;
 use splatbridge_scene::camera_spec::{CameraRequest, CameraSource, CameraSpec};
 use splatbridge_scene::metrics::psnr;
@@ -33,6 +35,8 @@ pub struct AutoConfig {
     pub views: usize,
     pub width: u32,
     pub height: u32,
+    /// The blends tried with every split.
+    pub blends: Vec<Blend>,
 }
 
 impl Default for AutoConfig {
@@ -44,15 +48,23 @@ impl Default for AutoConfig {
             views: 4,
             width: 240,
             height: 180,
+            blends: vec![Blend::Unsorted, Blend::Sorted],
         }
     }
 }
+
+/// Cost of one sorted blend in unsorted blends, times 2: the sorted pass's tile loop (native's,
+/// with the transmittance chain and its masked lanes) measured 2.4–2.5× the unsorted pass's
+/// time per counted blend at 1080p (`bench hybrid`, `fourth_st` 53.7 / 21.6 ns, `plant`
+/// 70.7 / 29.3 ns; `docs/blend.md`), so a sorted blend counts as 5/2 unsorted ones.
+const SORTED_BLEND_COST: u64 = 5;
 
 /// One rung of the ladder, measured.
 #[derive(Clone, Debug)]
 pub struct Candidate {
     pub label: String,
     pub params: SplitParams,
+    pub blend: Blend,
     pub surfels: usize,
     /// PSNR against native per view (dB).
     pub psnr: Vec<f64>,
@@ -148,6 +160,7 @@ pub fn choose_from(
         cfg.min_psnr
     );
     anyhow::ensure!(!ladder.is_empty(), "the split ladder is empty");
+    anyhow::ensure!(!cfg.blends.is_empty(), "no blend to try");
     let t0 = Instant::now();
     let cams = views(cloud, cfg).context("--split auto: orbit views")?;
     let nopts = RenderOptions {
@@ -165,23 +178,34 @@ pub fn choose_from(
     for (label, params) in ladder {
         let c0 = Instant::now();
         let (s, g, _) = split_counted(cloud, &params);
-        let mut psnrs = Vec::with_capacity(cams.len());
-        let mut work = 0u64;
-        for (cam, reference) in cams.iter().zip(&native) {
-            let (img, st) = render_ges(&s, &g, cam, ges)?;
-            psnrs.push(psnr(reference, &img)?);
-            work += st.blends + st.tile_pairs;
+        let split_ms = c0.elapsed().as_secs_f64() * 1e3;
+        for &blend in &cfg.blends {
+            let c0 = Instant::now();
+            let opts = GesOptions { blend, ..*ges };
+            let mut psnrs = Vec::with_capacity(cams.len());
+            let mut work = 0u64;
+            for (cam, reference) in cams.iter().zip(&native) {
+                let (img, st) = render_ges(&s, &g, cam, &opts)?;
+                psnrs.push(psnr(reference, &img)?);
+                work += match blend {
+                    Blend::Unsorted => st.blends + st.tile_pairs,
+                    Blend::Sorted => {
+                        SORTED_BLEND_COST * st.blends / 2 + st.tile_pairs + st.sorted as u64
+                    }
+                };
+            }
+            let worst = psnrs.iter().copied().fold(f64::INFINITY, f64::min);
+            candidates.push(Candidate {
+                label: format!("{label}, {}", blend_name(blend)),
+                params,
+                blend,
+                surfels: s.len(),
+                psnr: psnrs,
+                worst_psnr: worst,
+                work,
+                ms: split_ms + c0.elapsed().as_secs_f64() * 1e3,
+            });
         }
-        let worst = psnrs.iter().copied().fold(f64::INFINITY, f64::min);
-        candidates.push(Candidate {
-            label,
-            params,
-            surfels: s.len(),
-            psnr: psnrs,
-            worst_psnr: worst,
-            work,
-            ms: c0.elapsed().as_secs_f64() * 1e3,
-        });
     }
     let meeting = candidates
         .iter()
@@ -223,6 +247,14 @@ pub fn choose(
     cfg: &AutoConfig,
 ) -> anyhow::Result<AutoChoice> {
     choose_from(cloud, ges, cfg, ladder())
+}
+
+/// The name of a blend, as `--blend` spells it.
+pub fn blend_name(b: Blend) -> &'static str {
+    match b {
+        Blend::Unsorted => "unsorted",
+        Blend::Sorted => "sorted",
+    }
 }
 
 /// A split's thresholds as JSON.
@@ -268,6 +300,11 @@ impl AutoChoice {
         self.candidates[self.chosen].params
     }
 
+    /// The chosen blend.
+    pub fn blend(&self) -> Blend {
+        self.candidates[self.chosen].blend
+    }
+
     pub fn to_json(&self) -> serde_json::Value {
         let c = &self.candidates[self.chosen];
         json!({
@@ -275,6 +312,7 @@ impl AutoChoice {
             "met": self.met,
             "chosen": c.label,
             "params": params_json(&c.params),
+            "blend": blend_name(c.blend),
             "worst_psnr": c.worst_psnr,
             "cost": {
                 "milliseconds": self.ms,
@@ -286,6 +324,7 @@ impl AutoChoice {
             "candidates": self.candidates.iter().map(|c| json!({
                 "label": c.label,
                 "params": params_json(&c.params),
+                "blend": blend_name(c.blend),
                 "surfels": c.surfels,
                 "psnr": c.psnr,
                 "worst_psnr": c.worst_psnr,
@@ -313,7 +352,7 @@ impl AutoChoice {
         );
         for c in &self.candidates {
             s += &format!(
-                "  {:<30} {:>8} surfels  worst {:>6.2} dB  work {:>12}  {:>8.1} ms\n",
+                "  {:<40} {:>8} surfels  worst {:>6.2} dB  work {:>12}  {:>8.1} ms\n",
                 c.label, c.surfels, c.worst_psnr, c.work, c.ms
             );
         }
@@ -364,6 +403,34 @@ pub fn accuracy_rows() -> Vec<(&'static str, String, crate::accuracy::Setting, b
             Setting::Hybrid(p),
             false,
         ));
+    }
+    v
+}
+
+/// The `accuracy` sweep's rows for the blend (family `blend`): the default split and no
+/// surfels, each with the unsorted and the sorted blend, so the plot shows what sorting costs
+/// and buys with and without the surfels' occlusion.
+pub fn blend_accuracy_rows() -> Vec<(&'static str, String, crate::accuracy::Setting, bool)> {
+    use crate::accuracy::Setting;
+    let mut v = Vec::new();
+    for (name, split) in [
+        ("guarded", SplitParams::default()),
+        ("no surfels", SplitParams::none()),
+    ] {
+        for blend in [Blend::Unsorted, Blend::Sorted] {
+            v.push((
+                "blend",
+                format!("{name}, {}", blend_name(blend)),
+                Setting::HybridWith(
+                    split,
+                    GesOptions {
+                        blend,
+                        ..GesOptions::default()
+                    },
+                ),
+                false,
+            ));
+        }
     }
     v
 }

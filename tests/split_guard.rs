@@ -14,7 +14,7 @@ use std::process::Command;
 
 use glam::{DVec3, Quat, Vec3};
 use splatbridge::split_auto::{choose, choose_from, ladder, AutoConfig};
-use splatbridge_hybrid::ges::{render_ges, GesOptions};
+use splatbridge_hybrid::ges::{render_ges, Blend, GesOptions};
 use splatbridge_hybrid::{render, RenderOptions};
 use splatbridge_scene::metrics::psnr;
 use splatbridge_scene::surfel_guard::GuardCounts;
@@ -233,6 +233,7 @@ fn auto_split_meets_the_target_at_the_least_work_and_reports_its_cost() {
         views: 2,
         width: 48,
         height: 36,
+        ..AutoConfig::default()
     };
     let mut rungs = ladder();
     rungs.push(("unguarded".into(), unguarded()));
@@ -248,13 +249,27 @@ fn auto_split_meets_the_target_at_the_least_work_and_reports_its_cost() {
             assert!(r.work >= chosen.work, "{} beats {}", r.label, chosen.label);
         }
     }
-    // The unguarded rung makes the floater a surfel and misses the target by far.
-    assert!(a.candidates[n - 1].worst_psnr < cfg.min_psnr);
-    assert_eq!(a.renders, 2 * (1 + n));
+    // Every rung with both blends, in ladder order.
+    let m = 2 * n;
+    assert_eq!(a.candidates.len(), m);
+    for (k, r) in a.candidates.iter().enumerate() {
+        let want = if k % 2 == 0 {
+            Blend::Unsorted
+        } else {
+            Blend::Sorted
+        };
+        assert_eq!(r.blend, want, "{}", r.label);
+    }
+    // The unguarded rung makes the floater a surfel and misses the target by far, blended
+    // either way.
+    assert!(a.candidates[m - 2].worst_psnr < cfg.min_psnr);
+    assert!(a.candidates[m - 1].worst_psnr < cfg.min_psnr);
+    assert_eq!(a.renders, 2 * (1 + m));
     assert!(a.ms > 0.0);
     let j = a.to_json();
     assert_eq!(j["cost"]["views"], 2);
-    assert_eq!(j["cost"]["renders"], 2 * (1 + n));
+    assert_eq!(j["cost"]["renders"], 2 * (1 + m));
+    assert!(j["blend"] == "sorted" || j["blend"] == "unsorted");
     assert!(j["cost"]["milliseconds"].as_f64().unwrap() > 0.0);
     // The same choice again.
     let b = choose(&c, &GesOptions::default(), &cfg).unwrap();
@@ -271,6 +286,8 @@ fn auto_split_says_when_no_rung_meets_the_target() {
         views: 1,
         width: 32,
         height: 24,
+        // Unsorted only: with the sorted blend the no-surfel rung is native itself.
+        blends: vec![Blend::Unsorted],
     };
     let a = choose(&c, &GesOptions::default(), &cfg).unwrap();
     assert!(!a.met);

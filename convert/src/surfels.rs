@@ -33,6 +33,7 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use splatbridge_scene::dynamic::DynamicScene;
+use splatbridge_scene::surfel_guard::guard;
 use splatbridge_scene::surfels::{
     ges_mean_scale, is_surfel, SplitParams, SurfelCloud, FOOTPRINT_SIGMAS,
 };
@@ -57,6 +58,16 @@ pub struct SurfelOptions {
     pub max_flatness: f32,
     /// Triangles per surfel fan.
     pub segments: usize,
+    /// Apply the hybrid renderer's guards (scene fraction, neighbour ratio, isolation; see
+    /// `splatbridge_scene::surfel_guard`) after the local test, each part judged within its
+    /// own cloud. Without them a metre-wide floater that passes the local test becomes an
+    /// opaque disc in the export as it would in the hybrid.
+    #[serde(default = "guarded_default")]
+    pub guarded: bool,
+}
+
+fn guarded_default() -> bool {
+    true
 }
 
 impl Default for SurfelOptions {
@@ -66,15 +77,19 @@ impl Default for SurfelOptions {
             min_opacity: p.min_opacity,
             max_flatness: p.max_flatness,
             segments: DEFAULT_SURFEL_SEGMENTS,
+            guarded: true,
         }
     }
 }
 
 impl SurfelOptions {
+    /// The split's thresholds: the hybrid's default guards, or the local test alone.
     pub fn params(&self) -> SplitParams {
-        // The export judges each Gaussian on its own (per part, per frame): only the local
-        // test applies; the neighbourhood guards are the hybrid renderer's.
-        SplitParams::unguarded(self.min_opacity, self.max_flatness)
+        if self.guarded {
+            SplitParams::guarded(self.min_opacity, self.max_flatness)
+        } else {
+            SplitParams::unguarded(self.min_opacity, self.max_flatness)
+        }
     }
 
     pub fn validate(&self) -> Result<(), crate::ConvertError> {
@@ -107,6 +122,9 @@ pub struct SurfelCounts {
     pub name: String,
     /// Gaussians of the part before the split.
     pub gaussians_in: u64,
+    /// Gaussians that passed the local test but that the guards kept as Gaussians.
+    #[serde(default)]
+    pub guarded_out: u64,
     /// Gaussians that became surfels (written, or dropped as non-finite).
     pub surfels: u64,
     /// Gaussians left to the converter profile.
@@ -123,7 +141,13 @@ pub struct SurfelReport {
     pub min_opacity: f32,
     pub max_flatness: f32,
     pub segments: usize,
+    /// Whether the guards applied (see [`SurfelOptions::guarded`]).
+    #[serde(default)]
+    pub guarded: bool,
     pub gaussians_in: u64,
+    /// Candidates the guards kept as Gaussians.
+    #[serde(default)]
+    pub guarded_out: u64,
     pub surfels: u64,
     pub residual: u64,
     pub dropped_overflow: u64,
@@ -138,12 +162,14 @@ impl SurfelReport {
             min_opacity: o.min_opacity,
             max_flatness: o.max_flatness,
             segments: o.segments,
+            guarded: o.guarded,
             ..Default::default()
         }
     }
 
     pub fn add(&mut self, c: SurfelCounts) {
         self.gaussians_in += c.gaussians_in;
+        self.guarded_out += c.guarded_out;
         self.surfels += c.surfels;
         self.residual += c.residual;
         self.dropped_overflow += c.dropped_overflow;
@@ -161,6 +187,8 @@ pub struct SplitPart {
     pub surfels: SurfelCloud,
     pub surfel_ids: Vec<u32>,
     pub residual_ids: Vec<u32>,
+    /// Candidates of the local test that the guards kept as Gaussians.
+    pub guarded_out: u64,
 }
 
 /// A scene split into residual Gaussians (a scene of the same structure) and surfels; the
@@ -178,13 +206,25 @@ pub fn split_cloud(
     name: &str,
     offset: u64,
 ) -> (GaussianCloud, SplitPart) {
-    let flags: Vec<bool> = (0..cloud.len())
+    let mut flags: Vec<bool> = (0..cloud.len())
         .into_par_iter()
         .map(|i| is_surfel(cloud, i, params) && cloud.invalid_reason(i).is_none())
         .collect();
+    // The guards, as the hybrid's split applies them (`splatbridge_scene::surfels::split`).
+    let candidates: Vec<(usize, f32)> = (0..cloud.len())
+        .filter(|&i| flags[i])
+        .map(|i| (i, cloud.scale(i).max_element()))
+        .collect();
+    let (keep, _) = guard(cloud, &candidates, &params.guard());
+    let mut guarded_out = 0u64;
+    for (&(i, _), &k) in candidates.iter().zip(&keep) {
+        flags[i] = k;
+        guarded_out += !k as u64;
+    }
     let mut part = SplitPart {
         name: name.to_string(),
         surfels: SurfelCloud::new(cloud.sh_degree),
+        guarded_out,
         ..Default::default()
     };
     let mut rest = GaussianCloud::new(cloud.sh_degree);
@@ -310,6 +350,7 @@ impl<'a> SurfelMesher<'a> {
         let counts = SurfelCounts {
             name: part.name.clone(),
             gaussians_in,
+            guarded_out: part.guarded_out,
             surfels: s.len() as u64,
             residual: part.residual_ids.len() as u64,
             dropped_overflow: s.len() as u64 - kept,

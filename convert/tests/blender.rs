@@ -42,7 +42,12 @@ fn street_glb_imports_into_blender_as_intended() {
         &scene,
         None,
         &ConvertOptions {
-            surfels: Some(Default::default()),
+            // The local test alone: the guards judge this small synthetic street too sparse
+            // for surfels, and the script checks the two materials.
+            surfels: Some(splatbridge_convert::surfels::SurfelOptions {
+                guarded: false,
+                ..Default::default()
+            }),
             coplanar_offset: true,
             ..Default::default()
         },

@@ -118,6 +118,7 @@ fn surfel_meshes_stream_like_the_whole_mesh() {
         min_opacity: 0.05,
         max_flatness: 1.0,
         segments: 6,
+        guarded: false,
     };
     let split = split_scene(&scene, None, &so);
     let part = &split.parts[0];

@@ -77,7 +77,12 @@ fn read_ids(prim: &gltf::Primitive, buffers: &[gltf::buffer::Data]) -> Vec<u32> 
 fn surfel_glb_splits_assigns_materials_and_keeps_ids() {
     let scene = common::street(500);
     let fr = frames();
-    let so = SurfelOptions::default();
+    // The local test alone, checked against the reference predicate (the guards have
+    // `export_applies_the_guards`).
+    let so = SurfelOptions {
+        guarded: false,
+        ..Default::default()
+    };
     // As `splatbridge convert --surfels` writes it (coplanar separation on).
     let opts = ConvertOptions {
         surfels: Some(so),
@@ -233,8 +238,11 @@ fn surfel_glb_splits_assigns_materials_and_keeps_ids() {
 #[test]
 fn surfel_fans_reach_the_footprint_in_the_object_frame() {
     let scene = common::street(200);
+    // The local test alone: the fan geometry is the point here, and the guards judge the
+    // 200-Gaussian fixture's small car cloud too sparse for any surfel.
     let so = SurfelOptions {
         segments: 12,
+        guarded: false,
         ..Default::default()
     };
     let opts = ConvertOptions {
@@ -335,6 +343,7 @@ fn thresholds_are_knobs_and_degenerate_splits_stay_valid() {
             min_opacity: 0.0,
             max_flatness: 1.0,
             segments: 8,
+            guarded: false,
         }),
         profile: Profile::Rings,
         ..Default::default()
@@ -369,4 +378,64 @@ fn thresholds_are_knobs_and_degenerate_splits_stay_valid() {
     let e = convert_to_file(&p, &only, None, &all, false).unwrap_err();
     assert!(e.to_string().contains("glTF"), "{e}");
     assert!(!p.exists());
+}
+
+/// A wall of small flat opaque Gaussians and one metre-wide flat opaque floater in front of it:
+/// every Gaussian passes the local test; the scene-scale guard keeps the floater a Gaussian in
+/// the export, as in the hybrid, and only with the guards on.
+#[test]
+fn export_applies_the_guards() {
+    use glam::Quat;
+    let mut c = GaussianCloud::new(0);
+    let (n, spacing) = (40usize, 2.0f32 / 39.0);
+    let half = 0.5 * spacing * (n as f32 - 1.0);
+    for i in 0..n {
+        for j in 0..n {
+            c.push_activated(
+                Vec3::new(i as f32 * spacing - half, j as f32 * spacing - half, 1.5),
+                Vec3::new(0.7 * spacing, 0.7 * spacing, 0.07 * spacing),
+                Quat::IDENTITY,
+                0.95,
+                Vec3::new(0.2, 0.6, 0.3),
+            );
+        }
+    }
+    let floater = c.len() as u32;
+    c.push_activated(
+        Vec3::new(0.3, 0.0, 1.0),
+        Vec3::new(1.2, 1.2, 0.06),
+        Quat::IDENTITY,
+        0.9,
+        Vec3::new(0.9, 0.1, 0.1),
+    );
+    let scene = DynamicScene::from_static(c.clone());
+    let guarded = split_scene(&scene, None, &SurfelOptions::default());
+    let unguarded = split_scene(
+        &scene,
+        None,
+        &SurfelOptions {
+            guarded: false,
+            ..Default::default()
+        },
+    );
+    let (g, u) = (&guarded.parts[0], &unguarded.parts[0]);
+    assert_eq!(
+        u.surfel_ids.len(),
+        c.len(),
+        "every Gaussian passes the local test"
+    );
+    assert_eq!(u.guarded_out, 0);
+    assert!(u.surfel_ids.contains(&floater));
+    assert!(
+        g.residual_ids.contains(&floater),
+        "the floater stays a Gaussian"
+    );
+    assert!(!g.surfel_ids.contains(&floater));
+    assert_eq!(g.guarded_out as usize, c.len() - g.surfel_ids.len());
+    // The wall itself is a fair surfel split: the guards keep nearly all of it.
+    assert!(
+        g.surfel_ids.len() * 10 >= c.len() * 9,
+        "{}",
+        g.surfel_ids.len()
+    );
 }

@@ -67,9 +67,31 @@ pub fn blend_tile(
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: AVX2 is present.
-        return unsafe { blend_tile_avx2(splats, list, px0, py0, params, st) };
+        return unsafe { blend_tile_avx2(splats, list, px0, py0, params, st, &[]) };
     }
-    blend_tile_with(splats, list, px0, py0, params, st, blend8_pair)
+    blend_tile_with(splats, list, px0, py0, params, st, &[], blend8_pair)
+}
+
+/// [`blend_tile`] with a per-pixel depth limit: `cut` holds `(limit, pixel)` pairs (pixel the
+/// index in the tile, each at most once) sorted by ascending limit. A pixel stops, like a pixel
+/// whose transmittance ran out, before the first Gaussian deeper than its limit. The list being
+/// front to back, that is exactly "blend only the Gaussians with `depth ≤ limit`"; pixels not in
+/// `cut` have no limit. With an empty `cut` this is [`blend_tile`].
+pub fn blend_tile_cut(
+    splats: &[Splat],
+    list: &[u32],
+    px0: i32,
+    py0: i32,
+    params: &BlendParams,
+    st: &mut TileState,
+    cut: &[(f32, u16)],
+) -> u64 {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: AVX2 is present.
+        return unsafe { blend_tile_avx2(splats, list, px0, py0, params, st, cut) };
+    }
+    blend_tile_with(splats, list, px0, py0, params, st, cut, blend8_pair)
 }
 
 /// [`blend_tile_with`] compiled for AVX2 with the 256-bit kernel.
@@ -85,16 +107,19 @@ unsafe fn blend_tile_avx2(
     py0: i32,
     params: &BlendParams,
     st: &mut TileState,
+    cut: &[(f32, u16)],
 ) -> u64 {
     // SAFETY: this function only runs when AVX2 is present.
     let k8 = |st: &mut TileState, base: usize, x0: f32, k: &SplatRow| unsafe {
         avx::blend8(st, base, x0, k)
     };
-    blend_tile_with(splats, list, px0, py0, params, st, k8)
+    blend_tile_with(splats, list, px0, py0, params, st, cut, k8)
 }
 
-/// The tile loop, with the kernel for eight adjacent pixels as a parameter.
+/// The tile loop, with the per-pixel depth cut (see [`blend_tile_cut`]) and the kernel for
+/// eight adjacent pixels as parameters.
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 fn blend_tile_with(
     splats: &[Splat],
     list: &[u32],
@@ -102,11 +127,13 @@ fn blend_tile_with(
     py0: i32,
     params: &BlendParams,
     st: &mut TileState,
+    cut: &[(f32, u16)],
     blend8: impl Fn(&mut TileState, usize, f32, &SplatRow) -> (u32, u32),
 ) -> u64 {
     let active = st.done.iter().filter(|&&d| d == 0).count() as u32;
     let mut finished = 0u32;
     let mut blends = 0u64;
+    let mut next_cut = 0usize;
     let (tx1, ty1) = (px0 + T as i32 - 1, py0 + T as i32 - 1);
     for (i, &k) in list.iter().enumerate() {
         // Tile lists are sparse in the splat array: fetch a few entries ahead so the loads
@@ -115,6 +142,20 @@ fn blend_tile_with(
             prefetch(&splats[ahead as usize]);
         }
         let s = &splats[k as usize];
+        while let Some(&(limit, p)) = cut.get(next_cut) {
+            if s.depth <= limit {
+                break;
+            }
+            let d = &mut st.done[p as usize];
+            if *d == 0 {
+                *d = u32::MAX;
+                finished += 1;
+            }
+            next_cut += 1;
+        }
+        if finished == active {
+            break;
+        }
         let [bx0, by0, bx1, by1] = if params.exhaustive {
             [px0, py0, tx1, ty1]
         } else {

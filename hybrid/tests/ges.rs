@@ -5,7 +5,7 @@ mod ges_common;
 
 use ges_common::*;
 use glam::{DVec3, Quat, Vec3};
-use splatbridge_hybrid::ges::{render_ges, render_ges_with_ids, GesOptions};
+use splatbridge_hybrid::ges::{render_ges, render_ges_with_ids, Blend, GesOptions};
 use splatbridge_scene::surfels::{ges_mean_scale, SurfelCloud};
 use splatbridge_scene::{Camera, Frame, GaussianCloud};
 
@@ -14,6 +14,8 @@ fn plain() -> GesOptions {
         blur: false,
         supersample: 1,
         background: [0.1, 0.2, 0.3],
+        // These tests check GES's own formulas; the sorted blend has `ges_sorted.rs`.
+        blend: Blend::Unsorted,
         ..Default::default()
     }
 }

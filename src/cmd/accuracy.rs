@@ -32,10 +32,13 @@ pub struct Args {
     #[arg(long, default_value_t = 240)]
     pub height: u32,
     /// Knob families to sweep (default: all): profile, segments, extent, k, native-extent,
-    /// hybrid, sh-degree, format (each splat file format's quantisation: the cloud written by
+    /// hybrid, blend (the hybrid's unsorted and sorted blend, with the default split and with
+    /// no surfels), sh-degree, format (each splat file format's quantisation: the cloud written by
     /// our writer, read back and rendered natively), footprint (ray-traced Gaussians with the
     /// pixel footprint off/on), footprint-spp (the same at 4 samples per pixel),
     /// footprint-causes (native's hit order and SH direction on top, and the projected mode),
+    /// footprint-default (only when named: `trace`'s default, footprint on with mean-depth
+    /// order, alone),
     /// mesh-spp (the default profile's mesh traced at 1 and 4 samples per pixel), distill (only
     /// when named: each profile's mesh distilled on 16 views between the orbit's, measured on
     /// these cameras against distillation time; writes distill.md).
@@ -50,6 +53,10 @@ pub struct Args {
     /// `splatbridge merge` (see docs/scale.md).
     #[arg(long, value_name = "I/N")]
     pub shard: Option<Shard>,
+    /// With --split or --blend: one more row (family `hybrid`) with that split and blend
+    /// (`--split auto` measures them on the scene first).
+    #[command(flatten)]
+    pub hybrid_split: super::split_args::SplitArgs,
     #[arg(short, long, alias = "output")]
     pub out: PathBuf,
 }
@@ -101,7 +108,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         work_dir: &args.out,
         drop_invalid: args.drop_invalid,
     };
-    let settings = settings(&args.only);
+    let mut settings = settings(&args.only);
+    if args.hybrid_split.given() {
+        let r = args
+            .hybrid_split
+            .resolve(|| cloud.clone(), Default::default())
+            .with_context(|| args.scene.display().to_string())?;
+        if let Some(a) = &r.auto {
+            print!("{}", a.summary());
+        }
+        settings.push((
+            "hybrid",
+            args.hybrid_split.text(),
+            splatbridge::accuracy::Setting::HybridWith(r.params, r.ges),
+            false,
+        ));
+    }
     let pb = common::progress(settings.len() as u64, "accuracy");
     let mut records = Vec::new();
     let mut placed = Vec::new();
@@ -149,13 +171,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let mut set = splatbridge_scene::output::OutputSet::new();
         let stage = set.stage_dir(&args.out)?;
         let options = format!(
-            "accuracy\ncameras={}\ntime={}\nsize={}x{}\nonly={:?}\ndrop_invalid={}",
+            "accuracy\ncameras={}\ntime={}\nsize={}x{}\nonly={:?}\ndrop_invalid={}\nhybrid={}",
             args.cameras,
             args.time.to_bits(),
             args.width,
             args.height,
             args.only,
-            args.drop_invalid
+            args.drop_invalid,
+            args.hybrid_split.text()
         );
         let report = PartialReport {
             format: merge::PARTIAL_FORMAT.into(),

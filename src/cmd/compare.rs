@@ -65,6 +65,8 @@ pub struct Args {
     /// report.json for `splatbridge merge` (see docs/scale.md).
     #[arg(long, value_name = "I/N")]
     pub shard: Option<Shard>,
+    #[command(flatten)]
+    pub hybrid_split: super::split_args::SplitArgs,
     /// Output folder.
     #[arg(short, long, alias = "output")]
     pub out: PathBuf,
@@ -138,7 +140,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let frame0 = scene.composite(times[0]);
         resolve_cameras(&args.cameras, &frame0, &scene, args.width, args.height)?
     };
+    // The hybrid's split and blend; `--split auto` measures them on the first time's composite.
+    let hybrid = args
+        .hybrid_split
+        .resolve(|| scene.composite(times[0]), CompareConfig::default().ges)
+        .with_context(|| args.scene.display().to_string())?;
+    if let Some(a) = &hybrid.auto {
+        print!("{}", a.summary());
+    }
     let cfg = CompareConfig {
+        split: hybrid.params,
+        ges: hybrid.ges,
         profiles: parse_profiles(&args.profiles)?,
         obj: !args.no_obj,
         backend: args.backend.parse()?,
@@ -225,7 +237,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 /// shards of differently configured runs do not merge). `--shard` and `--out` are not in it.
 fn options_text(args: &Args, times: &[f64]) -> String {
     format!(
-        "compare\ncameras={}\ntimes={:?}\nprofiles={:?}\nsize={}x{}\nbackend={}\nk={}\nno_obj={}\ndrop_invalid={}\nclients={:?}",
+        "compare\ncameras={}\ntimes={:?}\nprofiles={:?}\nsize={}x{}\nbackend={}\nk={}\nno_obj={}\ndrop_invalid={}\nclients={:?}\nhybrid={}",
         args.cameras,
         times.iter().map(|t| t.to_bits()).collect::<Vec<_>>(),
         args.profiles,
@@ -235,7 +247,8 @@ fn options_text(args: &Args, times: &[f64]) -> String {
         args.k,
         args.no_obj,
         args.drop_invalid,
-        args.clients
+        args.clients,
+        args.hybrid_split.text()
     )
 }
 

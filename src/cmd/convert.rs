@@ -209,6 +209,11 @@ pub struct Args {
     /// Triangles per surfel fan (with --surfels).
     #[arg(long, value_name = "N", default_value_t = splatbridge_convert::surfels::DEFAULT_SURFEL_SEGMENTS, requires = "surfels", value_parser = super::ranges::surfel_segments)]
     pub surfel_segments: usize,
+    /// How surfels are chosen (with --surfels): guarded (the hybrid's scene-scale,
+    /// neighbourhood and isolation guards after the thresholds, the default) or thresholds
+    /// (opacity and flatness alone).
+    #[arg(long, value_enum, default_value = "guarded", requires = "surfels")]
+    pub surfel_split: super::hybrid::SplitMode,
     /// Embed these cameras in glTF outputs (replacing the scene's own), in order: orbit:N,
     /// orbit:N:I, scene (the input's cameras), scene:I, PATH.json (all its cameras) or
     /// PATH.json:I; repeatable and comma-separated. Orbit cameras are 640×480 (50° field of
@@ -334,6 +339,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.khr_compression != KhrCompressionArg::None && !args.splats {
         bail!("--khr-compression: applies to --splats glTF outputs only");
     }
+    let surfel_guarded = match args.surfel_split {
+        super::hybrid::SplitMode::Guarded => true,
+        super::hybrid::SplitMode::Thresholds => false,
+        super::hybrid::SplitMode::Auto => bail!(
+            "--surfel-split auto: an export has no renderer to measure it with; use guarded or thresholds"
+        ),
+    };
     let t0 = Instant::now();
     let cloud_out = cloud_format(
         &args.output,
@@ -387,6 +399,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 min_opacity: args.surfel_opacity,
                 max_flatness: args.surfel_flatness,
                 segments: args.surfel_segments,
+                guarded: surfel_guarded,
             }),
         ..Default::default()
     };
@@ -532,10 +545,15 @@ fn print_summary(args: &Args, r: &ConvertReport) {
     }
     if let Some(s) = &r.surfels {
         eprintln!(
-            "  surfels        {:>12}  (opacity ≥ {}, flatness ≤ {}, {}-segment opaque fans{})",
+            "  surfels        {:>12}  (opacity ≥ {}, flatness ≤ {}, {}, {}-segment opaque fans{})",
             s.surfels,
             s.min_opacity,
             s.max_flatness,
+            if s.guarded {
+                format!("guarded: {} kept as Gaussians", s.guarded_out)
+            } else {
+                "unguarded".to_string()
+            },
             s.segments,
             if s.dropped_overflow > 0 {
                 format!(", {} dropped: scale overflow", s.dropped_overflow)

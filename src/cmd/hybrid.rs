@@ -1,5 +1,6 @@
 //! `splatbridge hybrid`: render with the GES-style hybrid (opaque surfels through a z-buffer,
-//! then the residual Gaussians unsorted; `splatbridge_hybrid::ges`). Surfels come from a split
+//! then the residual Gaussians, unsorted or with `--blend sorted` in native's order;
+//! `splatbridge_hybrid::ges`). Surfels come from a split
 //! of the trained cloud by opacity and flatness, or from a GES PLY's own flags.
 //!
 //! The frame comes from `splatbridge::pipeline::render_frame` (the composite plus declared
@@ -12,8 +13,10 @@ use std::path::PathBuf;
 use anyhow::{bail, Context};
 use serde_json::json;
 use splatbridge::pipeline::{render_frame, FrameRequest, FrameStats, Renderer, SurfelSplit};
-use splatbridge::split_auto::{choose, params_json, AutoChoice, AutoConfig, DEFAULT_MIN_PSNR};
-use splatbridge_hybrid::ges::{GesOptions, GesStats};
+use splatbridge::split_auto::{
+    blend_name, choose, params_json, AutoChoice, AutoConfig, DEFAULT_MIN_PSNR,
+};
+use splatbridge_hybrid::ges::{Blend, GesOptions, GesStats};
 use splatbridge_scene::effects_run::effects_of;
 use splatbridge_scene::image_io::save_frame;
 use splatbridge_scene::surfels::{
@@ -55,6 +58,24 @@ pub enum SplitMode {
     Auto,
 }
 
+/// How pass 2 blends the Gaussians the surfels leave (`--blend`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum BlendMode {
+    /// GES's weighted blended transparency: no sort, exact only for one Gaussian per pixel.
+    Unsorted,
+    /// Front to back in depth order as native splatting, the surfels an opaque layer behind.
+    Sorted,
+}
+
+impl From<BlendMode> for Blend {
+    fn from(b: BlendMode) -> Blend {
+        match b {
+            BlendMode::Unsorted => Blend::Unsorted,
+            BlendMode::Sorted => Blend::Sorted,
+        }
+    }
+}
+
 /// `--min-psnr`: a finite number of dB above 0.
 pub fn parse_min_psnr(s: &str) -> Result<f64, String> {
     match s.trim().parse::<f64>() {
@@ -85,6 +106,12 @@ pub struct HybridKnobs {
     /// the chosen split must keep.
     #[arg(long, default_value_t = DEFAULT_MIN_PSNR, value_parser = parse_min_psnr)]
     pub min_psnr: f64,
+    /// How the Gaussians left after the surfels are blended: unsorted (GES's weighted blend, no
+    /// sort; the default) or sorted (front to back as native: accurate, about native's speed).
+    /// With --split auto and no --blend, both are measured and the cheaper one that keeps
+    /// --min-psnr is used.
+    #[arg(long, value_enum)]
+    pub blend: Option<BlendMode>,
     /// Guard: a surfel's footprint radius is at most this fraction of the scene's robust
     /// extent (off: no limit).
     #[arg(long, default_value_t = DEFAULT_MAX_SCENE_FRACTION, value_parser = parse_limit)]
@@ -139,8 +166,23 @@ pub struct HybridKnobs {
 }
 
 impl HybridKnobs {
+    /// The renderer options; with a `--split auto` choice, its blend unless `--blend` pins one.
+    pub fn options_for(&self, auto: Option<&AutoChoice>) -> GesOptions {
+        let blend = match (self.blend, auto) {
+            (Some(b), _) => b.into(),
+            (None, Some(a)) => a.blend(),
+            (None, None) => Blend::default(),
+        };
+        GesOptions {
+            blend,
+            ..self.options()
+        }
+    }
+
+    /// The renderer options (the blend `--blend` names, or the default).
     pub fn options(&self) -> GesOptions {
         GesOptions {
+            blend: self.blend.map(Blend::from).unwrap_or_default(),
             epsilon_factor: self.epsilon,
             footprint_sigmas: self.footprint,
             supersample: self.supersample,
@@ -190,6 +232,10 @@ impl HybridKnobs {
         }
         let cfg = AutoConfig {
             min_psnr: self.min_psnr,
+            blends: match self.blend {
+                Some(b) => vec![b.into()],
+                None => AutoConfig::default().blends,
+            },
             ..AutoConfig::default()
         };
         let choice = choose(cloud, &self.options(), &cfg)?;
@@ -202,6 +248,7 @@ impl HybridKnobs {
         json!({
             "split": format!("{:?}", self.split).to_lowercase(),
             "min_psnr": self.min_psnr,
+            "blend": blend_name(self.options().blend),
             "split_params": params_json(&self.split_params()),
             "surfel_opacity": short(self.surfel_opacity),
             "surfel_flatness": short(self.surfel_flatness),
@@ -218,7 +265,8 @@ impl HybridKnobs {
 
     pub fn describe(&self) -> String {
         format!(
-            "footprint {}σ, ε factor {}, supersample {}, blur {}, near {}, SH degree cap {}",
+            "{} blend, footprint {}σ, ε factor {}, supersample {}, blur {}, near {}, SH degree cap {}",
+            blend_name(self.options().blend),
             self.footprint,
             self.epsilon,
             self.supersample,
@@ -263,6 +311,7 @@ pub fn stats_json(s: &GesStats, split_ms: f64) -> serde_json::Value {
         "tile_pairs": s.tile_pairs,
         "culled_pairs": s.culled_pairs,
         "blends": s.blends,
+        "sorted": s.sorted,
         "milliseconds": {
             "total": split_ms + ms(s.times.total()),
             "split": split_ms,
@@ -319,7 +368,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .knobs
         .resolve_split(&scene.composite(t))
         .with_context(|| name.clone())?;
-    let mut renderer = Renderer::hybrid(args.knobs.options(), split)?;
+    let mut renderer = Renderer::hybrid(args.knobs.options_for(auto.as_ref()), split)?;
     let req = FrameRequest {
         scene: Some(&scene),
         effects: &effects,

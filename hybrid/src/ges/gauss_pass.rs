@@ -279,6 +279,32 @@ impl FrameOut {
             height: frame.height as usize,
         }
     }
+
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// Write pixel `p` (row-major).
+    ///
+    /// # Safety
+    /// `p < width·height`; the frame must be alive and no one else may access pixel `p`
+    /// meanwhile.
+    #[inline]
+    pub unsafe fn write(&self, p: usize, rgb: [f32; 3], alpha: f32, depth: f32) {
+        // SAFETY: the planes hold 3·, 1·, 1·(width·height) values and p is in range (the
+        // caller's contract).
+        unsafe {
+            self.rgb.add(3 * p).write(rgb[0]);
+            self.rgb.add(3 * p + 1).write(rgb[1]);
+            self.rgb.add(3 * p + 2).write(rgb[2]);
+            self.alpha.add(p).write(alpha);
+            self.depth.add(p).write(depth);
+        }
+    }
 }
 
 /// Accumulate and composite one tile whose top-left pixel is `(px0, py0)` into `out`. `surf` is

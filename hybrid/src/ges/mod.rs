@@ -1,6 +1,7 @@
 //! The GES-style hybrid renderer (Gaussian-enhanced Surfels, arXiv 2504.17545, `YessionCC/GES`;
 //! facts in `../shared/reference/meshsplats-and-ges.md`): opaque surfels carry the coarse
-//! geometry and appearance, the residual Gaussians the detail, and nothing is sorted.
+//! geometry and appearance, the residual Gaussians the detail, and nothing is sorted (unless
+//! [`Blend::Sorted`] asks for native's order in pass 2, [`sorted_pass`]).
 //!
 //! 1. [`surfel_pass`]: surfels through a per-sample z-buffer (ray–plane intersection, exact
 //!    ellipse coverage), optional 4× supersampling, optional 3×3 colour blur.
@@ -23,6 +24,7 @@
 pub mod composite;
 pub mod gauss_pass;
 pub mod project_gauss;
+pub mod sorted_pass;
 pub mod surfel_pass;
 pub mod surfel_project;
 pub mod tiles;
@@ -35,8 +37,9 @@ use splatbridge_scene::surfels::{
 };
 use splatbridge_scene::{Camera, Frame, GaussianCloud};
 
-use crate::native::{RenderError, RenderOptions, MAX_PAIRS, NEAR_REFERENCE};
+use crate::native::{RenderError, RenderOptions, ALPHA_CLAMP_REFERENCE, MAX_PAIRS, NEAR_REFERENCE};
 use crate::project::{Extent, Splat, ViewParams};
+use crate::raster::BlendParams;
 
 use gauss_pass::{gauss_tile, FrameOut};
 use project_gauss::{project_unhidden, Projection};
@@ -63,6 +66,22 @@ pub struct GesOptions {
     /// Extent of a Gaussian's tile footprint. `Alpha` (default) is exactly the set where
     /// `opacity·G ≥ 1/255`, the pass's own inclusion rule; `Sigma3` the native 3σ square.
     pub extent: Extent,
+    /// How the Gaussians left after the surfel pass are blended (see [`Blend`]).
+    pub blend: Blend,
+}
+
+/// How pass 2 blends the Gaussians that the surfels leave.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Blend {
+    /// GES's order-independent weighted blend ([`gauss_pass`], [`composite`]): no sort. The
+    /// default: it is where the hybrid's speed comes from (about half the cost per blend of
+    /// the sorted pass, measured in `docs/blend.md`).
+    #[default]
+    Unsorted,
+    /// Sorted front to back and blended as the native renderer does, the surfel an opaque layer
+    /// behind them ([`sorted_pass`]); with no surfels, the native image. Accurate, but about
+    /// as slow as native splatting on trained captures.
+    Sorted,
 }
 
 impl Default for GesOptions {
@@ -76,6 +95,7 @@ impl Default for GesOptions {
             near: NEAR_REFERENCE,
             sh_degree_cap: 3,
             extent: Extent::Alpha,
+            blend: Blend::default(),
         }
     }
 }
@@ -114,7 +134,7 @@ impl GesOptions {
 pub struct GesTimes {
     /// Surfel projection, binning, z-buffer and blur.
     pub surfels: Duration,
-    /// Gaussian projection and SH colour.
+    /// Gaussian projection and SH colour (and the sorted blend's depth sort).
     pub projection: Duration,
     /// Tile lists with the per-tile depth cull.
     pub binning: Duration,
@@ -143,6 +163,8 @@ pub struct GesStats {
     pub culled_pairs: u64,
     /// Pixel–Gaussian additions.
     pub blends: u64,
+    /// Gaussians depth-sorted (the sorted blend's survivors of the surfel test; 0 unsorted).
+    pub sorted: usize,
     pub times: GesTimes,
 }
 
@@ -157,6 +179,7 @@ impl std::ops::AddAssign<&GesStats> for GesStats {
         self.tile_pairs += s.tile_pairs;
         self.culled_pairs += s.culled_pairs;
         self.blends += s.blends;
+        self.sorted += s.sorted;
         self.times.surfels += s.times.surfels;
         self.times.projection += s.times.projection;
         self.times.binning += s.times.binning;
@@ -244,12 +267,18 @@ fn render_impl(
     let (gx, gy) = (view.grid[0] as usize, view.grid[1] as usize);
     let tile_max: Vec<f32> = (0..gx * gy).map(|t| sb.tile_max(t)).collect();
     let Projected {
-        splats,
-        rects,
+        mut splats,
+        mut rects,
+        index,
         hidden,
         hidden_pairs,
     } = project_all(gaussians, &view, opts, &tile_max);
     stats.projected = splats.len() + hidden;
+    if opts.blend == Blend::Sorted {
+        sorted_pass::sort_by_depth(gaussians, &index, &mut splats, &mut rects);
+        stats.sorted = splats.len();
+    }
+    drop(index);
     let t2 = Instant::now();
 
     let total_pairs: u64 = rects.iter().map(rect_pairs).sum::<u64>() + hidden_pairs;
@@ -267,14 +296,27 @@ fn render_impl(
     let bg = opts.background;
     let mut frame = Frame::new(camera.width, camera.height);
     let out = FrameOut::new(&mut frame);
+    let params = BlendParams {
+        alpha_clamp: ALPHA_CLAMP_REFERENCE,
+        background: bg,
+        exhaustive: false,
+    };
     stats.blends = order
         .into_par_iter()
         .with_max_len(1)
         .map(|t| {
             let (px0, py0) = (((t % gx) * T) as i32, ((t / gx) * T) as i32);
+            let (list, surf) = (bins.tile(t), sb.tile(t));
             // SAFETY: each tile index appears once in `order`, so each pixel is written once;
             // `frame` is not otherwise used until the parallel loop has finished.
-            unsafe { gauss_tile(&splats, bins.tile(t), px0, py0, sb.tile(t), bg, &out) }
+            unsafe {
+                match opts.blend {
+                    Blend::Unsorted => gauss_tile(&splats, list, px0, py0, surf, bg, &out),
+                    Blend::Sorted => {
+                        sorted_pass::sorted_tile(&splats, list, px0, py0, surf, &params, &out)
+                    }
+                }
+            }
         })
         .sum();
     let t4 = Instant::now();
@@ -290,13 +332,14 @@ fn render_impl(
 /// Gaussians projected per parallel job of [`project_all`].
 const PROJECT_CHUNK: usize = 8192;
 
-/// What [`project_all`] returns: the splats and tile rectangles of the Gaussians that are
-/// visible and not behind the largest limit of every tile they touch, in input order; the
-/// Gaussians hidden that way and their tile pairs.
+/// What [`project_all`] returns: the splats, tile rectangles and cloud indices of the
+/// Gaussians that are visible and not behind the largest limit of every tile they touch, in
+/// input order; the Gaussians hidden that way and their tile pairs.
 #[derive(Default)]
 struct Projected {
     splats: Vec<Splat>,
     rects: Vec<[u32; 4]>,
+    index: Vec<u32>,
     hidden: usize,
     hidden_pairs: u64,
 }
@@ -330,11 +373,13 @@ fn project_all(
     let mut out = Projected {
         splats: Vec::with_capacity(total),
         rects: Vec::with_capacity(total),
+        index: Vec::with_capacity(total),
         ..Default::default()
     };
     for p in parts {
         out.splats.extend_from_slice(&p.splats);
         out.rects.extend_from_slice(&p.rects);
+        out.index.extend_from_slice(&p.index);
         out.hidden += p.hidden;
         out.hidden_pairs += p.hidden_pairs;
     }
@@ -357,6 +402,7 @@ fn project_range(
             Projection::Visible(s, r) => {
                 p.splats.push(s);
                 p.rects.push(r);
+                p.index.push(i as u32);
             }
             Projection::Hidden(r) => {
                 p.hidden += 1;

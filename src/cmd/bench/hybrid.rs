@@ -15,7 +15,7 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use splatbridge_hybrid::ges::{render_ges, GesOptions, GesStats};
+use splatbridge_hybrid::ges::{render_ges, Blend, GesOptions, GesStats};
 use splatbridge_hybrid::{render, RenderOptions};
 use splatbridge_scene::metrics::psnr;
 use splatbridge_scene::surfels::{split, SplitParams};
@@ -128,7 +128,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let cam = cam_args
         .resolve(&cloud, &[])
         .with_context(|| args.scene.clone())?;
-    let opts = args.knobs.options();
+    let (surfel_split, auto) = args.knobs.resolve_split(&cloud)?;
+    let opts = args.knobs.options_for(auto.as_ref());
     opts.validate()?;
     let nopts = RenderOptions {
         near: opts.near,
@@ -147,7 +148,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.repeat
     );
 
-    let (surfel_split, auto) = args.knobs.resolve_split(&cloud)?;
     if let Some(a) = &auto {
         print!("{}", a.summary());
     }
@@ -191,7 +191,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ms(split_time)
     );
     println!(
-        "hybrid: {:.1} ms median (surfels {:.1}, projection {:.1}, binning {:.1}, blending {:.1}); {} tile pairs kept, {} culled, {} blends",
+        "hybrid: {:.1} ms median (surfels {:.1}, projection {:.1}, binning {:.1}, blending {:.1}); {} tile pairs kept, {} culled, {} blends, {} Gaussians sorted",
         ms(t_h),
         ms(ht.surfels),
         ms(ht.projection),
@@ -199,7 +199,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ms(ht.blending),
         hs.tile_pairs,
         hs.culled_pairs,
-        hs.blends
+        hs.blends,
+        hs.sorted
     );
     let ratio = t_native.as_secs_f64() / t_h.as_secs_f64();
     println!("speed ratio native/hybrid: {ratio:.2}×; PSNR hybrid vs native: {hpsnr:.2} dB");
@@ -247,7 +248,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }
         }
         let fp = std::f32::consts::SQRT_2;
-        let variants: [(&str, GesOptions); 6] = [
+        let other = match opts.blend {
+            Blend::Sorted => ("defaults, unsorted blend", Blend::Unsorted),
+            Blend::Unsorted => ("defaults, sorted blend", Blend::Sorted),
+        };
+        let variants: [(&str, GesOptions); 7] = [
+            (
+                other.0,
+                GesOptions {
+                    blend: other.1,
+                    ..opts
+                },
+            ),
             (
                 "defaults, footprint 1.41σ",
                 GesOptions {
@@ -312,6 +324,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "threads": rayon::current_num_threads(),
             "native_ms": ms(t_native), "hybrid_ms": ms(t_h), "split_ms": ms(split_time),
             "speed_ratio": ratio, "psnr_db": hpsnr, "surfels": s.len(),
+            "blend": splatbridge::split_auto::blend_name(opts.blend), "sorted": hs.sorted,
+            "native_blends": nstats.blends, "hybrid_blends": hs.blends,
+            "hybrid_tile_pairs": hs.tile_pairs,
             "min_opacity": p.min_opacity, "max_flatness": p.max_flatness,
             "split_params": splatbridge::split_auto::params_json(&p),
             "split_auto": auto.as_ref().map(|a| a.to_json()),
