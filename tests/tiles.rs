@@ -73,7 +73,8 @@ struct Walk {
 }
 
 /// Check one tile and its subtree; returns its geometric error.
-fn walk(dir: &Path, tile: &Value, frame: &glam::Mat3, content: TileContent, w: &mut Walk) -> f64 {
+fn walk(dir: &Path, tile: &Value, frame: &glam::Mat3, opts: &TileOptions, w: &mut Walk) -> f64 {
+    let content = opts.content;
     w.tiles += 1;
     let err = tile["geometricError"].as_f64().expect("geometricError");
     let bx: Vec<f64> = tile["boundingVolume"]["box"]
@@ -91,7 +92,12 @@ fn walk(dir: &Path, tile: &Value, frame: &glam::Mat3, content: TileContent, w: &
         if content == TileContent::Splats {
             let scene = splatbridge_scene::formats::gltf_khr::read_gltf_splats(&path)
                 .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-            let cloud = scene.static_gaussians;
+            let mut cloud = scene.static_gaussians;
+            // The reader follows the extension's text (stream packed from LUF); CesiumJS's
+            // variant holds the glTF frame itself, so undo the reader's half turn.
+            if opts.compression == KhrCompression::SpzCesium {
+                splatbridge_scene::formats::gltf_khr::spz::flip_xz(&mut cloud);
+            }
             assert!(!cloud.is_empty());
             // Box axes here are axis-aligned (the frame maps axes onto axes), so containment
             // is a per-axis test; slack: 1e-4 of the box's half size, for f32 positions and
@@ -134,7 +140,7 @@ fn walk(dir: &Path, tile: &Value, frame: &glam::Mat3, content: TileContent, w: &
         );
     }
     for ch in &children {
-        let ce = walk(dir, ch, frame, content, w);
+        let ce = walk(dir, ch, frame, opts, w);
         assert!(ce < err, "child error {ce} not below its parent's {err}");
     }
     err
@@ -151,7 +157,7 @@ fn check_tileset(dir: &Path, opts: &TileOptions, input: &GaussianCloud) -> Walk 
         leaf_points: Vec::new(),
         tiles: 0,
     };
-    let root_err = walk(dir, &ts["root"], &frame, opts.content, &mut w);
+    let root_err = walk(dir, &ts["root"], &frame, opts, &mut w);
     assert!(ts["geometricError"].as_f64().unwrap() > root_err);
     let files = std::fs::read_dir(dir).unwrap().count();
     if opts.content == TileContent::Splats {
@@ -192,19 +198,28 @@ fn splat_tileset_is_structurally_sound_and_partitions_the_gaussians() {
 fn spz_and_mesh_tilesets_are_structurally_sound() {
     let cloud = clusters(1200);
     let scene = DynamicScene::from_static(cloud.clone());
-    let dir = tempfile::tempdir().unwrap();
-    let opts = options(TileContent::Splats, KhrCompression::Spz, 200);
-    splatbridge::tiles::write_tiles(dir.path(), &scene, &opts).unwrap();
-    check_tileset(dir.path(), &opts, &cloud);
-    let ts: Value =
-        serde_json::from_slice(&std::fs::read(dir.path().join("tileset.json")).unwrap()).unwrap();
-    assert_eq!(
-        ts["extensions"]["3DTILES_content_gltf"]["extensionsRequired"],
-        serde_json::json!([
-            "KHR_gaussian_splatting",
-            "KHR_gaussian_splatting_compression_spz_2"
-        ])
-    );
+    // Both SPZ frames: the clusters sit at x 0..40, so a stream read with the wrong half
+    // turn (x and z negated) puts every centre outside its tile's box.
+    for compression in [KhrCompression::SpzCesium, KhrCompression::Spz] {
+        let dir = tempfile::tempdir().unwrap();
+        let opts = options(TileContent::Splats, compression, 200);
+        splatbridge::tiles::write_tiles(dir.path(), &scene, &opts).unwrap();
+        check_tileset(dir.path(), &opts, &cloud);
+        let ts: Value =
+            serde_json::from_slice(&std::fs::read(dir.path().join("tileset.json")).unwrap())
+                .unwrap();
+        assert_eq!(
+            ts["extensions"]["3DTILES_content_gltf"]["extensionsRequired"],
+            serde_json::json!([
+                "KHR_gaussian_splatting",
+                "KHR_gaussian_splatting_compression_spz_2"
+            ])
+        );
+        assert_eq!(
+            ts["asset"]["extras"]["splatbridge"]["khrCompression"],
+            compression.name()
+        );
+    }
     let dir = tempfile::tempdir().unwrap();
     let opts = options(TileContent::Mesh, KhrCompression::None, 200);
     splatbridge::tiles::write_tiles(dir.path(), &scene, &opts).unwrap();
@@ -305,13 +320,16 @@ fn script(name: &str) -> PathBuf {
 /// against native splatting of the whole scene, and CesiumJS must stay within 1 dB of
 /// Babylon.js (the tiles goal).
 #[test]
-#[ignore = "unfinished: CesiumJS draws the tileset at the requested size now, but misplaced (the content sits at the left edge): 20.6 dB against native where Babylon.js scores 31.0 dB on the same Gaussians and camera"]
+#[cfg_attr(
+    not(web_clients),
+    ignore = "needs chromium and the npm packages of scripts/package.json (scripts/setup.sh)"
+)]
 fn cesium_renders_the_splat_tileset_close_to_native() {
     use splatbridge_scene::camera::Camera;
     let dir = tempfile::tempdir().unwrap();
     let cloud = clusters(3000);
     let scene = DynamicScene::from_static(cloud.clone());
-    let opts = options(TileContent::Splats, KhrCompression::Spz, 400);
+    let opts = options(TileContent::Splats, KhrCompression::SpzCesium, 400);
     splatbridge::tiles::write_tiles(dir.path(), &scene, &opts).unwrap();
     // A camera above the strip, looking down at 45° (capture up is −y).
     let (w, h) = (320u32, 240u32);
@@ -383,3 +401,86 @@ fn cesium_renders_the_splat_tileset_close_to_native() {
 /// the 1 dB to Babylon.js below, which fails today and keeps the test ignored.
 #[cfg_attr(not(web_clients), allow(dead_code))]
 const CESIUM_FLOOR: f64 = 20.0;
+
+/// 3d-tiles-renderer (three.js) renders the mesh tileset through a stated camera; three.js
+/// renders the same Gaussians meshed as one GLB through the same camera; both are measured
+/// against native splatting, and the two client images must agree (the tileset is the one
+/// file's meshes partitioned into tiles, so only the draw order of coincident fragments may
+/// differ).
+#[test]
+#[cfg_attr(
+    not(web_clients),
+    ignore = "needs chromium and the npm packages of scripts/package.json (scripts/setup.sh)"
+)]
+fn three_tiles_renderer_draws_the_mesh_tileset_like_one_file() {
+    use splatbridge_scene::camera::Camera;
+    let dir = tempfile::tempdir().unwrap();
+    let cloud = clusters(1200);
+    let scene = DynamicScene::from_static(cloud.clone());
+    let opts = options(TileContent::Mesh, KhrCompression::None, 200);
+    let rep = splatbridge::tiles::write_tiles(dir.path(), &scene, &opts).unwrap();
+    assert!(rep.leaves > 1, "the check needs several content tiles");
+    let (w, h) = (320u32, 240u32);
+    let eye = glam::DVec3::new(20.0, -25.0, -22.0);
+    let target = glam::DVec3::new(20.0, 0.0, 3.0);
+    let up = glam::DVec3::NEG_Y;
+    let cam = Camera::look_at(eye, target, up, 50.0, w, h).unwrap();
+    let (native, _) =
+        splatbridge_hybrid::native::render(&cloud, &cam, &Default::default()).unwrap();
+    let native_png = dir.path().join("native.png");
+    splatbridge_scene::image_io::save_frame(&native_png, &native).unwrap();
+    let m = capture_to_tileset(&opts.convert).as_dmat3();
+    let f = |v: glam::DVec3| {
+        let t = m * v;
+        format!("{},{},{}", t.x, t.y, t.z)
+    };
+    let tiles_png = dir.path().join("tiles.png");
+    let st = Command::new("node")
+        .arg(script("tiles-render.mjs"))
+        .args([
+            "3d-tiles-renderer",
+            dir.path().join("tileset.json").to_str().unwrap(),
+            tiles_png.to_str().unwrap(),
+        ])
+        .args(["--eye", &f(eye), "--target", &f(target), "--up", &f(up)])
+        .args(["--fov", "50", "--size", "320x240", "--sse", "0"])
+        .status()
+        .unwrap();
+    assert!(st.success(), "3d-tiles-renderer failed");
+    let mut one = scene.clone();
+    one.cameras = vec![cam];
+    let glb = dir.path().join("one.glb");
+    let mut file = std::io::BufWriter::new(std::fs::File::create(&glb).unwrap());
+    splatbridge_convert::write_glb(&mut file, &one, None, &opts.convert).unwrap();
+    std::io::Write::flush(&mut file).unwrap();
+    drop(file);
+    let one_png = dir.path().join("three.png");
+    let st = Command::new(script("client-render.sh"))
+        .args(["three", glb.to_str().unwrap(), one_png.to_str().unwrap()])
+        .args(["--camera", "0", "--size", "320x240"])
+        .status()
+        .unwrap();
+    assert!(st.success(), "three.js failed");
+    let load = |p: &Path| splatbridge_scene::image_io::load_png(p).unwrap();
+    let (a, t, o) = (load(&native_png), load(&tiles_png), load(&one_png));
+    assert_eq!((t.width, t.height), (w, h), "3d-tiles-renderer image size");
+    let pt = splatbridge_scene::metrics::psnr(&a, &t).unwrap();
+    let po = splatbridge_scene::metrics::psnr(&a, &o).unwrap();
+    let between = splatbridge_scene::metrics::psnr(&o, &t).unwrap();
+    println!(
+        "3d-tiles-renderer tileset {pt:.2} dB, three.js one GLB {po:.2} dB against native; {between:.2} dB between them"
+    );
+    assert!(
+        between >= THREE_TILES_AGREEMENT,
+        "3d-tiles-renderer and three.js differ: {between:.2} dB"
+    );
+    assert!(
+        pt >= po - 0.5,
+        "3d-tiles-renderer {pt:.2} dB is more than 0.5 dB below three.js's {po:.2} dB"
+    );
+}
+
+/// See `three_tiles_renderer_draws_the_mesh_tileset_like_one_file`: PSNR between the
+/// tileset's and the one file's three.js images (MEASURED_LATER).
+#[cfg_attr(not(web_clients), allow(dead_code))]
+const THREE_TILES_AGREEMENT: f64 = 40.0;

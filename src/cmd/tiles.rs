@@ -25,7 +25,12 @@ pub enum TileContentArg {
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum TileCompressionArg {
+    /// SPZ as CesiumJS decodes it (the stream in the glTF mesh's own frame).
     Spz,
+    /// SPZ packed from Left-Up-Front, as the extension's draft text asks (CesiumJS 1.145
+    /// shows such tiles turned 180° about the up axis).
+    SpzLuf,
+    /// Float attribute accessors (CesiumJS does not read these).
     None,
 }
 
@@ -103,7 +108,8 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         origin,
         compression: match args.tiles.tile_compression {
             Some(TileCompressionArg::None) => KhrCompression::None,
-            _ => KhrCompression::Spz,
+            Some(TileCompressionArg::SpzLuf) => KhrCompression::Spz,
+            Some(TileCompressionArg::Spz) | None => KhrCompression::SpzCesium,
         },
         convert: ConvertOptions {
             profile: match args.profile {

@@ -70,7 +70,8 @@ pub struct TileOptions {
     /// The conversion options of every tile's GLB (up axis, mesh profile, …).
     pub convert: ConvertOptions,
     /// Splat attribute storage. CesiumJS (1.134 on) reads `KHR_gaussian_splatting` only with
-    /// `KHR_gaussian_splatting_compression_spz_2`, so tilesets default to SPZ.
+    /// `KHR_gaussian_splatting_compression_spz_2`, and decodes its stream without the
+    /// extension's LUF conversion, so tilesets default to [`KhrCompression::SpzCesium`].
     pub compression: KhrCompression,
 }
 
@@ -324,16 +325,16 @@ pub fn write_tileset(
     // The glTF extensions of the content, declared through `3DTILES_content_gltf` (CesiumJS
     // picks its splat renderer from this list, not from the GLBs).
     let gltf_ext: Vec<&str> = match (opts.content, opts.compression) {
-        (TileContent::Splats, KhrCompression::Spz) => {
+        (TileContent::Splats, c) if c.is_spz() => {
             vec![
                 "KHR_gaussian_splatting",
                 "KHR_gaussian_splatting_compression_spz_2",
             ]
         }
-        (TileContent::Splats, KhrCompression::None) => vec!["KHR_gaussian_splatting"],
+        (TileContent::Splats, _) => vec!["KHR_gaussian_splatting"],
         (TileContent::Mesh, _) => vec![],
     };
-    let required = if opts.compression == KhrCompression::Spz {
+    let required = if opts.compression.is_spz() {
         gltf_ext.clone()
     } else {
         vec![]
