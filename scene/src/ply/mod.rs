@@ -35,6 +35,7 @@
 mod ascii;
 mod binary;
 mod header;
+mod stream;
 mod write;
 
 use std::io::BufReader;
@@ -44,6 +45,7 @@ use glam::{Quat, Vec3};
 
 use crate::error::{Result, SceneError};
 use crate::GaussianCloud;
+pub use stream::PlyStream;
 use header::{Encoding, SLOT_DC, SLOT_OPACITY, SLOT_REST, SLOT_ROT, SLOT_SCALE, SLOT_X};
 
 /// Encoding of a written PLY.
