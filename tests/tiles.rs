@@ -484,3 +484,71 @@ fn three_tiles_renderer_draws_the_mesh_tileset_like_one_file() {
 /// tileset's and the one file's three.js images (MEASURED_LATER).
 #[cfg_attr(not(web_clients), allow(dead_code))]
 const THREE_TILES_AGREEMENT: f64 = 40.0;
+
+/// Every file of a tileset directory, by name.
+fn files(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut v: Vec<(String, Vec<u8>)> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| {
+            let e = e.unwrap();
+            (
+                e.file_name().into_string().unwrap(),
+                std::fs::read(e.path()).unwrap(),
+            )
+        })
+        .collect();
+    v.sort();
+    v
+}
+
+/// The streamed tileset of a binary PLY (partition pass, bucket pass) is the in-memory
+/// tileset of the same file, byte for byte, including with invalid Gaussians dropped; without
+/// `--drop-invalid` an invalid Gaussian is an error naming its vertex, as when reading whole.
+#[test]
+fn streamed_tileset_is_byte_identical_to_the_in_memory_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let ply = dir.path().join("in.ply");
+    let mut cloud = clusters(1500);
+    // Two invalid Gaussians (a NaN centre, a zero quaternion) in different chunks of records.
+    cloud.means[7] = Vec3::new(f32::NAN, 0.0, 0.0);
+    cloud.rotations[1100] = Quat::from_xyzw(0.0, 0.0, 0.0, 0.0);
+    splatbridge_scene::ply::write_ply(
+        &ply,
+        &cloud,
+        splatbridge_scene::ply::PlyFormat::BinaryLittleEndian,
+    )
+    .unwrap();
+    for compression in [KhrCompression::SpzCesium, KhrCompression::None] {
+        let opts = options(TileContent::Splats, compression, 150);
+        let (read, _) = splatbridge_scene::ply::read_ply(
+            &ply,
+            &splatbridge_scene::ply::ReadOptions { drop_invalid: true },
+        )
+        .unwrap();
+        let whole = dir.path().join("whole");
+        let rep_a =
+            splatbridge::tiles::write_tiles(&whole, &DynamicScene::from_static(read), &opts)
+                .unwrap();
+        let streamed = dir.path().join("streamed");
+        let rep_b = splatbridge::tiles::write_tiles_from_ply(&streamed, &ply, true, &opts)
+            .unwrap()
+            .expect("a binary PLY streams");
+        assert_eq!(rep_a.gaussians, 1498);
+        assert_eq!((rep_a.tiles, rep_a.bytes), (rep_b.tiles, rep_b.bytes));
+        let (a, b) = (files(&whole), files(&streamed));
+        assert!(a.len() > 10, "several tiles");
+        assert_eq!(a.len(), b.len());
+        for ((na, da), (nb, db)) in a.iter().zip(&b) {
+            assert_eq!(na, nb);
+            assert!(da == db, "{na} differs between the two paths");
+        }
+        std::fs::remove_dir_all(&whole).unwrap();
+        std::fs::remove_dir_all(&streamed).unwrap();
+    }
+    let opts = options(TileContent::Splats, KhrCompression::SpzCesium, 150);
+    let err = splatbridge::tiles::write_tiles_from_ply(&dir.path().join("t"), &ply, false, &opts)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("vertex 7"), "{err}");
+    assert!(!dir.path().join("t").join("tileset.json").exists());
+}

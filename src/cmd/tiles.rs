@@ -145,8 +145,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let rep = match streamed {
         Some(rep) => rep,
         None => {
-            let scene =
-                load_export_input(&args.scene, args.drop_invalid, &common::print_warning)?;
+            let scene = load_export_input(&args.scene, args.drop_invalid, &common::print_warning)?;
             splatbridge::tiles::write_tiles(dir, &scene, &opts)
                 .with_context(|| dir.display().to_string())?
         }

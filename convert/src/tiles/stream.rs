@@ -145,12 +145,19 @@ pub fn write_tileset_from_ply(
     let mut bufs: Vec<Vec<u8>> = vec![Vec::new(); blocks.blocks.len()];
     let mut raw = Vec::new();
     let mut j = 0usize;
-    while s.next_chunk(CHUNK, Some(&mut raw)).map_err(scene_err)?.is_some() {
+    while s
+        .next_chunk(CHUNK, Some(&mut raw))
+        .map_err(scene_err)?
+        .is_some()
+    {
         for rec in raw.chunks_exact(stride) {
-            let b = leaf_of.get(j).copied().ok_or_else(|| ConvertError::Format {
-                path: ply.into(),
-                what: "the file changed between the partition and the bucket pass".into(),
-            })?;
+            let b = leaf_of
+                .get(j)
+                .copied()
+                .ok_or_else(|| ConvertError::Format {
+                    path: ply.into(),
+                    what: "the file changed between the partition and the bucket pass".into(),
+                })?;
             j += 1;
             if b == u32::MAX {
                 continue;

@@ -45,8 +45,8 @@ use glam::{Quat, Vec3};
 
 use crate::error::{Result, SceneError};
 use crate::GaussianCloud;
-pub use stream::PlyStream;
 use header::{Encoding, SLOT_DC, SLOT_OPACITY, SLOT_REST, SLOT_ROT, SLOT_SCALE, SLOT_X};
+pub use stream::PlyStream;
 
 /// Encoding of a written PLY.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]

@@ -116,8 +116,13 @@ impl PlyStream {
                 SceneError::io(&self.path, e)
             }
         })?;
-        let (mut cloud, suspect) =
-            binary::read_binary(&mut &self.buf[..], &self.path, &self.header, &self.layout, m)?;
+        let (mut cloud, suspect) = binary::read_binary(
+            &mut &self.buf[..],
+            &self.path,
+            &self.header,
+            &self.layout,
+            m,
+        )?;
         let mut keep: Option<Vec<bool>> = None;
         if suspect {
             for i in 0..cloud.len() {
@@ -161,7 +166,10 @@ impl PlyStream {
         if bytes.len() % stride != 0 {
             return Err(SceneError::format(
                 what,
-                format!("{} bytes is not a whole number of {stride}-byte records", bytes.len()),
+                format!(
+                    "{} bytes is not a whole number of {stride}-byte records",
+                    bytes.len()
+                ),
             ));
         }
         let n = bytes.len() / stride;
