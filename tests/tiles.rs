@@ -326,11 +326,16 @@ fn script(name: &str) -> PathBuf {
 )]
 fn cesium_renders_the_splat_tileset_close_to_native() {
     use splatbridge_scene::camera::Camera;
-    let dir = tempfile::tempdir().unwrap();
+    // SPLATBRIDGE_KEEP_TEST_DIR=1 keeps the tileset and the images for a look.
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path().to_path_buf();
+    if std::env::var_os("SPLATBRIDGE_KEEP_TEST_DIR").is_some() {
+        println!("images in {}", tmp.keep().display());
+    }
     let cloud = clusters(3000);
     let scene = DynamicScene::from_static(cloud.clone());
     let opts = options(TileContent::Splats, KhrCompression::SpzCesium, 400);
-    splatbridge::tiles::write_tiles(dir.path(), &scene, &opts).unwrap();
+    splatbridge::tiles::write_tiles(root.as_path(), &scene, &opts).unwrap();
     // A camera above the strip, looking down at 45° (capture up is −y).
     let (w, h) = (320u32, 240u32);
     let eye = glam::DVec3::new(20.0, -25.0, -22.0);
@@ -339,19 +344,19 @@ fn cesium_renders_the_splat_tileset_close_to_native() {
     let cam = Camera::look_at(eye, target, up, 50.0, w, h).unwrap();
     let (native, _) =
         splatbridge_hybrid::native::render(&cloud, &cam, &Default::default()).unwrap();
-    let native_png = dir.path().join("native.png");
+    let native_png = root.as_path().join("native.png");
     splatbridge_scene::image_io::save_frame(&native_png, &native).unwrap();
     let m = capture_to_tileset(&opts.convert).as_dmat3();
     let f = |v: glam::DVec3| {
         let t = m * v;
         format!("{},{},{}", t.x, t.y, t.z)
     };
-    let out = dir.path().join("cesium.png");
+    let out = root.as_path().join("cesium.png");
     let st = Command::new("node")
         .arg(script("tiles-render.mjs"))
         .args([
             "cesium",
-            dir.path().join("tileset.json").to_str().unwrap(),
+            root.as_path().join("tileset.json").to_str().unwrap(),
             out.to_str().unwrap(),
         ])
         .args(["--eye", &f(eye), "--target", &f(target), "--up", &f(up)])
@@ -362,7 +367,7 @@ fn cesium_renders_the_splat_tileset_close_to_native() {
     // The same Gaussians as one float KHR file with the camera embedded, in Babylon.js.
     let mut one = scene.clone();
     one.cameras = vec![cam];
-    let khr = dir.path().join("one.glb");
+    let khr = root.as_path().join("one.glb");
     splatbridge_convert::splats_gltf::write_file_with(
         &khr,
         &one,
@@ -370,7 +375,7 @@ fn cesium_renders_the_splat_tileset_close_to_native() {
         KhrCompression::None,
     )
     .unwrap();
-    let bab = dir.path().join("babylon.png");
+    let bab = root.as_path().join("babylon.png");
     let st = Command::new(script("client-render.sh"))
         .args(["babylon", khr.to_str().unwrap(), bab.to_str().unwrap()])
         .args(["--camera", "0", "--size", "320x240"])
@@ -481,9 +486,11 @@ fn three_tiles_renderer_draws_the_mesh_tileset_like_one_file() {
 }
 
 /// See `three_tiles_renderer_draws_the_mesh_tileset_like_one_file`: PSNR between the
-/// tileset's and the one file's three.js images (MEASURED_LATER).
+/// tileset's and the one file's three.js images: measured 52.27 dB (three 0.187 on
+/// SwiftShader; 29.05 and 29.04 dB against native), less about 2 dB for coincident
+/// fragments whose draw order differs between one mesh and several.
 #[cfg_attr(not(web_clients), allow(dead_code))]
-const THREE_TILES_AGREEMENT: f64 = 40.0;
+const THREE_TILES_AGREEMENT: f64 = 50.0;
 
 /// Every file of a tileset directory, by name.
 fn files(dir: &Path) -> Vec<(String, Vec<u8>)> {
