@@ -163,7 +163,7 @@ impl PlyStream {
     /// of the stride; they were valid when handed out).
     pub fn decode(&self, bytes: &[u8], what: &Path) -> Result<GaussianCloud> {
         let stride = self.stride();
-        if bytes.len() % stride != 0 {
+        if !bytes.len().is_multiple_of(stride) {
             return Err(SceneError::format(
                 what,
                 format!(
