@@ -117,7 +117,16 @@ export async function render(url, o) {
   scene.postProcessStages.fxaa.enabled = false;
   if (scene.sun) scene.sun.show = false;
   if (scene.moon) scene.moon.show = false;
-  const tileset = await C.Cesium3DTileset.fromUrl(url, { maximumScreenSpaceError: o.sse });
+  // Load what the screen-space error asks for everywhere in the view: foveated loading
+  // (on by default) defers tiles away from the centre of the screen until the camera has
+  // rested, and dynamic screen-space error relaxes tiles towards a street-level horizon;
+  // either leaves parents in place of leaves at --sse 0.
+  const tileset = await C.Cesium3DTileset.fromUrl(url, {
+    maximumScreenSpaceError: o.sse,
+    foveatedScreenSpaceError: false,
+    dynamicScreenSpaceError: false,
+    cullRequestsWhileMoving: false,
+  });
   scene.primitives.add(tileset);
   const cam = scene.camera;
   const eye = C.Cartesian3.fromArray(o.eye), target = C.Cartesian3.fromArray(o.target);
@@ -137,9 +146,17 @@ export async function render(url, o) {
     widget.resize();
     widget.render();
     await new Promise((r) => setTimeout(r, 50));
-    settled = tileset.tilesLoaded ? settled + 1 : 0;
+    // The splat primitive rebuilds its combined snapshot of the selected tiles only once
+    // the selection has been stable for a few frames, then sorts on a worker: wait for
+    // that too (private fields of CesiumJS 1.145's GaussianSplatPrimitive; absent for
+    // mesh content).
+    const p = tileset.gaussianSplatPrimitive;
+    const splatsBusy = p !== undefined && (p._dirty || p._needsSnapshotRebuild || p._pendingSnapshot !== undefined || p._pendingSortPromise !== undefined || p._drawCommand === undefined);
+    settled = tileset.tilesLoaded && !splatsBusy ? settled + 1 : 0;
   }
   if (!tileset.tilesLoaded) throw new Error("tiles did not finish loading");
+  const st = tileset.statistics;
+  console.log("cesium: " + st.selected + " tiles selected, " + st.numberOfTilesWithContentReady + " with content ready, " + st.visited + " visited");
   widget.render();
   return widget.canvas.toDataURL("image/png");
 }`;

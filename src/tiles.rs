@@ -24,7 +24,9 @@
 use std::path::Path;
 
 use glam::DVec3;
-use splatbridge_convert::tiles::{write_tileset, TileOptions, TilesetReport};
+use splatbridge_convert::tiles::{
+    write_tileset, write_tileset_from_ply, TileOptions, TilesetReport,
+};
 use splatbridge_convert::{ConvertError, UpAxis};
 use splatbridge_hybrid::native::{RenderOptions, Renderer};
 use splatbridge_scene::blocks::Aabb;
@@ -114,4 +116,21 @@ pub fn write_tiles(
     let mut meter =
         |p: &GaussianCloud, c: &GaussianCloud, b: &Aabb| measure_error(&mut renderer, p, c, b, up);
     write_tileset(dir, scene, opts, &mut meter)
+}
+
+/// [`write_tiles`] of a binary PLY read in two streaming passes, memory bounded by the
+/// partition and a tile rather than the cloud (`splatbridge_convert::tiles` streaming);
+/// `Ok(None)` for an ASCII PLY. The tileset is byte-identical to [`write_tiles`] of the
+/// same file read whole.
+pub fn write_tiles_from_ply(
+    dir: &Path,
+    ply: &Path,
+    drop_invalid: bool,
+    opts: &TileOptions,
+) -> Result<Option<TilesetReport>, ConvertError> {
+    let up = up_vector(opts.convert.up);
+    let mut renderer = Renderer::new();
+    let mut meter =
+        |p: &GaussianCloud, c: &GaussianCloud, b: &Aabb| measure_error(&mut renderer, p, c, b, up);
+    write_tileset_from_ply(dir, ply, drop_invalid, opts, &mut meter)
 }

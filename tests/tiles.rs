@@ -73,7 +73,8 @@ struct Walk {
 }
 
 /// Check one tile and its subtree; returns its geometric error.
-fn walk(dir: &Path, tile: &Value, frame: &glam::Mat3, content: TileContent, w: &mut Walk) -> f64 {
+fn walk(dir: &Path, tile: &Value, frame: &glam::Mat3, opts: &TileOptions, w: &mut Walk) -> f64 {
+    let content = opts.content;
     w.tiles += 1;
     let err = tile["geometricError"].as_f64().expect("geometricError");
     let bx: Vec<f64> = tile["boundingVolume"]["box"]
@@ -91,7 +92,12 @@ fn walk(dir: &Path, tile: &Value, frame: &glam::Mat3, content: TileContent, w: &
         if content == TileContent::Splats {
             let scene = splatbridge_scene::formats::gltf_khr::read_gltf_splats(&path)
                 .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-            let cloud = scene.static_gaussians;
+            let mut cloud = scene.static_gaussians;
+            // The reader follows the extension's text (stream packed from LUF); CesiumJS's
+            // variant holds the glTF frame itself, so undo the reader's half turn.
+            if opts.compression == KhrCompression::SpzCesium {
+                splatbridge_scene::formats::gltf_khr::spz::flip_xz(&mut cloud);
+            }
             assert!(!cloud.is_empty());
             // Box axes here are axis-aligned (the frame maps axes onto axes), so containment
             // is a per-axis test; slack: 1e-4 of the box's half size, for f32 positions and
@@ -134,7 +140,7 @@ fn walk(dir: &Path, tile: &Value, frame: &glam::Mat3, content: TileContent, w: &
         );
     }
     for ch in &children {
-        let ce = walk(dir, ch, frame, content, w);
+        let ce = walk(dir, ch, frame, opts, w);
         assert!(ce < err, "child error {ce} not below its parent's {err}");
     }
     err
@@ -151,7 +157,7 @@ fn check_tileset(dir: &Path, opts: &TileOptions, input: &GaussianCloud) -> Walk 
         leaf_points: Vec::new(),
         tiles: 0,
     };
-    let root_err = walk(dir, &ts["root"], &frame, opts.content, &mut w);
+    let root_err = walk(dir, &ts["root"], &frame, opts, &mut w);
     assert!(ts["geometricError"].as_f64().unwrap() > root_err);
     let files = std::fs::read_dir(dir).unwrap().count();
     if opts.content == TileContent::Splats {
@@ -192,19 +198,28 @@ fn splat_tileset_is_structurally_sound_and_partitions_the_gaussians() {
 fn spz_and_mesh_tilesets_are_structurally_sound() {
     let cloud = clusters(1200);
     let scene = DynamicScene::from_static(cloud.clone());
-    let dir = tempfile::tempdir().unwrap();
-    let opts = options(TileContent::Splats, KhrCompression::Spz, 200);
-    splatbridge::tiles::write_tiles(dir.path(), &scene, &opts).unwrap();
-    check_tileset(dir.path(), &opts, &cloud);
-    let ts: Value =
-        serde_json::from_slice(&std::fs::read(dir.path().join("tileset.json")).unwrap()).unwrap();
-    assert_eq!(
-        ts["extensions"]["3DTILES_content_gltf"]["extensionsRequired"],
-        serde_json::json!([
-            "KHR_gaussian_splatting",
-            "KHR_gaussian_splatting_compression_spz_2"
-        ])
-    );
+    // Both SPZ frames: the clusters sit at x 0..40, so a stream read with the wrong half
+    // turn (x and z negated) puts every centre outside its tile's box.
+    for compression in [KhrCompression::SpzCesium, KhrCompression::Spz] {
+        let dir = tempfile::tempdir().unwrap();
+        let opts = options(TileContent::Splats, compression, 200);
+        splatbridge::tiles::write_tiles(dir.path(), &scene, &opts).unwrap();
+        check_tileset(dir.path(), &opts, &cloud);
+        let ts: Value =
+            serde_json::from_slice(&std::fs::read(dir.path().join("tileset.json")).unwrap())
+                .unwrap();
+        assert_eq!(
+            ts["extensions"]["3DTILES_content_gltf"]["extensionsRequired"],
+            serde_json::json!([
+                "KHR_gaussian_splatting",
+                "KHR_gaussian_splatting_compression_spz_2"
+            ])
+        );
+        assert_eq!(
+            ts["asset"]["extras"]["splatbridge"]["khrCompression"],
+            compression.name()
+        );
+    }
     let dir = tempfile::tempdir().unwrap();
     let opts = options(TileContent::Mesh, KhrCompression::None, 200);
     splatbridge::tiles::write_tiles(dir.path(), &scene, &opts).unwrap();
@@ -302,17 +317,20 @@ fn script(name: &str) -> PathBuf {
 
 /// CesiumJS renders the splat tileset through a stated camera; Babylon.js renders the same
 /// Gaussians as one `KHR_gaussian_splatting` file through the same camera; both are measured
-/// against native splatting of the whole scene, and CesiumJS must stay within 1 dB of
-/// Babylon.js (the tiles goal).
-#[test]
-#[ignore = "unfinished: CesiumJS draws the tileset at the requested size now, but misplaced (the content sits at the left edge): 20.6 dB against native where Babylon.js scores 31.0 dB on the same Gaussians and camera"]
-fn cesium_renders_the_splat_tileset_close_to_native() {
+/// against native splatting of the whole scene. Returns (CesiumJS, Babylon.js) PSNR in dB.
+#[cfg_attr(not(web_clients), allow(dead_code))]
+fn cesium_and_babylon_against_native() -> (f64, f64) {
     use splatbridge_scene::camera::Camera;
-    let dir = tempfile::tempdir().unwrap();
+    // SPLATBRIDGE_KEEP_TEST_DIR=1 keeps the tileset and the images for a look.
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path().to_path_buf();
+    if std::env::var_os("SPLATBRIDGE_KEEP_TEST_DIR").is_some() {
+        println!("images in {}", tmp.keep().display());
+    }
     let cloud = clusters(3000);
     let scene = DynamicScene::from_static(cloud.clone());
-    let opts = options(TileContent::Splats, KhrCompression::Spz, 400);
-    splatbridge::tiles::write_tiles(dir.path(), &scene, &opts).unwrap();
+    let opts = options(TileContent::Splats, KhrCompression::SpzCesium, 400);
+    splatbridge::tiles::write_tiles(root.as_path(), &scene, &opts).unwrap();
     // A camera above the strip, looking down at 45° (capture up is −y).
     let (w, h) = (320u32, 240u32);
     let eye = glam::DVec3::new(20.0, -25.0, -22.0);
@@ -321,19 +339,32 @@ fn cesium_renders_the_splat_tileset_close_to_native() {
     let cam = Camera::look_at(eye, target, up, 50.0, w, h).unwrap();
     let (native, _) =
         splatbridge_hybrid::native::render(&cloud, &cam, &Default::default()).unwrap();
-    let native_png = dir.path().join("native.png");
+    // What SPZ's quantisation alone costs (the tiles' SPZ stream, the float KHR file
+    // Babylon.js reads does not have it): native splatting of the decoded cloud.
+    {
+        use splatbridge_scene::formats::spz::{decode_spz_with, encode_spz, SpzAxes, SpzOptions};
+        let o = SpzOptions {
+            axes: SpzAxes::AsStored,
+            ..SpzOptions::default()
+        };
+        let q = decode_spz_with(&encode_spz(&cloud, &o).unwrap(), root.as_path(), o.axes).unwrap();
+        let (nq, _) = splatbridge_hybrid::native::render(&q, &cam, &Default::default()).unwrap();
+        let pq = splatbridge_scene::metrics::psnr(&native, &nq).unwrap();
+        println!("SPZ quantisation alone: {pq:.2} dB against native");
+    }
+    let native_png = root.as_path().join("native.png");
     splatbridge_scene::image_io::save_frame(&native_png, &native).unwrap();
     let m = capture_to_tileset(&opts.convert).as_dmat3();
     let f = |v: glam::DVec3| {
         let t = m * v;
         format!("{},{},{}", t.x, t.y, t.z)
     };
-    let out = dir.path().join("cesium.png");
+    let out = root.as_path().join("cesium.png");
     let st = Command::new("node")
         .arg(script("tiles-render.mjs"))
         .args([
             "cesium",
-            dir.path().join("tileset.json").to_str().unwrap(),
+            root.as_path().join("tileset.json").to_str().unwrap(),
             out.to_str().unwrap(),
         ])
         .args(["--eye", &f(eye), "--target", &f(target), "--up", &f(up)])
@@ -344,7 +375,7 @@ fn cesium_renders_the_splat_tileset_close_to_native() {
     // The same Gaussians as one float KHR file with the camera embedded, in Babylon.js.
     let mut one = scene.clone();
     one.cameras = vec![cam];
-    let khr = dir.path().join("one.glb");
+    let khr = root.as_path().join("one.glb");
     splatbridge_convert::splats_gltf::write_file_with(
         &khr,
         &one,
@@ -352,7 +383,7 @@ fn cesium_renders_the_splat_tileset_close_to_native() {
         KhrCompression::None,
     )
     .unwrap();
-    let bab = dir.path().join("babylon.png");
+    let bab = root.as_path().join("babylon.png");
     let st = Command::new(script("client-render.sh"))
         .args(["babylon", khr.to_str().unwrap(), bab.to_str().unwrap()])
         .args(["--camera", "0", "--size", "320x240"])
@@ -367,19 +398,214 @@ fn cesium_renders_the_splat_tileset_close_to_native() {
         splatbridge_scene::metrics::psnr(&a, &splatbridge_scene::image_io::load_png(&bab).unwrap())
             .unwrap();
     println!("CesiumJS tileset {p:.2} dB, Babylon.js one KHR file {pb:.2} dB against native");
+    // The same Gaussians as a one-tile tileset (no levels of detail) in CesiumJS, to tell
+    // the tiling from CesiumJS's splat renderer.
+    let one_dir = root.join("one_tile");
+    let opts1 = options(TileContent::Splats, KhrCompression::SpzCesium, 1 << 20);
+    splatbridge::tiles::write_tiles(&one_dir, &scene, &opts1).unwrap();
+    let out1 = root.join("cesium_one_tile.png");
+    let st = Command::new("node")
+        .arg(script("tiles-render.mjs"))
+        .args([
+            "cesium",
+            one_dir.join("tileset.json").to_str().unwrap(),
+            out1.to_str().unwrap(),
+        ])
+        .args(["--eye", &f(eye), "--target", &f(target), "--up", &f(up)])
+        .args(["--fov", "50", "--size", "320x240", "--sse", "0"])
+        .status()
+        .unwrap();
+    assert!(st.success(), "CesiumJS failed on one tile");
+    let p1 = splatbridge_scene::metrics::psnr(
+        &a,
+        &splatbridge_scene::image_io::load_png(&out1).unwrap(),
+    )
+    .unwrap();
+    println!("CesiumJS one tile {p1:.2} dB against native");
+    (p, pb)
+}
+
+/// CesiumJS draws the splat tileset in place: a floor measured with the tiles in place.
+#[test]
+#[cfg_attr(
+    not(web_clients),
+    ignore = "needs chromium and the npm packages of scripts/package.json (scripts/setup.sh)"
+)]
+fn cesium_renders_the_splat_tileset_in_place() {
+    let (p, _) = cesium_and_babylon_against_native();
     assert!(
         p >= CESIUM_FLOOR,
         "CesiumJS tileset {p:.2} dB against native"
     );
-    // The goal: CesiumJS within 1 dB of Babylon.js on the same Gaussians and camera.
+}
+
+/// The tiles goal: CesiumJS within 1 dB of Babylon.js on the same Gaussians and camera.
+#[test]
+#[ignore = "goal not met: CesiumJS 28.1 dB against native where Babylon.js scores 31.0 dB; a one-tile tileset also scores 28.1 dB and SPZ quantisation alone 65.6 dB, so the gap is CesiumJS's splat renderer (docs/tiles.md)"]
+fn cesium_renders_the_splat_tileset_within_1_db_of_babylon() {
+    let (p, pb) = cesium_and_babylon_against_native();
     assert!(
         p >= pb - 1.0,
         "CesiumJS {p:.2} dB is more than 1 dB below Babylon.js's {pb:.2} dB"
     );
 }
 
-/// Not a measured floor: CesiumJS 1.145 on SwiftShader scores 20.6 dB here with its image
-/// misplaced (docs/tiles.md), so this only catches a blank image; the gate that matters is
-/// the 1 dB to Babylon.js below, which fails today and keeps the test ignored.
+/// Measured: CesiumJS 1.145 on SwiftShader scores 28.14 dB here (twice, 320×240) with every
+/// tile in place; less 1 dB for its worker-side sort. The misplaced tileset (stream packed
+/// from LUF, turned 180°) scored 20.6–25.3 dB, and a tileset with its side leaves missing
+/// (foveated loading) 26.5 dB, so this floor catches both.
 #[cfg_attr(not(web_clients), allow(dead_code))]
-const CESIUM_FLOOR: f64 = 20.0;
+const CESIUM_FLOOR: f64 = 27.0;
+
+/// 3d-tiles-renderer (three.js) renders the mesh tileset through a stated camera; three.js
+/// renders the same Gaussians meshed as one GLB through the same camera; both are measured
+/// against native splatting, and the two client images must agree (the tileset is the one
+/// file's meshes partitioned into tiles, so only the draw order of coincident fragments may
+/// differ).
+#[test]
+#[cfg_attr(
+    not(web_clients),
+    ignore = "needs chromium and the npm packages of scripts/package.json (scripts/setup.sh)"
+)]
+fn three_tiles_renderer_draws_the_mesh_tileset_like_one_file() {
+    use splatbridge_scene::camera::Camera;
+    let dir = tempfile::tempdir().unwrap();
+    let cloud = clusters(1200);
+    let scene = DynamicScene::from_static(cloud.clone());
+    let opts = options(TileContent::Mesh, KhrCompression::None, 200);
+    let rep = splatbridge::tiles::write_tiles(dir.path(), &scene, &opts).unwrap();
+    assert!(rep.leaves > 1, "the check needs several content tiles");
+    let (w, h) = (320u32, 240u32);
+    let eye = glam::DVec3::new(20.0, -25.0, -22.0);
+    let target = glam::DVec3::new(20.0, 0.0, 3.0);
+    let up = glam::DVec3::NEG_Y;
+    let cam = Camera::look_at(eye, target, up, 50.0, w, h).unwrap();
+    let (native, _) =
+        splatbridge_hybrid::native::render(&cloud, &cam, &Default::default()).unwrap();
+    let native_png = dir.path().join("native.png");
+    splatbridge_scene::image_io::save_frame(&native_png, &native).unwrap();
+    let m = capture_to_tileset(&opts.convert).as_dmat3();
+    let f = |v: glam::DVec3| {
+        let t = m * v;
+        format!("{},{},{}", t.x, t.y, t.z)
+    };
+    let tiles_png = dir.path().join("tiles.png");
+    let st = Command::new("node")
+        .arg(script("tiles-render.mjs"))
+        .args([
+            "3d-tiles-renderer",
+            dir.path().join("tileset.json").to_str().unwrap(),
+            tiles_png.to_str().unwrap(),
+        ])
+        .args(["--eye", &f(eye), "--target", &f(target), "--up", &f(up)])
+        .args(["--fov", "50", "--size", "320x240", "--sse", "0"])
+        .status()
+        .unwrap();
+    assert!(st.success(), "3d-tiles-renderer failed");
+    let mut one = scene.clone();
+    one.cameras = vec![cam];
+    let glb = dir.path().join("one.glb");
+    let mut file = std::io::BufWriter::new(std::fs::File::create(&glb).unwrap());
+    splatbridge_convert::write_glb(&mut file, &one, None, &opts.convert).unwrap();
+    std::io::Write::flush(&mut file).unwrap();
+    drop(file);
+    let one_png = dir.path().join("three.png");
+    let st = Command::new(script("client-render.sh"))
+        .args(["three", glb.to_str().unwrap(), one_png.to_str().unwrap()])
+        .args(["--camera", "0", "--size", "320x240"])
+        .status()
+        .unwrap();
+    assert!(st.success(), "three.js failed");
+    let load = |p: &Path| splatbridge_scene::image_io::load_png(p).unwrap();
+    let (a, t, o) = (load(&native_png), load(&tiles_png), load(&one_png));
+    assert_eq!((t.width, t.height), (w, h), "3d-tiles-renderer image size");
+    let pt = splatbridge_scene::metrics::psnr(&a, &t).unwrap();
+    let po = splatbridge_scene::metrics::psnr(&a, &o).unwrap();
+    let between = splatbridge_scene::metrics::psnr(&o, &t).unwrap();
+    println!(
+        "3d-tiles-renderer tileset {pt:.2} dB, three.js one GLB {po:.2} dB against native; {between:.2} dB between them"
+    );
+    assert!(
+        between >= THREE_TILES_AGREEMENT,
+        "3d-tiles-renderer and three.js differ: {between:.2} dB"
+    );
+    assert!(
+        pt >= po - 0.5,
+        "3d-tiles-renderer {pt:.2} dB is more than 0.5 dB below three.js's {po:.2} dB"
+    );
+}
+
+/// See `three_tiles_renderer_draws_the_mesh_tileset_like_one_file`: PSNR between the
+/// tileset's and the one file's three.js images: measured 52.27 dB (three 0.187 on
+/// SwiftShader; 29.05 and 29.04 dB against native), less about 2 dB for coincident
+/// fragments whose draw order differs between one mesh and several.
+#[cfg_attr(not(web_clients), allow(dead_code))]
+const THREE_TILES_AGREEMENT: f64 = 50.0;
+
+/// Every file of a tileset directory, by name.
+fn files(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut v: Vec<(String, Vec<u8>)> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| {
+            let e = e.unwrap();
+            (
+                e.file_name().into_string().unwrap(),
+                std::fs::read(e.path()).unwrap(),
+            )
+        })
+        .collect();
+    v.sort();
+    v
+}
+
+/// The streamed tileset of a binary PLY (partition pass, bucket pass) is the in-memory
+/// tileset of the same file, byte for byte, including with invalid Gaussians dropped; without
+/// `--drop-invalid` an invalid Gaussian is an error naming its vertex, as when reading whole.
+#[test]
+fn streamed_tileset_is_byte_identical_to_the_in_memory_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let ply = dir.path().join("in.ply");
+    let mut cloud = clusters(1500);
+    // Two invalid Gaussians (a NaN centre, a zero quaternion) in different chunks of records.
+    cloud.means[7] = Vec3::new(f32::NAN, 0.0, 0.0);
+    cloud.rotations[1100] = Quat::from_xyzw(0.0, 0.0, 0.0, 0.0);
+    splatbridge_scene::ply::write_ply(
+        &ply,
+        &cloud,
+        splatbridge_scene::ply::PlyFormat::BinaryLittleEndian,
+    )
+    .unwrap();
+    for compression in [KhrCompression::SpzCesium, KhrCompression::None] {
+        let opts = options(TileContent::Splats, compression, 150);
+        let (read, _) = splatbridge_scene::ply::read_ply(
+            &ply,
+            &splatbridge_scene::ply::ReadOptions { drop_invalid: true },
+        )
+        .unwrap();
+        let whole = dir.path().join("whole");
+        let rep_a =
+            splatbridge::tiles::write_tiles(&whole, &DynamicScene::from_static(read), &opts)
+                .unwrap();
+        let streamed = dir.path().join("streamed");
+        let rep_b = splatbridge::tiles::write_tiles_from_ply(&streamed, &ply, true, &opts)
+            .unwrap()
+            .expect("a binary PLY streams");
+        assert_eq!(rep_a.gaussians, 1498);
+        assert_eq!((rep_a.tiles, rep_a.bytes), (rep_b.tiles, rep_b.bytes));
+        let (a, b) = (files(&whole), files(&streamed));
+        assert!(a.len() > 10, "several tiles");
+        assert_eq!(a.len(), b.len());
+        for ((na, da), (nb, db)) in a.iter().zip(&b) {
+            assert_eq!(na, nb);
+            assert!(da == db, "{na} differs between the two paths");
+        }
+        std::fs::remove_dir_all(&whole).unwrap();
+        std::fs::remove_dir_all(&streamed).unwrap();
+    }
+    let opts = options(TileContent::Splats, KhrCompression::SpzCesium, 150);
+    let err = splatbridge::tiles::write_tiles_from_ply(&dir.path().join("t"), &ply, false, &opts)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("vertex 7"), "{err}");
+    assert!(!dir.path().join("t").join("tileset.json").exists());
+}

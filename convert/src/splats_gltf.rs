@@ -25,7 +25,7 @@ use std::path::Path;
 use serde_json::{json, Value};
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::formats::gltf_khr::spz::{encode_khr_spz, SPZ_EXTENSIONS};
-use splatbridge_scene::formats::spz::SpzOptions;
+use splatbridge_scene::formats::spz::{encode_spz, SpzAxes, SpzOptions};
 use splatbridge_scene::gaussians::sh_coeffs;
 use splatbridge_scene::{sh, GaussianCloud};
 
@@ -48,8 +48,15 @@ pub enum KhrCompression {
     None,
     /// One SPZ stream per primitive (`KHR_gaussian_splatting_compression_spz_2`): SPZ v3's
     /// quantisation (24-bit fixed-point positions, 8-bit log-scales, colours and opacity,
-    /// 10-bit smallest-three rotations, 5/4-bit SH), about 10× smaller.
+    /// 10-bit smallest-three rotations, 5/4-bit SH), about 10× smaller. The stream is
+    /// packed from the extension's Left-Up-Front frame, as its text asks (RUB in the stream).
     Spz,
+    /// [`KhrCompression::Spz`] with the stream holding the glTF mesh's own coordinates (no
+    /// RUB ↔ LUF half turn about y): what CesiumJS decodes. CesiumJS 1.145 unpacks the
+    /// extension's SPZ with `coordinateSystem: "UNSPECIFIED"` (`GltfSpzLoader.js`), so a
+    /// stream packed from LUF shows up turned 180° about the glTF up axis there. 3D Tiles
+    /// splat content is read by CesiumJS alone, so tilesets use this by default.
+    SpzCesium,
 }
 
 impl KhrCompression {
@@ -57,7 +64,13 @@ impl KhrCompression {
         match self {
             KhrCompression::None => "none",
             KhrCompression::Spz => "spz",
+            KhrCompression::SpzCesium => "spz-cesium",
         }
+    }
+
+    /// Whether the attributes are one SPZ stream.
+    pub fn is_spz(self) -> bool {
+        self != KhrCompression::None
     }
 }
 
@@ -320,7 +333,7 @@ fn plan<'a>(
     let bin_len = offset;
     let mut doc = json!({
         "asset": {"version": "2.0", "generator": concat!("splatbridge ", env!("CARGO_PKG_VERSION")), "extras": {"splatbridge": report.metadata(opts)}},
-        "extensionsUsed": if compression == KhrCompression::Spz { json!([EXT, SPZ_EXTENSIONS[0]]) } else { json!([EXT]) },
+        "extensionsUsed": if compression.is_spz() { json!([EXT, SPZ_EXTENSIONS[0]]) } else { json!([EXT]) },
         "scene": 0,
         "scenes": [{"nodes": [0]}],
         "nodes": nodes,
@@ -329,7 +342,7 @@ fn plan<'a>(
         "bufferViews": d.views,
         "accessors": d.accessors,
     });
-    if compression == KhrCompression::Spz {
+    if compression.is_spz() {
         // No float fallback is written, so a reader must understand the compression.
         doc["extensionsRequired"] = json!([EXT, SPZ_EXTENSIONS[0]]);
         doc["asset"]["extras"]["splatbridge"]["khrCompression"] = json!(compression.name());
@@ -379,8 +392,8 @@ fn cloud_primitive<'a>(
     streams.push((Stream::Color, 0));
     let spz = match compression {
         KhrCompression::None => None,
-        KhrCompression::Spz => {
-            let mut bytes = spz_stream(cloud, &keep)?;
+        KhrCompression::Spz | KhrCompression::SpzCesium => {
+            let mut bytes = spz_stream(cloud, &keep, compression)?;
             let len = bytes.len() as u64;
             bytes.resize(bytes.len().next_multiple_of(4), 0);
             let view = d.view(json!({"buffer": 0, "byteOffset": *offset, "byteLength": len}));
@@ -423,15 +436,29 @@ fn cloud_primitive<'a>(
 }
 
 /// The SPZ stream of the kept Gaussians.
-fn spz_stream(cloud: &GaussianCloud, keep: &[u32]) -> crate::Result<Vec<u8>> {
+fn spz_stream(
+    cloud: &GaussianCloud,
+    keep: &[u32],
+    compression: KhrCompression,
+) -> crate::Result<Vec<u8>> {
+    let encode = |c: &GaussianCloud| match compression {
+        KhrCompression::SpzCesium => encode_spz(
+            c,
+            &SpzOptions {
+                axes: SpzAxes::AsStored,
+                ..SpzOptions::default()
+            },
+        ),
+        _ => encode_khr_spz(c, &SpzOptions::default()),
+    };
     if keep.len() == cloud.len() {
-        encode_khr_spz(cloud, &SpzOptions::default())
+        encode(cloud)
     } else {
         let mut sub = cloud.clone();
         let mut mask = vec![false; cloud.len()];
         keep.iter().for_each(|&i| mask[i as usize] = true);
         sub.retain_indices(|i| mask[i]);
-        encode_khr_spz(&sub, &SpzOptions::default())
+        encode(&sub)
     }
     .map_err(crate::scene_err)
 }

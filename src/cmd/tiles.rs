@@ -25,7 +25,12 @@ pub enum TileContentArg {
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum TileCompressionArg {
+    /// SPZ as CesiumJS decodes it (the stream in the glTF mesh's own frame).
     Spz,
+    /// SPZ packed from Left-Up-Front, as the extension's draft text asks (CesiumJS 1.145
+    /// shows such tiles turned 180° about the up axis).
+    SpzLuf,
+    /// Float attribute accessors (CesiumJS does not read these).
     None,
 }
 
@@ -89,7 +94,6 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         .map(parse_origin)
         .transpose()?;
     let t0 = Instant::now();
-    let scene = load_export_input(&args.scene, args.drop_invalid, &common::print_warning)?;
     let content = match args.tiles.tile_content {
         Some(TileContentArg::Mesh) => TileContent::Mesh,
         _ => TileContent::Splats,
@@ -103,7 +107,8 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         origin,
         compression: match args.tiles.tile_compression {
             Some(TileCompressionArg::None) => KhrCompression::None,
-            _ => KhrCompression::Spz,
+            Some(TileCompressionArg::SpzLuf) => KhrCompression::Spz,
+            Some(TileCompressionArg::Spz) | None => KhrCompression::SpzCesium,
         },
         convert: ConvertOptions {
             profile: match args.profile {
@@ -125,8 +130,26 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         },
     };
     let pb = common::progress(1, "writing tiles");
-    let rep = splatbridge::tiles::write_tiles(dir, &scene, &opts)
-        .with_context(|| dir.display().to_string())?;
+    // A binary PLY is streamed (two passes, memory bounded by the partition and a tile);
+    // anything else is read whole.
+    let is_ply = args
+        .scene
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("ply"));
+    let streamed = if is_ply {
+        // Errors name their file (the PLY or the tile written).
+        splatbridge::tiles::write_tiles_from_ply(dir, &args.scene, args.drop_invalid, &opts)?
+    } else {
+        None
+    };
+    let rep = match streamed {
+        Some(rep) => rep,
+        None => {
+            let scene = load_export_input(&args.scene, args.drop_invalid, &common::print_warning)?;
+            splatbridge::tiles::write_tiles(dir, &scene, &opts)
+                .with_context(|| dir.display().to_string())?
+        }
+    };
     pb.finish_and_clear();
     let secs = t0.elapsed().as_secs_f64();
     if args.json {

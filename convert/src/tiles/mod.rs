@@ -26,6 +26,9 @@
 //!   the input cloud at most (tree depth × 8) tile contents are held.
 
 pub mod lod;
+mod stream;
+
+pub use stream::write_tileset_from_ply;
 
 use std::io::{BufWriter, Write};
 use std::path::Path;
@@ -70,7 +73,8 @@ pub struct TileOptions {
     /// The conversion options of every tile's GLB (up axis, mesh profile, …).
     pub convert: ConvertOptions,
     /// Splat attribute storage. CesiumJS (1.134 on) reads `KHR_gaussian_splatting` only with
-    /// `KHR_gaussian_splatting_compression_spz_2`, so tilesets default to SPZ.
+    /// `KHR_gaussian_splatting_compression_spz_2`, and decodes its stream without the
+    /// extension's LUF conversion, so tilesets default to [`KhrCompression::SpzCesium`].
     pub compression: KhrCompression,
 }
 
@@ -156,8 +160,16 @@ fn cloud_footprint(c: &GaussianCloud) -> Aabb {
     (0..c.len()).fold(Aabb::EMPTY, |a, i| a.union(&footprint(c, i)))
 }
 
+/// Where leaves' Gaussians come from.
+enum Source<'a> {
+    /// A cloud in memory.
+    Cloud(&'a GaussianCloud),
+    /// Per-leaf bucket files (`leaf_B`, B the block index) of raw PLY records.
+    Buckets(&'a stream::Buckets<'a>),
+}
+
 struct Writer<'a, 'm> {
-    cloud: &'a GaussianCloud,
+    source: Source<'a>,
     blocks: &'a Blocks,
     opts: &'a TileOptions,
     meter: &'a mut ErrorMeter<'m>,
@@ -199,7 +211,10 @@ impl Writer<'_, '_> {
         let name = format!("tile_{b}.glb");
         if block.is_leaf() {
             self.report.leaves += 1;
-            let content = subset(self.cloud, self.blocks.indices(block));
+            let content = match &self.source {
+                Source::Cloud(cloud) => subset(cloud, self.blocks.indices(block)),
+                Source::Buckets(buckets) => buckets.take(b)?,
+            };
             self.report.gaussians += content.len();
             let content = self.write_glb(&name, content)?;
             let tile = json!({
@@ -292,6 +307,25 @@ pub fn write_tileset(
     };
     cloud.check_shape()?;
     let blocks = Blocks::build(cloud, opts.max_per_tile);
+    write_blocks(
+        dir,
+        &blocks,
+        Source::Cloud(cloud),
+        scene.objects.len(),
+        opts,
+        meter,
+    )
+}
+
+/// Write the tileset of a partition whose leaves' Gaussians come from `source`.
+fn write_blocks(
+    dir: &Path,
+    blocks: &Blocks,
+    source: Source<'_>,
+    objects_at_start: usize,
+    opts: &TileOptions,
+    meter: &mut ErrorMeter<'_>,
+) -> Result<TilesetReport> {
     if blocks.blocks.is_empty() {
         return Err(ConvertError::Format {
             path: dir.into(),
@@ -301,15 +335,15 @@ pub fn write_tileset(
     let mut set = OutputSet::new();
     let stage = set.stage_dir(dir)?;
     let mut w = Writer {
-        cloud,
-        blocks: &blocks,
+        source,
+        blocks,
         opts,
         meter,
         stage: &stage,
         frame: capture_to_tileset(&opts.convert),
         report: TilesetReport {
             invalid_left_out: blocks.invalid,
-            objects_at_start: scene.objects.len(),
+            objects_at_start,
             ..Default::default()
         },
     };
@@ -324,16 +358,16 @@ pub fn write_tileset(
     // The glTF extensions of the content, declared through `3DTILES_content_gltf` (CesiumJS
     // picks its splat renderer from this list, not from the GLBs).
     let gltf_ext: Vec<&str> = match (opts.content, opts.compression) {
-        (TileContent::Splats, KhrCompression::Spz) => {
+        (TileContent::Splats, c) if c.is_spz() => {
             vec![
                 "KHR_gaussian_splatting",
                 "KHR_gaussian_splatting_compression_spz_2",
             ]
         }
-        (TileContent::Splats, KhrCompression::None) => vec!["KHR_gaussian_splatting"],
+        (TileContent::Splats, _) => vec!["KHR_gaussian_splatting"],
         (TileContent::Mesh, _) => vec![],
     };
-    let required = if opts.compression == KhrCompression::Spz {
+    let required = if opts.compression.is_spz() {
         gltf_ext.clone()
     } else {
         vec![]

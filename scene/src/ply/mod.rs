@@ -35,6 +35,7 @@
 mod ascii;
 mod binary;
 mod header;
+mod stream;
 mod write;
 
 use std::io::BufReader;
@@ -45,6 +46,7 @@ use glam::{Quat, Vec3};
 use crate::error::{Result, SceneError};
 use crate::GaussianCloud;
 use header::{Encoding, SLOT_DC, SLOT_OPACITY, SLOT_REST, SLOT_ROT, SLOT_SCALE, SLOT_X};
+pub use stream::PlyStream;
 
 /// Encoding of a written PLY.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
