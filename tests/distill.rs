@@ -162,6 +162,7 @@ fn distilled_export_traces_like_the_fitted_mesh() {
         width: 40,
         height: 30,
         held_back: 1,
+        times: 1,
     };
     let d_opts = DistillOptions {
         iterations: 5,
@@ -211,4 +212,52 @@ fn distilled_export_traces_like_the_fitted_mesh() {
     // And the fit changed the colours (the comparison is not of two unfitted meshes).
     let (plain_bytes, _) = splatbridge_convert::glb_bytes(&scene, None, &plain).unwrap();
     assert_ne!(plain_bytes, bytes);
+}
+
+/// A dynamic scene is fitted in every object's own frame over several times: on the street
+/// fixture (cars moving), fitting the views at four times spread over the clip gives a better
+/// image at the clip's end, from views never fitted, than fitting every view at the start.
+#[test]
+fn dynamic_scene_is_fitted_over_several_times() {
+    let scene = splatbridge_scene::fixtures::street_with(
+        &splatbridge_scene::fixtures::StreetParams::new(3, 3000),
+    );
+    assert!(scene.is_dynamic(), "the street fixture's objects move");
+    let (t0, t1) = (scene.time.start, scene.time.end);
+    let cloud = scene.composite(t0);
+    let fit = views::orbit(&cloud, 8, 0..8, 64, 48).unwrap();
+    let held = views::held_back(&cloud, 8, 4, 64, 48).unwrap();
+    let end = vec![t1; held.len()];
+    let targets = splatbridge::distill::native_targets_at(&scene, &held, &end).unwrap();
+    let times = splatbridge::distill::run::fitting_times(&scene, 4);
+    assert_eq!(times.len(), 4);
+    assert_eq!((times[0], times[3]), (t0, t1));
+    let mut seen = Vec::new();
+    for times in [vec![t0], times] {
+        let d_opts = DistillOptions {
+            iterations: 30,
+            time: t0,
+            times,
+            ..DistillOptions::default()
+        };
+        let mut d = Distiller::new(&scene, &opts(Profile::Texture), &fit, &d_opts).unwrap();
+        let before = splatbridge::distill::mean_psnr_at(&mut d, &held, &end, &targets).unwrap();
+        d.run(|_| {}).unwrap();
+        let after = splatbridge::distill::mean_psnr_at(&mut d, &held, &end, &targets).unwrap();
+        seen.push((before, after));
+    }
+    eprintln!("held-back PSNR at the end time, start only / four times: {seen:?}");
+    // Measured: undistilled 22.34 dB; start only 23.23, four times 23.27 dB (the cars are a
+    // small part of each view, so the margin is small; both fits are deterministic, and a fit
+    // that ignored the times would give the start-only image exactly and fail).
+    let ((b0, a0), (b1, a1)) = (seen[0], seen[1]);
+    assert_eq!(b0, b1, "the same undistilled export");
+    assert!(
+        a1 > b1,
+        "fitting over time lost at the end: {b1:.2} → {a1:.2} dB"
+    );
+    assert!(
+        a1 > a0,
+        "four times {a1:.2} dB is not above start only {a0:.2} dB"
+    );
 }

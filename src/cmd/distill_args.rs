@@ -45,6 +45,10 @@ pub struct DistillArgs {
     /// Held-back views (between the orbit's fitting views) measured before and after.
     #[arg(long, value_name = "M", default_value_t = 4, requires = "distill")]
     pub held_back: usize,
+    /// Scene times a dynamic scene is fitted at (evenly over its time range), given to the
+    /// views in turn; static scenes are fitted at their start.
+    #[arg(long, value_name = "N", default_value_t = ViewRequest::default().times, requires = "distill", value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=1024))]
+    pub distill_times: usize,
 }
 
 impl DistillArgs {
@@ -69,6 +73,7 @@ impl DistillArgs {
             width: self.distill_width,
             height: self.distill_height,
             held_back: self.held_back,
+            times: self.distill_times,
         };
         let pb = super::common::progress(self.iterations as u64, "distilling");
         let out = distill_export(scene, opts, &req, &d, |_| pb.inc(1))

@@ -24,8 +24,11 @@
 //! optimiser holds three RGBA arrays per vertex (values, Adam's two moments) and one for the
 //! gradient.
 //!
-//! Dynamic scenes are fitted at one time (`time`): objects take their pose at that time.
-//! Per-frame content (weather) is not part of the fitted mesh.
+//! Dynamic scenes: each view has its own scene time (`times`, assigned to the views in
+//! turn), its target is native splatting of the composite at that time and its hits are
+//! traced with the objects' animated nodes at that time. The fitted parameters are the
+//! vertices of each object's own mesh (its frame), so one set of colours is fitted to every
+//! pose it takes. Per-frame content (weather) is not part of the fitted mesh.
 
 pub mod composite;
 pub mod loss;
@@ -67,8 +70,11 @@ pub type Result<T, E = DistillError> = std::result::Result<T, E>;
 /// What to fit and how.
 #[derive(Clone, Debug)]
 pub struct DistillOptions {
-    /// Scene time the views are fitted at.
+    /// Scene time the views are fitted at (and the time [`Distiller::render`] traces).
     pub time: f64,
+    /// Scene times for dynamic scenes, given to the views in turn (view i at
+    /// `times[i % len]`); empty: every view at `time`.
+    pub times: Vec<f64>,
     /// Adam steps (each over every view).
     pub iterations: usize,
     /// Stop fitting once this many seconds have passed since the start (set-up included).
@@ -89,6 +95,7 @@ impl Default for DistillOptions {
     fn default() -> Self {
         DistillOptions {
             time: 0.0,
+            times: Vec::new(),
             iterations: 60,
             max_seconds: None,
             loss: Loss::default(),
@@ -102,6 +109,15 @@ impl Default for DistillOptions {
 }
 
 impl DistillOptions {
+    /// The scene time of each of `n` views: `times` in turn, or `time`.
+    pub fn view_times(&self, n: usize) -> Vec<f64> {
+        if self.times.is_empty() {
+            vec![self.time; n]
+        } else {
+            (0..n).map(|i| self.times[i % self.times.len()]).collect()
+        }
+    }
+
     pub fn validate(&self) -> Result<()> {
         let bad = |m: String| Err(DistillError::Invalid(m));
         if !(self.lr_colour > 0.0 && self.lr_colour.is_finite())
@@ -113,6 +129,9 @@ impl DistillOptions {
             if !(s >= 0.0 && s.is_finite()) {
                 return bad(format!("--distill-time {s} must be a finite number ≥ 0"));
             }
+        }
+        if self.times.iter().any(|t| !t.is_finite()) {
+            return bad("distillation times must be finite".into());
         }
         if !(1..=1024).contains(&self.k) {
             return bad(format!("k-buffer size {} is outside 1..=1024", self.k));
@@ -160,6 +179,7 @@ pub struct DistillReport {
 
 struct View {
     camera: Camera,
+    time: f64,
     target: Vec<f32>,
     hits: Option<ViewHits>,
 }
@@ -228,7 +248,6 @@ impl Distiller {
             params.extend(m.colors.iter().map(|c| c.to_array()));
         }
         let tracer = MeshTracer::new(tri, BackendKind::default(), BuildPreset::default())?;
-        let cloud = scene.composite(opts.time);
         let native = NativeOptions::default();
         let mut renderer = splatbridge_hybrid::native::Renderer::new();
         let n = params.len();
@@ -253,36 +272,47 @@ impl Distiller {
             },
         };
         let mut stored = 0u64;
-        for cam in cameras {
-            let (frame, _) = renderer.render(&cloud, cam, &native)?;
-            let hits = d.record(cam)?;
-            d.report.hits += hits.hits.len() as u64;
-            let keep = stored + hits.bytes() <= opts.hit_budget;
-            if keep {
-                stored += hits.bytes();
-                d.report.stored_views += 1;
-            } else {
-                d.report.streamed_views += 1;
+        let times = opts.view_times(cameras.len());
+        // One composite alive at a time: the views of each time in turn, kept in camera order.
+        let mut distinct = times.clone();
+        distinct.sort_by(f64::total_cmp);
+        distinct.dedup();
+        let mut slots: Vec<Option<View>> = (0..cameras.len()).map(|_| None).collect();
+        for &t in &distinct {
+            let cloud = scene.composite(t);
+            for (i, cam) in cameras.iter().enumerate() {
+                if times[i] != t {
+                    continue;
+                }
+                let (frame, _) = renderer.render(&cloud, cam, &native)?;
+                let hits = d.record(cam, t)?;
+                d.report.hits += hits.hits.len() as u64;
+                let keep = stored + hits.bytes() <= opts.hit_budget;
+                if keep {
+                    stored += hits.bytes();
+                    d.report.stored_views += 1;
+                } else {
+                    d.report.streamed_views += 1;
+                }
+                slots[i] = Some(View {
+                    camera: cam.clone(),
+                    time: t,
+                    target: frame.rgb,
+                    hits: keep.then_some(hits),
+                });
             }
-            d.views.push(View {
-                camera: cam.clone(),
-                target: frame.rgb,
-                hits: keep.then_some(hits),
-            });
         }
+        d.views = slots.into_iter().flatten().collect();
         d.report.hit_bytes = stored;
         d.report.setup_seconds = start.elapsed().as_secs_f64();
         Ok(d)
     }
 
-    /// Trace one view's hit lists with the tracer's current colours.
-    fn record(&self, cam: &Camera) -> Result<ViewHits> {
-        let lists = self.tracer.record_hits(
-            cam,
-            self.opts.time,
-            self.opts.k,
-            self.opts.record_transmittance,
-        )?;
+    /// Trace one view's hit lists at scene time `time` with the tracer's current colours.
+    fn record(&self, cam: &Camera, time: f64) -> Result<ViewHits> {
+        let lists =
+            self.tracer
+                .record_hits(cam, time, self.opts.k, self.opts.record_transmittance)?;
         let scene = &self.tracer.scene;
         let hits = lists
             .hits
@@ -334,23 +364,43 @@ impl Distiller {
         if streamed {
             self.apply();
         }
-        for i in 0..self.views.len() {
-            let owned;
-            let hits = match &self.views[i].hits {
-                Some(h) => h,
-                None => {
-                    owned = self.record(&self.views[i].camera)?;
-                    &owned
-                }
-            };
-            let (w, h) = (hits.width as usize, hits.height as usize);
-            let img = composite::render(hits, &self.params, &self.shading);
-            let (l, mut dimg) =
-                loss::loss_and_grad(&img, &self.views[i].target, w, h, self.opts.loss);
-            total += l / nviews;
-            let s = (1.0 / nviews) as f32;
-            dimg.iter_mut().for_each(|g| *g *= s);
-            composite::backward(hits, &self.params, &self.shading, &dimg, &mut grad);
+        let s = (1.0 / nviews) as f32;
+        // Images and image gradients of a few views at a time in parallel (the loss is serial
+        // work per view), then the backward passes in view order, so the sums do not depend
+        // on the thread count. A chunk holds one image gradient per thread.
+        let chunk = rayon::current_num_threads().max(1);
+        let mut first = 0;
+        while first < self.views.len() {
+            let end = (first + chunk).min(self.views.len());
+            let (params, shading, kind) = (&self.params, &self.shading, self.opts.loss);
+            let losses: Vec<Option<(f64, Vec<f32>)>> = self.views[first..end]
+                .par_iter()
+                .map(|v| {
+                    v.hits.as_ref().map(|hits| {
+                        let (w, h) = (hits.width as usize, hits.height as usize);
+                        let img = composite::render(hits, params, shading);
+                        loss::loss_and_grad(&img, &v.target, w, h, kind)
+                    })
+                })
+                .collect();
+            for (i, stored) in (first..end).zip(losses) {
+                let owned;
+                let (hits, (l, mut dimg)) = match (&self.views[i].hits, stored) {
+                    (Some(h), Some(lg)) => (h, lg),
+                    _ => {
+                        owned = self.record(&self.views[i].camera, self.views[i].time)?;
+                        let (w, h) = (owned.width as usize, owned.height as usize);
+                        let img = composite::render(&owned, &self.params, &self.shading);
+                        let lg =
+                            loss::loss_and_grad(&img, &self.views[i].target, w, h, self.opts.loss);
+                        (&owned, lg)
+                    }
+                };
+                total += l / nviews;
+                dimg.iter_mut().for_each(|g| *g *= s);
+                composite::backward(hits, &self.params, &self.shading, &dimg, &mut grad);
+            }
+            first = end;
         }
         Ok((total, grad))
     }
@@ -431,14 +481,20 @@ impl Distiller {
         }
     }
 
-    /// Trace the fitted mesh from `cam` (the tracer's defaults, k as fitted).
+    /// Trace the fitted mesh from `cam` at the options' `time` (the tracer's defaults, k as
+    /// fitted).
     pub fn render(&mut self, cam: &Camera) -> Result<Frame> {
+        self.render_at(cam, self.opts.time)
+    }
+
+    /// Trace the fitted mesh from `cam` at scene time `time`.
+    pub fn render_at(&mut self, cam: &Camera, time: f64) -> Result<Frame> {
         self.apply();
         let opts = RenderOptions {
             k: self.opts.k,
             ..RenderOptions::default()
         };
-        Ok(self.tracer.render(cam, self.opts.time, &opts)?.0)
+        Ok(self.tracer.render(cam, time, &opts)?.0)
     }
 
     /// The fitted colours as the writers take them.
@@ -557,14 +613,46 @@ fn check_white(scene: &TriScene) -> Result<()> {
     Ok(())
 }
 
-/// Mean PSNR of the fitted mesh against `targets` from `cameras`.
+/// Mean PSNR of the fitted mesh against `targets` from `cameras` (at the options' time).
 pub fn mean_psnr(d: &mut Distiller, cameras: &[Camera], targets: &[Frame]) -> Result<f64> {
+    let t = d.opts.time;
+    let times = vec![t; cameras.len()];
+    mean_psnr_at(d, cameras, &times, targets)
+}
+
+/// Mean PSNR of the fitted mesh against `targets` from `cameras`, camera i at `times[i]`.
+pub fn mean_psnr_at(
+    d: &mut Distiller,
+    cameras: &[Camera],
+    times: &[f64],
+    targets: &[Frame],
+) -> Result<f64> {
     let mut s = 0.0;
-    for (c, t) in cameras.iter().zip(targets) {
-        let img = d.render(c)?;
+    for ((c, &time), t) in cameras.iter().zip(times).zip(targets) {
+        let img = d.render_at(c, time)?;
         s += splatbridge_scene::metrics::psnr(&img, t)?;
     }
     Ok(s / cameras.len().max(1) as f64)
+}
+
+/// Native targets of `scene` from `cameras`, camera i at scene time `times[i]`.
+pub fn native_targets_at(
+    scene: &DynamicScene,
+    cameras: &[Camera],
+    times: &[f64],
+) -> Result<Vec<Frame>> {
+    let mut r = splatbridge_hybrid::native::Renderer::new();
+    let mut out = Vec::with_capacity(cameras.len());
+    let mut cached: Option<(f64, splatbridge_scene::GaussianCloud)> = None;
+    for (c, &t) in cameras.iter().zip(times) {
+        if cached.as_ref().is_none_or(|(ct, _)| *ct != t) {
+            cached = Some((t, scene.composite(t)));
+        }
+        if let Some((_, cloud)) = &cached {
+            out.push(r.render(cloud, c, &NativeOptions::default())?.0);
+        }
+    }
+    Ok(out)
 }
 
 /// Native targets (reference settings) of `scene` at `time` from `cameras`.

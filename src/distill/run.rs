@@ -10,7 +10,21 @@ use splatbridge_scene::camera_spec::{
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::Camera;
 
-use super::{mean_psnr, native_targets, views, DistillOptions, DistillReport, Distiller, Result};
+use super::{
+    mean_psnr_at, native_targets_at, views, DistillOptions, DistillReport, Distiller, Result,
+};
+
+/// `n` times evenly over the scene's time range, start and end included (the start alone
+/// for a static scene or `n` ≤ 1).
+pub fn fitting_times(scene: &DynamicScene, n: usize) -> Vec<f64> {
+    let (a, b) = (scene.time.start, scene.time.end);
+    if !scene.is_dynamic() || n <= 1 || !(b > a) {
+        return vec![a];
+    }
+    (0..n)
+        .map(|i| a + (b - a) * i as f64 / (n - 1) as f64)
+        .collect()
+}
 
 /// Which views to fit and at what size.
 #[derive(Clone, Debug)]
@@ -21,6 +35,9 @@ pub struct ViewRequest {
     pub height: u32,
     /// Held-back views to measure before and after (fitting by `orbit:N` only).
     pub held_back: usize,
+    /// Scene times a dynamic scene is fitted at (evenly over its time range, start and end
+    /// included), given to the views in turn; static scenes use their start.
+    pub times: usize,
 }
 
 impl Default for ViewRequest {
@@ -30,6 +47,7 @@ impl Default for ViewRequest {
             width: 240,
             height: 180,
             held_back: 4,
+            times: 4,
         }
     }
 }
@@ -81,26 +99,38 @@ pub fn distill_export(
     on_step: impl FnMut(&super::Progress),
 ) -> Result<Outcome> {
     let (cams, held) = resolve_views(scene, opts.time, req)?;
-    let mut d = Distiller::new(scene, convert, &cams, opts)?;
-    let held_targets = native_targets(scene, opts.time, &held)?;
+    let mut opts = opts.clone();
+    if opts.times.is_empty() {
+        opts.times = fitting_times(scene, req.times);
+    }
+    let mut d = Distiller::new(scene, convert, &cams, &opts)?;
+    // Held-back views take the fitting times in turn too, so a dynamic scene is measured
+    // over the poses it was fitted for.
+    let held_times = opts.view_times(held.len());
+    let held_targets = native_targets_at(scene, &held, &held_times)?;
     let before = if held.is_empty() {
         None
     } else {
-        Some(mean_psnr(&mut d, &held, &held_targets)?)
+        Some(mean_psnr_at(&mut d, &held, &held_times, &held_targets)?)
     };
     d.run(on_step)?;
     let after = match before {
-        Some(_) => Some(mean_psnr(&mut d, &held, &held_targets)?),
+        Some(_) => Some(mean_psnr_at(&mut d, &held, &held_times, &held_targets)?),
         None => None,
     };
     let colours = d.vertex_colours()?;
     let report = d.report();
     let description = format!(
-        "{} views '{}' at {}×{}, {} iterations of Adam on {} in {:.1} s",
+        "{} views '{}' at {}×{}{}, {} iterations of Adam on {} in {:.1} s",
         report.views,
         req.spec,
         report.width,
         report.height,
+        if opts.times.len() > 1 {
+            format!(" over {} scene times", opts.times.len())
+        } else {
+            String::new()
+        },
         report.iterations,
         report.loss,
         report.seconds
