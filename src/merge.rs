@@ -381,14 +381,15 @@ pub fn write_report(merged: &Merged, out: &Path) -> anyhow::Result<&'static str>
             })?;
             Ok("accuracy.md")
         }
-        // Frames: the files are the result; there is no report to join.
-        "render" => {
+        // Frames (rendered images, per-frame OBJs): the files are the result; there is no
+        // report to join.
+        "render" | "convert" | "trace" => {
             write_merged(merged, out, &|_, _| Ok(()))?;
             Ok("")
         }
         other => Err(MergeError::Shard(
             PathBuf::from(REPORT),
-            format!("command '{other}' has no merge (compare, accuracy, render)"),
+            format!("command '{other}' has no merge (compare, accuracy, render, convert, trace)"),
         )
         .into()),
     }

@@ -190,6 +190,7 @@ impl<'a> Trace<'a> {
                 all_frames: self.lidar_all_frames,
                 backend,
                 preset,
+                shard: None,
             }),
         };
         render_frame(&mut tracer, &req)

@@ -181,6 +181,7 @@ fn shadows_and_lidar_run_in_the_tracers_only_and_are_counted() {
             all_frames: false,
             backend: BackendKind::Obvhs,
             preset: BuildPreset::Medium,
+            shard: None,
         }),
     };
     let got = render_frame(&mut r, &req).unwrap();

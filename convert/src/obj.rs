@@ -146,6 +146,25 @@ pub fn write_file(
     opts: &ConvertOptions,
     per_frame: bool,
 ) -> crate::Result<ConvertReport> {
+    // The MTL and every OBJ (one per frame with `per_frame`) appear together or not at all.
+    let mut set = splatbridge_scene::output::OutputSet::new();
+    let (report, _) = write_into(&mut set, path, scene, frames, opts, per_frame, &|_, _| true)?;
+    set.commit().map_err(crate::scene_err)?;
+    Ok(report)
+}
+
+/// [`write_file`] staged into the caller's output set (committed by the caller), writing only
+/// the frames `keep(index, time)` selects (a shard's, see the root crate's `shard`); the MTL
+/// is always written. Returns the report (bytes of what was written) and the files staged.
+pub fn write_into(
+    set: &mut splatbridge_scene::output::OutputSet,
+    path: &Path,
+    scene: &DynamicScene,
+    frames: Option<&FrameClouds>,
+    opts: &ConvertOptions,
+    per_frame: bool,
+    keep: &dyn Fn(usize, f64) -> bool,
+) -> crate::Result<(ConvertReport, Vec<std::path::PathBuf>)> {
     let dopts = display_opts(opts);
     let mut report = ConvertReport::new("obj", &dopts);
     let shape = shape_for(&dopts);
@@ -155,10 +174,9 @@ pub fn write_file(
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
-    // The MTL and every OBJ (one per frame with `per_frame`) appear together or not at all.
-    let mut set = splatbridge_scene::output::OutputSet::new();
     set.write(&mtl_path, MTL.as_bytes())
         .map_err(crate::scene_err)?;
+    let mut written = vec![mtl_path.clone()];
     let mut bytes = MTL.len() as u64;
     let times = if per_frame {
         frame_times(scene)
@@ -166,6 +184,9 @@ pub fn write_file(
         vec![scene.time.start]
     };
     for (i, &t) in times.iter().enumerate() {
+        if !keep(i, t) {
+            continue;
+        }
         let target = if per_frame {
             let stem = path
                 .file_stem()
@@ -180,8 +201,8 @@ pub fn write_file(
             Ok(())
         })
         .map_err(crate::scene_err)?;
+        written.push(target);
     }
-    set.commit().map_err(crate::scene_err)?;
     report.bytes = bytes;
-    Ok(report)
+    Ok((report, written))
 }

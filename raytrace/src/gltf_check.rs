@@ -168,19 +168,32 @@ fn decode_data_uri(uri: &str, name: &Path, what: &str) -> Result<Vec<u8>> {
 
 /// Load every buffer (GLB blob, data URI or external file) and check it holds its
 /// `byteLength`.
+///
+/// The BIN chunk is moved into the first buffer that uses it, not copied (a GLB's blob is
+/// most of the file, and a mesh export's runs to gigabytes); a later buffer naming it too
+/// gets a copy of that buffer's bytes.
 fn load_buffers(
     root: &Root,
-    bin: Option<&[u8]>,
+    mut bin: Option<Vec<u8>>,
     base: Option<&Path>,
     name: &Path,
 ) -> Result<Vec<gltf::buffer::Data>> {
-    let mut out = Vec::with_capacity(root.buffers.len());
+    let mut out: Vec<gltf::buffer::Data> = Vec::with_capacity(root.buffers.len());
+    // (buffer holding the BIN chunk, the chunk's length before padding)
+    let mut bin_at: Option<(usize, usize)> = None;
     for (i, b) in root.buffers.iter().enumerate() {
         let what = format!("buffer {i}");
         let mut data = match &b.uri {
-            None => bin
-                .ok_or_else(|| bad(name, format!("{what}: no URI and no GLB BIN chunk")))?
-                .to_vec(),
+            None => match (bin.take(), bin_at) {
+                (Some(v), _) => {
+                    bin_at = Some((i, v.len()));
+                    v
+                }
+                (None, Some((j, len))) => out[j].0[..len].to_vec(),
+                (None, None) => {
+                    return Err(bad(name, format!("{what}: no URI and no GLB BIN chunk")))
+                }
+            },
             Some(uri) => match external_path(uri, base, name, &what)? {
                 None => decode_data_uri(uri, name, &what)?,
                 Some(p) => input::read_bounded(&p, Cap::Mesh)
@@ -550,7 +563,12 @@ fn check_animations(root: &Root, name: &Path) -> Result<()> {
 /// file's folder; `None` refuses them); `name` names the file in errors.
 pub fn import(bytes: &[u8], base: Option<&Path>, name: &Path) -> Result<Import> {
     let (json, bin) = split_glb(bytes, name)?;
-    let root = Root::from_slice(json).map_err(|e| {
+    let root = parse_root(json, name)?;
+    import_root(root, bin.map(<[u8]>::to_vec), base, name)
+}
+
+fn parse_root(json: &[u8], name: &Path) -> Result<Root> {
+    Root::from_slice(json).map_err(|e| {
         bad(
             name,
             format!(
@@ -558,7 +576,17 @@ pub fn import(bytes: &[u8], base: Option<&Path>, name: &Path) -> Result<Import> 
                 input::clip_to(&e.to_string(), 400)
             ),
         )
-    })?;
+    })
+}
+
+/// The checks, the document and its buffers and images, from the parsed JSON and the GLB's
+/// BIN chunk (moved into its buffer).
+fn import_root(
+    root: Root,
+    bin: Option<Vec<u8>>,
+    base: Option<&Path>,
+    name: &Path,
+) -> Result<Import> {
     // Our checks run first: they only use checked lookups, while the `gltf` crate's own
     // validation indexes accessors by attribute without a bound check.
     check_document(&root, base, name)?;
@@ -598,5 +626,22 @@ pub fn import_path(path: &Path) -> Result<Import> {
     } else {
         base
     };
-    import(&bytes, Some(base), path)
+    import_vec(bytes, Some(base), path)
+}
+
+/// [`import`] taking the bytes over: a GLB's BIN chunk becomes its buffer in place (the blob
+/// is shifted to the front of the allocation and the rest cut off), so the file is held once,
+/// not twice; an export's blob is most of its gigabytes.
+pub fn import_vec(mut bytes: Vec<u8>, base: Option<&Path>, name: &Path) -> Result<Import> {
+    let (root, bin) = {
+        let (json, bin) = split_glb(&bytes, name)?;
+        let at = |s: &[u8]| s.as_ptr() as usize - bytes.as_ptr() as usize;
+        (parse_root(json, name)?, bin.map(|b| (at(b), b.len())))
+    };
+    let bin = bin.map(|(start, len)| {
+        bytes.copy_within(start..start + len, 0);
+        bytes.truncate(len);
+        bytes
+    });
+    import_root(root, bin, base, name)
 }

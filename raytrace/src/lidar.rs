@@ -241,7 +241,8 @@ impl MeshAt<'_> {
         let inst = &self.insts[h.instance as usize];
         let blas = &self.tracer.blas[inst.mesh];
         let mesh = &self.tracer.scene.meshes[inst.mesh];
-        let [a, b, c] = mesh.tris[h.payload.tri as usize].map(|i| blas.rel[i as usize].as_dvec3());
+        let [a, b, c] = mesh.tris[h.payload.tri as usize]
+            .map(|i| blas.relative(mesh.positions[i as usize]).as_dvec3());
         let n = (b - a).cross(c - a);
         let w = inst.to_local.matrix3.transpose() * n;
         w.try_normalize().unwrap_or(DVec3::ZERO)
@@ -298,6 +299,18 @@ pub fn scan_scene_gaussian(
     backend: BackendKind,
     preset: BuildPreset,
 ) -> Result<Option<LidarRun>> {
+    scan_scene_gaussian_selected(scene, dir, backend, preset, &|_, _| true)
+}
+
+/// [`scan_scene_gaussian`] of only the frames `keep(index, time)` selects (a shard's); each
+/// frame's scan is the same as in a scan of every frame.
+pub fn scan_scene_gaussian_selected(
+    scene: &DynamicScene,
+    dir: &Path,
+    backend: BackendKind,
+    preset: BuildPreset,
+    keep: &dyn Fn(usize, f64) -> bool,
+) -> Result<Option<LidarRun>> {
     let effects = splatbridge_scene::effects_run::effects_of(scene)?;
     let Some(l) = &effects.lidar else {
         return Ok(None);
@@ -314,6 +327,9 @@ pub fn scan_scene_gaussian(
     // frame's weather particles.
     let mut tracer: Option<GaussianTracer> = None;
     for (i, t) in scene.frame_times().into_iter().enumerate() {
+        if !keep(i, t) {
+            continue;
+        }
         let particles = match &effects.weather {
             Some(w) => Some(splatbridge_scene::effects_run::weather_particles(
                 scene, w, t, None,
@@ -350,6 +366,18 @@ pub fn scan_mesh_frames(
     times: &[f64],
     dir: &Path,
 ) -> Result<LidarRun> {
+    scan_mesh_frames_selected(tracer, lidar, cameras, times, dir, &|_, _| true)
+}
+
+/// [`scan_mesh_frames`] of only the times `keep(index, time)` selects (a shard's).
+pub fn scan_mesh_frames_selected(
+    tracer: &MeshTracer,
+    lidar: &Lidar,
+    cameras: &[Camera],
+    times: &[f64],
+    dir: &Path,
+    keep: &dyn Fn(usize, f64) -> bool,
+) -> Result<LidarRun> {
     let sensor = LidarSensor::from_effect(lidar, cameras)?;
     std::fs::create_dir_all(dir).map_err(|e| TraceError::Io {
         path: dir.to_path_buf(),
@@ -359,6 +387,9 @@ pub fn scan_mesh_frames(
     // The frames' scans appear together or not at all.
     let mut set = OutputSet::new();
     for (i, &t) in times.iter().enumerate() {
+        if !keep(i, t) {
+            continue;
+        }
         let s = scan(&tracer.at(t), &sensor, t);
         let path = frame_file(dir, i);
         stage_ply(&mut set, &path, &s)?;

@@ -33,7 +33,7 @@ use std::time::Instant;
 
 use glam::{DAffine3, DVec3, Vec3, Vec4};
 
-use crate::backend::{build_triangles, Accel, BackendKind, BuildPreset};
+use crate::backend::{build_boxes, build_triangles, Accel, BackendKind, BuildPreset};
 use crate::error::Result;
 use crate::geom::{ray_box, transformed_box};
 pub use crate::kbuffer::Key;
@@ -66,23 +66,95 @@ pub type MeshHit = Hit<TrianglePayload>;
 
 kbuffer::thread_buffer!(pub(crate) fn with_thread_buffer, TrianglePayload);
 
+/// Triangles per primitive of the obvhs structure: runs of up to this many consecutive
+/// triangles of one Gaussian (a fan's triangles are consecutive in every export) share one box. A PLOC build
+/// holds a few hundred bytes of scratch per primitive (Morton codes, two node generations, the
+/// binary tree before its conversion to a wide one), which for the 37 M triangles of a
+/// 500k-Gaussian `rings` export was most of a comparison's memory; up to sixteen to a box
+/// divides it by about ten on fans of 8 to 40 triangles, while a leaf visit tests up to sixteen
+/// triangles instead of up to three. The hit set
+/// does not change: every triangle in a box the ray enters is still tested, and hits are
+/// ordered by their full key (`tests/mesh_boxes.rs` checks it bit for bit).
+pub const TRIANGLES_PER_BOX: usize = 16;
+
 /// One mesh's acceleration structure and the data the hit test needs.
 pub struct Blas {
     pub anchor: DVec3,
-    /// Positions relative to `anchor`, f32.
-    pub rel: Vec<Vec3>,
-    pub group: Vec<u32>,
     /// Plane of each group in relative coordinates (f64): `n·x = w`, from the group's
     /// largest triangle (the best conditioned normal).
     pub planes: Vec<(DVec3, f64)>,
     pub lo: DVec3,
     pub hi: DVec3,
     pub accel: Box<dyn Accel>,
-    /// Per slot of the acceleration structure (see `Accel::slots`): the triangle's vertices
-    /// (relative), its index in the mesh and its group, so traversal reads them in order.
+    /// Over single triangles: the triangles laid out in the acceleration structure's order
+    /// (see `Accel::slots`), their vertices (relative to `anchor`), index in the mesh and
+    /// group, so traversal reads them in order. Empty over runs of triangles.
     pub slot_verts: Vec<[Vec3; 3]>,
     pub slot_tri: Vec<u32>,
     pub slot_group: Vec<u32>,
+    /// Over runs of triangles: primitive `p` is the mesh's triangles
+    /// `run_start[p]..run_start[p + 1]`. Empty over single triangles.
+    pub run_start: Vec<u32>,
+    /// Over runs of triangles: vertex positions relative to `anchor` and each triangle's
+    /// group, in the mesh's order. A run's triangles are consecutive, and so, in every export,
+    /// are their vertices, so reading them through the index buffer stays local; laying
+    /// triangles out per slot would copy every vertex three times (36 bytes a triangle).
+    pub rel: Vec<Vec3>,
+    pub group: Vec<u32>,
+}
+
+impl Blas {
+    /// A vertex position relative to the anchor, in f32 (what the hit test sees).
+    #[inline]
+    pub fn relative(&self, p: Vec3) -> Vec3 {
+        (p.as_dvec3() - self.anchor).as_vec3()
+    }
+}
+
+/// Where each run of triangles starts (and, last, the triangle count): at most `per_box`
+/// consecutive triangles of one Gaussian (`tri_gaussian`). Runs never cross Gaussians:
+/// exports list Gaussians in no spatial order, and a box spanning two far-apart Gaussians
+/// would be entered by most rays.
+fn run_starts(tri_gaussian: &[u32], count: usize, per_box: usize) -> Vec<u32> {
+    let mut starts = Vec::with_capacity(count / per_box + 1);
+    let mut start = 0;
+    for t in 0..count {
+        let other = t > 0 && tri_gaussian.get(t) != tri_gaussian.get(t - 1);
+        if t == 0 || t - start == per_box || other {
+            starts.push(t as u32);
+            start = t;
+        }
+    }
+    starts.push(count as u32);
+    starts
+}
+
+/// The runs' boxes (`starts` from [`run_starts`]).
+fn run_boxes(rel: &[Vec3], tris: &[[u32; 3]], starts: &[u32]) -> Result<Vec<(Vec3, Vec3)>> {
+    if let Some(t) = tris
+        .iter()
+        .position(|t| t.iter().any(|&i| i as usize >= rel.len()))
+    {
+        return Err(crate::error::TraceError::Invalid(format!(
+            "triangle {t} indexes past {} vertices",
+            rel.len()
+        )));
+    }
+    Ok(starts
+        .windows(2)
+        .map(|w| {
+            let run = &tris[w[0] as usize..w[1] as usize];
+            let mut lo = Vec3::splat(f32::INFINITY);
+            let mut hi = Vec3::splat(f32::NEG_INFINITY);
+            for t in run {
+                for &i in t {
+                    lo = lo.min(rel[i as usize]);
+                    hi = hi.max(rel[i as usize]);
+                }
+            }
+            (lo, hi)
+        })
+        .collect())
 }
 
 /// Barycentrics of the ray's crossing of the triangle's plane, in f64, clamped to the
@@ -124,9 +196,24 @@ pub struct MeshTracer {
 }
 
 impl MeshTracer {
-    /// Build per-mesh BVHs with `backend`.
+    /// Build per-mesh BVHs with `backend`: obvhs over runs of [`TRIANGLES_PER_BOX`]
+    /// triangles, other backends over single triangles.
     pub fn new(scene: TriScene, backend: BackendKind, preset: BuildPreset) -> Result<Self> {
+        let per_box = (backend == BackendKind::Obvhs).then_some(TRIANGLES_PER_BOX);
+        Self::with_boxes(scene, backend, preset, per_box)
+    }
+
+    /// Build per-mesh BVHs with `backend` over boxes of `per_box` consecutive triangles, or,
+    /// with `None`, over the triangles themselves (the backend's own triangle test reports
+    /// hits). The hit set and the images do not depend on the choice; only memory and speed do.
+    pub fn with_boxes(
+        scene: TriScene,
+        backend: BackendKind,
+        preset: BuildPreset,
+        per_box: Option<usize>,
+    ) -> Result<Self> {
         let start = Instant::now();
+        let per_box = per_box.map(|n| n.max(1));
         let mut blas = Vec::with_capacity(scene.meshes.len());
         for m in &scene.meshes {
             let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
@@ -158,20 +245,31 @@ impl MeshTracer {
                 }
             }
             let planes = best.into_iter().map(|(_, p)| p).collect();
-            let accel = build_triangles(backend, preset, &rel, &m.tris)?;
-            let slot_tri: Vec<u32> = match accel.slots() {
-                Some(s) => s.to_vec(),
-                None => (0..m.tris.len() as u32).collect(),
+            let run_start = match per_box {
+                Some(n) => run_starts(&m.tri_gaussian, m.tris.len(), n),
+                None => Vec::new(),
             };
-            let slot_verts = slot_tri
-                .iter()
-                .map(|&t| m.tris[t as usize].map(|i| rel[i as usize]))
-                .collect();
-            let slot_group = slot_tri.iter().map(|&t| group[t as usize]).collect();
+            let accel = match per_box {
+                Some(_) => build_boxes(backend, preset, &run_boxes(&rel, &m.tris, &run_start)?)?,
+                None => build_triangles(backend, preset, &rel, &m.tris)?,
+            };
+            let prims = m.tris.len();
+            let (mut slot_verts, mut slot_tri, mut slot_group) =
+                (Vec::new(), Vec::new(), Vec::new());
+            if per_box.is_none() {
+                slot_tri = match accel.slots() {
+                    Some(s) => s.to_vec(),
+                    None => (0..prims as u32).collect(),
+                };
+                slot_verts = slot_tri
+                    .iter()
+                    .map(|&t| m.tris[t as usize].map(|i| rel[i as usize]))
+                    .collect();
+                slot_group = slot_tri.iter().map(|&t| group[t as usize]).collect();
+            }
+            let runs = per_box.is_some();
             blas.push(Blas {
                 anchor,
-                rel,
-                group,
                 planes,
                 lo,
                 hi,
@@ -179,6 +277,9 @@ impl MeshTracer {
                 slot_verts,
                 slot_tri,
                 slot_group,
+                run_start,
+                rel: if runs { rel } else { Vec::new() },
+                group: if runs { group } else { Vec::new() },
             });
         }
         Ok(MeshTracer {
@@ -241,10 +342,9 @@ impl MeshTracer {
             // Resume from the last hit: the distance of `after` in this instance's ray units
             // (the local direction keeps the world parameter, so it is the same number).
             let t_from = after.map(|a| f32::from_bits(a.0)).unwrap_or(0.0).max(tmin);
-            blas.accel
-                .traverse_slots(lo, ld, t_from, cull0, &mut |slot, reported, cull| {
+            let mut test =
+                |[a, b, c]: [Vec3; 3], g: u32, prim: u32, reported: bool, cull: &mut f32| {
                     buf.candidates = buf.candidates.wrapping_add(1);
-                    let [a, b, c] = blas.slot_verts[slot as usize];
                     // Coverage from the watertight f32 test (or the backend's own report, whose
                     // edge rule may pick the neighbouring triangle); distance and barycentrics of
                     // accepted hits are refined in f64 (f32 loses ~ulp(|o − v|)/size on small far
@@ -253,8 +353,6 @@ impl MeshTracer {
                     if wt.is_none() && !reported {
                         return;
                     }
-                    let g = blas.slot_group[slot as usize];
-                    let prim = blas.slot_tri[slot as usize];
                     let (pn, pw) = blas.planes[g as usize];
                     let tp = (pw - pn.dot(lo64)) / pn.dot(ld64);
                     let t = match wt {
@@ -304,6 +402,21 @@ impl MeshTracer {
                         },
                     };
                     *cull = buf.insert(hit, tmax);
+                };
+            blas.accel
+                .traverse_slots(lo, ld, t_from, cull0, &mut |slot, reported, cull| {
+                    let s = slot as usize;
+                    if blas.run_start.is_empty() {
+                        let v = blas.slot_verts[s];
+                        test(v, blas.slot_group[s], blas.slot_tri[s], reported, cull);
+                    } else {
+                        let p = blas.accel.slots().map_or(s, |m| m[s] as usize);
+                        let (start, end) = (blas.run_start[p], blas.run_start[p + 1]);
+                        for t in start as usize..end as usize {
+                            let v = mesh.tris[t].map(|i| blas.rel[i as usize]);
+                            test(v, blas.group[t], t as u32, false, cull);
+                        }
+                    }
                 });
         }
     }

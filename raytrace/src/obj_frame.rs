@@ -14,7 +14,7 @@ use glam::DQuat;
 
 /// How far into an OBJ the header comment may reach (the converter writes two short lines and
 /// the metadata line, whose size grows with the number of meshes).
-const HEADER_SCAN: usize = 1 << 20;
+pub const HEADER_SCAN: usize = 1 << 20;
 
 /// The root rotation of a splatbridge OBJ: the rotation that was baked into its vertices,
 /// read from the metadata comment at the top of the file. `None` for a file without one

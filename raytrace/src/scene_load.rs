@@ -47,6 +47,12 @@ pub fn load_path(path: &Path) -> Result<TriScene> {
     }
 }
 
+/// [`load_glb_bytes`] taking the bytes over, so the GLB's blob is not copied.
+pub fn load_glb_vec(bytes: Vec<u8>, name: &Path) -> Result<TriScene> {
+    let (doc, buffers, images) = crate::gltf_check::import_vec(bytes, None, name)?;
+    from_gltf(name, &doc, &buffers, &images)
+}
+
 /// Load a GLB (or self-contained glTF JSON) from memory; `name` is used in error messages.
 pub fn load_glb_bytes(bytes: &[u8], name: &Path) -> Result<TriScene> {
     let (doc, buffers, images) = crate::gltf_check::import(bytes, None, name)?;
@@ -242,6 +248,16 @@ struct Primitive {
     material: u32,
 }
 
+fn check_index(path: &Path, what: &str, i: u32, n: usize) -> Result<()> {
+    if i as usize >= n {
+        return Err(TraceError::format(
+            path,
+            format!("{what}: index {i} is out of range ({n} vertices)"),
+        ));
+    }
+    Ok(())
+}
+
 /// Read primitive `p` (`what` names it in errors); `None` for a mode without surface.
 fn gltf_primitive(
     path: &Path,
@@ -291,30 +307,45 @@ fn gltf_primitive(
         .find(|(s, _)| matches!(s, gltf::Semantic::Extras(name) if name == "GAUSSIAN_ID"))
         .map(|(_, acc)| read_scalar_u32(path, &acc, buffers, &format!("{what}: _GAUSSIAN_ID")))
         .transpose()?;
-    let idx: Vec<u32> = match r.read_indices() {
-        Some(i) => i.into_u32().collect(),
-        None => (0..n as u32).collect(),
+    let mut indices: Box<dyn Iterator<Item = u32>> = match r.read_indices() {
+        Some(i) => Box::new(i.into_u32()),
+        None => Box::new(0..n as u32),
     };
-    if let Some(bad) = idx.iter().find(|&&i| i as usize >= n) {
-        return Err(TraceError::format(
-            path,
-            format!("{what}: index {bad} is out of range ({n} vertices)"),
-        ));
-    }
-    let tris: Vec<[u32; 3]> = match p.mode() {
-        Mode::Triangles => idx.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
-        Mode::TriangleStrip => (2..idx.len())
-            .map(|i| {
-                if i % 2 == 0 {
-                    [idx[i - 2], idx[i - 1], idx[i]]
-                } else {
-                    [idx[i - 1], idx[i - 2], idx[i]]
-                }
-            })
-            .collect(),
-        _ => (2..idx.len())
-            .map(|i| [idx[0], idx[i - 1], idx[i]])
-            .collect(),
+    let tris: Vec<[u32; 3]> = if p.mode() == Mode::Triangles {
+        // Straight into triangles: no separate index list (a third of a mesh's bytes).
+        let mut tris = Vec::with_capacity(indices.size_hint().0 / 3);
+        let mut t = [0u32; 3];
+        let mut k = 0;
+        for i in indices {
+            check_index(path, what, i, n)?;
+            t[k] = i;
+            k += 1;
+            if k == 3 {
+                tris.push(t);
+                k = 0;
+            }
+        }
+        tris
+    } else {
+        let idx: Vec<u32> = indices.by_ref().collect();
+        for &i in &idx {
+            check_index(path, what, i, n)?;
+        }
+        if p.mode() == Mode::TriangleStrip {
+            (2..idx.len())
+                .map(|i| {
+                    if i % 2 == 0 {
+                        [idx[i - 2], idx[i - 1], idx[i]]
+                    } else {
+                        [idx[i - 1], idx[i - 2], idx[i]]
+                    }
+                })
+                .collect()
+        } else {
+            (2..idx.len())
+                .map(|i| [idx[0], idx[i - 1], idx[i]])
+                .collect()
+        }
     };
     let material = p
         .material()
@@ -365,33 +396,56 @@ fn gltf_mesh(
         name: m.name().unwrap_or("").to_string(),
         ..Mesh::default()
     };
-    let mut any_uv = false;
+    // Built in place, one primitive at a time: the first primitive's arrays are moved in,
+    // texture coordinates are only materialised once a primitive has them, and a triangle's
+    // Gaussian id is kept only while every primitive has ids (an exported mesh runs to tens
+    // of millions of triangles, so transient copies of it matter).
+    let mut uvs: Option<Vec<Vec2>> = None;
     let mut all_ids = true;
-    let mut uvs: Vec<Vec2> = Vec::new();
-    let mut tri_ids: Vec<Option<u32>> = Vec::new();
+    let mut tri_ids: Vec<u32> = Vec::new();
     for (pi, p) in m.primitives().enumerate() {
         let what = format!("mesh {} primitive {pi}", m.index());
         let Some(prim) = gltf_primitive(path, &p, &what, buffers, default_material)? else {
             continue;
         };
         let n = prim.pos.len();
-        let base = mesh.positions.len() as u32;
-        any_uv |= prim.uv.is_some();
-        uvs.extend(prim.uv.unwrap_or_else(|| vec![Vec2::ZERO; n]));
-        all_ids &= prim.gid.is_some();
-        for t in prim.tris {
-            tri_ids.push(prim.gid.as_ref().map(|g| g[t[0] as usize]));
-            mesh.tris.push(t.map(|i| i + base));
-            mesh.tri_material.push(prim.material);
+        let base = mesh.positions.len();
+        match (prim.uv, &mut uvs) {
+            (Some(uv), Some(all)) => all.extend(uv),
+            (Some(uv), None) => {
+                let mut all = vec![Vec2::ZERO; base];
+                all.extend(uv);
+                uvs = Some(all);
+            }
+            (None, Some(all)) => all.resize(base + n, Vec2::ZERO),
+            (None, None) => {}
         }
-        mesh.positions.extend(prim.pos);
-        mesh.colors.extend(prim.cols);
+        match &prim.gid {
+            Some(g) if all_ids => tri_ids.extend(prim.tris.iter().map(|t| g[t[0] as usize])),
+            _ => {
+                all_ids = false;
+                tri_ids = Vec::new();
+            }
+        }
+        mesh.tri_material
+            .resize(mesh.tri_material.len() + prim.tris.len(), prim.material);
+        if mesh.tris.is_empty() {
+            mesh.tris = prim.tris;
+        } else {
+            let b = base as u32;
+            mesh.tris.extend(prim.tris.iter().map(|t| t.map(|i| i + b)));
+        }
+        if mesh.positions.is_empty() {
+            mesh.positions = prim.pos;
+            mesh.colors = prim.cols;
+        } else {
+            mesh.positions.extend(prim.pos);
+            mesh.colors.extend(prim.cols);
+        }
     }
-    if any_uv {
-        mesh.uvs = Some(uvs);
-    }
+    mesh.uvs = uvs;
     if all_ids && !mesh.tris.is_empty() {
-        mesh.tri_gaussian = tri_ids.into_iter().map(|g| g.unwrap_or(0)).collect();
+        mesh.tri_gaussian = tri_ids;
         mesh.has_gaussian_ids = true;
     } else {
         mesh.assign_components();
@@ -625,10 +679,22 @@ fn obj_options() -> tobj::LoadOptions {
 
 /// Load an OBJ (and its MTL, when present) from a path.
 pub fn load_obj(path: &Path) -> Result<TriScene> {
-    use splatbridge_scene::input::{read_bounded, Cap};
-    let bytes = read_bounded(path, Cap::Mesh)?;
+    use splatbridge_scene::input::{check_size, open_regular, read_bounded, Cap};
+    use std::io::Read;
+    // Streamed, not read whole: an exported OBJ runs to gigabytes of text, which would sit
+    // beside everything parsed from it. The header (where a splatbridge OBJ names its frame)
+    // is read first; the rest is bounded by the cap, so a growing file cannot read forever.
+    let (file, len) = open_regular(path)?;
+    check_size(path, len, Cap::Mesh)?;
+    let mut file = file.take(Cap::Mesh.bytes());
+    let mut head = Vec::new();
+    (&mut file)
+        .take(crate::obj_frame::HEADER_SCAN as u64)
+        .read_to_end(&mut head)
+        .map_err(|e| TraceError::format(path, format!("cannot read: {e}")))?;
+    let root = crate::obj_frame::written_root(&head);
     let dir = path.parent().unwrap_or(Path::new("")).to_path_buf();
-    let mut r = std::io::BufReader::new(&bytes[..]);
+    let mut r = std::io::BufReader::with_capacity(1 << 20, std::io::Cursor::new(head).chain(file));
     // `mtllib` files go through the same guards (regular file, bounded size); a refused one
     // counts as a missing MTL.
     let (models, mats) = tobj::load_obj_buf(&mut r, &obj_options(), |m| {
@@ -639,7 +705,7 @@ pub fn load_obj(path: &Path) -> Result<TriScene> {
     .map_err(|e| TraceError::format(path, format!("not a readable OBJ: {e}")))?;
     // A missing or broken MTL leaves the geometry usable; vertex colours carry the colour.
     let mats = mats.unwrap_or_default();
-    obj_scene(path, models, mats, crate::obj_frame::written_root(&bytes))
+    obj_scene(path, models, mats, root)
 }
 
 /// Load an OBJ from memory (materials are not resolved).
@@ -697,10 +763,10 @@ fn obj_scene(
         });
     }
     for (mi, model) in models.into_iter().enumerate() {
-        let m = model.mesh;
+        // Each of tobj's arrays is dropped as soon as it is converted.
+        let mut m = model.mesh;
         let n = m.positions.len() / 3;
-        let positions: Vec<Vec3> = m
-            .positions
+        let positions: Vec<Vec3> = std::mem::take(&mut m.positions)
             .chunks_exact(3)
             .map(|c| Vec3::new(c[0], c[1], c[2]))
             .collect();
@@ -731,7 +797,7 @@ fn obj_scene(
                     mm.base_color = Vec4::new(1.0, 1.0, 1.0, mm.base_color.w);
                 }
             }
-            m.vertex_color
+            std::mem::take(&mut m.vertex_color)
                 .chunks_exact(3)
                 .map(|c| Vec4::new(c[0], c[1], c[2], 1.0))
                 .collect()
@@ -744,8 +810,7 @@ fn obj_scene(
                 format!("object {mi} ('{}'): index {bad} out of range", model.name),
             ));
         }
-        let tris: Vec<[u32; 3]> = m
-            .indices
+        let tris: Vec<[u32; 3]> = std::mem::take(&mut m.indices)
             .chunks_exact(3)
             .map(|c| [c[0], c[1], c[2]])
             .collect();

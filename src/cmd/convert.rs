@@ -166,6 +166,10 @@ pub struct Args {
     /// OBJ only: write one OBJ per frame of a dynamic scene (OUT_0000.obj, …).
     #[arg(long)]
     pub frames: bool,
+    /// With --frames: write only shard I of N (0 ≤ I < N) of the frames and a partial
+    /// report.json for `splatbridge merge` (see docs/scale.md).
+    #[arg(long, value_name = "I/N", requires = "frames")]
+    pub shard: Option<splatbridge::shard::Shard>,
     /// Write native splats (KHR_gaussian_splatting, .glb/.gltf) instead of a mesh.
     #[arg(long)]
     pub splats: bool,
@@ -480,6 +484,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.output.display()
         );
     }
+    if args.shard.is_some() && args.splats {
+        bail!("--shard splits --frames OBJ exports, not --splats");
+    }
     if args.distill.distill && (!gltf_mesh || args.frames) {
         bail!(
             "{}: --distill fits a mesh glTF (.glb or .gltf without --splats)",
@@ -499,7 +506,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             frames: args.frames,
         }
     };
-    let (mut report, effects) = export_scene(&scene, &args.scene, &args.output, &opts, kind)?;
+    let (mut report, effects) = match args.shard {
+        Some(shard) => splatbridge::pipeline::export_shard::export_obj_frames_shard(
+            &scene,
+            &args.scene,
+            &args.output,
+            &opts,
+            shard,
+        )?,
+        None => export_scene(&scene, &args.scene, &args.output, &opts, kind)?,
+    };
     pb.inc(1);
     pb.finish_and_clear();
     report.seconds = t0.elapsed().as_secs_f64();

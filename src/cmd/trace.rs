@@ -210,6 +210,11 @@ pub struct Args {
     /// Scan every frame of the scene's time range, not only the traced one.
     #[arg(long)]
     pub lidar_all_frames: bool,
+    /// With --lidar-all-frames: scan only shard I of N (0 ≤ I < N) of the frames and write a
+    /// partial report.json beside the scans for `splatbridge merge` (see docs/scale.md); the
+    /// image is traced by every shard, identically.
+    #[arg(long, value_name = "I/N", requires = "lidar_all_frames")]
+    pub shard: Option<splatbridge::shard::Shard>,
     /// Print one JSON object (options, stats, effect counters, LiDAR files) instead of the
     /// summary.
     #[arg(long)]
@@ -324,11 +329,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             all_frames: args.lidar_all_frames,
             backend,
             preset,
+            shard: args.shard,
         }),
     };
     let r = render_frame(&mut tracer, &req).with_context(|| name.clone())?;
     // LiDAR runs inside the frame, so a failing scan fails before the image is written.
     save_frame(&args.output, &r.frame)?;
+    if args.shard.is_some() && r.lidar.is_none() {
+        bail!("{name}: --shard splits LiDAR scans, and the scene declares no LiDAR");
+    }
+    if let (Some(shard), Some(scene), Some(run)) = (args.shard, &p.effects_scene, &r.lidar) {
+        let mut files = run.files.clone();
+        files.push(args.output.clone());
+        let canonical = format!(
+            "trace --lidar-all-frames\ninput={:?}\nbackend={:?}\nout={:?}",
+            args.input,
+            args.backend,
+            args.output.file_name()
+        );
+        splatbridge::pipeline::export_shard::write_partial(
+            &lidar_dir, "trace", scene, &canonical, shard, &files,
+        )?;
+    }
     let stats = r.stats.trace().cloned().unwrap_or_default();
     let (samples, lidar, exported_weather, counters) =
         (r.time_samples, r.lidar, r.exported_weather, r.counters);

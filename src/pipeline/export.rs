@@ -156,6 +156,34 @@ pub enum ExportKind {
     Splats(KhrCompression),
 }
 
+/// A mesh export's per-frame content (the scene's weather, when `mesh`) and the effect
+/// counters: what is simulated, and what is declared but not.
+pub fn content(
+    scene: &DynamicScene,
+    input: &Path,
+    mesh: bool,
+) -> anyhow::Result<(Option<FrameClouds>, EffectCounters)> {
+    let declared = effects_of(scene).with_context(|| input.display().to_string())?;
+    let mut effects = EffectCounters::default();
+    let weather = if mesh {
+        let start = Instant::now();
+        let w = weather_frames(scene).with_context(|| input.display().to_string())?;
+        w.map(|(times, clouds)| {
+            effects.particles = clouds.iter().map(|c| c.len() as u64).sum();
+            effects.milliseconds = start.elapsed().as_secs_f64() * 1e3;
+            effects.simulated.push("weather".into());
+            FrameClouds { times, clouds }
+        })
+    } else {
+        None
+    };
+    effects.not_simulated = not_simulated(
+        &declared,
+        if weather.is_some() { &["weather"] } else { &[] },
+    );
+    Ok((weather, effects))
+}
+
 /// Convert `scene` (read from `input`, named in errors) to `output`: the converter's report
 /// and the effect counters (weather built as per-frame content for meshes).
 pub fn export_scene(
@@ -165,25 +193,7 @@ pub fn export_scene(
     opts: &ConvertOptions,
     kind: ExportKind,
 ) -> anyhow::Result<(ConvertReport, EffectCounters)> {
-    let declared = effects_of(scene).with_context(|| input.display().to_string())?;
-    let mut effects = EffectCounters::default();
-    let weather = match kind {
-        ExportKind::Splats(_) => None,
-        ExportKind::Mesh { .. } => {
-            let start = Instant::now();
-            let w = weather_frames(scene).with_context(|| input.display().to_string())?;
-            w.map(|(times, clouds)| {
-                effects.particles = clouds.iter().map(|c| c.len() as u64).sum();
-                effects.milliseconds = start.elapsed().as_secs_f64() * 1e3;
-                effects.simulated.push("weather".into());
-                FrameClouds { times, clouds }
-            })
-        }
-    };
-    effects.not_simulated = not_simulated(
-        &declared,
-        if weather.is_some() { &["weather"] } else { &[] },
-    );
+    let (weather, effects) = content(scene, input, matches!(kind, ExportKind::Mesh { .. }))?;
     let report = match kind {
         ExportKind::Splats(compression) => {
             if !is_gltf(output) {

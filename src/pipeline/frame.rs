@@ -14,7 +14,8 @@ use std::time::Instant;
 
 use anyhow::{bail, Context};
 use splatbridge_raytrace::lidar::{
-    frame_file, scan, scan_mesh_frames, scan_scene_gaussian, write_ply, LidarRun, LidarSensor,
+    frame_file, scan, scan_mesh_frames_selected, scan_scene_gaussian_selected, write_ply, LidarRun,
+    LidarSensor,
 };
 use splatbridge_raytrace::shadows::{
     gaussian_bounds, mesh_bounds, render_gaussian_shadowed, render_mesh_shadowed, SunShadows,
@@ -43,6 +44,19 @@ pub struct LidarRequest {
     /// Backend and preset of the per-frame tracers of an every-frame Gaussian scan.
     pub backend: BackendKind,
     pub preset: BuildPreset,
+    /// With `all_frames`: scan only the frames this shard owns (work key: scene hash, the
+    /// frame's time, no camera, `lidar I`; see `crate::shard`).
+    pub shard: Option<crate::shard::Shard>,
+}
+
+/// The work key of LiDAR frame `index` at `time`.
+pub fn lidar_key(scene_hash: &str, index: usize, time: f64) -> crate::shard::WorkKey {
+    crate::shard::WorkKey {
+        scene: scene_hash.to_string(),
+        time,
+        camera: String::new(),
+        setting: format!("lidar {index}"),
+    }
 }
 
 /// One frame to render.
@@ -259,14 +273,22 @@ fn run_lidar(
         return Ok(None);
     };
     if l.all_frames {
+        let hash = l.shard.map(|_| crate::merge::scene_hash(scene));
+        let keep = |i: usize, t: f64| match (l.shard, &hash) {
+            (Some(s), Some(h)) => s.owns(&lidar_key(h, i, t)),
+            _ => true,
+        };
         return Ok(match r {
-            Renderer::Gaussian { .. } => scan_scene_gaussian(scene, &l.dir, l.backend, l.preset)?,
-            Renderer::Mesh { tracer, .. } => Some(scan_mesh_frames(
+            Renderer::Gaussian { .. } => {
+                scan_scene_gaussian_selected(scene, &l.dir, l.backend, l.preset, &keep)?
+            }
+            Renderer::Mesh { tracer, .. } => Some(scan_mesh_frames_selected(
                 tracer,
                 lidar,
                 &scene.cameras,
                 &scene.frame_times(),
                 &l.dir,
+                &keep,
             )?),
             _ => bail!("LiDAR is ray-traced"),
         });

@@ -14,6 +14,7 @@
 //! Cameras are chosen with `splatbridge_scene::camera_spec`.
 
 pub mod export;
+pub mod export_shard;
 pub mod frame;
 pub mod renderer;
 pub mod source;

@@ -15,7 +15,7 @@ use std::time::Instant;
 use anyhow::{bail, Context};
 use glam::{Quat, Vec3};
 use splatbridge_convert::{ConvertOptions, FrameClouds, Profile};
-use splatbridge_raytrace::scene_load::{load_glb_bytes, load_path};
+use splatbridge_raytrace::scene_load::{load_glb_vec, load_path};
 use splatbridge_raytrace::{RenderOptions, TriScene};
 use splatbridge_scene::camera_spec::{CameraRequest, CameraSource};
 use splatbridge_scene::dynamic::DynamicScene;
@@ -161,7 +161,7 @@ impl TraceSource {
                 let (bytes, _) =
                     splatbridge_convert::glb_bytes(&scene, frames.as_ref().map(|f| &f.0), &opts)
                         .with_context(|| name.clone())?;
-                let mut tri = load_glb_bytes(&bytes, &self.input)?;
+                let mut tri = load_glb_vec(bytes, &self.input)?;
                 tri.to_capture_frame();
                 Loaded::Mesh(tri)
             }

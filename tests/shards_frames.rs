@@ -1,0 +1,218 @@
+//! Per-frame runs split into shards: `convert --frames --shard I/N` as N separate processes,
+//! merged with `splatbridge merge`, holds exactly the files of one unsharded run, bit for bit;
+//! and the merge refuses an incomplete set.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn bin() -> &'static str {
+    env!("CARGO_BIN_EXE_splatbridge")
+}
+
+fn ok(out: Output, what: &str) {
+    assert!(
+        out.status.success(),
+        "{what} failed: {}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// The street fixture: dynamic (moving objects), so every frame's OBJ differs.
+fn street(dir: &Path) -> PathBuf {
+    ok(
+        Command::new(bin())
+            .args(["fixture", "street", "--count", "800", "-o"])
+            .arg(dir.join("street"))
+            .output()
+            .unwrap(),
+        "fixture",
+    );
+    dir.join("street/scene.json")
+}
+
+fn list(d: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(d)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+fn merge(dirs: &[PathBuf], out: &Path) -> Output {
+    Command::new(bin())
+        .arg("merge")
+        .args(dirs)
+        .arg("-o")
+        .arg(out)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn convert_frames_shards_merge_into_one_export() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = street(tmp.path());
+    let convert = |out: &Path, shard: Option<&str>| {
+        let mut c = Command::new(bin());
+        c.arg("convert").arg(&scene).arg("--frames");
+        if let Some(s) = shard {
+            c.args(["--shard", s]);
+        }
+        std::fs::create_dir_all(out.parent().unwrap()).unwrap();
+        ok(c.arg("-o").arg(out).output().unwrap(), "convert --frames");
+    };
+    let one = tmp.path().join("one");
+    convert(&one.join("m.obj"), None);
+    let files = list(&one);
+    // One MTL and several frames, or the split below proves nothing.
+    assert!(files.len() > 4, "{files:?}");
+    assert!(files.contains(&"m.mtl".to_string()), "{files:?}");
+
+    let shards: Vec<PathBuf> = (0..3).map(|i| tmp.path().join(format!("s{i}"))).collect();
+    for (i, d) in shards.iter().enumerate() {
+        convert(&d.join("m.obj"), Some(&format!("{i}/3")));
+    }
+    // Each frame in exactly one shard (the MTL in all).
+    let mut owned: Vec<String> = shards
+        .iter()
+        .flat_map(|d| list(d))
+        .filter(|f| f.ends_with(".obj"))
+        .collect();
+    owned.sort();
+    let frames: Vec<String> = files
+        .iter()
+        .filter(|f| f.ends_with(".obj"))
+        .cloned()
+        .collect();
+    assert_eq!(owned, frames, "frames are not partitioned");
+    assert!(
+        shards
+            .iter()
+            .filter(|d| list(d).iter().any(|f| f.ends_with(".obj")))
+            .count()
+            > 1,
+        "one shard did every frame"
+    );
+
+    let merged = tmp.path().join("merged");
+    ok(merge(&shards, &merged), "merge");
+    assert_eq!(list(&merged), files);
+    for f in &files {
+        assert!(
+            std::fs::read(one.join(f)).unwrap() == std::fs::read(merged.join(f)).unwrap(),
+            "{f} differs"
+        );
+    }
+
+    // A missing shard is refused, and nothing is written.
+    let partial = tmp.path().join("partial");
+    let out = merge(&shards[..2], &partial);
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("error:"),
+        "{out:?}"
+    );
+    assert!(!partial.exists());
+
+    // Shards of other options do not merge.
+    let other = tmp.path().join("other");
+    let mut c = Command::new(bin());
+    c.arg("convert")
+        .arg(&scene)
+        .args(["--frames", "--profile", "meshsplats", "--shard", "2/3"]);
+    std::fs::create_dir_all(&other).unwrap();
+    ok(
+        c.arg("-o").arg(other.join("m.obj")).output().unwrap(),
+        "convert other",
+    );
+    let out = merge(&[shards[0].clone(), shards[1].clone(), other], &partial);
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("options hash"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// `trace --lidar-all-frames --shard I/N` (mode gaussian and mode mesh): each shard scans the
+/// frames it owns into its own folder beside the traced image; the merge holds the unsharded
+/// run's scans and image, bit for bit.
+#[test]
+fn lidar_frames_shards_merge_into_one_run() {
+    let tmp = tempfile::tempdir().unwrap();
+    ok(
+        Command::new(bin())
+            .args([
+                "fixture",
+                "street",
+                "--count",
+                "600",
+                "--effects",
+                "lidar",
+                "-o",
+            ])
+            .arg(tmp.path().join("street"))
+            .output()
+            .unwrap(),
+        "fixture",
+    );
+    let scene = tmp.path().join("street/scene.json");
+    for mode in ["gaussian", "mesh"] {
+        let trace = |out: &Path, shard: Option<&str>| {
+            let mut c = Command::new(bin());
+            c.arg("trace").arg(&scene).args([
+                "--mode",
+                mode,
+                "--camera",
+                "orbit:4:1",
+                "--width",
+                "16",
+                "--height",
+                "12",
+                "--lidar-all-frames",
+            ]);
+            if let Some(s) = shard {
+                c.args(["--shard", s]);
+            }
+            std::fs::create_dir_all(out.parent().unwrap()).unwrap();
+            ok(
+                c.arg("-o").arg(out).output().unwrap(),
+                "trace --lidar-all-frames",
+            );
+        };
+        let root = tmp.path().join(mode);
+        let one = root.join("one");
+        trace(&one.join("t.png"), None);
+        let files = list(&one);
+        let scans = files.iter().filter(|f| f.ends_with(".ply")).count();
+        assert!(scans > 2, "{mode}: {files:?}");
+        let shards: Vec<PathBuf> = (0..3).map(|i| root.join(format!("s{i}"))).collect();
+        for (i, d) in shards.iter().enumerate() {
+            trace(&d.join("t.png"), Some(&format!("{i}/3")));
+        }
+        let per_shard: Vec<usize> = shards
+            .iter()
+            .map(|d| list(d).iter().filter(|f| f.ends_with(".ply")).count())
+            .collect();
+        assert_eq!(
+            per_shard.iter().sum::<usize>(),
+            scans,
+            "{mode}: {per_shard:?}"
+        );
+        assert!(
+            per_shard.iter().filter(|&&n| n > 0).count() > 1,
+            "{mode}: one shard scanned every frame: {per_shard:?}"
+        );
+        let merged = root.join("merged");
+        ok(merge(&shards, &merged), "merge");
+        assert_eq!(list(&merged), files, "{mode}");
+        for f in &files {
+            assert!(
+                std::fs::read(one.join(f)).unwrap() == std::fs::read(merged.join(f)).unwrap(),
+                "{mode}: {f} differs"
+            );
+        }
+    }
+}
