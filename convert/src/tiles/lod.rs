@@ -22,6 +22,7 @@
 //! f64; eigenvalues are floored at `1e-12` of the largest so log-scales stay finite.
 
 use glam::{DMat3, DVec3, Mat3, Quat, Vec3};
+use rayon::prelude::*;
 use splatbridge_scene::gaussians::logit;
 use splatbridge_scene::GaussianCloud;
 
@@ -77,9 +78,12 @@ pub fn groups(cloud: &GaussianCloud, target: usize) -> Vec<Vec<u32>> {
 /// Reduce `cloud` to at most `target` Gaussians by merging neighbours.
 pub fn reduce(cloud: &GaussianCloud, target: usize) -> GaussianCloud {
     let gs = groups(cloud, target);
+    // Each group's merge is independent: computed on all cores, appended in group order,
+    // so the result is the one [`merge_into`] gives group by group.
+    let merged: Vec<Merged> = gs.par_iter().map(|g| merge(cloud, g)).collect();
     let mut out = GaussianCloud::with_capacity(cloud.sh_degree, gs.len());
-    for g in &gs {
-        merge_into(cloud, g, &mut out);
+    for m in &merged {
+        out.push(m.mean, m.log_scale, m.rotation, m.logit_opacity, &m.sh);
     }
     out
 }
@@ -128,8 +132,23 @@ fn outer(a: DVec3, b: DVec3) -> DMat3 {
     DMat3::from_cols(a * b.x, a * b.y, a * b.z)
 }
 
+/// One merged Gaussian, in [`GaussianCloud::push`]'s parameters.
+struct Merged {
+    mean: Vec3,
+    log_scale: Vec3,
+    rotation: Quat,
+    logit_opacity: f32,
+    sh: Vec<Vec3>,
+}
+
 /// Append the merge of `group` to `out`.
 pub fn merge_into(cloud: &GaussianCloud, group: &[u32], out: &mut GaussianCloud) {
+    let m = merge(cloud, group);
+    out.push(m.mean, m.log_scale, m.rotation, m.logit_opacity, &m.sh);
+}
+
+/// The merge of `group` (see the module documentation).
+fn merge(cloud: &GaussianCloud, group: &[u32]) -> Merged {
     let m = moments(cloud, group);
     let (vals, vecs) = symmetric_eigen(m.cov);
     let top = vals.max_element().max(0.0);
@@ -159,7 +178,13 @@ pub fn merge_into(cloud: &GaussianCloud, group: &[u32], out: &mut GaussianCloud)
         r.z_axis.as_vec3(),
     ))
     .normalize();
-    out.push(m.mean.as_vec3(), log_scale, q, logit(alpha), &sh);
+    Merged {
+        mean: m.mean.as_vec3(),
+        log_scale,
+        rotation: q,
+        logit_opacity: logit(alpha),
+        sh,
+    }
 }
 
 /// Eigenvalues and unit eigenvectors (columns) of a symmetric matrix, by cyclic Jacobi
