@@ -232,3 +232,34 @@ pub fn symmetric_eigen(m: DMat3) -> (DVec3, DMat3) {
         DMat3::from_cols(col(0), col(1), col(2)),
     )
 }
+
+#[cfg(test)]
+mod parallel_tests {
+    use super::*;
+    use splatbridge_scene::rng::Rng;
+
+    /// The parallel [`reduce`] is [`merge_into`] applied group by group (the sequential
+    /// reference), exactly.
+    #[test]
+    fn reduce_is_merge_into_group_by_group() {
+        let mut rng = Rng::new(7);
+        let mut cloud = GaussianCloud::with_capacity(1, 500);
+        for _ in 0..500 {
+            let p = Vec3::new(rng.f32() * 10.0, rng.f32() * 3.0, rng.f32());
+            let s = Vec3::splat(-2.0 - rng.f32());
+            let q = Quat::from_rotation_y(rng.f32() * 3.0);
+            let sh = [Vec3::splat(rng.f32()); 4];
+            cloud.push(p, s, q, rng.f32() * 4.0 - 2.0, &sh);
+        }
+        let fast = reduce(&cloud, 60);
+        let mut slow = GaussianCloud::with_capacity(1, 60);
+        for g in &groups(&cloud, 60) {
+            merge_into(&cloud, g, &mut slow);
+        }
+        assert_eq!(fast.len(), slow.len());
+        assert!(fast.len() <= 60 && fast.len() > 30);
+        assert_eq!(fast.means, slow.means);
+        assert_eq!(fast.rotations, slow.rotations);
+        assert_eq!(format!("{fast:?}"), format!("{slow:?}"));
+    }
+}
