@@ -23,7 +23,9 @@
 //!   the east-north-up frame there, so the capture stands upright on the globe.
 //! - Memory: the cloud is read once; the partition is a permutation of indices; tiles are
 //!   visited depth first and a tile's content is dropped once its parent is merged, so beyond
-//!   the input cloud at most (tree depth × 8) tile contents are held.
+//!   the input cloud at most (tree depth × 8) tile contents are held, plus the encoded
+//!   bytes of one inner tile's leaf children, which are loaded and encoded on all cores
+//!   before the walk writes them in order (the output is that of one thread).
 
 pub mod lod;
 mod stream;
