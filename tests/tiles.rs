@@ -609,3 +609,48 @@ fn streamed_tileset_is_byte_identical_to_the_in_memory_one() {
     assert!(err.contains("vertex 7"), "{err}");
     assert!(!dir.path().join("t").join("tileset.json").exists());
 }
+
+/// Leaves are loaded and encoded on worker threads and LOD merges computed in parallel; the
+/// tileset written on two threads is the one written on one (the sequential walk), byte for
+/// byte, in memory and streamed.
+#[test]
+fn parallel_tileset_is_byte_identical_to_the_one_thread_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let ply = dir.path().join("in.ply");
+    let cloud = clusters(1500);
+    splatbridge_scene::ply::write_ply(
+        &ply,
+        &cloud,
+        splatbridge_scene::ply::PlyFormat::BinaryLittleEndian,
+    )
+    .unwrap();
+    let opts = options(TileContent::Splats, KhrCompression::SpzCesium, 150);
+    let run = |threads: usize, name: &str, streamed: bool| {
+        let out = dir.path().join(name);
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            if streamed {
+                splatbridge::tiles::write_tiles_from_ply(&out, &ply, false, &opts)
+                    .unwrap()
+                    .expect("a binary PLY streams");
+            } else {
+                let scene = DynamicScene::from_static(cloud.clone());
+                splatbridge::tiles::write_tiles(&out, &scene, &opts).unwrap();
+            }
+        });
+        files(&out)
+    };
+    for streamed in [false, true] {
+        let one = run(1, &format!("one_{streamed}"), streamed);
+        let two = run(2, &format!("two_{streamed}"), streamed);
+        assert!(one.len() > 10, "several tiles");
+        assert_eq!(one.len(), two.len());
+        for ((na, da), (nb, db)) in one.iter().zip(&two) {
+            assert_eq!(na, nb);
+            assert!(da == db, "{na} differs between one and two threads");
+        }
+    }
+}

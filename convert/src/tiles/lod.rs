@@ -22,6 +22,7 @@
 //! f64; eigenvalues are floored at `1e-12` of the largest so log-scales stay finite.
 
 use glam::{DMat3, DVec3, Mat3, Quat, Vec3};
+use rayon::prelude::*;
 use splatbridge_scene::gaussians::logit;
 use splatbridge_scene::GaussianCloud;
 
@@ -77,9 +78,12 @@ pub fn groups(cloud: &GaussianCloud, target: usize) -> Vec<Vec<u32>> {
 /// Reduce `cloud` to at most `target` Gaussians by merging neighbours.
 pub fn reduce(cloud: &GaussianCloud, target: usize) -> GaussianCloud {
     let gs = groups(cloud, target);
+    // Each group's merge is independent: computed on all cores, appended in group order,
+    // so the result is the one [`merge_into`] gives group by group.
+    let merged: Vec<Merged> = gs.par_iter().map(|g| merge(cloud, g)).collect();
     let mut out = GaussianCloud::with_capacity(cloud.sh_degree, gs.len());
-    for g in &gs {
-        merge_into(cloud, g, &mut out);
+    for m in &merged {
+        out.push(m.mean, m.log_scale, m.rotation, m.logit_opacity, &m.sh);
     }
     out
 }
@@ -128,8 +132,23 @@ fn outer(a: DVec3, b: DVec3) -> DMat3 {
     DMat3::from_cols(a * b.x, a * b.y, a * b.z)
 }
 
+/// One merged Gaussian, in [`GaussianCloud::push`]'s parameters.
+struct Merged {
+    mean: Vec3,
+    log_scale: Vec3,
+    rotation: Quat,
+    logit_opacity: f32,
+    sh: Vec<Vec3>,
+}
+
 /// Append the merge of `group` to `out`.
 pub fn merge_into(cloud: &GaussianCloud, group: &[u32], out: &mut GaussianCloud) {
+    let m = merge(cloud, group);
+    out.push(m.mean, m.log_scale, m.rotation, m.logit_opacity, &m.sh);
+}
+
+/// The merge of `group` (see the module documentation).
+fn merge(cloud: &GaussianCloud, group: &[u32]) -> Merged {
     let m = moments(cloud, group);
     let (vals, vecs) = symmetric_eigen(m.cov);
     let top = vals.max_element().max(0.0);
@@ -159,7 +178,13 @@ pub fn merge_into(cloud: &GaussianCloud, group: &[u32], out: &mut GaussianCloud)
         r.z_axis.as_vec3(),
     ))
     .normalize();
-    out.push(m.mean.as_vec3(), log_scale, q, logit(alpha), &sh);
+    Merged {
+        mean: m.mean.as_vec3(),
+        log_scale,
+        rotation: q,
+        logit_opacity: logit(alpha),
+        sh,
+    }
 }
 
 /// Eigenvalues and unit eigenvectors (columns) of a symmetric matrix, by cyclic Jacobi
@@ -206,4 +231,35 @@ pub fn symmetric_eigen(m: DMat3) -> (DVec3, DMat3) {
         DVec3::new(a[0][0], a[1][1], a[2][2]),
         DMat3::from_cols(col(0), col(1), col(2)),
     )
+}
+
+#[cfg(test)]
+mod parallel_tests {
+    use super::*;
+    use splatbridge_scene::rng::Rng;
+
+    /// The parallel [`reduce`] is [`merge_into`] applied group by group (the sequential
+    /// reference), exactly.
+    #[test]
+    fn reduce_is_merge_into_group_by_group() {
+        let mut rng = Rng::new(7);
+        let mut cloud = GaussianCloud::with_capacity(1, 500);
+        for _ in 0..500 {
+            let p = Vec3::new(rng.f32() * 10.0, rng.f32() * 3.0, rng.f32());
+            let s = Vec3::splat(-2.0 - rng.f32());
+            let q = Quat::from_rotation_y(rng.f32() * 3.0);
+            let sh = [Vec3::splat(rng.f32()); 4];
+            cloud.push(p, s, q, rng.f32() * 4.0 - 2.0, &sh);
+        }
+        let fast = reduce(&cloud, 60);
+        let mut slow = GaussianCloud::with_capacity(1, 60);
+        for g in &groups(&cloud, 60) {
+            merge_into(&cloud, g, &mut slow);
+        }
+        assert_eq!(fast.len(), slow.len());
+        assert!(fast.len() <= 60 && fast.len() > 30);
+        assert_eq!(fast.means, slow.means);
+        assert_eq!(fast.rotations, slow.rotations);
+        assert_eq!(format!("{fast:?}"), format!("{slow:?}"));
+    }
 }

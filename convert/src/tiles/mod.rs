@@ -23,17 +23,20 @@
 //!   the east-north-up frame there, so the capture stands upright on the globe.
 //! - Memory: the cloud is read once; the partition is a permutation of indices; tiles are
 //!   visited depth first and a tile's content is dropped once its parent is merged, so beyond
-//!   the input cloud at most (tree depth × 8) tile contents are held.
+//!   the input cloud at most (tree depth × 8) tile contents are held, plus the encoded
+//!   bytes of one inner tile's leaf children, which are loaded and encoded on all cores
+//!   before the walk writes them in order (the output is that of one thread).
 
 pub mod lod;
 mod stream;
 
 pub use stream::write_tileset_from_ply;
 
-use std::io::{BufWriter, Write};
+use std::collections::HashMap;
 use std::path::Path;
 
 use glam::{DVec3, Mat3, Quat, Vec3};
+use rayon::prelude::*;
 use serde_json::{json, Value};
 use splatbridge_scene::blocks::{footprint, Aabb, Block, Blocks};
 use splatbridge_scene::dynamic::DynamicScene;
@@ -176,30 +179,53 @@ struct Writer<'a, 'm> {
     stage: &'a Path,
     frame: Mat3,
     report: TilesetReport,
+    /// Leaves encoded ahead by [`encode_leaf`], taken when the depth-first walk reaches them.
+    ready: HashMap<usize, Result<(Vec<u8>, GaussianCloud)>>,
+}
+
+/// Encode `content` as one tile's GLB in memory; returns the bytes and the content back
+/// (the parent merges it).
+fn encode_glb(content: GaussianCloud, opts: &TileOptions) -> Result<(Vec<u8>, GaussianCloud)> {
+    let scene = DynamicScene::from_static(content);
+    let mut bytes = Vec::new();
+    match opts.content {
+        TileContent::Splats => {
+            crate::splats_gltf::write_tile_glb(&mut bytes, &scene, &opts.convert, opts.compression)?
+        }
+        TileContent::Mesh => crate::write_glb(&mut bytes, &scene, None, &opts.convert)?,
+    };
+    Ok((bytes, scene.static_gaussians))
+}
+
+/// Leaf `b`'s Gaussians, encoded: the independent part of a leaf's work, run on the
+/// worker threads for all leaf children of one inner tile at a time (at most 8 leaves of at
+/// most the tile budget each in flight).
+fn encode_leaf(
+    source: &Source<'_>,
+    blocks: &Blocks,
+    opts: &TileOptions,
+    b: usize,
+) -> Result<(Vec<u8>, GaussianCloud)> {
+    let content = match source {
+        Source::Cloud(cloud) => subset(cloud, blocks.indices(&blocks.blocks[b])),
+        Source::Buckets(buckets) => buckets.take(b)?,
+    };
+    encode_glb(content, opts)
 }
 
 impl Writer<'_, '_> {
-    fn write_glb(&mut self, name: &str, content: GaussianCloud) -> Result<GaussianCloud> {
+    fn put(&mut self, name: &str, bytes: &[u8]) -> Result<()> {
         let path = self.stage.join(name);
-        let scene = DynamicScene::from_static(content);
-        let file = std::fs::File::create(&path).map_err(|e| ConvertError::Io {
-            path: path.clone(),
-            err: e,
-        })?;
-        let mut w = BufWriter::new(file);
-        let rep = match self.opts.content {
-            TileContent::Splats => crate::splats_gltf::write_tile_glb(
-                &mut w,
-                &scene,
-                &self.opts.convert,
-                self.opts.compression,
-            )?,
-            TileContent::Mesh => crate::write_glb(&mut w, &scene, None, &self.opts.convert)?,
-        };
-        w.flush().map_err(|e| ConvertError::Io { path, err: e })?;
+        std::fs::write(&path, bytes).map_err(|e| ConvertError::Io { path, err: e })?;
         self.report.files += 1;
-        self.report.bytes += rep.bytes;
-        Ok(scene.static_gaussians)
+        self.report.bytes += bytes.len() as u64;
+        Ok(())
+    }
+
+    fn write_glb(&mut self, name: &str, content: GaussianCloud) -> Result<GaussianCloud> {
+        let (bytes, content) = encode_glb(content, self.opts)?;
+        self.put(name, &bytes)?;
+        Ok(content)
     }
 
     /// Write block `b`'s subtree; returns its tile JSON, its error and (for splats) its
@@ -211,12 +237,13 @@ impl Writer<'_, '_> {
         let name = format!("tile_{b}.glb");
         if block.is_leaf() {
             self.report.leaves += 1;
-            let content = match &self.source {
-                Source::Cloud(cloud) => subset(cloud, self.blocks.indices(block)),
-                Source::Buckets(buckets) => buckets.take(b)?,
+            let (bytes, content) = match self.ready.remove(&b) {
+                Some(done) => done?,
+                None => encode_leaf(&self.source, self.blocks, self.opts, b)?,
             };
             self.report.gaussians += content.len();
-            let content = self.write_glb(&name, content)?;
+            self.put(&name, &bytes)?;
+            drop(bytes);
             let tile = json!({
                 "boundingVolume": {"box": box_volume(&block.footprint, &self.frame)},
                 "geometricError": 0.0,
@@ -224,6 +251,19 @@ impl Writer<'_, '_> {
             });
             let keep = (self.opts.content == TileContent::Splats).then_some(content);
             return Ok((tile, 0.0, keep));
+        }
+        // Leaf children are independent: load and encode them on all cores, then write them
+        // in order (the files and the merge order are those of one thread).
+        let leaves: Vec<usize> = (block.children.iter().copied())
+            .filter(|&c| self.blocks.blocks[c].is_leaf())
+            .collect();
+        if leaves.len() > 1 {
+            let (source, blocks, opts) = (&self.source, self.blocks, self.opts);
+            let done: Vec<_> = leaves
+                .par_iter()
+                .map(|&c| (c, encode_leaf(source, blocks, opts, c)))
+                .collect();
+            self.ready.extend(done);
         }
         let mut children = Vec::with_capacity(block.children.len());
         let mut child_error = 0.0f64;
@@ -341,6 +381,7 @@ fn write_blocks(
         meter,
         stage: &stage,
         frame: capture_to_tileset(&opts.convert),
+        ready: HashMap::new(),
         report: TilesetReport {
             invalid_left_out: blocks.invalid,
             objects_at_start,
