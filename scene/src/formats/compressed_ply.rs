@@ -20,6 +20,7 @@ use std::io::Write;
 use std::path::Path;
 
 use glam::{Quat, Vec3};
+use rayon::prelude::*;
 
 use super::read_file_capped;
 use crate::error::{Result, SceneError};
@@ -374,51 +375,72 @@ pub fn decode_screened(bytes: &[u8], path: &Path) -> Result<(GaussianCloud, bool
 
     let k = crate::gaussians::sh_coeffs(sh_degree);
     let kr = k - 1;
-    let mut cloud = GaussianCloud::with_capacity(sh_degree, n);
+    let mut cloud = GaussianCloud::new(sh_degree);
+    cloud.means = vec![Vec3::ZERO; n];
+    cloud.log_scales = vec![Vec3::ZERO; n];
+    cloud.rotations = vec![Quat::IDENTITY; n];
+    cloud.opacity_logits = vec![0.0; n];
+    cloud.sh = vec![Vec3::ZERO; n * k];
     let vstride = vertex.stride();
     let sstride = si.map_or(0, |si| elements[si].stride());
-    for i in 0..n {
-        let b = &bounds[i / CHUNK];
-        let base = offsets[vi] + i * vstride;
-        let p = unpack_111011(u32_at(data, base + packed_offs[0]));
-        let r = u32_at(data, base + packed_offs[1]);
-        let s = unpack_111011(u32_at(data, base + packed_offs[2]));
-        let c = u32_at(data, base + packed_offs[3]);
-        cloud.means.push(Vec3::new(
-            lerp(b[0], b[3], p.x),
-            lerp(b[1], b[4], p.y),
-            lerp(b[2], b[5], p.z),
-        ));
-        cloud.log_scales.push(Vec3::new(
-            lerp(b[6], b[9], s.x),
-            lerp(b[7], b[10], s.y),
-            lerp(b[8], b[11], s.z),
-        ));
-        cloud.rotations.push(unpack_rot(r));
-        let rgb = Vec3::new(
-            lerp(b[12], b[15], unorm(c >> 24, 8)),
-            lerp(b[13], b[16], unorm(c >> 16, 8)),
-            lerp(b[14], b[17], unorm(c >> 8, 8)),
-        );
-        cloud.sh.push((rgb - Vec3::splat(0.5)) / SH_C0);
-        cloud.opacity_logits.push(logit(unorm(c, 8)));
-        if kr > 0 {
-            let sb = i * sstride;
-            let v = |j: usize| {
-                let q = data[sb + sh_offs[j]];
-                let t = match q {
-                    0 => 0.0,
-                    255 => 1.0,
-                    q => (q as f32 + 0.5) / 256.0,
-                };
-                (t - 0.5) * 8.0
-            };
-            // Channel-major in the file (all R, then G, then B) → coefficient-major.
-            cloud
-                .sh
-                .extend((0..kr).map(|c| Vec3::new(v(c), v(kr + c), v(2 * kr + c))));
-        }
-    }
+    // One task per chunk of 256 (the format's own unit: one set of bounds), on every core.
+    // Each task writes only its own slices of the preallocated arrays, so the result does not
+    // depend on the thread count and no worker allocates.
+    (
+        cloud.means.par_chunks_mut(CHUNK),
+        cloud.log_scales.par_chunks_mut(CHUNK),
+        cloud.rotations.par_chunks_mut(CHUNK),
+        cloud.opacity_logits.par_chunks_mut(CHUNK),
+        cloud.sh.par_chunks_mut(CHUNK * k),
+    )
+        .into_par_iter()
+        .enumerate()
+        .for_each(|(ch, (means, scales, rots, opacities, sh))| {
+            let b = &bounds[ch];
+            for j in 0..means.len() {
+                let i = ch * CHUNK + j;
+                let base = offsets[vi] + i * vstride;
+                let p = unpack_111011(u32_at(data, base + packed_offs[0]));
+                let r = u32_at(data, base + packed_offs[1]);
+                let s = unpack_111011(u32_at(data, base + packed_offs[2]));
+                let c = u32_at(data, base + packed_offs[3]);
+                means[j] = Vec3::new(
+                    lerp(b[0], b[3], p.x),
+                    lerp(b[1], b[4], p.y),
+                    lerp(b[2], b[5], p.z),
+                );
+                scales[j] = Vec3::new(
+                    lerp(b[6], b[9], s.x),
+                    lerp(b[7], b[10], s.y),
+                    lerp(b[8], b[11], s.z),
+                );
+                rots[j] = unpack_rot(r);
+                let rgb = Vec3::new(
+                    lerp(b[12], b[15], unorm(c >> 24, 8)),
+                    lerp(b[13], b[16], unorm(c >> 16, 8)),
+                    lerp(b[14], b[17], unorm(c >> 8, 8)),
+                );
+                let coeffs = &mut sh[j * k..(j + 1) * k];
+                coeffs[0] = (rgb - Vec3::splat(0.5)) / SH_C0;
+                opacities[j] = logit(unorm(c, 8));
+                if kr > 0 {
+                    let sb = i * sstride;
+                    let v = |j: usize| {
+                        let q = data[sb + sh_offs[j]];
+                        let t = match q {
+                            0 => 0.0,
+                            255 => 1.0,
+                            q => (q as f32 + 0.5) / 256.0,
+                        };
+                        (t - 0.5) * 8.0
+                    };
+                    // Channel-major in the file (all R, then G, then B) → coefficient-major.
+                    for (c, out) in coeffs[1..].iter_mut().enumerate() {
+                        *out = Vec3::new(v(c), v(kr + c), v(2 * kr + c));
+                    }
+                }
+            }
+        });
     Ok((cloud, suspect))
 }
 
