@@ -61,19 +61,34 @@ fn hybrid(out: &Path, knobs: &[&str]) -> Value {
 fn hybrid_blend_knob_reaches_the_renderer() {
     let dir = temp_dir("hybrid");
     let (s, u) = (dir.join("s.png"), dir.join("u.png"));
-    let js = hybrid(&s, &["--blend", "sorted"]);
-    let ju = hybrid(&u, &[]);
-    assert_eq!(js["knobs"]["blend"], "sorted");
-    assert_eq!(ju["knobs"]["blend"], "unsorted", "the default");
+    let js = hybrid(&s, &[]);
+    let ju = hybrid(&u, &["--blend", "unsorted"]);
+    assert_eq!(js["knobs"]["blend"], "sorted", "the default");
+    assert_eq!(ju["knobs"]["blend"], "unsorted");
     // Only the sorted blend sorts.
     assert!(js["stats"]["sorted"].as_u64().unwrap() > 0);
     assert_eq!(ju["stats"]["sorted"], 0);
     assert_ne!(std::fs::read(&s).unwrap(), std::fs::read(&u).unwrap());
-    let ju2 = hybrid(&dir.join("u2.png"), &["--blend", "unsorted"]);
-    assert_eq!(ju2["knobs"]["blend"], "unsorted");
+    // The default is sorted with the √2σ disc: the same image as naming both.
+    let js2 = hybrid(
+        &dir.join("s2.png"),
+        &["--blend", "sorted", "--footprint", "1.4142135"],
+    );
+    assert_eq!(js2["knobs"]["blend"], "sorted");
     assert_eq!(
-        std::fs::read(&u).unwrap(),
-        std::fs::read(dir.join("u2.png")).unwrap()
+        std::fs::read(&s).unwrap(),
+        std::fs::read(dir.join("s2.png")).unwrap()
+    );
+    // And not GES's 3.33σ rim, which this split's surfels render differently with.
+    let js3 = hybrid(
+        &dir.join("s3.png"),
+        &["--blend", "sorted", "--footprint", "3.33"],
+    );
+    assert_eq!(js3["knobs"]["blend"], "sorted");
+    assert!(js["stats"]["surfels_drawn"].as_u64().unwrap() > 0, "{js}");
+    assert_ne!(
+        std::fs::read(&s).unwrap(),
+        std::fs::read(dir.join("s3.png")).unwrap()
     );
 }
 

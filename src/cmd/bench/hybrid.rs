@@ -129,7 +129,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .resolve(&cloud, &[])
         .with_context(|| args.scene.clone())?;
     let (surfel_split, auto) = args.knobs.resolve_split(&cloud)?;
-    let opts = args.knobs.options_for(auto.as_ref());
+    let opts = args.knobs.options_for(auto.as_ref(), &surfel_split);
     opts.validate()?;
     let nopts = RenderOptions {
         near: opts.near,
