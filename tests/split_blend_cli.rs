@@ -64,6 +64,8 @@ fn hybrid_blend_knob_reaches_the_renderer() {
     let js = hybrid(&s, &[]);
     let ju = hybrid(&u, &["--blend", "unsorted"]);
     assert_eq!(js["knobs"]["blend"], "sorted", "the default");
+    // The √2σ disc for a split cloud (the JSON has the footprint used).
+    assert_eq!(js["knobs"]["footprint"], 1.4142135);
     assert_eq!(ju["knobs"]["blend"], "unsorted");
     // Only the sorted blend sorts.
     assert!(js["stats"]["sorted"].as_u64().unwrap() > 0);
@@ -184,7 +186,10 @@ fn compare_hybrid_psnr(dir: &Path, knobs: &[&str]) -> f64 {
 fn compare_takes_the_split_and_the_blend() {
     let dir = temp_dir("compare");
     let sorted = compare_hybrid_psnr(&dir.join("s"), &["--blend", "sorted"]);
-    let unsorted = compare_hybrid_psnr(&dir.join("u"), &[]);
+    let default = compare_hybrid_psnr(&dir.join("d"), &[]);
+    let unsorted = compare_hybrid_psnr(&dir.join("u"), &["--blend", "unsorted"]);
+    // The default is the sorted blend.
+    assert_eq!(sorted, default);
     let unguarded = compare_hybrid_psnr(
         &dir.join("t"),
         &["--split", "thresholds", "--blend", "unsorted"],

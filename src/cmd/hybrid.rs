@@ -380,6 +380,15 @@ pub fn print_summary(cam: &Camera, stats: &GesStats, split_ms: f64) {
     );
 }
 
+/// The knobs as JSON with the blend and footprint the render used (chosen by `--split auto`
+/// or the input's kind when not given).
+fn used_knobs(knobs: &HybridKnobs, opts: &GesOptions) -> serde_json::Value {
+    let mut j = knobs.to_json();
+    j["blend"] = json!(blend_name(opts.blend));
+    j["footprint"] = json!(short(opts.footprint_sigmas));
+    j
+}
+
 pub fn run(args: Args) -> anyhow::Result<()> {
     let ext = args
         .out
@@ -402,7 +411,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .knobs
         .resolve_split(&scene.composite(t))
         .with_context(|| name.clone())?;
-    let mut renderer = Renderer::hybrid(args.knobs.options_for(auto.as_ref(), &split), split)?;
+    let opts = args.knobs.options_for(auto.as_ref(), &split);
+    let mut renderer = Renderer::hybrid(opts, split)?;
     let req = FrameRequest {
         scene: Some(&scene),
         effects: &effects,
@@ -431,7 +441,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "surfels_by": how,
             "split_auto": auto.as_ref().map(AutoChoice::to_json),
             "camera": {"name": cam.name, "width": cam.width, "height": cam.height},
-            "knobs": args.knobs.to_json(),
+            "knobs": used_knobs(&args.knobs, &opts),
             "stats": stats_json(stats, *split_ms),
             "effects": serde_json::to_value(&r.counters)?,
         });
