@@ -65,7 +65,10 @@ fn hybrid_blend_knob_reaches_the_renderer() {
     let ju = hybrid(&u, &["--blend", "unsorted"]);
     assert_eq!(js["knobs"]["blend"], "sorted", "the default");
     // The √2σ disc for a split cloud (the JSON has the footprint used).
-    assert_eq!(js["knobs"]["footprint"], 1.4142135);
+    assert_eq!(
+        js["knobs"]["footprint"].as_f64().unwrap() as f32,
+        std::f32::consts::SQRT_2
+    );
     assert_eq!(ju["knobs"]["blend"], "unsorted");
     // Only the sorted blend sorts.
     assert!(js["stats"]["sorted"].as_u64().unwrap() > 0);
