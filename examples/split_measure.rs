@@ -17,7 +17,7 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use splatbridge::split_auto::{blend_name, choose, AutoConfig};
+use splatbridge::split_auto::{blend_name, choose, AutoConfig, DISC_FOOTPRINT_SIGMAS};
 use splatbridge_hybrid::ges::{render_ges, Blend, GesOptions};
 use splatbridge_hybrid::{render, RenderOptions};
 use splatbridge_scene::camera_spec::{CameraRequest, CameraSource, CameraSpec};
@@ -53,14 +53,20 @@ fn run(args: &[String]) -> anyhow::Result<()> {
         for c in &configs {
             if c == "auto" {
                 let t0 = std::time::Instant::now();
-                let auto = choose(&cloud, &ges, &AutoConfig::default())?;
-                eprint!("{name}: {}", auto.summary());
-                eprintln!("{name}: auto in {:.0} ms", t0.elapsed().as_secs_f64() * 1e3);
-                let label = format!("auto ({})", blend_name(auto.blend()));
-                let o = GesOptions {
-                    blend: auto.blend(),
+                // As `hybrid --split auto` with its default footprint (the √2σ disc).
+                let base = GesOptions {
+                    footprint_sigmas: DISC_FOOTPRINT_SIGMAS,
                     ..ges
                 };
+                let auto = choose(&cloud, &base, &AutoConfig::default())?;
+                eprint!("{name}: {}", auto.summary());
+                eprintln!("{name}: auto in {:.0} ms", t0.elapsed().as_secs_f64() * 1e3);
+                let label = format!(
+                    "auto ({}, fp {:.2})",
+                    blend_name(auto.blend()),
+                    auto.footprint()
+                );
+                let o = auto.apply(&ges);
                 splits.push((label, auto.params(), o));
                 continue;
             }

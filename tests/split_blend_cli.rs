@@ -61,19 +61,39 @@ fn hybrid(out: &Path, knobs: &[&str]) -> Value {
 fn hybrid_blend_knob_reaches_the_renderer() {
     let dir = temp_dir("hybrid");
     let (s, u) = (dir.join("s.png"), dir.join("u.png"));
-    let js = hybrid(&s, &["--blend", "sorted"]);
-    let ju = hybrid(&u, &[]);
-    assert_eq!(js["knobs"]["blend"], "sorted");
-    assert_eq!(ju["knobs"]["blend"], "unsorted", "the default");
+    let js = hybrid(&s, &[]);
+    let ju = hybrid(&u, &["--blend", "unsorted"]);
+    assert_eq!(js["knobs"]["blend"], "sorted", "the default");
+    // The √2σ disc for a split cloud (the JSON has the footprint used).
+    assert_eq!(
+        js["knobs"]["footprint"].as_f64().unwrap() as f32,
+        std::f32::consts::SQRT_2
+    );
+    assert_eq!(ju["knobs"]["blend"], "unsorted");
     // Only the sorted blend sorts.
     assert!(js["stats"]["sorted"].as_u64().unwrap() > 0);
     assert_eq!(ju["stats"]["sorted"], 0);
     assert_ne!(std::fs::read(&s).unwrap(), std::fs::read(&u).unwrap());
-    let ju2 = hybrid(&dir.join("u2.png"), &["--blend", "unsorted"]);
-    assert_eq!(ju2["knobs"]["blend"], "unsorted");
+    // The default is sorted with the √2σ disc: the same image as naming both.
+    let js2 = hybrid(
+        &dir.join("s2.png"),
+        &["--blend", "sorted", "--footprint", "1.4142135"],
+    );
+    assert_eq!(js2["knobs"]["blend"], "sorted");
     assert_eq!(
-        std::fs::read(&u).unwrap(),
-        std::fs::read(dir.join("u2.png")).unwrap()
+        std::fs::read(&s).unwrap(),
+        std::fs::read(dir.join("s2.png")).unwrap()
+    );
+    // And not GES's 3.33σ rim, which this split's surfels render differently with.
+    let js3 = hybrid(
+        &dir.join("s3.png"),
+        &["--blend", "sorted", "--footprint", "3.33"],
+    );
+    assert_eq!(js3["knobs"]["blend"], "sorted");
+    assert!(js["stats"]["surfels_drawn"].as_u64().unwrap() > 0, "{js}");
+    assert_ne!(
+        std::fs::read(&s).unwrap(),
+        std::fs::read(dir.join("s3.png")).unwrap()
     );
 }
 
@@ -169,7 +189,10 @@ fn compare_hybrid_psnr(dir: &Path, knobs: &[&str]) -> f64 {
 fn compare_takes_the_split_and_the_blend() {
     let dir = temp_dir("compare");
     let sorted = compare_hybrid_psnr(&dir.join("s"), &["--blend", "sorted"]);
-    let unsorted = compare_hybrid_psnr(&dir.join("u"), &[]);
+    let default = compare_hybrid_psnr(&dir.join("d"), &[]);
+    let unsorted = compare_hybrid_psnr(&dir.join("u"), &["--blend", "unsorted"]);
+    // The default is the sorted blend.
+    assert_eq!(sorted, default);
     let unguarded = compare_hybrid_psnr(
         &dir.join("t"),
         &["--split", "thresholds", "--blend", "unsorted"],

@@ -13,7 +13,7 @@
 use std::process::Command;
 
 use glam::{DVec3, Quat, Vec3};
-use splatbridge::split_auto::{choose, choose_from, ladder, AutoConfig};
+use splatbridge::split_auto::{choose, choose_from, ladder, AutoConfig, DISC_FOOTPRINT_SIGMAS};
 use splatbridge_hybrid::ges::{render_ges, Blend, GesOptions};
 use splatbridge_hybrid::{render, RenderOptions};
 use splatbridge_scene::metrics::psnr;
@@ -236,16 +236,48 @@ fn auto_split_meets_the_target_at_the_least_work_and_reports_its_cost() {
         ..AutoConfig::default()
     };
     let mut rungs = ladder();
-    rungs.push(("unguarded".into(), unguarded()));
+    rungs.push(("unguarded".into(), unguarded(), None));
     let n = rungs.len();
     let a = choose_from(&c, &GesOptions::default(), &cfg, rungs).unwrap();
     assert!(a.met);
     let chosen = &a.candidates[a.chosen];
-    assert!(chosen.worst_psnr >= cfg.min_psnr);
+    // The fitting views must clear the target by the margin, not just the target.
+    let target = cfg.min_psnr + cfg.margin;
+    assert!(cfg.margin > 0.0);
+    assert!(chosen.worst_psnr >= target);
     assert_eq!(chosen.psnr.len(), 2);
+    // The disc rungs render with the √2σ footprint, every other rung with the caller's.
+    for r in &a.candidates {
+        let want = if r.label.contains("disc") {
+            DISC_FOOTPRINT_SIGMAS
+        } else {
+            GesOptions::default().footprint_sigmas
+        };
+        assert_eq!(r.footprint, want, "{}", r.label);
+    }
+    assert_eq!(
+        a.candidates
+            .iter()
+            .filter(|r| r.label.contains("disc"))
+            .count(),
+        2,
+        "one disc rung, both blends"
+    );
+    assert_eq!(
+        a.apply(&GesOptions::default()).footprint_sigmas,
+        chosen.footprint
+    );
+    // At the disc's own footprint the disc rung would repeat the default one: skipped.
+    let at_disc = GesOptions {
+        footprint_sigmas: DISC_FOOTPRINT_SIGMAS,
+        ..GesOptions::default()
+    };
+    let d = choose(&c, &at_disc, &cfg).unwrap();
+    assert_eq!(d.candidates.len(), 2 * (ladder().len() - 1));
+    assert!(d.candidates.iter().all(|r| !r.label.contains("disc")));
     // No rung that meets the target does less work.
     for r in &a.candidates {
-        if r.worst_psnr >= cfg.min_psnr {
+        if r.worst_psnr >= target {
             assert!(r.work >= chosen.work, "{} beats {}", r.label, chosen.label);
         }
     }
@@ -288,6 +320,7 @@ fn auto_split_says_when_no_rung_meets_the_target() {
         height: 24,
         // Unsorted only: with the sorted blend the no-surfel rung is native itself.
         blends: vec![Blend::Unsorted],
+        margin: 0.0,
     };
     let a = choose(&c, &GesOptions::default(), &cfg).unwrap();
     assert!(!a.met);
@@ -377,4 +410,44 @@ fn cli_bad_split_values_exit_2_naming_the_option() {
         assert!(err.contains(opt), "{opt} {val}: {err}");
         assert!(!out.exists(), "{opt} {val} wrote an image");
     }
+}
+
+#[test]
+fn auto_split_margin_raises_the_bar_it_chooses_by() {
+    // With a margin the chosen rung may be dearer, never one that misses target + margin.
+    let c = floater_scene();
+    let base = AutoConfig {
+        min_psnr: 20.0,
+        views: 1,
+        width: 32,
+        height: 24,
+        blends: vec![Blend::Unsorted],
+        margin: 0.0,
+    };
+    let a = choose(&c, &GesOptions::default(), &base).unwrap();
+    // Put the bar just above the choice without margin: with the margin it must move on.
+    let margin = a.candidates[a.chosen].worst_psnr - base.min_psnr + 0.01;
+    let b = choose(
+        &c,
+        &GesOptions::default(),
+        &AutoConfig {
+            margin,
+            ..base.clone()
+        },
+    )
+    .unwrap();
+    if b.met {
+        assert!(b.candidates[b.chosen].worst_psnr >= base.min_psnr + margin);
+        assert_ne!(b.chosen, a.chosen);
+    } else {
+        assert!(b
+            .candidates
+            .iter()
+            .all(|r| r.worst_psnr < base.min_psnr + margin));
+    }
+    let bad = AutoConfig {
+        margin: f64::NAN,
+        ..base
+    };
+    assert!(choose(&c, &GesOptions::default(), &bad).is_err());
 }

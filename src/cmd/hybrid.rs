@@ -14,7 +14,8 @@ use anyhow::{bail, Context};
 use serde_json::json;
 use splatbridge::pipeline::{render_frame, FrameRequest, FrameStats, Renderer, SurfelSplit};
 use splatbridge::split_auto::{
-    blend_name, choose, params_json, AutoChoice, AutoConfig, DEFAULT_MIN_PSNR,
+    blend_name, choose, params_json, AutoChoice, AutoConfig, DEFAULT_BLEND, DEFAULT_MIN_PSNR,
+    DISC_FOOTPRINT_SIGMAS,
 };
 use splatbridge_hybrid::ges::{Blend, GesOptions, GesStats};
 use splatbridge_scene::effects_run::effects_of;
@@ -106,8 +107,9 @@ pub struct HybridKnobs {
     /// the chosen split must keep.
     #[arg(long, default_value_t = DEFAULT_MIN_PSNR, value_parser = parse_min_psnr)]
     pub min_psnr: f64,
-    /// How the Gaussians left after the surfels are blended: unsorted (GES's weighted blend, no
-    /// sort; the default) or sorted (front to back as native: accurate, about native's speed).
+    /// How the Gaussians left after the surfels are blended: sorted (front to back as native:
+    /// ≥ 28 dB on every shared scene, about native's speed; the default) or unsorted (GES's
+    /// weighted blend, no sort: about 1.9× native at 1080p, 20–28 dB on trained captures).
     /// With --split auto and no --blend, both are measured and the cheaper one that keeps
     /// --min-psnr is used.
     #[arg(long, value_enum)]
@@ -133,10 +135,11 @@ pub struct HybridKnobs {
     /// F·mean(surfel scales) of the surfel (GES: 5).
     #[arg(long, default_value_t = GES_EPSILON_FACTOR)]
     pub epsilon: f32,
-    /// Surfel footprint radius in standard deviations (GES: sqrt(2·ln 255) ≈ 3.33; 1.41 keeps a
-    /// split Gaussian's integrated opacity).
-    #[arg(long, default_value_t = FOOTPRINT_SIGMAS)]
-    pub footprint: f32,
+    /// Surfel footprint radius in standard deviations. Default: 1.41 (√2, keeps a split
+    /// Gaussian's integrated opacity) for surfels split from a 3DGS cloud, GES's
+    /// sqrt(2·ln 255) ≈ 3.33 for a GES PLY's own surfels.
+    #[arg(long)]
+    pub footprint: Option<f32>,
     /// Surfel samples per pixel: 1 or 4.
     #[arg(long, default_value_t = 1, value_parser = parse_supersample)]
     pub supersample: u32,
@@ -167,24 +170,53 @@ pub struct HybridKnobs {
 
 impl HybridKnobs {
     /// The renderer options; with a `--split auto` choice, its blend unless `--blend` pins one.
-    pub fn options_for(&self, auto: Option<&AutoChoice>) -> GesOptions {
+    /// `split` is what [`HybridKnobs::resolve_split`] returned (it says whether the surfels are
+    /// a GES PLY's own, which keep GES's footprint).
+    pub fn options_for(&self, auto: Option<&AutoChoice>, split: &SurfelSplit) -> GesOptions {
         let blend = match (self.blend, auto) {
             (Some(b), _) => b.into(),
             (None, Some(a)) => a.blend(),
-            (None, None) => Blend::default(),
+            (None, None) => DEFAULT_BLEND,
+        };
+        // A disc rung's footprint comes with the choice; every other rung rendered with the
+        // footprint `options()` gives, which the choice then returns.
+        let footprint_sigmas = match auto {
+            Some(a) => a.footprint(),
+            None => self.footprint_for(split.ges_ply),
         };
         GesOptions {
             blend,
+            footprint_sigmas,
             ..self.options()
+        }
+    }
+
+    /// `--footprint`, or its default for split surfels (`ges = false`) or a GES PLY's.
+    pub fn footprint_for(&self, ges: bool) -> f32 {
+        match (self.footprint, ges) {
+            (Some(f), _) => f,
+            (None, false) => DISC_FOOTPRINT_SIGMAS,
+            (None, true) => FOOTPRINT_SIGMAS,
+        }
+    }
+
+    fn footprint_text(&self) -> String {
+        match self.footprint {
+            Some(f) => short(f).to_string(),
+            None => format!(
+                "{} (split) / {} (GES PLY)",
+                short(DISC_FOOTPRINT_SIGMAS),
+                short(FOOTPRINT_SIGMAS)
+            ),
         }
     }
 
     /// The renderer options (the blend `--blend` names, or the default).
     pub fn options(&self) -> GesOptions {
         GesOptions {
-            blend: self.blend.map(Blend::from).unwrap_or_default(),
+            blend: self.blend.map(Blend::from).unwrap_or(DEFAULT_BLEND),
             epsilon_factor: self.epsilon,
-            footprint_sigmas: self.footprint,
+            footprint_sigmas: self.footprint_for(self.ges_ply),
             supersample: self.supersample,
             blur: self.blur,
             background: self.background.to_array(),
@@ -227,7 +259,9 @@ impl HybridKnobs {
         cloud: &GaussianCloud,
     ) -> anyhow::Result<(SurfelSplit, Option<AutoChoice>)> {
         let mut s = self.surfel_split();
-        if self.split != SplitMode::Auto || self.ges_ply || looks_like_ges(cloud) {
+        // Detected here (the split would detect it too) so the options keep GES's footprint.
+        s.ges_ply |= looks_like_ges(cloud);
+        if self.split != SplitMode::Auto || s.ges_ply {
             return Ok((s, None));
         }
         let cfg = AutoConfig {
@@ -253,7 +287,7 @@ impl HybridKnobs {
             "surfel_opacity": short(self.surfel_opacity),
             "surfel_flatness": short(self.surfel_flatness),
             "epsilon": short(self.epsilon),
-            "footprint": short(self.footprint),
+            "footprint": self.footprint_text(),
             "supersample": self.supersample,
             "blur": self.blur,
             "ges_ply": self.ges_ply,
@@ -267,7 +301,7 @@ impl HybridKnobs {
         format!(
             "{} blend, footprint {}σ, ε factor {}, supersample {}, blur {}, near {}, SH degree cap {}",
             blend_name(self.options().blend),
-            self.footprint,
+            self.footprint_text(),
             self.epsilon,
             self.supersample,
             if self.blur { "on" } else { "off" },
@@ -346,6 +380,15 @@ pub fn print_summary(cam: &Camera, stats: &GesStats, split_ms: f64) {
     );
 }
 
+/// The knobs as JSON with the blend and footprint the render used (chosen by `--split auto`
+/// or the input's kind when not given).
+fn used_knobs(knobs: &HybridKnobs, opts: &GesOptions) -> serde_json::Value {
+    let mut j = knobs.to_json();
+    j["blend"] = json!(blend_name(opts.blend));
+    j["footprint"] = json!(short(opts.footprint_sigmas));
+    j
+}
+
 pub fn run(args: Args) -> anyhow::Result<()> {
     let ext = args
         .out
@@ -368,7 +411,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .knobs
         .resolve_split(&scene.composite(t))
         .with_context(|| name.clone())?;
-    let mut renderer = Renderer::hybrid(args.knobs.options_for(auto.as_ref()), split)?;
+    let opts = args.knobs.options_for(auto.as_ref(), &split);
+    let mut renderer = Renderer::hybrid(opts, split)?;
     let req = FrameRequest {
         scene: Some(&scene),
         effects: &effects,
@@ -397,7 +441,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "surfels_by": how,
             "split_auto": auto.as_ref().map(AutoChoice::to_json),
             "camera": {"name": cam.name, "width": cam.width, "height": cam.height},
-            "knobs": args.knobs.to_json(),
+            "knobs": used_knobs(&args.knobs, &opts),
             "stats": stats_json(stats, *split_ms),
             "effects": serde_json::to_value(&r.counters)?,
         });

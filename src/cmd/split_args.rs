@@ -2,7 +2,10 @@
 //! renderers (`compare`, `accuracy`): the same choices as `hybrid`'s own
 //! ([`super::hybrid::HybridKnobs`]), with the other hybrid knobs at their defaults.
 
-use splatbridge::split_auto::{blend_name, choose, AutoChoice, AutoConfig, DEFAULT_MIN_PSNR};
+use splatbridge::split_auto::{
+    blend_name, choose, AutoChoice, AutoConfig, DEFAULT_BLEND, DEFAULT_MIN_PSNR,
+    DISC_FOOTPRINT_SIGMAS,
+};
 use splatbridge_hybrid::ges::{Blend, GesOptions};
 use splatbridge_scene::surfels::SplitParams;
 use splatbridge_scene::GaussianCloud;
@@ -19,8 +22,8 @@ pub struct SplitArgs {
     /// chosen split and blend must keep.
     #[arg(long, default_value_t = DEFAULT_MIN_PSNR, value_parser = parse_min_psnr)]
     pub min_psnr: f64,
-    /// How the hybrid blends the Gaussians left after the surfels: unsorted (default) or
-    /// sorted; with --split auto and no --blend, both are measured.
+    /// How the hybrid blends the Gaussians left after the surfels: sorted (default, with the
+    /// 1.41σ surfel disc) or unsorted; with --split auto and no --blend, both are measured.
     #[arg(long, value_enum)]
     pub blend: Option<BlendMode>,
 }
@@ -47,10 +50,15 @@ impl SplitArgs {
     ) -> anyhow::Result<ResolvedSplit> {
         let d = SplitParams::default();
         let pinned = self.blend.map(Blend::from);
+        // Split surfels render with the √2σ disc, as `hybrid`'s default.
+        let base = GesOptions {
+            footprint_sigmas: DISC_FOOTPRINT_SIGMAS,
+            ..base
+        };
         let plain = |params| ResolvedSplit {
             params,
             ges: GesOptions {
-                blend: pinned.unwrap_or_default(),
+                blend: pinned.unwrap_or(DEFAULT_BLEND),
                 ..base
             },
             auto: None,
@@ -70,10 +78,7 @@ impl SplitArgs {
                 let choice = choose(&cloud(), &base, &cfg)?;
                 ResolvedSplit {
                     params: choice.params(),
-                    ges: GesOptions {
-                        blend: choice.blend(),
-                        ..base
-                    },
+                    ges: choice.apply(&base),
                     auto: Some(choice),
                 }
             }
@@ -90,7 +95,7 @@ impl SplitArgs {
         let blend = match self.blend {
             Some(b) => blend_name(b.into()),
             None if self.split == Some(SplitMode::Auto) => "measured",
-            None => blend_name(Blend::default()),
+            None => blend_name(DEFAULT_BLEND),
         };
         format!("split {split}, blend {blend}")
     }

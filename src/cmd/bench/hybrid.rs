@@ -129,7 +129,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .resolve(&cloud, &[])
         .with_context(|| args.scene.clone())?;
     let (surfel_split, auto) = args.knobs.resolve_split(&cloud)?;
-    let opts = args.knobs.options_for(auto.as_ref());
+    let opts = args.knobs.options_for(auto.as_ref(), &surfel_split);
     opts.validate()?;
     let nopts = RenderOptions {
         near: opts.near,
@@ -247,7 +247,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 )?);
             }
         }
-        let fp = std::f32::consts::SQRT_2;
+        // The other surfel footprint than the one benchmarked: GES's rim or the √2σ disc.
+        let (fp_label, fp) = if opts.footprint_sigmas == std::f32::consts::SQRT_2 {
+            (
+                "defaults, footprint 3.33σ",
+                splatbridge_scene::surfels::FOOTPRINT_SIGMAS,
+            )
+        } else {
+            ("defaults, footprint 1.41σ", std::f32::consts::SQRT_2)
+        };
         let other = match opts.blend {
             Blend::Sorted => ("defaults, unsorted blend", Blend::Unsorted),
             Blend::Unsorted => ("defaults, sorted blend", Blend::Sorted),
@@ -261,7 +269,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 },
             ),
             (
-                "defaults, footprint 1.41σ",
+                fp_label,
                 GesOptions {
                     footprint_sigmas: fp,
                     ..opts
