@@ -24,6 +24,7 @@ pub mod kbuffer;
 pub mod lidar;
 pub mod model;
 pub mod obj_frame;
+pub mod obj_read;
 pub mod obvhs_backend;
 pub mod render;
 pub mod scene_load;

@@ -1,5 +1,5 @@
 //! Loading triangle scenes from what was exported: glTF 2.0 (GLB or .gltf, through the `gltf`
-//! crate) and OBJ/MTL (through `tobj`). The loader reads only the file, so a writer bug shows
+//! crate) and OBJ/MTL (through `obj_read`, streamed). The loader reads only the file, so a writer bug shows
 //! in renders.
 //!
 //! glTF: every mesh primitive of mode TRIANGLES (strips and fans are expanded), POSITION,
@@ -669,14 +669,6 @@ fn opencv_extras(e: &gltf::json::Extras) -> Option<Intrinsics> {
     (k.width > 0 && k.height > 0 && k.fx > 0.0 && k.fy > 0.0).then_some(k)
 }
 
-fn obj_options() -> tobj::LoadOptions {
-    tobj::LoadOptions {
-        triangulate: true,
-        single_index: true,
-        ..Default::default()
-    }
-}
-
 /// Load an OBJ (and its MTL, when present) from a path.
 pub fn load_obj(path: &Path) -> Result<TriScene> {
     use splatbridge_scene::input::{check_size, open_regular, read_bounded, Cap};
@@ -697,24 +689,18 @@ pub fn load_obj(path: &Path) -> Result<TriScene> {
     let mut r = std::io::BufReader::with_capacity(1 << 20, std::io::Cursor::new(head).chain(file));
     // `mtllib` files go through the same guards (regular file, bounded size); a refused one
     // counts as a missing MTL.
-    let (models, mats) = tobj::load_obj_buf(&mut r, &obj_options(), |m| {
-        let data =
-            read_bounded(&dir.join(m), Cap::Mesh).map_err(|_| tobj::LoadError::OpenFileFailed)?;
-        tobj::load_mtl_buf(&mut std::io::BufReader::new(&data[..]))
-    })
-    .map_err(|e| TraceError::format(path, format!("not a readable OBJ: {e}")))?;
     // A missing or broken MTL leaves the geometry usable; vertex colours carry the colour.
-    let mats = mats.unwrap_or_default();
+    let (models, mats) = crate::obj_read::read_obj(&mut r, path, |m| {
+        let p = dir.join(m);
+        let data = read_bounded(&p, Cap::Mesh).ok()?;
+        crate::obj_read::read_mtl(&mut &data[..], &p).ok()
+    })?;
     obj_scene(path, models, mats, root)
 }
 
 /// Load an OBJ from memory (materials are not resolved).
 pub fn load_obj_bytes(bytes: &[u8], name: &Path) -> Result<TriScene> {
-    let mut r = std::io::BufReader::new(bytes);
-    let (models, _) = tobj::load_obj_buf(&mut r, &obj_options(), |_| {
-        Err(tobj::LoadError::OpenFileFailed)
-    })
-    .map_err(|e| TraceError::format(name, format!("not a readable OBJ: {e}")))?;
+    let (models, _) = crate::obj_read::read_obj(&mut &bytes[..], name, |_| None)?;
     obj_scene(
         name,
         models,
@@ -725,8 +711,8 @@ pub fn load_obj_bytes(bytes: &[u8], name: &Path) -> Result<TriScene> {
 
 fn obj_scene(
     path: &Path,
-    models: Vec<tobj::Model>,
-    mats: Vec<tobj::Material>,
+    models: Vec<crate::obj_read::ObjObject>,
+    mats: Vec<crate::obj_read::ObjMaterial>,
     root: Option<DQuat>,
 ) -> Result<TriScene> {
     let mut materials: Vec<Material> = mats
@@ -763,19 +749,15 @@ fn obj_scene(
         });
     }
     for (mi, model) in models.into_iter().enumerate() {
-        // Each of tobj's arrays is dropped as soon as it is converted.
-        let mut m = model.mesh;
-        let n = m.positions.len() / 3;
-        let positions: Vec<Vec3> = std::mem::take(&mut m.positions)
-            .chunks_exact(3)
-            .map(|c| Vec3::new(c[0], c[1], c[2]))
-            .collect();
+        let m = model;
+        let n = m.positions.len();
+        let positions = m.positions;
         if let Some(i) = positions.iter().position(|v| !fits_bvh(*v)) {
             return Err(TraceError::format(
                 path,
                 format!(
                     "object {mi} ('{}'): vertex {i} is not finite or beyond ±{MAX_BVH_COORD}",
-                    splatbridge_scene::input::clip(&model.name)
+                    splatbridge_scene::input::clip(&m.name)
                 ),
             ));
         }
@@ -786,36 +768,26 @@ fn obj_scene(
                 .collect(),
             None => positions,
         };
-        let mut mat = m.material_id.map(|i| i as u32).unwrap_or(default_material);
+        let mut mat = m.material.map(|i| i as u32).unwrap_or(default_material);
         if mat as usize >= scene.materials.len() {
             mat = default_material;
         }
-        let colors: Vec<Vec4> = if m.vertex_color.len() == 3 * n {
+        let colors: Vec<Vec4> = if let Some(c) = m.colors {
             // Vertex colours replace the MTL diffuse colour (as Blender shows them), alpha stays.
             if let Some(mm) = scene.materials.get_mut(mat as usize) {
                 if mat != default_material {
                     mm.base_color = Vec4::new(1.0, 1.0, 1.0, mm.base_color.w);
                 }
             }
-            std::mem::take(&mut m.vertex_color)
-                .chunks_exact(3)
-                .map(|c| Vec4::new(c[0], c[1], c[2], 1.0))
-                .collect()
+            c.into_iter().map(|c| c.extend(1.0)).collect()
         } else {
             vec![Vec4::ONE; n]
         };
-        if let Some(bad) = m.indices.iter().find(|&&i| i as usize >= n) {
-            return Err(TraceError::format(
-                path,
-                format!("object {mi} ('{}'): index {bad} out of range", model.name),
-            ));
-        }
-        let tris: Vec<[u32; 3]> = std::mem::take(&mut m.indices)
-            .chunks_exact(3)
-            .map(|c| [c[0], c[1], c[2]])
-            .collect();
+        // The reader renumbers within the object, so every index is below `n`.
+        debug_assert!(m.tris.iter().flatten().all(|&i| (i as usize) < n));
+        let tris = m.tris;
         let mut mesh = Mesh {
-            name: model.name.clone(),
+            name: m.name.clone(),
             positions,
             colors,
             uvs: None,
@@ -827,7 +799,7 @@ fn obj_scene(
         mesh.assign_components();
         scene.nodes.push(Node {
             mesh: Some(scene.meshes.len()),
-            name: model.name,
+            name: m.name,
             parent: root.map(|_| 0),
             ..Node::default()
         });
