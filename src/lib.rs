@@ -8,6 +8,7 @@ pub mod accuracy_distill;
 pub mod clients;
 pub mod describe;
 pub mod distill;
+pub mod footprint_export;
 pub mod frame_store;
 pub mod heap;
 pub mod memory;

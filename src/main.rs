@@ -37,7 +37,7 @@ enum Command {
     /// Ray-trace an exported file (or a scene converted in memory) with a BVH.
     #[command(after_help = "Example:\n  splatbridge trace out.glb --camera scene:0 -o traced.png")]
     Trace(cmd::trace::Args),
-    /// Render with the GES-style hybrid: opaque surfels, then unsorted Gaussians.
+    /// Render with the GES-style hybrid: opaque surfels, then the Gaussians they leave (sorted by default, or GES's unsorted blend).
     #[command(
         after_help = "Example:\n  splatbridge hybrid scene.ply --camera orbit:8:0 -o hybrid.png"
     )]

@@ -224,6 +224,11 @@ pub struct Args {
     /// view, up −y), as `render --camera` makes them.
     #[arg(long, value_name = "SPEC")]
     pub camera: Vec<String>,
+    /// Make the mesh for this resolution: widen every Gaussian by native splatting's 0.3 px²
+    /// low-pass at its depth in the cameras (--camera or the scene's own) resized to WxH, so
+    /// the mesh blurs there as native does instead of aliasing. Mesh outputs only.
+    #[arg(long, value_name = "WxH", value_parser = parse_wxh, conflicts_with = "distill")]
+    pub footprint_for: Option<(u32, u32)>,
     /// Mesh layout of glTF outputs (mesh profiles; not OBJ/PLY).
     #[arg(long, value_enum, default_value = "viewer")]
     pub layout: LayoutArg,
@@ -365,6 +370,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     pb.inc(1);
     if args.first.is_some() && cloud_out.is_none() {
         bail!("--first applies to single-cloud splat outputs (.ply with --splats, .splat, .spz, .compressed.ply)");
+    }
+    if let Some((w, h)) = args.footprint_for {
+        if cloud_out.is_some() {
+            bail!("--footprint-for: widens Gaussians for a mesh export; a splat output keeps the Gaussians native splatting filters itself");
+        }
+        let done = splatbridge::footprint_export::widen_scene_for(&mut scene, w, h)
+            .map_err(|e| anyhow::anyhow!("--footprint-for: {e}"))?;
+        eprintln!(
+            "footprint for {w}×{h}: {} Gaussians widened (largest σ added {:.3e}), {} behind every camera left as they are",
+            done.widened, done.max_sigma, done.unseen
+        );
     }
     if let Some(format) = cloud_out {
         pb.finish_and_clear();
@@ -595,4 +611,18 @@ fn print_summary(args: &Args, r: &ConvertReport) {
     for w in &r.warnings {
         eprintln!("warning: {w}");
     }
+}
+
+/// `WxH` with both sides at least 1 and at most 16384 (the renderers' limit).
+fn parse_wxh(v: &str) -> Result<(u32, u32), String> {
+    let (w, h) = v
+        .split_once(['x', '×'])
+        .ok_or_else(|| format!("'{v}' is not WxH (e.g. 480x360)"))?;
+    let side = |t: &str| -> Result<u32, String> {
+        match t.trim().parse::<u32>() {
+            Ok(n) if (1..=16384).contains(&n) => Ok(n),
+            _ => Err(format!("'{v}': each side must be 1 to 16384 pixels")),
+        }
+    };
+    Ok((side(w)?, side(h)?))
 }
