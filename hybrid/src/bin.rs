@@ -65,6 +65,18 @@ pub fn depth_key(depth: f32, index: u32) -> u64 {
 /// Sort `keys` ([`depth_key`]s) and write the Gaussian indices front to back into `order`:
 /// by f32 view depth, exact ties by [`stored_cmp`] (see the module docs).
 pub fn depth_order(keys: &mut [u64], cloud: &GaussianCloud, order: &mut Vec<u32>) {
+    depth_order_mapped(keys, cloud, order, |k| k);
+}
+
+/// [`depth_order`] for keys whose low words are not Gaussian indices but positions in a
+/// subset: `gaussian(k)` maps a key's position to its Gaussian in `cloud`, which ties compare.
+/// `order` receives the positions.
+pub fn depth_order_mapped(
+    keys: &mut [u64],
+    cloud: &GaussianCloud,
+    order: &mut Vec<u32>,
+    gaussian: impl Fn(usize) -> usize,
+) {
     keys.par_sort_unstable();
     order.clear();
     order.par_extend(keys.par_iter().map(|&k| k as u32));
@@ -76,7 +88,8 @@ pub fn depth_order(keys: &mut [u64], cloud: &GaussianCloud, order: &mut Vec<u32>
             end += 1;
         }
         if end - start > 1 {
-            order[start..end].sort_by(|&a, &b| stored_cmp(cloud, a as usize, b as usize));
+            order[start..end]
+                .sort_by(|&a, &b| stored_cmp(cloud, gaussian(a as usize), gaussian(b as usize)));
         }
         start = end;
     }

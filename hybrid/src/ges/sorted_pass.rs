@@ -20,7 +20,7 @@
 use rayon::prelude::*;
 use splatbridge_scene::GaussianCloud;
 
-use crate::bin::{depth_key, stored_cmp};
+use crate::bin::{depth_key, depth_order_mapped};
 use crate::kernel::TileState;
 use crate::project::Splat;
 use crate::raster::{blend_tile_cut, resolve, BlendParams};
@@ -42,26 +42,8 @@ pub fn sort_by_depth(
         .enumerate()
         .map(|(k, s)| depth_key(s.depth, k as u32))
         .collect();
-    keys.par_sort_unstable();
-    let mut order: Vec<u32> = keys.iter().map(|&k| k as u32).collect();
-    let mut start = 0;
-    while start < keys.len() {
-        let hi = keys[start] >> 32;
-        let mut end = start + 1;
-        while end < keys.len() && keys[end] >> 32 == hi {
-            end += 1;
-        }
-        if end - start > 1 {
-            order[start..end].sort_by(|&a, &b| {
-                stored_cmp(
-                    cloud,
-                    index[a as usize] as usize,
-                    index[b as usize] as usize,
-                )
-            });
-        }
-        start = end;
-    }
+    let mut order = Vec::with_capacity(keys.len());
+    depth_order_mapped(&mut keys, cloud, &mut order, |k| index[k] as usize);
     *splats = order.par_iter().map(|&k| splats[k as usize]).collect();
     *rects = order.par_iter().map(|&k| rects[k as usize]).collect();
 }
