@@ -55,7 +55,7 @@ impl Default for CompareConfig {
             preset: BuildPreset::default(),
             k: 16,
             native: NativeOptions::default(),
-            ges: GesOptions::default(),
+            ges: crate::split_auto::default_ges_options(),
             split: SplitParams::default(),
             clients: Vec::new(),
             client_script: crate::clients::default_script(),

@@ -57,6 +57,17 @@ pub const DEFAULT_MARGIN: f64 = 2.5;
 /// ≥ 37.9 dB on every shared scene at every camera (`docs/blend.md`).
 pub const DISC_FOOTPRINT_SIGMAS: f32 = std::f32::consts::SQRT_2;
 
+/// The hybrid as the CLI runs it by default (`hybrid`, `compare`, `demo`): the [`DEFAULT_BLEND`]
+/// with split surfels drawn as [`DISC_FOOTPRINT_SIGMAS`] discs. `GesOptions::default()` stays
+/// GES's own renderer (unsorted, GES's footprint), the one a GES PLY is drawn with.
+pub fn default_ges_options() -> GesOptions {
+    GesOptions {
+        blend: DEFAULT_BLEND,
+        footprint_sigmas: DISC_FOOTPRINT_SIGMAS,
+        ..GesOptions::default()
+    }
+}
+
 impl Default for AutoConfig {
     fn default() -> Self {
         // 4 views at 240×180: the smallest rig that sees a scene from every side, at a size

@@ -4,50 +4,22 @@
 //! 4`, the split thresholds (surfel counts move), `--epsilon`. A bad value exits with status 2
 //! naming the option.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod cli_common;
 
+use std::path::Path;
+
+use cli_common::*;
 use serde_json::Value;
 
-const BIN: &str = env!("CARGO_BIN_EXE_splatbridge");
 const SIZE: [&str; 6] = ["--camera", "scene:0", "--width", "64", "--height", "48"];
 
-fn street() -> String {
-    concat!(env!("CARGO_MANIFEST_DIR"), "/fixtures/street/scene.json").into()
-}
-
-fn run(args: &[&str]) -> Output {
-    Command::new(BIN)
-        .args(args)
-        .output()
-        .expect("the splatbridge binary runs")
-}
-
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!(
-        "splatbridge-cli-hybrid-{}-{name}",
-        std::process::id()
-    ));
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn temp_dir(name: &str) -> std::path::PathBuf {
+    cli_common::temp_dir("cli-hybrid", name)
 }
 
 /// Run `hybrid` on the street fixture with `knobs`, writing `out`; the JSON report.
 fn hybrid(out: &Path, knobs: &[&str]) -> Value {
-    let scene = street();
-    let mut a = vec!["hybrid", scene.as_str()];
-    a.extend_from_slice(&SIZE);
-    a.extend_from_slice(knobs);
-    let o = out.to_str().unwrap();
-    a.extend_from_slice(&["-o", o, "--json"]);
-    let r = run(&a);
-    assert!(
-        r.status.success(),
-        "splatbridge {} failed:\n{}",
-        a.join(" "),
-        String::from_utf8_lossy(&r.stderr)
-    );
-    serde_json::from_slice(&r.stdout).expect("JSON report")
+    hybrid_json(out, &SIZE, knobs)
 }
 
 /// The PNG's bytes: the encoder is deterministic, so equal bytes mean equal images.

@@ -4,57 +4,21 @@
 //! has a `blend` family), and `convert --surfels` (guarded by default, `--surfel-split`).
 //! Small inputs: the street fixture at 48×36 or less.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod cli_common;
 
+use std::path::Path;
+
+use cli_common::*;
 use serde_json::Value;
 
-const BIN: &str = env!("CARGO_BIN_EXE_splatbridge");
-
-fn street() -> String {
-    concat!(env!("CARGO_MANIFEST_DIR"), "/fixtures/street/scene.json").into()
-}
-
-fn run(args: &[&str]) -> Output {
-    Command::new(BIN)
-        .args(args)
-        .output()
-        .expect("the splatbridge binary runs")
-}
-
-fn ok(args: &[&str]) -> Output {
-    let r = run(args);
-    assert!(
-        r.status.success(),
-        "splatbridge {} failed:\n{}",
-        args.join(" "),
-        String::from_utf8_lossy(&r.stderr)
-    );
-    r
-}
-
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!(
-        "splatbridge-split-blend-{}-{name}",
-        std::process::id()
-    ));
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn path(p: &Path) -> &str {
-    p.to_str().unwrap()
+fn temp_dir(name: &str) -> std::path::PathBuf {
+    cli_common::temp_dir("split-blend", name)
 }
 
 /// `hybrid` on the street fixture at 48×36 with `knobs`; the JSON report.
 fn hybrid(out: &Path, knobs: &[&str]) -> Value {
-    let scene = street();
-    let mut a = vec![
-        "hybrid", &scene, "--camera", "scene:0", "--width", "48", "--height", "36",
-    ];
-    a.extend_from_slice(knobs);
-    a.extend_from_slice(&["-o", path(out), "--json"]);
-    serde_json::from_slice(&ok(&a).stdout).expect("JSON report")
+    let size = ["--camera", "scene:0", "--width", "48", "--height", "36"];
+    hybrid_json(out, &size, knobs)
 }
 
 #[test]

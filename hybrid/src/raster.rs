@@ -64,12 +64,7 @@ pub fn blend_tile(
     params: &BlendParams,
     st: &mut TileState,
 ) -> u64 {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: AVX2 is present.
-        return unsafe { blend_tile_avx2(splats, list, px0, py0, params, st, &[]) };
-    }
-    blend_tile_with(splats, list, px0, py0, params, st, &[], blend8_pair)
+    blend_tile_cut(splats, list, px0, py0, params, st, &[])
 }
 
 /// [`blend_tile`] with a per-pixel depth limit: `cut` holds `(limit, pixel)` pairs (pixel the

@@ -357,30 +357,6 @@ fn covered_pixels_follow_the_ges_formula() {
     assert!(max_err < 3e-5, "max error {max_err}");
 }
 
-/// f64 projection of Gaussian `i` of `g` (any rotation), camera at the origin.
-fn project_aniso(cam: &Camera, g: &GaussianCloud, i: usize) -> (f64, f64, [f64; 3], f64) {
-    let t = cam.world_to_cam * (g.means[i].as_dvec3() - cam.centre);
-    let r = glam::DMat3::from_quat(g.unit_rotation(i).as_dquat());
-    let s = glam::DMat3::from_diagonal(g.scale(i).as_dvec3());
-    let m = cam.world_to_cam * r * s;
-    let sigma = m * m.transpose();
-    let (fx, fy) = (cam.fx, cam.fy);
-    let j0 = DVec3::new(fx / t.z, 0.0, -fx * t.x / (t.z * t.z));
-    let j1 = DVec3::new(0.0, fy / t.z, -fy * t.y / (t.z * t.z));
-    let (a, b, c) = (
-        j0.dot(sigma * j0) + 0.3,
-        j0.dot(sigma * j1),
-        j1.dot(sigma * j1) + 0.3,
-    );
-    let det = a * c - b * b;
-    (
-        fx * t.x / t.z + cam.cx - 0.5,
-        fy * t.y / t.z + cam.cy - 0.5,
-        [c / det, -b / det, a / det],
-        t.z,
-    )
-}
-
 #[test]
 fn output_does_not_depend_on_the_thread_count() {
     let s = random_surfels(80, 21);

@@ -125,27 +125,13 @@ fn wall_scene() -> (SurfelCloud, GaussianCloud, Camera, f64) {
     (s, g, cam, 5.0 + eps)
 }
 
-/// f64 projection of Gaussian `i` of `g`, camera at the origin (as in `ges.rs`): screen
-/// centre, conic, view depth, and the reference's tile rectangle `[x0, y0, x1, y1)` (its
-/// `getRect` of the `α ≥ 1/255` radius: tiles from `⌊(c − r)/16⌋` to `⌊(c + r + 15)/16⌋`
-/// exclusive, which can leave out the last pixel row or column the radius reaches; native
-/// splatting inherits that, so the reference must too).
+/// [`screen_cov`] as the renderer uses it: centre, conic, view depth, and the reference's tile
+/// rectangle `[x0, y0, x1, y1)` (its `getRect` of the `α ≥ 1/255` radius: tiles from
+/// `⌊(c − r)/16⌋` to `⌊(c + r + 15)/16⌋` exclusive, which can leave out the last pixel row or
+/// column the radius reaches; native splatting inherits that, so the reference must too).
 fn project(cam: &Camera, g: &GaussianCloud, i: usize) -> (f64, f64, [f64; 3], f64, [i64; 4]) {
-    let t = cam.world_to_cam * (g.means[i].as_dvec3() - cam.centre);
-    let r = glam::DMat3::from_quat(g.unit_rotation(i).as_dquat());
-    let s = glam::DMat3::from_diagonal(g.scale(i).as_dvec3());
-    let m = cam.world_to_cam * r * s;
-    let sigma = m * m.transpose();
-    let (fx, fy) = (cam.fx, cam.fy);
-    let j0 = DVec3::new(fx / t.z, 0.0, -fx * t.x / (t.z * t.z));
-    let j1 = DVec3::new(0.0, fy / t.z, -fy * t.y / (t.z * t.z));
-    let (a, b, c) = (
-        j0.dot(sigma * j0) + 0.3,
-        j0.dot(sigma * j1),
-        j1.dot(sigma * j1) + 0.3,
-    );
+    let (x, y, [a, b, c], depth) = screen_cov(cam, g, i);
     let det = a * c - b * b;
-    let (x, y) = (fx * t.x / t.z + cam.cx - 0.5, fy * t.y / t.z + cam.cy - 0.5);
     let mid = 0.5 * (a + c);
     let lambda = mid + (mid * mid - det).max(0.1).sqrt();
     let r = ((2.0 * (255.0 * g.opacity(i) as f64).ln()).sqrt() * lambda.sqrt()).ceil();
@@ -155,7 +141,7 @@ fn project(cam: &Camera, g: &GaussianCloud, i: usize) -> (f64, f64, [f64; 3], f6
         ((x + r + 15.0) / 16.0) as i64,
         ((y + r + 15.0) / 16.0) as i64,
     ];
-    (x, y, [c / det, -b / det, a / det], t.z, rect)
+    (x, y, [c / det, -b / det, a / det], depth, rect)
 }
 
 /// Every pixel against the f64 front-to-back reference: the Gaussians with depth ≤ `D_S + ε` in

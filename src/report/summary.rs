@@ -185,8 +185,9 @@ fn expected_low(rows: &[SummaryRow]) -> Vec<String> {
         notes.push(
             "- **hybrid**: the surfel split draws Gaussians that are flat and nearly opaque as hard-edged opaque discs. \
              The built-in street scene is synthetic and consists mostly of such Gaussians (road, facades, cars), so the \
-             hybrid scores far lower there (about 17 dB) than on trained captures, which have few of them (about 30 dB \
-             on `fourth_st`)."
+             hybrid scores far lower there (about 20 dB) than on trained captures, which have few of them (at least \
+             37.9 dB at the worst of 12 orbit views on every shared capture; `docs/blend.md`). `hybrid --split auto` \
+             chooses the split per scene."
                 .to_string(),
         );
     }

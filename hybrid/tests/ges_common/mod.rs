@@ -170,3 +170,34 @@ pub fn surfel_color(s: &SurfelCloud, i: usize, cam: &Camera) -> Vec3 {
     let dir = (s.means[i].as_dvec3() - cam.centre).normalize();
     sh::eval_color(s.sh_degree, s.sh_of(i), dir.as_vec3())
 }
+
+/// f64 screen projection of Gaussian `i` of `g` (any rotation), camera at the origin: pixel
+/// centre, the 2D covariance `[a, b, c]` with native's 0.3 px² low-pass, view depth.
+pub fn screen_cov(cam: &Camera, g: &GaussianCloud, i: usize) -> (f64, f64, [f64; 3], f64) {
+    let t = cam.world_to_cam * (g.means[i].as_dvec3() - cam.centre);
+    let r = glam::DMat3::from_quat(g.unit_rotation(i).as_dquat());
+    let s = glam::DMat3::from_diagonal(g.scale(i).as_dvec3());
+    let m = cam.world_to_cam * r * s;
+    let sigma = m * m.transpose();
+    let (fx, fy) = (cam.fx, cam.fy);
+    let j0 = DVec3::new(fx / t.z, 0.0, -fx * t.x / (t.z * t.z));
+    let j1 = DVec3::new(0.0, fy / t.z, -fy * t.y / (t.z * t.z));
+    let cov = [
+        j0.dot(sigma * j0) + 0.3,
+        j0.dot(sigma * j1),
+        j1.dot(sigma * j1) + 0.3,
+    ];
+    (
+        fx * t.x / t.z + cam.cx - 0.5,
+        fy * t.y / t.z + cam.cy - 0.5,
+        cov,
+        t.z,
+    )
+}
+
+/// [`screen_cov`] with the conic (the inverse 2D covariance) in place of the covariance.
+pub fn project_aniso(cam: &Camera, g: &GaussianCloud, i: usize) -> (f64, f64, [f64; 3], f64) {
+    let (x, y, [a, b, c], depth) = screen_cov(cam, g, i);
+    let det = a * c - b * b;
+    (x, y, [c / det, -b / det, a / det], depth)
+}

@@ -1,0 +1,60 @@
+//! What the command-line tests share: the binary, the street fixture, running and checking a
+//! command, a per-process temporary folder, and `hybrid`'s JSON report.
+
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+pub const BIN: &str = env!("CARGO_BIN_EXE_splatbridge");
+
+/// The street fixture's manifest.
+pub fn street() -> String {
+    concat!(env!("CARGO_MANIFEST_DIR"), "/fixtures/street/scene.json").into()
+}
+
+pub fn run(args: &[&str]) -> Output {
+    Command::new(BIN)
+        .args(args)
+        .output()
+        .expect("the splatbridge binary runs")
+}
+
+/// [`run`], failing the test with the command's stderr unless it succeeds.
+pub fn ok(args: &[&str]) -> Output {
+    let r = run(args);
+    assert!(
+        r.status.success(),
+        "splatbridge {} failed:\n{}",
+        args.join(" "),
+        String::from_utf8_lossy(&r.stderr)
+    );
+    r
+}
+
+/// A fresh folder `splatbridge-PREFIX-PID-NAME` under the system's temporary folder.
+pub fn temp_dir(prefix: &str, name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!(
+        "splatbridge-{prefix}-{}-{name}",
+        std::process::id()
+    ));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+pub fn path(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// `hybrid` on the street fixture with `size` (camera and image options) then `knobs`,
+/// writing `out`; the JSON report.
+pub fn hybrid_json(out: &Path, size: &[&str], knobs: &[&str]) -> Value {
+    let scene = street();
+    let mut a = vec!["hybrid", scene.as_str()];
+    a.extend_from_slice(size);
+    a.extend_from_slice(knobs);
+    a.extend_from_slice(&["-o", path(out), "--json"]);
+    serde_json::from_slice(&ok(&a).stdout).expect("JSON report")
+}
