@@ -30,9 +30,9 @@ use crate::{scene_err, ConvertError, Result};
 
 /// Records per chunk of the two passes (4 MB of SH-3 records).
 const CHUNK: usize = 16_384;
-/// Bytes of bucket data held in memory over all leaves: with the 10 M fixture's 560 MB
-/// skeleton (dropped before the bucket pass) and its partition this keeps the peak near
-/// 1 GB, half the 2 GB goal of docs/tiles.md.
+/// Bytes of bucket memory (capacity) held over all leaves: with the partition's indices this
+/// keeps the bucket pass of the 10 M fixture under 1 GB, half the 2 GB goal of
+/// docs/tiles.md (the 560 MB skeleton is dropped before it).
 pub(super) const BUCKET_MEMORY: usize = 768 << 20;
 
 /// The buckets of a streamed tileset: in memory, or (spilled leaves) in files.
@@ -209,17 +209,20 @@ pub(super) fn bucket_pass<'a>(
             if b == u32::MAX {
                 continue;
             }
-            bufs[b as usize].extend_from_slice(rec);
-            held += stride;
+            // Memory is counted by capacity: a growing bucket holds up to twice its bytes.
+            let buf = &mut bufs[b as usize];
+            let before = buf.capacity();
+            buf.extend_from_slice(rec);
+            held += buf.capacity() - before;
         }
         raw.clear();
         // Over budget: spill the largest buckets (a spill writes at least budget/leaves
         // bytes, so there are few of them) until under it again.
         while held > budget {
             let (b, _) = (bufs.iter().enumerate())
-                .max_by_key(|(_, v)| v.len())
+                .max_by_key(|(_, v)| v.capacity())
                 .ok_or_else(|| changed(ply))?;
-            held -= bufs[b].len();
+            held -= bufs[b].capacity();
             spilled[b] = true;
             append(tmp, b, &mut bufs[b])?;
             bufs[b] = Vec::new();
