@@ -21,9 +21,11 @@
 //! distant tile shrinks to a dozen pixels dominated by the children's own sub-pixel
 //! dilation, 24–25 dB on `plant` at any distance).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 
 use glam::DVec3;
+use splatbridge_convert::tiles::shard::{write_from_shards, write_shard, ShardReport};
 use splatbridge_convert::tiles::{
     write_tileset, write_tileset_from_ply, TileOptions, TilesetReport,
 };
@@ -33,6 +35,8 @@ use splatbridge_scene::blocks::Aabb;
 use splatbridge_scene::camera::Camera;
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::GaussianCloud;
+
+use crate::shard::{Fnv1a, Shard};
 
 /// The agreement that makes a parent good enough: 30 dB is about 3% RMS of full scale,
 /// below what the viewer check measures between two correct splat renderers of one file
@@ -105,17 +109,44 @@ pub fn measure_error(
     Ok(2.0 * d * tan / best)
 }
 
+/// The error meter of a tileset: [`measure_error`] on the worker threads, each measurement
+/// with a renderer from a pool (a renderer holds only scratch buffers, so which one is used
+/// does not change the result).
+struct Meter {
+    pool: Mutex<Vec<Renderer>>,
+    up: DVec3,
+}
+
+impl Meter {
+    fn new(opts: &TileOptions) -> Meter {
+        Meter {
+            pool: Mutex::new(Vec::new()),
+            up: up_vector(opts.convert.up),
+        }
+    }
+
+    fn measure(&self, p: &GaussianCloud, c: &GaussianCloud, b: &Aabb) -> Result<f64, ConvertError> {
+        let poisoned = || ConvertError::Invalid("a tile worker panicked".into());
+        let mut r = self
+            .pool
+            .lock()
+            .map_err(|_| poisoned())?
+            .pop()
+            .unwrap_or_default();
+        let out = measure_error(&mut r, p, c, b, self.up);
+        self.pool.lock().map_err(|_| poisoned())?.push(r);
+        out
+    }
+}
+
 /// Write `scene` as a 3D Tiles 1.1 tileset into `dir` with measured geometric errors.
 pub fn write_tiles(
     dir: &Path,
     scene: &DynamicScene,
     opts: &TileOptions,
 ) -> Result<TilesetReport, ConvertError> {
-    let up = up_vector(opts.convert.up);
-    let mut renderer = Renderer::new();
-    let mut meter =
-        |p: &GaussianCloud, c: &GaussianCloud, b: &Aabb| measure_error(&mut renderer, p, c, b, up);
-    write_tileset(dir, scene, opts, &mut meter)
+    let m = Meter::new(opts);
+    write_tileset(dir, scene, opts, &|p, c, b| m.measure(p, c, b))
 }
 
 /// [`write_tiles`] of a binary PLY read in two streaming passes, memory bounded by the
@@ -128,9 +159,55 @@ pub fn write_tiles_from_ply(
     drop_invalid: bool,
     opts: &TileOptions,
 ) -> Result<Option<TilesetReport>, ConvertError> {
-    let up = up_vector(opts.convert.up);
-    let mut renderer = Renderer::new();
-    let mut meter =
-        |p: &GaussianCloud, c: &GaussianCloud, b: &Aabb| measure_error(&mut renderer, p, c, b, up);
-    write_tileset_from_ply(dir, ply, drop_invalid, opts, &mut meter)
+    let m = Meter::new(opts);
+    write_tileset_from_ply(dir, ply, drop_invalid, opts, &|p, c, b| m.measure(p, c, b))
+}
+
+/// The shard of `count` that owns a leaf of a sharded tileset: FNV-1a 64 of its octree
+/// path (`splatbridge_convert::tiles::shard::leaf_keys`) modulo the count, the hash of
+/// [`crate::shard`], so every machine agrees.
+pub fn leaf_owner(key: &str, count: u32) -> u32 {
+    let mut h = Fnv1a::new();
+    h.write(key.as_bytes());
+    (h.finish() % u64::from(count.max(1))) as u32
+}
+
+/// `convert PLY --tiles DIR --shard I/N`: the leaves shard I owns, with their records, into
+/// `dir` (`splatbridge_convert::tiles::shard`).
+pub fn write_tiles_shard(
+    dir: &Path,
+    ply: &Path,
+    drop_invalid: bool,
+    opts: &TileOptions,
+    shard: Shard,
+) -> Result<ShardReport, ConvertError> {
+    write_shard(
+        dir,
+        ply,
+        drop_invalid,
+        opts,
+        (shard.index, shard.count),
+        &leaf_owner,
+    )
+}
+
+/// `convert PLY --tiles DIR --from-shards SHARD_DIR…`: the tileset one run writes, from the
+/// leaves of every shard of a sharded run.
+pub fn write_tiles_from_shards(
+    dir: &Path,
+    ply: &Path,
+    drop_invalid: bool,
+    opts: &TileOptions,
+    shards: &[PathBuf],
+) -> Result<TilesetReport, ConvertError> {
+    let m = Meter::new(opts);
+    write_from_shards(
+        dir,
+        ply,
+        drop_invalid,
+        opts,
+        shards,
+        &leaf_owner,
+        &|p, c, b| m.measure(p, c, b),
+    )
 }

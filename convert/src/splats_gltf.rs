@@ -40,6 +40,10 @@ use crate::ConvertError;
 const EXT: &str = "KHR_gaussian_splatting";
 const UNSIGNED_BYTE: u32 = 5121;
 
+/// The SPZ stream's gzip level of `--splats` files (SPZ's own default, zlib's 6); tiles
+/// choose theirs ([`write_tile_glb`]).
+pub const SPZ_GZIP_LEVEL: u32 = 6;
+
 /// How the Gaussians of a `--splats` file are stored.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum KhrCompression {
@@ -164,20 +168,22 @@ pub fn write_glb_with<W: Write>(
     opts: &ConvertOptions,
     compression: KhrCompression,
 ) -> crate::Result<ConvertReport> {
-    write_glb_impl(w, scene, opts, compression, false)
+    write_glb_impl(w, scene, opts, compression, SPZ_GZIP_LEVEL, false)
 }
 
 /// A tile's GLB (3D Tiles content): [`write_glb_with`], except that a static scene's one
 /// primitive sits on the root node itself, which carries the up-axis rotation. CesiumJS's
 /// splat tiles read only the first scene node's primitive and that node's own matrix, so the
 /// usual root → mesh node hierarchy would lose both the Gaussians and the up axis.
+/// `gzip_level` (0–9) is the SPZ stream's deflate level.
 pub fn write_tile_glb<W: Write>(
     w: &mut W,
     scene: &DynamicScene,
     opts: &ConvertOptions,
     compression: KhrCompression,
+    gzip_level: u32,
 ) -> crate::Result<ConvertReport> {
-    write_glb_impl(w, scene, opts, compression, true)
+    write_glb_impl(w, scene, opts, compression, gzip_level, true)
 }
 
 fn write_glb_impl<W: Write>(
@@ -185,9 +191,11 @@ fn write_glb_impl<W: Write>(
     scene: &DynamicScene,
     opts: &ConvertOptions,
     compression: KhrCompression,
+    gzip_level: u32,
     flat: bool,
 ) -> crate::Result<ConvertReport> {
-    let (json, small, plans, bin_len, mut report) = plan(scene, opts, None, compression, flat)?;
+    let (json, small, plans, bin_len, mut report) =
+        plan(scene, opts, None, (compression, gzip_level), flat)?;
     let bytes = glb_container(w, &json, bin_len, |w| stream(w, &small, &plans)).map_err(|e| {
         ConvertError::Io {
             path: "<memory>".into(),
@@ -241,7 +249,7 @@ pub fn write_file_with(
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
         let (json, small, plans, _bin_len, mut report) =
-            plan(scene, opts, Some(uri), compression, false)?;
+            plan(scene, opts, Some(uri), (compression, SPZ_GZIP_LEVEL), false)?;
         let mut n = 0;
         // The .gltf and its .bin appear together or not at all.
         let mut set = splatbridge_scene::output::OutputSet::new();
@@ -267,7 +275,7 @@ fn plan<'a>(
     scene: &'a DynamicScene,
     opts: &ConvertOptions,
     bin_uri: Option<String>,
-    compression: KhrCompression,
+    (compression, gzip_level): (KhrCompression, u32),
     flat: bool,
 ) -> crate::Result<Planned<'a>> {
     let mut report = ConvertReport::new("splats", opts);
@@ -300,7 +308,8 @@ fn plan<'a>(
         if keep.is_empty() {
             continue;
         }
-        let (plan, primitive) = cloud_primitive(&mut d, &mut offset, cloud, keep, compression)?;
+        let (plan, primitive) =
+            cloud_primitive(&mut d, &mut offset, cloud, keep, (compression, gzip_level))?;
         meshes.push(json!({
             "name": name,
             "primitives": [primitive],
@@ -380,7 +389,7 @@ fn cloud_primitive<'a>(
     offset: &mut u64,
     cloud: &'a GaussianCloud,
     keep: Vec<u32>,
-    compression: KhrCompression,
+    (compression, gzip_level): (KhrCompression, u32),
 ) -> crate::Result<(CloudPlan<'a>, Value)> {
     let n = keep.len() as u64;
     let names = attribute_names(cloud.sh_degree);
@@ -393,7 +402,7 @@ fn cloud_primitive<'a>(
     let spz = match compression {
         KhrCompression::None => None,
         KhrCompression::Spz | KhrCompression::SpzCesium => {
-            let mut bytes = spz_stream(cloud, &keep, compression)?;
+            let mut bytes = spz_stream(cloud, &keep, compression, gzip_level)?;
             let len = bytes.len() as u64;
             bytes.resize(bytes.len().next_multiple_of(4), 0);
             let view = d.view(json!({"buffer": 0, "byteOffset": *offset, "byteLength": len}));
@@ -440,16 +449,24 @@ fn spz_stream(
     cloud: &GaussianCloud,
     keep: &[u32],
     compression: KhrCompression,
+    level: u32,
 ) -> crate::Result<Vec<u8>> {
     let encode = |c: &GaussianCloud| match compression {
         KhrCompression::SpzCesium => encode_spz(
             c,
             &SpzOptions {
                 axes: SpzAxes::AsStored,
+                level,
                 ..SpzOptions::default()
             },
         ),
-        _ => encode_khr_spz(c, &SpzOptions::default()),
+        _ => encode_khr_spz(
+            c,
+            &SpzOptions {
+                level,
+                ..SpzOptions::default()
+            },
+        ),
     };
     if keep.len() == cloud.len() {
         encode(cloud)

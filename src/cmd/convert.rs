@@ -167,8 +167,9 @@ pub struct Args {
     #[arg(long)]
     pub frames: bool,
     /// With --frames: write only shard I of N (0 ≤ I < N) of the frames and a partial
-    /// report.json for `splatbridge merge` (see docs/scale.md).
-    #[arg(long, value_name = "I/N", requires = "frames")]
+    /// report.json for `splatbridge merge` (see docs/scale.md). With --tiles: write only the
+    /// leaves shard I owns, for --from-shards (see docs/tiles.md).
+    #[arg(long, value_name = "I/N")]
     pub shard: Option<splatbridge::shard::Shard>,
     /// Write native splats (KHR_gaussian_splatting, .glb/.gltf) instead of a mesh.
     #[arg(long)]
@@ -499,6 +500,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "{}: --frames writes one OBJ per frame; use an .obj output",
             args.output.display()
         );
+    }
+    if args.shard.is_some() && !args.frames {
+        bail!("--shard: applies to --frames and --tiles");
     }
     if args.shard.is_some() && args.splats {
         bail!("--shard splits --frames OBJ exports, not --splats");

@@ -8,7 +8,7 @@ use anyhow::{bail, Context};
 use clap::ValueEnum;
 use splatbridge::pipeline::export::load_export_input;
 use splatbridge_convert::splats_gltf::KhrCompression;
-use splatbridge_convert::tiles::{TileContent, TileOptions};
+use splatbridge_convert::tiles::{TileContent, TileOptions, TILE_GZIP_LEVEL};
 use splatbridge_convert::{ColorEncoding, ConvertOptions, Profile, UpAxis};
 use splatbridge_scene::blocks::DEFAULT_MAX_PER_BLOCK;
 
@@ -54,6 +54,14 @@ pub struct TileArgs {
     /// transform, the capture in its own Z-up frame).
     #[arg(long, value_name = "LON,LAT,HEIGHT", allow_hyphen_values = true)]
     pub tiles_origin: Option<String>,
+    /// gzip level of the tiles' SPZ streams, 0–9 (with --tiles; default 2, see docs/tiles.md).
+    #[arg(long, value_name = "0-9", value_parser = clap::value_parser!(u32).range(0..=9))]
+    pub tile_gzip_level: Option<u32>,
+    /// Build the tileset from the directories of every shard of a `--tiles DIR --shard I/N`
+    /// run (with --tiles and the same binary PLY and options): the leaves are taken from
+    /// them, the parents and tileset.json are made here.
+    #[arg(long, value_name = "SHARD_DIR", num_args = 1.., conflicts_with = "shard")]
+    pub from_shards: Vec<PathBuf>,
 }
 
 fn parse_origin(s: &str) -> anyhow::Result<[f64; 3]> {
@@ -110,6 +118,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             Some(TileCompressionArg::SpzLuf) => KhrCompression::Spz,
             Some(TileCompressionArg::Spz) | None => KhrCompression::SpzCesium,
         },
+        gzip_level: args.tiles.tile_gzip_level.unwrap_or(TILE_GZIP_LEVEL),
         convert: ConvertOptions {
             profile: match args.profile {
                 Some(ProfileArg::Meshsplats) => Profile::MeshSplats,
@@ -136,7 +145,39 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         .scene
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("ply"));
-    let streamed = if is_ply {
+    if (args.shard.is_some() || !args.tiles.from_shards.is_empty()) && !is_ply {
+        bail!("--shard and --from-shards with --tiles need a binary .ply input");
+    }
+    if let Some(shard) = args.shard {
+        let rep = splatbridge::tiles::write_tiles_shard(
+            dir,
+            &args.scene,
+            args.drop_invalid,
+            &opts,
+            shard,
+        )?;
+        pb.finish_and_clear();
+        println!(
+            "shard {shard}: wrote {} of {} leaves ({} Gaussians), {} files, {} bytes into {}; {:.2} s",
+            rep.leaves,
+            rep.total_leaves,
+            rep.gaussians,
+            rep.files,
+            rep.bytes,
+            dir.display(),
+            t0.elapsed().as_secs_f64()
+        );
+        return Ok(());
+    }
+    let streamed = if !args.tiles.from_shards.is_empty() {
+        Some(splatbridge::tiles::write_tiles_from_shards(
+            dir,
+            &args.scene,
+            args.drop_invalid,
+            &opts,
+            &args.tiles.from_shards,
+        )?)
+    } else if is_ply {
         // Errors name their file (the PLY or the tile written).
         splatbridge::tiles::write_tiles_from_ply(dir, &args.scene, args.drop_invalid, &opts)?
     } else {

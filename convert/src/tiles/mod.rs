@@ -23,16 +23,20 @@
 //!   the east-north-up frame there, so the capture stands upright on the globe.
 //! - Memory: the cloud is read once; the partition is a permutation of indices; tiles are
 //!   visited depth first and a tile's content is dropped once its parent is merged, so beyond
-//!   the input cloud at most (tree depth × 8) tile contents are held, plus the encoded
-//!   bytes of one inner tile's leaf children, which are loaded and encoded on all cores
-//!   before the walk writes them in order (the output is that of one thread).
+//!   the input cloud each worker thread holds at most (tree depth × 8) tile contents.
+//! - Threads: a tile's children are visited on the rayon pool (subtrees are independent:
+//!   leaves are encoded, parents merged, measured and encoded while other subtrees run) and
+//!   their results are joined in child order, so every file and `tileset.json` are those of
+//!   one thread.
+//! - Shards ([`shard`]): `--shard I/N` runs write the leaves they own with their contents;
+//!   a final run reads them back instead of encoding leaves and writes what one run writes.
 
 pub mod lod;
+pub mod shard;
 mod stream;
 
 pub use stream::write_tileset_from_ply;
 
-use std::collections::HashMap;
 use std::path::Path;
 
 use glam::{DVec3, Mat3, Quat, Vec3};
@@ -79,11 +83,20 @@ pub struct TileOptions {
     /// `KHR_gaussian_splatting_compression_spz_2`, and decodes its stream without the
     /// extension's LUF conversion, so tilesets default to [`KhrCompression::SpzCesium`].
     pub compression: KhrCompression,
+    /// gzip level (0–9) of the SPZ streams; [`TILE_GZIP_LEVEL`] by default.
+    pub gzip_level: u32,
 }
+
+/// The tiles' SPZ gzip level: 2 (zlib-rs's `deflate_fast`). Measured on the 1 M fixture's
+/// 89 tiles (docs/tiles.md, "gzip level"): against SPZ's usual 6 it cuts the run's CPU time
+/// by about a third for 5 % more bytes; level 1 (`deflate_quick`) saves little more time
+/// but writes 38 % more bytes.
+pub const TILE_GZIP_LEVEL: u32 = 2;
 
 /// Measures an inner tile's geometric error (world units): `parent` is its merged content,
 /// `children` the union of its children's contents, `bounds` the tile's footprint box.
-pub type ErrorMeter<'a> = dyn FnMut(&GaussianCloud, &GaussianCloud, &Aabb) -> Result<f64> + 'a;
+/// Called from the worker threads, for independent tiles at once.
+pub type ErrorMeter<'a> = dyn Fn(&GaussianCloud, &GaussianCloud, &Aabb) -> Result<f64> + Sync + 'a;
 
 /// What was written.
 #[derive(Clone, Debug, Default)]
@@ -167,112 +180,137 @@ fn cloud_footprint(c: &GaussianCloud) -> Aabb {
 enum Source<'a> {
     /// A cloud in memory.
     Cloud(&'a GaussianCloud),
-    /// Per-leaf bucket files (`leaf_B`, B the block index) of raw PLY records.
+    /// Per-leaf buckets of raw PLY records.
     Buckets(&'a stream::Buckets<'a>),
+    /// Leaves written by shards: their GLBs and contents (the final run of a sharded tileset).
+    Shards(&'a shard::ShardLeaves<'a>),
+}
+
+/// The counts of a subtree, summed up the tree.
+#[derive(Clone, Copy, Default)]
+struct Counts {
+    tiles: usize,
+    files: usize,
+    bytes: u64,
+    leaves: usize,
+    max_depth: u32,
+    gaussians: usize,
+    lod_gaussians: usize,
+}
+
+impl Counts {
+    fn add(&mut self, o: &Counts) {
+        self.tiles += o.tiles;
+        self.files += o.files;
+        self.bytes += o.bytes;
+        self.leaves += o.leaves;
+        self.max_depth = self.max_depth.max(o.max_depth);
+        self.gaussians += o.gaussians;
+        self.lod_gaussians += o.lod_gaussians;
+    }
+}
+
+/// A visited subtree: its tile JSON, its error, its content (splats: the parent merges it)
+/// and its counts.
+struct Visited {
+    tile: Value,
+    error: f64,
+    content: Option<GaussianCloud>,
+    counts: Counts,
 }
 
 struct Writer<'a, 'm> {
     source: Source<'a>,
     blocks: &'a Blocks,
     opts: &'a TileOptions,
-    meter: &'a mut ErrorMeter<'m>,
+    meter: &'a ErrorMeter<'m>,
     stage: &'a Path,
     frame: Mat3,
-    report: TilesetReport,
-    /// Leaves encoded ahead by [`encode_leaf`], taken when the depth-first walk reaches them.
-    ready: HashMap<usize, Result<(Vec<u8>, GaussianCloud)>>,
 }
 
 /// Encode `content` as one tile's GLB in memory; returns the bytes and the content back
 /// (the parent merges it).
-fn encode_glb(content: GaussianCloud, opts: &TileOptions) -> Result<(Vec<u8>, GaussianCloud)> {
+pub(crate) fn encode_glb(
+    content: GaussianCloud,
+    opts: &TileOptions,
+) -> Result<(Vec<u8>, GaussianCloud)> {
     let scene = DynamicScene::from_static(content);
     let mut bytes = Vec::new();
     match opts.content {
-        TileContent::Splats => {
-            crate::splats_gltf::write_tile_glb(&mut bytes, &scene, &opts.convert, opts.compression)?
-        }
+        TileContent::Splats => crate::splats_gltf::write_tile_glb(
+            &mut bytes,
+            &scene,
+            &opts.convert,
+            opts.compression,
+            opts.gzip_level,
+        )?,
         TileContent::Mesh => crate::write_glb(&mut bytes, &scene, None, &opts.convert)?,
     };
     Ok((bytes, scene.static_gaussians))
 }
 
-/// Leaf `b`'s Gaussians, encoded: the independent part of a leaf's work, run on the
-/// worker threads for all leaf children of one inner tile at a time (at most 8 leaves of at
-/// most the tile budget each in flight).
-fn encode_leaf(
-    source: &Source<'_>,
-    blocks: &Blocks,
-    opts: &TileOptions,
-    b: usize,
-) -> Result<(Vec<u8>, GaussianCloud)> {
-    let content = match source {
-        Source::Cloud(cloud) => subset(cloud, blocks.indices(&blocks.blocks[b])),
-        Source::Buckets(buckets) => buckets.take(b)?,
-    };
-    encode_glb(content, opts)
+fn put(stage: &Path, name: &str, bytes: &[u8], counts: &mut Counts) -> Result<()> {
+    let path = stage.join(name);
+    std::fs::write(&path, bytes).map_err(|e| ConvertError::Io { path, err: e })?;
+    counts.files += 1;
+    counts.bytes += bytes.len() as u64;
+    Ok(())
 }
 
 impl Writer<'_, '_> {
-    fn put(&mut self, name: &str, bytes: &[u8]) -> Result<()> {
-        let path = self.stage.join(name);
-        std::fs::write(&path, bytes).map_err(|e| ConvertError::Io { path, err: e })?;
-        self.report.files += 1;
-        self.report.bytes += bytes.len() as u64;
-        Ok(())
+    /// Leaf `b`'s GLB bytes and Gaussians.
+    fn leaf(&self, b: usize) -> Result<(Vec<u8>, GaussianCloud)> {
+        match &self.source {
+            Source::Cloud(cloud) => encode_glb(
+                subset(cloud, self.blocks.indices(&self.blocks.blocks[b])),
+                self.opts,
+            ),
+            Source::Buckets(buckets) => encode_glb(buckets.take(b)?, self.opts),
+            Source::Shards(shards) => shards.take(b),
+        }
     }
 
-    fn write_glb(&mut self, name: &str, content: GaussianCloud) -> Result<GaussianCloud> {
-        let (bytes, content) = encode_glb(content, self.opts)?;
-        self.put(name, &bytes)?;
-        Ok(content)
-    }
-
-    /// Write block `b`'s subtree; returns its tile JSON, its error and (for splats) its
-    /// content, which the parent merges.
-    fn visit(&mut self, b: usize) -> Result<(Value, f64, Option<GaussianCloud>)> {
+    /// Write block `b`'s subtree.
+    fn visit(&self, b: usize) -> Result<Visited> {
         let block: &Block = &self.blocks.blocks[b];
-        self.report.tiles += 1;
-        self.report.max_depth = self.report.max_depth.max(block.depth);
+        let mut counts = Counts {
+            tiles: 1,
+            max_depth: block.depth,
+            ..Default::default()
+        };
         let name = format!("tile_{b}.glb");
         if block.is_leaf() {
-            self.report.leaves += 1;
-            let (bytes, content) = match self.ready.remove(&b) {
-                Some(done) => done?,
-                None => encode_leaf(&self.source, self.blocks, self.opts, b)?,
-            };
-            self.report.gaussians += content.len();
-            self.put(&name, &bytes)?;
+            counts.leaves = 1;
+            let (bytes, content) = self.leaf(b)?;
+            counts.gaussians = content.len();
+            put(self.stage, &name, &bytes, &mut counts)?;
             drop(bytes);
             let tile = json!({
                 "boundingVolume": {"box": box_volume(&block.footprint, &self.frame)},
                 "geometricError": 0.0,
                 "content": {"uri": name},
             });
-            let keep = (self.opts.content == TileContent::Splats).then_some(content);
-            return Ok((tile, 0.0, keep));
+            let content = (self.opts.content == TileContent::Splats).then_some(content);
+            return Ok(Visited {
+                tile,
+                error: 0.0,
+                content,
+                counts,
+            });
         }
-        // Leaf children are independent: load and encode them on all cores, then write them
-        // in order (the files and the merge order are those of one thread).
-        let leaves: Vec<usize> = (block.children.iter().copied())
-            .filter(|&c| self.blocks.blocks[c].is_leaf())
-            .collect();
-        if leaves.len() > 1 {
-            let (source, blocks, opts) = (&self.source, self.blocks, self.opts);
-            let done: Vec<_> = leaves
-                .par_iter()
-                .map(|&c| (c, encode_leaf(source, blocks, opts, c)))
-                .collect();
-            self.ready.extend(done);
-        }
+        // Subtrees are independent: visited on all cores, joined in child order (the files
+        // and the merge order are those of one thread).
+        let visited: Vec<Result<Visited>> =
+            block.children.par_iter().map(|&c| self.visit(c)).collect();
         let mut children = Vec::with_capacity(block.children.len());
         let mut child_error = 0.0f64;
         let mut union: Option<GaussianCloud> = None;
-        for &c in &block.children {
-            let (tile, err, content) = self.visit(c)?;
-            children.push(tile);
-            child_error = child_error.max(err);
-            if let Some(content) = content {
+        for v in visited {
+            let v = v?;
+            children.push(v.tile);
+            child_error = child_error.max(v.error);
+            counts.add(&v.counts);
+            if let Some(content) = v.content {
                 match &mut union {
                     Some(u) => u.extend_from(&content, None),
                     None => union = Some(content),
@@ -286,6 +324,7 @@ impl Writer<'_, '_> {
                 let parent = lod::reduce(&union, target);
                 bounds = bounds.union(&cloud_footprint(&parent));
                 let measured = (self.meter)(&parent, &union, &bounds)?;
+                drop(union);
                 if !measured.is_finite() || measured < 0.0 {
                     return Err(ConvertError::Invalid(format!(
                         "tile {b}: measured geometric error {measured} is not a finite non-negative number"
@@ -293,8 +332,9 @@ impl Writer<'_, '_> {
                 }
                 // Errors add along a refinement chain; the parent's must exceed its children's.
                 let error = next_above(child_error + measured, child_error);
-                self.report.lod_gaussians += parent.len();
-                let parent = self.write_glb(&name, parent)?;
+                counts.lod_gaussians += parent.len();
+                let (bytes, parent) = encode_glb(parent, self.opts)?;
+                put(self.stage, &name, &bytes, &mut counts)?;
                 let tile = json!({
                     "boundingVolume": {"box": box_volume(&bounds, &self.frame)},
                     "geometricError": error,
@@ -316,7 +356,12 @@ impl Writer<'_, '_> {
                 (tile, error, None)
             }
         };
-        Ok((tile, error, content))
+        Ok(Visited {
+            tile,
+            error,
+            content,
+            counts,
+        })
     }
 }
 
@@ -335,7 +380,7 @@ pub fn write_tileset(
     dir: &Path,
     scene: &DynamicScene,
     opts: &TileOptions,
-    meter: &mut ErrorMeter<'_>,
+    meter: &ErrorMeter<'_>,
 ) -> Result<TilesetReport> {
     // Tiles are static content: moving objects are placed at the scene's start.
     let composite;
@@ -364,7 +409,7 @@ fn write_blocks(
     source: Source<'_>,
     objects_at_start: usize,
     opts: &TileOptions,
-    meter: &mut ErrorMeter<'_>,
+    meter: &ErrorMeter<'_>,
 ) -> Result<TilesetReport> {
     if blocks.blocks.is_empty() {
         return Err(ConvertError::Format {
@@ -374,23 +419,32 @@ fn write_blocks(
     }
     let mut set = OutputSet::new();
     let stage = set.stage_dir(dir)?;
-    let mut w = Writer {
+    let w = Writer {
         source,
         blocks,
         opts,
         meter,
         stage: &stage,
         frame: capture_to_tileset(&opts.convert),
-        ready: HashMap::new(),
-        report: TilesetReport {
-            invalid_left_out: blocks.invalid,
-            objects_at_start,
-            ..Default::default()
-        },
     };
-    let (mut root, root_error, _) = w.visit(0)?;
-    let mut report = w.report;
-    report.root_error = root_error;
+    let Visited {
+        tile: mut root,
+        error: root_error,
+        counts: c,
+        ..
+    } = w.visit(0)?;
+    let mut report = TilesetReport {
+        tiles: c.tiles,
+        files: c.files,
+        bytes: c.bytes,
+        leaves: c.leaves,
+        max_depth: c.max_depth,
+        gaussians: c.gaussians,
+        lod_gaussians: c.lod_gaussians,
+        invalid_left_out: blocks.invalid,
+        objects_at_start,
+        root_error,
+    };
     root["transform"] = json!(match opts.origin {
         Some([lon, lat, h]) => enu_to_ecef(lon, lat, h),
         None => IDENTITY4,
