@@ -316,6 +316,8 @@ fn per_gaussian_fit_ties_vertices_and_improves_held_back_views() {
         }
     }
     assert!(moved > 0, "the fit moved nothing");
+    // Measured 23.45 → 24.40 dB (per vertex: → 24.47); 0.5 dB fails a fit that does
+    // nothing or only overfits the fitting views.
     assert!(
         after > before + 0.5,
         "per-Gaussian: held-back PSNR {before:.2} → {after:.2} dB"
@@ -347,7 +349,11 @@ fn recording_k_does_not_change_the_hits() {
     }
     assert_eq!(images[0].0, images[1].0, "hit counts differ");
     for (a, b) in images[0].1.iter().zip(&images[1].1) {
-        let worst = a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max);
+        let worst = a
+            .iter()
+            .zip(b)
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0f32, f32::max);
         // At the k-th key of a full buffer a fan may be represented by another of its
         // triangles (other barycentrics, same colour up to rounding; see
         // distilled_export_traces_like_the_fitted_mesh), so the bound is rounding, not 0.

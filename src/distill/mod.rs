@@ -461,12 +461,26 @@ impl Distiller {
             self.opts.lr_alpha,
         ];
         match &mut self.tied {
-            None => adam(&mut self.params, &mut self.m, &mut self.v, &grad, lr, t, |p| {
-                p.iter_mut().for_each(|x| *x = x.clamp(0.0, 1.0))
-            }),
+            None => adam(
+                &mut self.params,
+                &mut self.m,
+                &mut self.v,
+                &grad,
+                lr,
+                t,
+                |p| p.iter_mut().for_each(|x| *x = x.clamp(0.0, 1.0)),
+            ),
             Some(tied) => {
                 let g = tied.reduce(&grad);
-                adam(&mut tied.theta, &mut self.m, &mut self.v, &g, lr, t, Tied::project);
+                adam(
+                    &mut tied.theta,
+                    &mut self.m,
+                    &mut self.v,
+                    &g,
+                    lr,
+                    t,
+                    Tied::project,
+                );
                 tied.expand(&mut self.params);
             }
         }
