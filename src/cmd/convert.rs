@@ -618,7 +618,7 @@ fn print_summary(args: &Args, r: &ConvertReport) {
 }
 
 /// `WxH` with both sides at least 1 and at most 16384 (the renderers' limit).
-fn parse_wxh(v: &str) -> Result<(u32, u32), String> {
+pub(super) fn parse_wxh(v: &str) -> Result<(u32, u32), String> {
     let (w, h) = v
         .split_once(['x', '×'])
         .ok_or_else(|| format!("'{v}' is not WxH (e.g. 480x360)"))?;

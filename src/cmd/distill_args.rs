@@ -3,7 +3,7 @@
 
 use anyhow::Context;
 use splatbridge::distill::run::{distill_export, ViewRequest};
-use splatbridge::distill::{DistillOptions, Loss};
+use splatbridge::distill::{DistillOptions, Loss, ParamMode};
 use splatbridge_convert::ConvertOptions;
 use splatbridge_scene::dynamic::DynamicScene;
 
@@ -13,6 +13,16 @@ pub enum LossArg {
     L1Ssim,
     L1,
     L2,
+}
+
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub enum ParamsArg {
+    /// Every vertex's colour and opacity.
+    Vertex,
+    /// A colour shift and an opacity scale per Gaussian.
+    Gaussian,
+    /// Per Gaussian where the vertices' parameters outnumber the fitting pixels' values.
+    Auto,
 }
 
 #[derive(clap::Args, Debug, Clone)]
@@ -45,10 +55,20 @@ pub struct DistillArgs {
     /// Held-back views (between the orbit's fitting views) measured before and after.
     #[arg(long, value_name = "M", default_value_t = 4, requires = "distill")]
     pub held_back: usize,
+    /// Held-back image size (default: the fitting size).
+    #[arg(long, value_name = "WxH", value_parser = super::convert::parse_wxh, requires = "distill")]
+    pub held_back_size: Option<(u32, u32)>,
     /// Scene times a dynamic scene is fitted at (evenly over its time range), given to the
     /// views in turn; static scenes are fitted at their start.
     #[arg(long, value_name = "N", default_value_t = ViewRequest::default().times, requires = "distill", value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=1024))]
     pub distill_times: usize,
+    /// What the fit moves: per-vertex or per-Gaussian colour and opacity.
+    #[arg(long, value_enum, default_value = "vertex", requires = "distill")]
+    pub distill_params: ParamsArg,
+    /// k-buffer size of the hit recording (the order is the same; larger walks a deep
+    /// pixel's BVH fewer times).
+    #[arg(long, value_name = "K", default_value_t = DistillOptions::default().record_k, requires = "distill")]
+    pub distill_record_k: usize,
 }
 
 impl DistillArgs {
@@ -66,6 +86,12 @@ impl DistillArgs {
                 LossArg::L1 => Loss::L1,
                 LossArg::L2 => Loss::L2,
             },
+            params: match self.distill_params {
+                ParamsArg::Vertex => ParamMode::Vertex,
+                ParamsArg::Gaussian => ParamMode::Gaussian,
+                ParamsArg::Auto => ParamMode::Auto,
+            },
+            record_k: self.distill_record_k,
             ..DistillOptions::default()
         };
         let req = ViewRequest {
@@ -73,6 +99,7 @@ impl DistillArgs {
             width: self.distill_width,
             height: self.distill_height,
             held_back: self.held_back,
+            held_size: self.held_back_size,
             times: self.distill_times,
         };
         let pb = super::common::progress(self.iterations as u64, "distilling");
@@ -81,6 +108,7 @@ impl DistillArgs {
         pb.finish_and_clear();
         let r = &out.report;
         eprintln!("distilled: {}", out.description);
+        eprintln!("  parameters: {} ({} vertices)", r.params, r.vertices);
         eprintln!(
             "  set-up {:.1} s, {} hits ({} views kept, {} streamed, {:.0} MB), loss {:.4} → {:.4}",
             r.setup_seconds,

@@ -33,6 +33,7 @@
 pub mod composite;
 pub mod loss;
 pub mod run;
+pub mod tied;
 pub mod views;
 
 use std::time::Instant;
@@ -49,6 +50,8 @@ use splatbridge_scene::{Camera, Frame};
 
 use composite::{Rec, Shading, ViewHits};
 pub use loss::Loss;
+pub use tied::ParamMode;
+pub use tied::Tied;
 
 /// Errors of distillation.
 #[derive(Debug, thiserror::Error)]
@@ -89,6 +92,11 @@ pub struct DistillOptions {
     pub hit_budget: u64,
     /// Hits are recorded until the transmittance falls below this.
     pub record_transmittance: f32,
+    /// Per-vertex or per-Gaussian parameters ([`tied`]).
+    pub params: ParamMode,
+    /// The k-buffer size of hit recording: the order is the tracer's (hits sorted by the
+    /// same keys), a larger buffer walks the BVH fewer times for a deep pixel.
+    pub record_k: usize,
 }
 
 impl Default for DistillOptions {
@@ -104,6 +112,8 @@ impl Default for DistillOptions {
             k: 16,
             hit_budget: 2 << 30,
             record_transmittance: 1e-6,
+            params: ParamMode::Vertex,
+            record_k: 64,
         }
     }
 }
@@ -133,8 +143,10 @@ impl DistillOptions {
         if self.times.iter().any(|t| !t.is_finite()) {
             return bad("distillation times must be finite".into());
         }
-        if !(1..=1024).contains(&self.k) {
-            return bad(format!("k-buffer size {} is outside 1..=1024", self.k));
+        for k in [self.k, self.record_k] {
+            if !(1..=1024).contains(&k) {
+                return bad(format!("k-buffer size {k} is outside 1..=1024"));
+            }
         }
         if !(self.record_transmittance > 0.0 && self.record_transmittance < 1.0) {
             return bad("record transmittance must be in (0, 1)".into());
@@ -166,6 +178,8 @@ pub struct DistillReport {
     pub height: u32,
     pub loss: String,
     pub vertices: usize,
+    /// "vertex", or "gaussian" with the number of Gaussians.
+    pub params: String,
     pub iterations: usize,
     pub setup_seconds: f64,
     pub seconds: f64,
@@ -191,6 +205,8 @@ pub struct Distiller {
     /// First global vertex of each mesh.
     base: Vec<usize>,
     params: Vec<[f32; 4]>,
+    /// Per-Gaussian parameters, when the fit moves those instead of `params`.
+    tied: Option<Tied>,
     m: Vec<[f32; 4]>,
     v: Vec<[f32; 4]>,
     views: Vec<View>,
@@ -247,29 +263,50 @@ impl Distiller {
             base.push(params.len());
             params.extend(m.colors.iter().map(|c| c.to_array()));
         }
+        let n = params.len();
+        let (w, h) = (cameras[0].width as u64, cameras[0].height as u64);
+        let values = cameras.len() as u64 * w * h * 3;
+        let per_gaussian = match opts.params {
+            ParamMode::Vertex => false,
+            ParamMode::Gaussian => true,
+            ParamMode::Auto => 4 * n as u64 > values,
+        };
+        let tied = per_gaussian.then(|| {
+            let keys: Vec<(u32, u32)> = vertex_gaussians(&tri)
+                .iter()
+                .enumerate()
+                .flat_map(|(mi, g)| g.iter().map(move |&id| (mi as u32, id)))
+                .collect();
+            Tied::new(params.clone(), keys.into_iter())
+        });
+        let moments = tied.as_ref().map_or(n, Tied::groups);
         let tracer = MeshTracer::new(tri, BackendKind::default(), BuildPreset::default())?;
         let native = NativeOptions::default();
         let mut renderer = splatbridge_hybrid::native::Renderer::new();
-        let n = params.len();
         let mut d = Distiller {
             tracer,
             base,
             params,
-            m: vec![[0.0; 4]; n],
-            v: vec![[0.0; 4]; n],
-            views: Vec::with_capacity(cameras.len()),
-            shading,
-            opts: opts.clone(),
-            start,
-            history: Vec::new(),
             report: DistillReport {
                 views: cameras.len(),
                 width: cameras[0].width,
                 height: cameras[0].height,
                 loss: opts.loss.to_string(),
                 vertices: n,
+                params: match &tied {
+                    Some(t) => format!("gaussian ({})", t.groups()),
+                    None => "vertex".into(),
+                },
                 ..Default::default()
             },
+            tied,
+            m: vec![[0.0; 4]; moments],
+            v: vec![[0.0; 4]; moments],
+            views: Vec::with_capacity(cameras.len()),
+            shading,
+            opts: opts.clone(),
+            start,
+            history: Vec::new(),
         };
         let mut stored = 0u64;
         let times = opts.view_times(cameras.len());
@@ -310,9 +347,12 @@ impl Distiller {
 
     /// Trace one view's hit lists at scene time `time` with the tracer's current colours.
     fn record(&self, cam: &Camera, time: f64) -> Result<ViewHits> {
-        let lists =
-            self.tracer
-                .record_hits(cam, time, self.opts.k, self.opts.record_transmittance)?;
+        let lists = self.tracer.record_hits(
+            cam,
+            time,
+            self.opts.record_k,
+            self.opts.record_transmittance,
+        )?;
         let scene = &self.tracer.scene;
         let hits = lists
             .hits
@@ -344,6 +384,11 @@ impl Distiller {
 
     pub fn params_mut(&mut self) -> &mut [[f32; 4]] {
         &mut self.params
+    }
+
+    /// The per-Gaussian parameters, when the fit moves those.
+    pub fn tied(&self) -> Option<&Tied> {
+        self.tied.as_ref()
     }
 
     pub fn shading(&self) -> Shading {
@@ -409,32 +454,36 @@ impl Distiller {
     pub fn step(&mut self) -> Result<f64> {
         let (loss, grad) = self.loss_and_gradient()?;
         let t = self.history.len() as i32 + 1;
-        let (b1, b2, eps) = (0.9f32, 0.999f32, 1e-8f32);
-        let c1 = 1.0 - b1.powi(t);
-        let c2 = 1.0 - b2.powi(t);
         let lr = [
             self.opts.lr_colour,
             self.opts.lr_colour,
             self.opts.lr_colour,
             self.opts.lr_alpha,
         ];
-        self.params
-            .par_iter_mut()
-            .zip(self.m.par_iter_mut())
-            .zip(self.v.par_iter_mut())
-            .zip(grad.par_iter())
-            .for_each(|(((p, m), v), g)| {
-                let lanes = p.iter_mut().zip(m.iter_mut()).zip(v.iter_mut());
-                for (((p, m), v), (&g, &lr)) in lanes.zip(g.iter().zip(&lr)) {
-                    if g == 0.0 && *m == 0.0 {
-                        continue;
-                    }
-                    *m = b1 * *m + (1.0 - b1) * g;
-                    *v = b2 * *v + (1.0 - b2) * g * g;
-                    let step = lr * (*m / c1) / ((*v / c2).sqrt() + eps);
-                    *p = (*p - step).clamp(0.0, 1.0);
-                }
-            });
+        match &mut self.tied {
+            None => adam(
+                &mut self.params,
+                &mut self.m,
+                &mut self.v,
+                &grad,
+                lr,
+                t,
+                |p| p.iter_mut().for_each(|x| *x = x.clamp(0.0, 1.0)),
+            ),
+            Some(tied) => {
+                let g = tied.reduce(&grad);
+                adam(
+                    &mut tied.theta,
+                    &mut self.m,
+                    &mut self.v,
+                    &g,
+                    lr,
+                    t,
+                    Tied::project,
+                );
+                tied.expand(&mut self.params);
+            }
+        }
         self.history.push(Progress {
             iteration: self.history.len(),
             seconds: self.start.elapsed().as_secs_f64(),
@@ -499,30 +548,14 @@ impl Distiller {
 
     /// The fitted colours as the writers take them.
     pub fn vertex_colours(&self) -> Result<VertexColours> {
-        let scene = &self.tracer.scene;
-        let mut ids = 0usize;
-        let mut per_vertex: Vec<Vec<u32>> = Vec::with_capacity(scene.meshes.len());
-        for m in &scene.meshes {
-            let mut g = vec![u32::MAX; m.positions.len()];
-            for (t, tri) in m.tris.iter().enumerate() {
-                for &v in tri {
-                    g[v as usize] = m.tri_gaussian[t];
-                }
-            }
-            // A vertex no triangle uses belongs to the Gaussian emitted around it.
-            let mut last = u32::MAX;
-            for x in g.iter_mut() {
-                if *x == u32::MAX {
-                    *x = last;
-                } else {
-                    last = *x;
-                }
-                if *x != u32::MAX {
-                    ids = ids.max(*x as usize + 1);
-                }
-            }
-            per_vertex.push(g);
-        }
+        let per_vertex = vertex_gaussians(&self.tracer.scene);
+        let ids = per_vertex
+            .iter()
+            .flatten()
+            .filter(|&&x| x != u32::MAX)
+            .map(|&x| x as usize + 1)
+            .max()
+            .unwrap_or(0);
         let mut vc = VertexColours::new(ids);
         for (mi, g) in per_vertex.iter().enumerate() {
             let b = self.base[mi];
@@ -560,6 +593,62 @@ impl Distiller {
     pub fn elapsed(&self) -> f64 {
         self.start.elapsed().as_secs_f64()
     }
+}
+
+/// Per mesh, the Gaussian id of every vertex (`u32::MAX` for a vertex before any triangle).
+fn vertex_gaussians(scene: &TriScene) -> Vec<Vec<u32>> {
+    let mut per_vertex = Vec::with_capacity(scene.meshes.len());
+    for m in &scene.meshes {
+        let mut g = vec![u32::MAX; m.positions.len()];
+        for (t, tri) in m.tris.iter().enumerate() {
+            for &v in tri {
+                g[v as usize] = m.tri_gaussian[t];
+            }
+        }
+        // A vertex no triangle uses belongs to the Gaussian emitted around it.
+        let mut last = u32::MAX;
+        for x in g.iter_mut() {
+            if *x == u32::MAX {
+                *x = last;
+            } else {
+                last = *x;
+            }
+        }
+        per_vertex.push(g);
+    }
+    per_vertex
+}
+
+/// One Adam step (β 0.9/0.999, ε 1e-8, bias-corrected at step `t`) on every lane with a
+/// gradient or momentum, then `project`.
+fn adam(
+    p: &mut [[f32; 4]],
+    m: &mut [[f32; 4]],
+    v: &mut [[f32; 4]],
+    g: &[[f32; 4]],
+    lr: [f32; 4],
+    t: i32,
+    project: impl Fn(&mut [f32; 4]) + Sync,
+) {
+    let (b1, b2, eps) = (0.9f32, 0.999f32, 1e-8f32);
+    let c1 = 1.0 - b1.powi(t);
+    let c2 = 1.0 - b2.powi(t);
+    p.par_iter_mut()
+        .zip(m.par_iter_mut())
+        .zip(v.par_iter_mut())
+        .zip(g.par_iter())
+        .for_each(|(((p, m), v), g)| {
+            let lanes = p.iter_mut().zip(m.iter_mut()).zip(v.iter_mut());
+            for (((p, m), v), (&g, &lr)) in lanes.zip(g.iter().zip(&lr)) {
+                if g == 0.0 && *m == 0.0 {
+                    continue;
+                }
+                *m = b1 * *m + (1.0 - b1) * g;
+                *v = b2 * *v + (1.0 - b2) * g * g;
+                *p -= lr * (*m / c1) / ((*v / c2).sqrt() + eps);
+            }
+            project(p);
+        });
 }
 
 /// The material and texture alpha of a hit: what `Mesh::shade` multiplies the interpolated

@@ -35,6 +35,9 @@ pub struct ViewRequest {
     pub height: u32,
     /// Held-back views to measure before and after (fitting by `orbit:N` only).
     pub held_back: usize,
+    /// Held-back image size when it is not the fitting size (so fits at different sizes
+    /// are measured on the same images).
+    pub held_size: Option<(u32, u32)>,
     /// Scene times a dynamic scene is fitted at (evenly over its time range, start and end
     /// included), given to the views in turn; static scenes use their start.
     pub times: usize,
@@ -47,6 +50,7 @@ impl Default for ViewRequest {
             width: 240,
             height: 180,
             held_back: 4,
+            held_size: None,
             times: 4,
         }
     }
@@ -72,7 +76,8 @@ pub fn resolve_views(
     )?;
     let held = match items[..] {
         [CameraListItem::Orbit(n)] if req.held_back > 0 => {
-            views::held_back(&cloud, n, req.held_back, req.width, req.height)?
+            let (w, h) = req.held_size.unwrap_or((req.width, req.height));
+            views::held_back(&cloud, n, req.held_back, w, h)?
         }
         _ => Vec::new(),
     };
