@@ -461,69 +461,85 @@ impl GaussianTracer {
                 det: (f.cov[0] * f.cov[2] - f.cov[1] * f.cov[1]) as f32,
                 pixel: (f.pixel.0 as f32, f.pixel.1 as f32),
             });
-            let (accel, pboxes, splats, mode) = match fp {
+            let (buckets, pboxes, splats, mode) = match fp {
                 Some((_, pad)) => (
-                    &pad.accels[pi],
+                    pad.accels[pi].as_slice(),
                     pad.boxes[pi].as_slice(),
                     pad.splats[pi].as_slice(),
                     pad.mode,
                 ),
-                None => (&part.accel, &[][..], &[][..], Footprint::Off),
+                None => (&[][..], &[][..], &[][..], Footprint::Off),
             };
-            // Re-keyed hits (mean depth) may sit before their proxy's entry, so the traversal
-            // must not skip nodes beyond the k-th key: the cull distance is left alone (which
-            // only costs work). Projected hits are keyed at the mean's depth already, and
-            // their flat proxy is entered there.
+            // Projected hits are keyed at the mean's depth already, and their flat proxy is
+            // entered there.
             let order = match (near, mode) {
                 (None, _) | (_, Footprint::Projected) => HitOrder::Hit,
                 _ => order,
             };
-            let cull0 = buf.cull(tmax);
-            accel.traverse(ro, rd, cull0, &mut |p, _, cull| {
-                buf.candidates = buf.candidates.wrapping_add(1);
-                let p = p as usize;
-                if let Some(n) = near {
-                    if (part.mean[p] - n.origin).dot(n.forward) <= n.near {
+            // Re-keyed hits (mean depth) may sit before their proxy's entry, so the traversal
+            // may not stop at the k-th key itself: a hit keyed below K lies in a box the ray
+            // enters before K + reach / (d·f) (`camera::Bucket`), and that is where it stops.
+            let forward_cos = near.map_or(0.0, |n| rd.dot(n.forward));
+            let mut run = |accel: &dyn Accel, ids: Option<&[u32]>, reach: f32| {
+                let widen = |c: f32| match order {
+                    HitOrder::Hit => c,
+                    HitOrder::MeanDepth => camera::rekeyed_cull(c, reach, forward_cos),
+                };
+                let cull0 = widen(buf.cull(tmax));
+                accel.traverse(ro, rd, cull0, &mut |p, _, cull| {
+                    buf.candidates = buf.candidates.wrapping_add(1);
+                    let p = match ids {
+                        Some(ids) => ids[p as usize] as usize,
+                        None => p as usize,
+                    };
+                    if let Some(n) = near {
+                        if (part.mean[p] - n.origin).dot(n.forward) <= n.near {
+                            return;
+                        }
+                    }
+                    let r = match (&local, mode) {
+                        (Some(f), Footprint::Projected) => {
+                            part.response_projected(p, ro, rd, f, &splats[p])
+                        }
+                        (Some(f), _) => part.response_fp(p, ro, rd, f, pboxes[p]),
+                        (None, _) => part.response(p, ro, rd),
+                    };
+                    let Some((mut t, alpha)) = r else {
+                        return;
+                    };
+                    if let Some(n) = near {
+                        if let Some(k) =
+                            camera::mean_depth_key(order, part.mean[p], ro, rd, n.forward)
+                        {
+                            t = k;
+                        }
+                    }
+                    if t > tmax {
                         return;
                     }
-                }
-                let r = match (&local, mode) {
-                    (Some(f), Footprint::Projected) => {
-                        part.response_projected(p, ro, rd, f, &splats[p])
+                    let h = Hit {
+                        t,
+                        gaussian: part.id_offset + part.index[p],
+                        instance: pi as u32,
+                        group: 0,
+                        payload: GaussianPayload {
+                            index: part.index[p],
+                            alpha,
+                        },
+                    };
+                    if after.is_some_and(|a| h.key() <= a) {
+                        return;
                     }
-                    (Some(f), _) => part.response_fp(p, ro, rd, f, pboxes[p]),
-                    (None, _) => part.response(p, ro, rd),
-                };
-                let Some((mut t, alpha)) = r else {
-                    return;
-                };
-                if let Some(n) = near {
-                    if let Some(k) = camera::mean_depth_key(order, part.mean[p], ro, rd, n.forward)
-                    {
-                        t = k;
-                    }
+                    *cull = widen(buf.insert(h, tmax));
+                });
+            };
+            if fp.is_some() {
+                for b in buckets {
+                    run(b.accel.as_ref(), b.ids.as_deref(), b.reach);
                 }
-                if t > tmax {
-                    return;
-                }
-                let h = Hit {
-                    t,
-                    gaussian: part.id_offset + part.index[p],
-                    instance: pi as u32,
-                    group: 0,
-                    payload: GaussianPayload {
-                        index: part.index[p],
-                        alpha,
-                    },
-                };
-                if after.is_some_and(|a| h.key() <= a) {
-                    return;
-                }
-                let c = buf.insert(h, tmax);
-                if order == HitOrder::Hit {
-                    *cull = c;
-                }
-            });
+            } else {
+                run(part.accel.as_ref(), None, f32::INFINITY);
+            }
         }
     }
 
@@ -670,3 +686,6 @@ impl GaussianTracer {
         Ok((frame, stats))
     }
 }
+
+#[cfg(test)]
+mod cull_tests;

@@ -21,7 +21,7 @@ use glam::{DMat3, DVec3, Vec3};
 use splatbridge_scene::Camera;
 
 use super::{GaussianTracer, Part};
-use crate::backend::{build_boxes, fits_bvh, Accel, EmptyAccel};
+use crate::backend::{build_boxes, fits_bvh, Accel};
 use crate::error::Result;
 use crate::footprint::{pad_for, Footprint, HitOrder};
 use crate::geom::transformed_box;
@@ -56,13 +56,127 @@ pub(super) struct Splat2d {
 /// bounds, and in mode `projected` each proxy's splat.
 pub struct Padded {
     pub(super) mode: Footprint,
-    pub(super) accels: Vec<Box<dyn Accel>>,
+    /// Per part, its grown proxies' BVHs (see [`Bucket`]).
+    pub(super) accels: Vec<Vec<Bucket>>,
     /// Each part's grown proxy boxes (anchor-relative, in the part's frame).
     pub(super) boxes: Vec<Vec<(Vec3, Vec3)>>,
     pub(super) bounds: Vec<Option<(DVec3, DVec3)>>,
     pub(super) splats: Vec<Vec<Splat2d>>,
     /// Seconds spent building them.
     pub build_seconds: f64,
+}
+
+/// Proxies of one part whose grown boxes have diagonals within a factor [`BUCKET_RATIO`] of
+/// each other, under their own BVH; a part's buckets are listed most populous first.
+///
+/// Under [`HitOrder::MeanDepth`] a hit's key is its mean's view depth along the ray,
+/// `(μ − o)·f / (d·f)`, which can come before the ray enters the proxy's box; so a traversal
+/// cannot stop at the k-th key K. It can stop a little later: the mean and the point where
+/// the ray enters the grown box both lie in that box, so a hit keyed below K is in a box the
+/// ray enters before `K + diagonal / (d·f)`. With one BVH over every proxy, the largest
+/// Gaussian's diagonal would set that margin for all of them; grouping proxies by size keeps
+/// each group's margin (`reach`, its largest diagonal) near its own proxies' size.
+pub(super) struct Bucket {
+    pub(super) accel: Box<dyn Accel>,
+    /// The part's proxy index of each of the BVH's primitives (None: the identity).
+    pub(super) ids: Option<Vec<u32>>,
+    /// Largest diagonal of the bucket's grown boxes.
+    pub(super) reach: f32,
+}
+
+/// Size ratio between the smallest and largest proxies of a bucket. With 4 a capture whose
+/// Gaussians span five decades of size gets about nine buckets (nine BVH roots per ray), and
+/// every bucket's margin is at most 4 × (with the √3 of a box's diagonal) its smallest
+/// proxy's extent.
+const BUCKET_RATIO: f32 = 4.0;
+
+/// Most buckets a part is split into; larger proxies share the last one.
+const MAX_BUCKETS: usize = 16;
+
+/// The traversal's cull distance for a k-th key `k` under mean-depth keys (see [`Bucket`]):
+/// `k + reach / cos`, where `cos = d·f` is the ray's cosine to the camera's forward axis.
+/// Widened by a relative 1e-5 (the f32 rounding of the key, `1.2e-7` per operation, over a
+/// few operations, with a hundredfold margin) and 1e-4 ray units (the node test's own
+/// epsilon, `ObvhsAccel::walk`); infinite when no bound holds (`cos ≤ 0`, unbounded reach).
+#[inline]
+pub(super) fn rekeyed_cull(k: f32, reach: f32, cos: f32) -> f32 {
+    if !(cos > 0.0) || !k.is_finite() {
+        return f32::INFINITY;
+    }
+    let margin = reach / cos;
+    let c = k + margin;
+    let c = c + (c.abs() + margin) * 1e-5 + 1e-4;
+    if c.is_finite() {
+        c
+    } else {
+        f32::INFINITY
+    }
+}
+
+/// Split `boxes` (a part's grown proxies) into [`Bucket`]s by diagonal and build each one's
+/// BVH; a part whose proxies all fall in one bucket keeps the identity order.
+fn buckets(tracer: &GaussianTracer, boxes: &[(Vec3, Vec3)]) -> Result<Vec<Bucket>> {
+    if boxes.is_empty() {
+        return Ok(Vec::new());
+    }
+    let diag: Vec<f32> = boxes.iter().map(|(lo, hi)| (*hi - *lo).length()).collect();
+    let smallest = diag
+        .iter()
+        .copied()
+        .filter(|d| *d > 0.0)
+        .fold(f32::INFINITY, f32::min);
+    let class = |d: f32| -> usize {
+        if !(d > smallest) || !smallest.is_finite() {
+            return 0;
+        }
+        let c = ((d / smallest).ln() / BUCKET_RATIO.ln()).floor();
+        if c.is_finite() {
+            (c as usize).min(MAX_BUCKETS - 1)
+        } else {
+            MAX_BUCKETS - 1
+        }
+    };
+    let mut members: Vec<Vec<u32>> = vec![Vec::new(); MAX_BUCKETS];
+    for (i, d) in diag.iter().enumerate() {
+        members[class(*d)].push(i as u32);
+    }
+    let reach_of = |ids: &[u32]| {
+        ids.iter()
+            .map(|&i| diag[i as usize])
+            .fold(0.0f32, |a, d| if d > a { d } else { a })
+    };
+    let used = members.iter().filter(|m| !m.is_empty()).count();
+    if used == 1 {
+        let reach = diag.iter().copied().fold(0.0f32, f32::max);
+        return Ok(vec![Bucket {
+            accel: build_boxes(tracer.backend, tracer.preset, boxes)?,
+            ids: None,
+            reach: if reach.is_finite() {
+                reach
+            } else {
+                f32::INFINITY
+            },
+        }]);
+    }
+    // Until the k-buffer is full nothing is culled, so the bucket most likely to fill it, the
+    // most populous, is traversed first; the others then start from its k-th key.
+    let mut members: Vec<Vec<u32>> = members.into_iter().filter(|m| !m.is_empty()).collect();
+    members.sort_by_key(|m| std::cmp::Reverse(m.len()));
+    let mut out = Vec::with_capacity(used);
+    for ids in members {
+        let sub: Vec<(Vec3, Vec3)> = ids.iter().map(|&i| boxes[i as usize]).collect();
+        let reach = reach_of(&ids);
+        out.push(Bucket {
+            accel: build_boxes(tracer.backend, tracer.preset, &sub)?,
+            ids: Some(ids),
+            reach: if reach.is_finite() {
+                reach
+            } else {
+                f32::INFINITY
+            },
+        });
+    }
+    Ok(out)
 }
 
 impl Part {
@@ -284,10 +398,14 @@ impl GaussianTracer {
                     splats.push(s);
                 }
             }
-            out.accels.push(if boxes.is_empty() {
-                Box::new(EmptyAccel) as Box<dyn Accel>
-            } else {
-                build_boxes(self.backend, self.preset, &boxes)?
+            out.accels.push(match mode {
+                // Projected hits are keyed where their flat proxy is entered: one BVH.
+                Footprint::Projected if !boxes.is_empty() => vec![Bucket {
+                    accel: build_boxes(self.backend, self.preset, &boxes)?,
+                    ids: None,
+                    reach: f32::INFINITY,
+                }],
+                _ => buckets(self, &boxes)?,
             });
             out.bounds.push(match &self.placed[pi] {
                 Some(pl) if !boxes.is_empty() => Some(transformed_box(&pl.to_world, lo, hi)),
