@@ -375,7 +375,7 @@ fn cesium_and_babylon_against_native() -> (f64, f64) {
     assert!(st.success(), "CesiumJS failed");
     // The same Gaussians as one float KHR file with the camera embedded, in Babylon.js.
     let mut one = scene.clone();
-    one.cameras = vec![cam];
+    one.cameras = vec![cam.clone()];
     let khr = root.as_path().join("one.glb");
     splatbridge_convert::splats_gltf::write_file_with(
         &khr,
@@ -540,7 +540,7 @@ fn three_tiles_renderer_draws_the_mesh_tileset_like_one_file() {
         .unwrap();
     assert!(st.success(), "3d-tiles-renderer failed");
     let mut one = scene.clone();
-    one.cameras = vec![cam];
+    one.cameras = vec![cam.clone()];
     let glb = dir.path().join("one.glb");
     let mut file = std::io::BufWriter::new(std::fs::File::create(&glb).unwrap());
     splatbridge_convert::write_glb(&mut file, &one, None, &opts.convert).unwrap();
