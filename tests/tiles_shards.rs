@@ -175,7 +175,11 @@ fn three_shards_and_the_final_run_write_what_one_run_writes() {
         v.extend(dirs);
         v
     }
-    refused(&with(&base, &dir_args[..2]), &out, "missing shard(s) 2 of 3");
+    refused(
+        &with(&base, &dir_args[..2]),
+        &out,
+        "missing shard(s) 2 of 3",
+    );
     refused(
         &with(&base, &[dir_args[0], dir_args[1], dir_args[1]]),
         &out,
@@ -191,7 +195,10 @@ fn three_shards_and_the_final_run_write_what_one_run_writes() {
     refused(&other_input, &out, "another input or other options");
     // A shard folder without its manifest (an ordinary directory).
     refused(
-        &with(&base, &[dir_args[0], dir_args[1], tmp.path().to_str().unwrap()]),
+        &with(
+            &base,
+            &[dir_args[0], dir_args[1], tmp.path().to_str().unwrap()],
+        ),
         &out,
         "no shard manifest",
     );
