@@ -170,28 +170,35 @@ fn three_shards_and_the_final_run_write_what_one_run_writes() {
         "150",
         "--from-shards",
     ];
-    let with = |dirs: &[&str]| {
+    fn with<'a>(base: &[&'a str], dirs: &[&'a str]) -> Vec<&'a str> {
         let mut v = base.to_vec();
         v.extend(dirs);
         v
-    };
-    refused(&with(&dir_args[..2]), &out, "missing shard(s) 2 of 3");
+    }
     refused(
-        &with(&[dir_args[0], dir_args[1], dir_args[1]]),
+        &with(&base, &dir_args[..2]),
+        &out,
+        "missing shard(s) 2 of 3",
+    );
+    refused(
+        &with(&base, &[dir_args[0], dir_args[1], dir_args[1]]),
         &out,
         "given twice",
     );
-    let mut other_opts = with(&dir_args);
+    let mut other_opts = with(&base, &dir_args);
     other_opts[5] = "140";
     refused(&other_opts, &out, "another input or other options");
     let ply2 = tmp.path().join("other.ply");
     write_ply(&ply2, &clusters(1500, 43));
-    let mut other_input = with(&dir_args);
+    let mut other_input = with(&base, &dir_args);
     other_input[1] = ply2.to_str().unwrap();
     refused(&other_input, &out, "another input or other options");
     // A shard folder without its manifest (an ordinary directory).
     refused(
-        &with(&[dir_args[0], dir_args[1], tmp.path().to_str().unwrap()]),
+        &with(
+            &base,
+            &[dir_args[0], dir_args[1], tmp.path().to_str().unwrap()],
+        ),
         &out,
         "no shard manifest",
     );
@@ -202,5 +209,5 @@ fn three_shards_and_the_final_run_write_what_one_run_writes() {
         .expect("shard 2 owns a leaf")
         .0;
     std::fs::write(dirs[2].join(&victim), b"short").unwrap();
-    refused(&with(&dir_args), &out, "damaged or replaced shard");
+    refused(&with(&base, &dir_args), &out, "damaged or replaced shard");
 }

@@ -55,12 +55,12 @@ pub struct TileArgs {
     #[arg(long, value_name = "LON,LAT,HEIGHT", allow_hyphen_values = true)]
     pub tiles_origin: Option<String>,
     /// gzip level of the tiles' SPZ streams, 0–9 (with --tiles; default 2, see docs/tiles.md).
-    #[arg(long, value_name = "0-9", value_parser = clap::value_parser!(u32).range(0..=9))]
+    #[arg(long, value_name = "0-9", value_parser = clap::value_parser!(u32).range(0..=9), requires = "tiles")]
     pub tile_gzip_level: Option<u32>,
     /// Build the tileset from the directories of every shard of a `--tiles DIR --shard I/N`
     /// run (with --tiles and the same binary PLY and options): the leaves are taken from
     /// them, the parents and tileset.json are made here.
-    #[arg(long, value_name = "SHARD_DIR", num_args = 1.., conflicts_with = "shard")]
+    #[arg(long, value_name = "SHARD_DIR", num_args = 1.., conflicts_with = "shard", requires = "tiles")]
     pub from_shards: Vec<PathBuf>,
 }
 

@@ -119,6 +119,9 @@ fn append(dir: &Path, block: usize, buf: &mut Vec<u8>) -> Result<()> {
     Ok(())
 }
 
+/// Sees every kept record's bytes of a pass, in file order.
+pub(super) type RecordSink<'a> = dyn FnMut(&[u8]) + 'a;
+
 /// The partition pass: the blocks of a binary PLY's Gaussians and the number kept, from a
 /// skeleton of the file (see the module documentation); `Ok(None)` for an ASCII PLY.
 /// `records`, when given, sees every kept record's bytes in file order.
@@ -126,7 +129,7 @@ pub(super) fn partition(
     ply: &Path,
     drop_invalid: bool,
     max_per_tile: usize,
-    mut records: Option<&mut dyn FnMut(&[u8])>,
+    mut records: Option<&mut RecordSink<'_>>,
 ) -> Result<Option<(Blocks, usize)>> {
     let Some(mut s) = PlyStream::open(ply, drop_invalid).map_err(scene_err)? else {
         return Ok(None);
