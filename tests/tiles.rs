@@ -7,38 +7,22 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+mod tiles_common;
+use tiles_common::{clusters_seeded, files};
+
 use glam::{Quat, Vec3};
 use serde_json::Value;
 use splatbridge_convert::splats_gltf::KhrCompression;
 use splatbridge_convert::tiles::{capture_to_tileset, TileContent, TileOptions, TILE_GZIP_LEVEL};
 use splatbridge_convert::ConvertOptions;
 use splatbridge_scene::dynamic::DynamicScene;
-use splatbridge_scene::rng::Rng;
 use splatbridge_scene::GaussianCloud;
 
 const BIN: &str = env!("CARGO_BIN_EXE_splatbridge");
 
-/// Three clusters of small Gaussians along a street-like strip (x 0..40, thin in y and z).
+/// The shared test cloud with the seed these tests' measured figures were taken with.
 fn clusters(n: usize) -> GaussianCloud {
-    let mut rng = Rng::new(42);
-    let mut c = GaussianCloud::new(1);
-    let centres = [
-        Vec3::new(2.0, -0.5, 3.0),
-        Vec3::new(20.0, -1.0, 2.0),
-        Vec3::new(38.0, 0.0, 4.0),
-    ];
-    for i in 0..n {
-        let m = centres[i % 3] + 1.5 * Vec3::new(rng.normal(), 0.3 * rng.normal(), rng.normal());
-        let s = Vec3::new(
-            rng.range(0.03, 0.12),
-            rng.range(0.03, 0.12),
-            rng.range(0.01, 0.05),
-        );
-        let q = Quat::from_xyzw(rng.normal(), rng.normal(), rng.normal(), rng.normal()).normalize();
-        let rgb = Vec3::new(rng.f32(), rng.f32(), rng.f32());
-        c.push_activated(m, s, q, rng.range(0.3, 0.95), rgb);
-    }
-    c
+    clusters_seeded(n, 42)
 }
 
 fn options(content: TileContent, compression: KhrCompression, max: usize) -> TileOptions {
@@ -310,6 +294,35 @@ fn cli_writes_tiles_and_reports_blocks() {
 }
 
 #[cfg_attr(not(web_clients), allow(dead_code))]
+/// Render the tileset in `dir` with `client` (`cesium` or `3d-tiles-renderer`) into `out` at
+/// 320×240, a 50° camera `[eye, target, up]` given in capture coordinates (mapped into the
+/// tileset's frame as the root transform does), every tile refined (`--sse 0`).
+fn render_tileset(
+    client: &str,
+    dir: &Path,
+    out: &Path,
+    convert: &ConvertOptions,
+    [eye, target, up]: [glam::DVec3; 3],
+) {
+    let m = capture_to_tileset(convert).as_dmat3();
+    let f = |v: glam::DVec3| {
+        let t = m * v;
+        format!("{},{},{}", t.x, t.y, t.z)
+    };
+    let st = Command::new("node")
+        .arg(script("tiles-render.mjs"))
+        .args([
+            client,
+            dir.join("tileset.json").to_str().unwrap(),
+            out.to_str().unwrap(),
+        ])
+        .args(["--eye", &f(eye), "--target", &f(target), "--up", &f(up)])
+        .args(["--fov", "50", "--size", "320x240", "--sse", "0"])
+        .status()
+        .unwrap();
+    assert!(st.success(), "{client} failed");
+}
+
 fn script(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("scripts")
@@ -355,24 +368,14 @@ fn cesium_and_babylon_against_native() -> (f64, f64) {
     }
     let native_png = root.as_path().join("native.png");
     splatbridge_scene::image_io::save_frame(&native_png, &native).unwrap();
-    let m = capture_to_tileset(&opts.convert).as_dmat3();
-    let f = |v: glam::DVec3| {
-        let t = m * v;
-        format!("{},{},{}", t.x, t.y, t.z)
-    };
     let out = root.as_path().join("cesium.png");
-    let st = Command::new("node")
-        .arg(script("tiles-render.mjs"))
-        .args([
-            "cesium",
-            root.as_path().join("tileset.json").to_str().unwrap(),
-            out.to_str().unwrap(),
-        ])
-        .args(["--eye", &f(eye), "--target", &f(target), "--up", &f(up)])
-        .args(["--fov", "50", "--size", "320x240", "--sse", "0"])
-        .status()
-        .unwrap();
-    assert!(st.success(), "CesiumJS failed");
+    render_tileset(
+        "cesium",
+        root.as_path(),
+        &out,
+        &opts.convert,
+        [eye, target, up],
+    );
     // The same Gaussians as one float KHR file with the camera embedded, in Babylon.js.
     let mut one = scene.clone();
     one.cameras = vec![cam.clone()];
@@ -441,18 +444,7 @@ fn cesium_and_babylon_against_native() -> (f64, f64) {
     let opts1 = options(TileContent::Splats, KhrCompression::SpzCesium, 1 << 20);
     splatbridge::tiles::write_tiles(&one_dir, &scene, &opts1).unwrap();
     let out1 = root.join("cesium_one_tile.png");
-    let st = Command::new("node")
-        .arg(script("tiles-render.mjs"))
-        .args([
-            "cesium",
-            one_dir.join("tileset.json").to_str().unwrap(),
-            out1.to_str().unwrap(),
-        ])
-        .args(["--eye", &f(eye), "--target", &f(target), "--up", &f(up)])
-        .args(["--fov", "50", "--size", "320x240", "--sse", "0"])
-        .status()
-        .unwrap();
-    assert!(st.success(), "CesiumJS failed on one tile");
+    render_tileset("cesium", &one_dir, &out1, &opts1.convert, [eye, target, up]);
     let p1 = splatbridge_scene::metrics::psnr(
         &a,
         &splatbridge_scene::image_io::load_png(&out1).unwrap(),
@@ -521,24 +513,14 @@ fn three_tiles_renderer_draws_the_mesh_tileset_like_one_file() {
         splatbridge_hybrid::native::render(&cloud, &cam, &Default::default()).unwrap();
     let native_png = dir.path().join("native.png");
     splatbridge_scene::image_io::save_frame(&native_png, &native).unwrap();
-    let m = capture_to_tileset(&opts.convert).as_dmat3();
-    let f = |v: glam::DVec3| {
-        let t = m * v;
-        format!("{},{},{}", t.x, t.y, t.z)
-    };
     let tiles_png = dir.path().join("tiles.png");
-    let st = Command::new("node")
-        .arg(script("tiles-render.mjs"))
-        .args([
-            "3d-tiles-renderer",
-            dir.path().join("tileset.json").to_str().unwrap(),
-            tiles_png.to_str().unwrap(),
-        ])
-        .args(["--eye", &f(eye), "--target", &f(target), "--up", &f(up)])
-        .args(["--fov", "50", "--size", "320x240", "--sse", "0"])
-        .status()
-        .unwrap();
-    assert!(st.success(), "3d-tiles-renderer failed");
+    render_tileset(
+        "3d-tiles-renderer",
+        dir.path(),
+        &tiles_png,
+        &opts.convert,
+        [eye, target, up],
+    );
     let mut one = scene.clone();
     one.cameras = vec![cam.clone()];
     let glb = dir.path().join("one.glb");
@@ -578,22 +560,6 @@ fn three_tiles_renderer_draws_the_mesh_tileset_like_one_file() {
 /// fragments whose draw order differs between one mesh and several.
 #[cfg_attr(not(web_clients), allow(dead_code))]
 const THREE_TILES_AGREEMENT: f64 = 50.0;
-
-/// Every file of a tileset directory, by name.
-fn files(dir: &Path) -> Vec<(String, Vec<u8>)> {
-    let mut v: Vec<(String, Vec<u8>)> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| {
-            let e = e.unwrap();
-            (
-                e.file_name().into_string().unwrap(),
-                std::fs::read(e.path()).unwrap(),
-            )
-        })
-        .collect();
-    v.sort();
-    v
-}
 
 /// The streamed tileset of a binary PLY (partition pass, bucket pass) is the in-memory
 /// tileset of the same file, byte for byte, including with invalid Gaussians dropped; without

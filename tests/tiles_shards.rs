@@ -5,30 +5,12 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use glam::{Quat, Vec3};
-use splatbridge_scene::rng::Rng;
 use splatbridge_scene::GaussianCloud;
 
-const BIN: &str = env!("CARGO_BIN_EXE_splatbridge");
+mod tiles_common;
+use tiles_common::{clusters_seeded as clusters, files};
 
-/// Three clusters along a strip, SH degree 1 (several leaves at a budget of 150).
-fn clusters(n: usize, seed: u64) -> GaussianCloud {
-    let mut rng = Rng::new(seed);
-    let mut c = GaussianCloud::new(1);
-    let centres = [
-        Vec3::new(2.0, -0.5, 3.0),
-        Vec3::new(20.0, -1.0, 2.0),
-        Vec3::new(38.0, 0.0, 4.0),
-    ];
-    for i in 0..n {
-        let m = centres[i % 3] + 1.5 * Vec3::new(rng.normal(), 0.3 * rng.normal(), rng.normal());
-        let s = Vec3::new(rng.range(0.03, 0.12), rng.range(0.03, 0.12), 0.02);
-        let q = Quat::from_xyzw(rng.normal(), rng.normal(), rng.normal(), rng.normal()).normalize();
-        let rgb = Vec3::new(rng.f32(), rng.f32(), rng.f32());
-        c.push_activated(m, s, q, rng.range(0.3, 0.95), rgb);
-    }
-    c
-}
+const BIN: &str = env!("CARGO_BIN_EXE_splatbridge");
 
 fn write_ply(path: &Path, c: &GaussianCloud) {
     splatbridge_scene::ply::write_ply(
@@ -70,22 +52,6 @@ fn refused(args: &[&str], out: &Path, what: &str) {
         !out.join("tileset.json").exists(),
         "{args:?} wrote a tileset"
     );
-}
-
-/// Every file of a directory, by name.
-fn files(dir: &Path) -> Vec<(String, Vec<u8>)> {
-    let mut v: Vec<(String, Vec<u8>)> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| {
-            let e = e.unwrap();
-            (
-                e.file_name().into_string().unwrap(),
-                std::fs::read(e.path()).unwrap(),
-            )
-        })
-        .collect();
-    v.sort();
-    v
 }
 
 #[test]
