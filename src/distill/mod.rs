@@ -144,10 +144,14 @@ impl DistillOptions {
         if self.times.iter().any(|t| !t.is_finite()) {
             return bad("distillation times must be finite".into());
         }
-        for k in [self.k, self.record_k] {
-            if !(1..=1024).contains(&k) {
-                return bad(format!("k-buffer size {k} is outside 1..=1024"));
-            }
+        if !(1..=1024).contains(&self.k) {
+            return bad(format!("k-buffer size {} is outside 1..=1024", self.k));
+        }
+        if !(1..=1024).contains(&self.record_k) {
+            return bad(format!(
+                "--distill-record-k {} is outside 1..=1024",
+                self.record_k
+            ));
         }
         if !(self.record_transmittance > 0.0 && self.record_transmittance < 1.0) {
             return bad("record transmittance must be in (0, 1)".into());
