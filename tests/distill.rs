@@ -9,6 +9,7 @@ use splatbridge_convert::{ConvertOptions, Profile};
 use splatbridge_raytrace::{BackendKind, BuildPreset, MeshTracer, RenderOptions};
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::fixtures::large;
+use splatbridge_scene::{Camera, Frame};
 
 fn small_scene(n: usize) -> DynamicScene {
     DynamicScene::from_static(large(n, 7))
@@ -113,10 +114,9 @@ fn recorded_hits_composite_to_the_traced_image() {
     }
 }
 
-/// Fitting on an orbit raises PSNR on held-back views (between the fitting views) of the
-/// street fixture (3,000 Gaussians, objects in their pose at t = 0).
-#[test]
-fn distillation_improves_held_back_views() {
+/// The street fixture (3,000 Gaussians, objects in their pose at t = 0), 8 fitting orbit views
+/// and 4 held-back views between them at 64×48, and native's images at the held-back views.
+fn street_fit_and_held_back() -> (DynamicScene, Vec<Camera>, Vec<Camera>, Vec<Frame>) {
     let scene = splatbridge_scene::fixtures::street_with(
         &splatbridge_scene::fixtures::StreetParams::new(3, 3000),
     );
@@ -124,6 +124,14 @@ fn distillation_improves_held_back_views() {
     let fit = views::orbit(&cloud, 8, 0..8, 64, 48).unwrap();
     let held = views::held_back(&cloud, 8, 4, 64, 48).unwrap();
     let targets = native_targets(&scene, 0.0, &held).unwrap();
+    (scene, fit, held, targets)
+}
+
+/// Fitting on an orbit raises PSNR on held-back views (between the fitting views) of the
+/// street fixture (3,000 Gaussians, objects in their pose at t = 0).
+#[test]
+fn distillation_improves_held_back_views() {
+    let (scene, fit, held, targets) = street_fit_and_held_back();
     let mut seen = Vec::new();
     for profile in [Profile::MeshSplats, Profile::Texture] {
         let d_opts = DistillOptions {
@@ -272,13 +280,7 @@ fn dynamic_scene_is_fitted_over_several_times() {
 /// still gains on held-back views of the street fixture.
 #[test]
 fn per_gaussian_fit_ties_vertices_and_improves_held_back_views() {
-    let scene = splatbridge_scene::fixtures::street_with(
-        &splatbridge_scene::fixtures::StreetParams::new(3, 3000),
-    );
-    let cloud = scene.composite(0.0);
-    let fit = views::orbit(&cloud, 8, 0..8, 64, 48).unwrap();
-    let held = views::held_back(&cloud, 8, 4, 64, 48).unwrap();
-    let targets = native_targets(&scene, 0.0, &held).unwrap();
+    let (scene, fit, held, targets) = street_fit_and_held_back();
     let d_opts = DistillOptions {
         iterations: 30,
         params: ParamMode::Gaussian,
