@@ -196,17 +196,18 @@ impl Part {
         fp: &LocalFootprint,
         bx: (Vec3, Vec3),
     ) -> Option<(f32, f32)> {
-        let inv = self.inv[p];
-        let og = inv * (o - self.mean[p]);
+        let x = &self.proxy[p];
+        let inv = x.inv;
+        let og = inv * (o - x.mean);
         let dg = inv * d;
         let dd = dg.length_squared();
         if !(dd > 0.0 && dd.is_finite()) {
             return None;
         }
-        let rel = self.mean[p] - o;
+        let rel = x.mean - o;
         let z = rel.dot(fp.forward);
         let z2 = z * z;
-        let mt = self.m[p].transpose();
+        let mt = x.m.transpose();
         let (a1, a2) = (mt * fp.e1, mt * fp.e2);
         let (g0, g1, g2) = (a1.dot(a1), a1.dot(a2), a2.dot(a2));
         let [f0, f1, f2] = fp.cov;
@@ -221,7 +222,7 @@ impl Part {
         }
         let (x0, x1) = (rel.dot(fp.e1), rel.dot(fp.e2));
         let q = (c2 * x0 * x0 - 2.0 * c1 * x0 * x1 + c0 * x1 * x1) / det;
-        if !(q <= self.r2[p]) {
+        if !(q <= x.r2) {
             return None;
         }
         let alpha = self.alpha(p, q)?;
@@ -264,7 +265,7 @@ impl Part {
         }
         // −2·power is exact, so −½ of it is `power` again, bit for bit.
         let alpha = self.alpha(p, -2.0 * power)?;
-        let t = (self.mean[p] - o).dot(fp.forward) / d.dot(fp.forward);
+        let t = (self.proxy[p].mean - o).dot(fp.forward) / d.dot(fp.forward);
         (t.is_finite() && t >= 0.0).then_some((t, alpha))
     }
 }
@@ -309,7 +310,7 @@ impl GaussianTracer {
         self.grown(Footprint::On, |part, pi, p, (blo, bhi)| {
             let w = self.world_mean(pi, part, p);
             let z = (w - cam.centre).dot(forward);
-            let pad = pad_for(cam, variance_px2, z, part.r2[p].sqrt() as f64);
+            let pad = pad_for(cam, variance_px2, z, part.proxy[p].r2.sqrt() as f64);
             let pad = Vec3::splat((pad * (1.0 + 1e-5)) as f32) + slack(blo, bhi);
             ((blo - pad, bhi + pad), Splat2d::default())
         })
@@ -332,8 +333,8 @@ impl GaussianTracer {
                 Some(pl) => pl.to_world.matrix3,
                 None => DMat3::IDENTITY,
             };
-            let m = rot * part.m[p].as_dmat3();
-            let Some((s, half)) = splat_2d(cam, t, &m, variance_px2, part.r2[p] as f64, grid)
+            let m = rot * part.proxy[p].m.as_dmat3();
+            let Some((s, half)) = splat_2d(cam, t, &m, variance_px2, part.proxy[p].r2 as f64, grid)
             else {
                 return (own, Splat2d::default());
             };
@@ -356,7 +357,7 @@ impl GaussianTracer {
 
     /// World position of proxy `p`'s mean at the current pose.
     fn world_mean(&self, pi: usize, part: &Part, p: usize) -> DVec3 {
-        let m = part.mean[p].as_dvec3() + part.anchor;
+        let m = part.proxy[p].mean.as_dvec3() + part.anchor;
         match &self.placed[pi] {
             Some(pl) => pl.to_world.transform_point3(m),
             None => m,
