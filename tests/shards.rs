@@ -5,23 +5,13 @@
 //! memory figures aside). Then the merge's refusals: missing, duplicate and mismatched shards.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
-fn bin() -> &'static str {
-    env!("CARGO_BIN_EXE_splatbridge")
-}
+mod shards_common;
+use shards_common::{bin, list, merge, ok, street};
 
 fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn ok(out: Output, what: &str) {
-    assert!(
-        out.status.success(),
-        "{what} failed: {}\n{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
 }
 
 /// Small enough for seconds in a test build, large enough that every renderer draws something:
@@ -29,33 +19,11 @@ fn ok(out: Output, what: &str) {
 const CAMERAS: &str = "orbit:3";
 const ARGS: &str = "--width 32 --height 24 --times 0,2 --profiles meshsplats";
 
-fn street(dir: &Path) -> PathBuf {
-    ok(
-        Command::new(bin())
-            .args(["fixture", "street", "--count", "1500", "-o"])
-            .arg(dir.join("street"))
-            .output()
-            .unwrap(),
-        "fixture",
-    );
-    dir.join("street/scene.json")
-}
-
 fn unsharded(scene: &Path, out: &Path) {
     let mut c = Command::new(bin());
     c.arg("compare").arg(scene).args(["--cameras", CAMERAS]);
     c.args(ARGS.split_whitespace()).arg("-o").arg(out);
     ok(c.output().unwrap(), "unsharded compare");
-}
-
-fn merge(dirs: &[PathBuf], out: &Path) -> Output {
-    Command::new(bin())
-        .arg("merge")
-        .args(dirs)
-        .arg("-o")
-        .arg(out)
-        .output()
-        .unwrap()
 }
 
 /// `report.json` records without the run's costs (milliseconds, peak memory).
@@ -73,14 +41,6 @@ fn records(dir: &Path) -> Vec<serde_json::Value> {
 /// Every file of `a` and `b` is the same, bit for bit, except the reports (their timings
 /// differ), whose records are compared without timings.
 fn same_run(a: &Path, b: &Path) {
-    let list = |d: &Path| {
-        let mut v: Vec<String> = std::fs::read_dir(d)
-            .unwrap()
-            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-            .collect();
-        v.sort();
-        v
-    };
     let (la, lb) = (list(a), list(b));
     assert_eq!(la, lb, "file lists differ");
     let mut images = 0;
@@ -104,7 +64,7 @@ fn same_run(a: &Path, b: &Path) {
 #[test]
 fn slurm_and_kubernetes_shards_merge_into_one_run() {
     let tmp = tempfile::tempdir().unwrap();
-    let scene = street(tmp.path());
+    let scene = street(tmp.path(), 1500);
     let one = tmp.path().join("one");
     unsharded(&scene, &one);
 
@@ -236,7 +196,7 @@ fn slurm_and_kubernetes_shards_merge_into_one_run() {
 #[test]
 fn render_frames_shards_merge_into_one_sequence() {
     let tmp = tempfile::tempdir().unwrap();
-    let scene = street(tmp.path());
+    let scene = street(tmp.path(), 1500);
     let render = |out: &Path, shard: Option<&str>| {
         let mut c = Command::new(bin());
         c.arg("render").arg(&scene).args([
@@ -262,14 +222,6 @@ fn render_frames_shards_merge_into_one_sequence() {
     }
     let merged = tmp.path().join("merged");
     ok(merge(&shards, &merged), "merge frames");
-    let list = |d: &Path| {
-        let mut v: Vec<String> = std::fs::read_dir(d)
-            .unwrap()
-            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-            .collect();
-        v.sort();
-        v
-    };
     let frames = list(&one);
     assert!(frames.len() > 3, "{frames:?}");
     assert_eq!(frames, list(&merged));
@@ -286,7 +238,7 @@ fn render_frames_shards_merge_into_one_sequence() {
 #[test]
 fn accuracy_shards_merge_into_one_sweep() {
     let tmp = tempfile::tempdir().unwrap();
-    let scene = street(tmp.path());
+    let scene = street(tmp.path(), 1500);
     let sweep = |out: &Path, shard: Option<&str>| {
         let mut c = Command::new(bin());
         c.arg("accuracy").arg(&scene).args([

@@ -3,57 +3,15 @@
 //! and the merge refuses an incomplete set.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
-fn bin() -> &'static str {
-    env!("CARGO_BIN_EXE_splatbridge")
-}
-
-fn ok(out: Output, what: &str) {
-    assert!(
-        out.status.success(),
-        "{what} failed: {}\n{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-}
-
-/// The street fixture: dynamic (moving objects), so every frame's OBJ differs.
-fn street(dir: &Path) -> PathBuf {
-    ok(
-        Command::new(bin())
-            .args(["fixture", "street", "--count", "800", "-o"])
-            .arg(dir.join("street"))
-            .output()
-            .unwrap(),
-        "fixture",
-    );
-    dir.join("street/scene.json")
-}
-
-fn list(d: &Path) -> Vec<String> {
-    let mut v: Vec<String> = std::fs::read_dir(d)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    v.sort();
-    v
-}
-
-fn merge(dirs: &[PathBuf], out: &Path) -> Output {
-    Command::new(bin())
-        .arg("merge")
-        .args(dirs)
-        .arg("-o")
-        .arg(out)
-        .output()
-        .unwrap()
-}
+mod shards_common;
+use shards_common::{bin, list, merge, ok, street};
 
 #[test]
 fn convert_frames_shards_merge_into_one_export() {
     let tmp = tempfile::tempdir().unwrap();
-    let scene = street(tmp.path());
+    let scene = street(tmp.path(), 800);
     let convert = |out: &Path, shard: Option<&str>| {
         let mut c = Command::new(bin());
         c.arg("convert").arg(&scene).arg("--frames");

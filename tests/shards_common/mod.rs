@@ -1,0 +1,56 @@
+//! What the shard tests share: the binary, a street fixture written by the CLI, `merge`, and a
+//! folder's file names.
+
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+pub fn bin() -> &'static str {
+    env!("CARGO_BIN_EXE_splatbridge")
+}
+
+/// Fails the test with the command's output unless it succeeded.
+pub fn ok(out: Output, what: &str) {
+    assert!(
+        out.status.success(),
+        "{what} failed: {}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// `fixture street --count COUNT` written under `dir`; its manifest. Dynamic (moving
+/// objects), so every frame's outputs differ.
+pub fn street(dir: &Path, count: usize) -> PathBuf {
+    ok(
+        Command::new(bin())
+            .args(["fixture", "street", "--count", &count.to_string(), "-o"])
+            .arg(dir.join("street"))
+            .output()
+            .unwrap(),
+        "fixture",
+    );
+    dir.join("street/scene.json")
+}
+
+/// `splatbridge merge DIRS… -o OUT`.
+pub fn merge(dirs: &[PathBuf], out: &Path) -> Output {
+    Command::new(bin())
+        .arg("merge")
+        .args(dirs)
+        .arg("-o")
+        .arg(out)
+        .output()
+        .unwrap()
+}
+
+/// The names of a folder's entries, sorted.
+pub fn list(d: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(d)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
