@@ -1,6 +1,7 @@
 //! Per-frame runs split into shards: `convert --frames --shard I/N` as N separate processes,
 //! merged with `splatbridge merge`, holds exactly the files of one unsharded run, bit for bit;
-//! and the merge refuses an incomplete set.
+//! and the merge refuses an incomplete set. The same for `trace --lidar-all-frames` and
+//! `trace --frames`.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -173,4 +174,101 @@ fn lidar_frames_shards_merge_into_one_run() {
             );
         }
     }
+}
+
+/// `trace --frames --shard I/N` (mode gaussian, whose weather particles are rebuilt per frame,
+/// and mode mesh): the merged shards hold the unsharded sequence (frames and per-frame LiDAR
+/// scans) bit for bit; and a frame of the sequence is the single `trace --time T` of that
+/// frame, bit for bit (the sequence poses, rebuilds and scans each frame at its own time).
+#[test]
+fn trace_frames_shards_merge_into_one_sequence() {
+    let tmp = tempfile::tempdir().unwrap();
+    ok(
+        Command::new(bin())
+            .args(["fixture", "street", "--count", "600"])
+            .args(["--effects", "lidar,rain", "-o"])
+            .arg(tmp.path().join("street"))
+            .output()
+            .unwrap(),
+        "fixture",
+    );
+    let scene = tmp.path().join("street/scene.json");
+    for mode in ["gaussian", "mesh"] {
+        let trace = |out: &Path, extra: &[&str]| {
+            let mut c = Command::new(bin());
+            c.arg("trace").arg(&scene).args(["--mode", mode]);
+            // A camera of the scene: an orbit rig would frame each single frame's composite.
+            c.args(["--camera", "scene:0", "--width", "16", "--height", "12"]);
+            std::fs::create_dir_all(out.parent().unwrap()).unwrap();
+            ok(c.args(extra).arg("-o").arg(out).output().unwrap(), "trace");
+        };
+        let root = tmp.path().join(mode);
+        let one = root.join("one");
+        trace(&one.join("t.png"), &["--frames"]);
+        let files = list(&one);
+        let frames = files.iter().filter(|f| f.ends_with(".png")).count();
+        let scans = files.iter().filter(|f| f.ends_with(".ply")).count();
+        // 0..4 s at 10 fps: 41 frames, each with its scan.
+        assert_eq!((frames, scans), (41, 41), "{mode}: {files:?}");
+        let first = std::fs::read(one.join("t_0000.png")).unwrap();
+        let last = std::fs::read(one.join("t_0040.png")).unwrap();
+        assert!(first != last, "{mode}: the objects did not move");
+
+        // Frame 17 (t = 1.7 s) alone.
+        let single = root.join("single");
+        trace(&single.join("t.png"), &["--time", "1.7"]);
+        assert!(
+            std::fs::read(single.join("t.png")).unwrap()
+                == std::fs::read(one.join("t_0017.png")).unwrap(),
+            "{mode}: frame 17 differs from trace --time 1.7"
+        );
+        assert!(
+            std::fs::read(single.join("lidar_0017.ply")).unwrap()
+                == std::fs::read(one.join("lidar_0017.ply")).unwrap(),
+            "{mode}: scan 17 differs from trace --time 1.7's"
+        );
+
+        let shards: Vec<PathBuf> = (0..3).map(|i| root.join(format!("s{i}"))).collect();
+        for (i, d) in shards.iter().enumerate() {
+            trace(
+                &d.join("t.png"),
+                &["--frames", "--shard", &format!("{i}/3")],
+            );
+        }
+        let per_shard: Vec<usize> = shards
+            .iter()
+            .map(|d| list(d).iter().filter(|f| f.ends_with(".png")).count())
+            .collect();
+        assert_eq!(
+            per_shard.iter().sum::<usize>(),
+            frames,
+            "{mode}: {per_shard:?}"
+        );
+        assert!(
+            per_shard.iter().all(|&n| n > 0),
+            "{mode}: a shard traced nothing: {per_shard:?}"
+        );
+        let merged = root.join("merged");
+        ok(merge(&shards, &merged), "merge");
+        assert_eq!(list(&merged), files, "{mode}");
+        for f in &files {
+            assert!(
+                std::fs::read(one.join(f)).unwrap() == std::fs::read(merged.join(f)).unwrap(),
+                "{mode}: {f} differs"
+            );
+        }
+    }
+    // --shard alone names what it splits.
+    let out = Command::new(bin())
+        .arg("trace")
+        .arg(&scene)
+        .args(["--shard", "0/2", "-o"])
+        .arg(tmp.path().join("x.png"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("--shard"),
+        "{out:?}"
+    );
 }

@@ -2,7 +2,7 @@
 //! explicit look-at), output paths, and progress bars that stay quiet off a terminal.
 
 use std::io::IsTerminal;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use anyhow::Context;
 use glam::DVec3;
@@ -142,17 +142,4 @@ pub fn parse_rgb(s: &str) -> Result<glam::Vec3, String> {
         return Err(format!("'{s}': colour components must be in [0, 1]"));
     }
     Ok(v.as_vec3())
-}
-
-/// `OUT` with `_NAME` inserted before the extension (for per-frame outputs).
-pub fn with_suffix(out: &Path, suffix: &str) -> PathBuf {
-    let stem = out
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let ext = out
-        .extension()
-        .map(|e| format!(".{}", e.to_string_lossy()))
-        .unwrap_or_default();
-    out.with_file_name(format!("{stem}_{suffix}{ext}"))
 }

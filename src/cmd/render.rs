@@ -9,15 +9,15 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use serde_json::json;
-use splatbridge::pipeline::{render_frame, FrameRequest, FrameStats, Renderer};
+use splatbridge::pipeline::sequence::{render_sequence, SequenceRequest};
+use splatbridge::pipeline::{render_frame, FrameRequest, FrameStats, RenderedFrame, Renderer};
 use splatbridge_hybrid::{Extent, RenderOptions, RenderStats};
 use splatbridge_scene::effects::EffectCounters;
 use splatbridge_scene::effects_run::effects_of;
-use splatbridge_scene::image_io::stage_frame;
-use splatbridge_scene::output::OutputSet;
+use splatbridge_scene::image_io::save_frame;
 use splatbridge_scene::Camera;
 
-use crate::cmd::common::{load, parse_rgb, with_suffix, CameraArgs};
+use crate::cmd::common::{load, parse_rgb, CameraArgs};
 
 /// Footprint extent (see `splatbridge_hybrid::Extent`).
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -243,46 +243,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if !args.json {
         println!("render {name}: {}", args.knobs.describe());
     }
-    let mut counters = EffectCounters::default();
     let mut frames_json = Vec::with_capacity(times.len());
-    // A `--frames` sequence appears together or not at all (and never half old, half new).
-    let mut outputs = OutputSet::new();
-    let scene_hash = args.shard.map(|_| splatbridge::merge::scene_hash(&scene));
-    let mut shard_files = Vec::new();
-    for (i, &t) in times.iter().enumerate() {
-        if let (Some(shard), Some(hash)) = (args.shard, &scene_hash) {
-            let key = splatbridge::shard::WorkKey {
-                scene: hash.clone(),
-                time: t,
-                camera: cam.name.clone(),
-                setting: format!("render {i}"),
-            };
-            if !shard.owns(&key) {
-                continue;
-            }
-        }
-        let req = FrameRequest {
-            scene: Some(&scene),
-            effects: &effects,
-            camera: &cam,
-            time: t,
-            content: EffectCounters::default(),
-            lidar: None,
-        };
-        let r = render_frame(&mut renderer, &req).with_context(|| name.clone())?;
-        counters.add(&r.counters);
+    let mut print_frame = |out: &Path, t: f64, r: &RenderedFrame| -> anyhow::Result<()> {
         let FrameStats::Native(stats) = &r.stats else {
             bail!("{name}: native splatting returned another renderer's stats");
         };
-        let out = if args.frames {
-            with_suffix(&args.out, &format!("{i:04}"))
-        } else {
-            args.out.clone()
-        };
-        stage_frame(&mut outputs, &out, &r.frame)?;
-        if let Some(name) = out.file_name() {
-            shard_files.push(name.to_string_lossy().into_owned());
-        }
         if args.json {
             frames_json.push(json!({
                 "output": out.display().to_string(),
@@ -303,38 +268,46 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }
             print_summary(&cam, stats, near);
         }
-    }
-    if let (Some(shard), Some(scene_hash)) = (args.shard, scene_hash) {
-        let options = format!(
-            "render\ncamera={:?}\nknobs={}\ndrop_invalid={}\nout={:?}",
-            cam,
-            args.knobs.describe(),
-            args.drop_invalid,
-            args.out.file_name()
-        );
-        let dir = match args.out.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-            _ => PathBuf::from("."),
+        Ok(())
+    };
+    let counters = if args.frames {
+        // A `--frames` sequence appears together or not at all (and never half old, half new).
+        let req = SequenceRequest {
+            command: "render",
+            scene: &scene,
+            effects: &effects,
+            camera: &cam,
+            out: &args.out,
+            content: EffectCounters::default(),
+            lidar: None,
+            shard: args.shard,
+            canonical: format!(
+                "render\ncamera={:?}\nknobs={}\ndrop_invalid={}\nout={:?}",
+                cam,
+                args.knobs.describe(),
+                args.drop_invalid,
+                args.out.file_name()
+            ),
         };
-        let report = splatbridge::merge::PartialReport {
-            format: splatbridge::merge::PARTIAL_FORMAT.into(),
-            command: "render".into(),
-            version: env!("CARGO_PKG_VERSION").into(),
-            scene_hash,
-            options_hash: splatbridge::merge::options_hash(&options),
-            shard,
-            title: String::new(),
-            preamble: String::new(),
-            files: shard_files,
-            peak_memory_bytes: splatbridge::memory::peak_bytes().unwrap_or(0),
-            records: Vec::new(),
+        let run = render_sequence(&mut renderer, &req, &mut |_, _| Ok(None), &mut |f| {
+            print_frame(&f.path, f.time, f.rendered)
+        })
+        .with_context(|| name.clone())?;
+        run.counters
+    } else {
+        let req = FrameRequest {
+            scene: Some(&scene),
+            effects: &effects,
+            camera: &cam,
+            time: times[0],
+            content: EffectCounters::default(),
+            lidar: None,
         };
-        outputs.write(
-            &dir.join(splatbridge::merge::REPORT),
-            serde_json::to_string_pretty(&report)?.as_bytes(),
-        )?;
-    }
-    outputs.commit()?;
+        let r = render_frame(&mut renderer, &req).with_context(|| name.clone())?;
+        save_frame(&args.out, &r.frame)?;
+        print_frame(&args.out, times[0], &r)?;
+        r.counters
+    };
     if args.json {
         let report = json!({
             "command": "render",

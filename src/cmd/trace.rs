@@ -26,6 +26,8 @@ use anyhow::{bail, Context};
 use clap::ValueEnum;
 use glam::Vec3;
 use serde_json::json;
+use splatbridge::pipeline::sequence::{render_sequence, SequenceRequest};
+use splatbridge::pipeline::source::is_mesh_file;
 use splatbridge::pipeline::{
     render_frame, FrameRequest, LidarRequest, Prepared, Renderer, TraceMode, TraceSource,
 };
@@ -34,6 +36,7 @@ use splatbridge_raytrace::{
     BackendKind, BuildPreset, Compositing, Footprint, HitOrder, RenderOptions, SampleFootprint,
     ShDirection,
 };
+use splatbridge_scene::effects::EffectCounters;
 use splatbridge_scene::image_io::save_frame;
 
 use crate::cmd::common::{parse_rgb, print_warning, CameraArgs};
@@ -210,10 +213,16 @@ pub struct Args {
     /// Scan every frame of the scene's time range, not only the traced one.
     #[arg(long)]
     pub lidar_all_frames: bool,
-    /// With --lidar-all-frames: scan only shard I of N (0 ≤ I < N) of the frames and write a
-    /// partial report.json beside the scans for `splatbridge merge` (see docs/scale.md); the
-    /// image is traced by every shard, identically.
-    #[arg(long, value_name = "I/N", requires = "lidar_all_frames")]
+    /// Trace every frame of the scene's time range to OUT_0000.ext, OUT_0001.ext, … (with the
+    /// scene's LiDAR, one scan per frame); an exported file takes its time range from
+    /// --effects-from.
+    #[arg(long, conflicts_with_all = ["lidar_all_frames", "time"])]
+    pub frames: bool,
+    /// With --frames: trace only shard I of N (0 ≤ I < N) of the frames; with
+    /// --lidar-all-frames: scan only that shard of the frames (the image is traced by every
+    /// shard, identically). Either writes a partial report.json for `splatbridge merge` (see
+    /// docs/scale.md).
+    #[arg(long, value_name = "I/N")]
     pub shard: Option<splatbridge::shard::Shard>,
     /// Print one JSON object (options, stats, effect counters, LiDAR files) instead of the
     /// summary.
@@ -302,6 +311,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if ext != "png" && ext != "exr" {
         bail!("{}: output must end in .png or .exr", args.output.display());
     }
+    if args.shard.is_some() && !args.frames && !args.lidar_all_frames {
+        bail!("--shard: splits --frames or --lidar-all-frames");
+    }
     let name = args.input.input.display().to_string();
     let all_frames = args.lidar_all_frames && args.input.mode == Mode::Mesh;
     let p = args.input.prepare_with(all_frames)?;
@@ -313,11 +325,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let build_seconds = tracer.build_seconds();
     let lidar_dir = match &args.lidar_out {
         Some(d) => d.clone(),
-        None => match args.output.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-            _ => PathBuf::from("."),
-        },
+        None => splatbridge::pipeline::export_shard::folder_of(&args.output),
     };
+    if args.frames {
+        return run_frames(&args, &p, tracer, &lidar_dir);
+    }
     let req = FrameRequest {
         scene: p.effects_scene.as_ref(),
         effects: &p.effects,
@@ -450,5 +462,115 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("weather: drawn as exported (the file's per-frame particle nodes)");
     }
     println!("{}", counters.summary());
+    Ok(())
+}
+
+/// `trace --frames`: every frame of the scene's time range through one tracer, through the
+/// camera resolved for the traced input, as one atomic sequence. A scene that declares weather
+/// is prepared again for each frame (its particles are drawn per frame, around the camera, as
+/// a single `trace --time T` draws them), so each frame equals that single trace bit for bit;
+/// an exported file's weather is drawn as exported.
+fn run_frames(
+    args: &Args,
+    p: &Prepared,
+    mut tracer: Renderer,
+    lidar_dir: &std::path::Path,
+) -> anyhow::Result<()> {
+    let name = args.input.input.display().to_string();
+    let Some(scene) = p.effects_scene.as_ref() else {
+        bail!("--frames: {name} has no time range; pass --effects-from MANIFEST (the scene it was exported from)");
+    };
+    let backend: BackendKind = args.backend.into();
+    let preset: BuildPreset = args.input.preset.into();
+    let rebuild = p.effects.weather.is_some() && !is_mesh_file(&args.input.input);
+    let mut built_at = p.time;
+    let mut prepare = |r: &mut Renderer, t: f64| -> anyhow::Result<Option<EffectCounters>> {
+        if !rebuild || t == built_at {
+            return Ok(None);
+        }
+        let mut source = args.input.source()?;
+        source.time = t;
+        let q = source.prepare(false, &print_warning)?;
+        *r = Renderer::tracer(&q, backend, preset)?;
+        built_at = t;
+        Ok(Some(q.counters))
+    };
+    let req = SequenceRequest {
+        command: "trace",
+        scene,
+        effects: &p.effects,
+        camera: &p.camera,
+        out: &args.output,
+        content: p.counters.clone(),
+        lidar: Some(LidarRequest {
+            dir: lidar_dir.to_path_buf(),
+            all_frames: false,
+            backend,
+            preset,
+            shard: None,
+        }),
+        shard: args.shard,
+        canonical: format!(
+            "trace --frames\ninput={:?}\nbackend={:?}\nout={:?}",
+            args.input,
+            args.backend,
+            args.output.file_name()
+        ),
+    };
+    let mut frames_json = Vec::new();
+    let run = render_sequence(&mut tracer, &req, &mut prepare, &mut |f| {
+        let stats = f.rendered.stats.trace().cloned().unwrap_or_default();
+        if args.json {
+            frames_json.push(json!({
+                "output": f.path.display().to_string(),
+                "time": f.time,
+                "time_samples": f.rendered.time_samples,
+                "rays": stats.rays,
+                "hits": stats.hits,
+                "trace_seconds": stats.seconds,
+                "lidar": f.lidar_files.iter().map(|l| l.display().to_string()).collect::<Vec<_>>(),
+            }));
+        } else {
+            println!(
+                "{} (t = {}): trace {:.3} s ({:.2} Mrays/s), {:.2} hits/ray{}{}",
+                f.path.display(),
+                f.time,
+                stats.seconds,
+                stats.mrays_per_second(),
+                stats.hits_per_ray(),
+                if f.rendered.time_samples > 1 {
+                    format!(", {} motion-blur samples", f.rendered.time_samples)
+                } else {
+                    String::new()
+                },
+                match f.lidar_files.first() {
+                    Some(l) => format!(", LiDAR {}", l.display()),
+                    None => String::new(),
+                }
+            );
+        }
+        Ok(())
+    })
+    .with_context(|| name.clone())?;
+    if args.json {
+        let report = json!({
+            "command": "trace",
+            "input": name,
+            "mode": match args.input.mode {
+                Mode::Mesh => "mesh",
+                Mode::Gaussian => "gaussian",
+            },
+            "backend": backend.to_string(),
+            "camera": {"name": p.camera.name, "width": p.camera.width, "height": p.camera.height},
+            "frames": frames_json,
+            "frames_total": run.total,
+            "effects": serde_json::to_value(&run.counters)?,
+        });
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        println!("{}", p.what);
+        println!("{} of {} frames traced", run.frames, run.total);
+        println!("{}", run.counters.summary());
+    }
     Ok(())
 }

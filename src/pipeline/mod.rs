@@ -8,6 +8,8 @@
 //!   tracer and the Gaussian tracer.
 //! - [`frame`]: [`render_frame`], one frame with its time samples, motion-blur samples, weather
 //!   particles, shadows, LiDAR and effect counters.
+//! - [`sequence`]: [`sequence::render_sequence`], every frame of a scene's time range as one
+//!   atomic set of images (and LiDAR scans), sharded with `--shard I/N`.
 //! - [`export`]: a scene to a mesh, glTF splats or a single-cloud splat file, with its
 //!   per-frame content and effect counters (what `convert` runs).
 //!
@@ -17,6 +19,7 @@ pub mod export;
 pub mod export_shard;
 pub mod frame;
 pub mod renderer;
+pub mod sequence;
 pub mod source;
 
 pub use frame::{render_frame, FrameRequest, LidarRequest, RenderedFrame};
