@@ -219,7 +219,7 @@ fn load_buffers(
 }
 
 /// Check the bounds and types the `gltf` readers assume; see the module docs.
-fn check_document(root: &Root, base: Option<&Path>, name: &Path) -> Result<()> {
+pub(crate) fn check_document(root: &Root, base: Option<&Path>, name: &Path) -> Result<()> {
     for (i, v) in root.buffer_views.iter().enumerate() {
         let buf = root
             .buffers
@@ -567,7 +567,7 @@ pub fn import(bytes: &[u8], base: Option<&Path>, name: &Path) -> Result<Import> 
     import_root(root, bin.map(<[u8]>::to_vec), base, name)
 }
 
-fn parse_root(json: &[u8], name: &Path) -> Result<Root> {
+pub(crate) fn parse_root(json: &[u8], name: &Path) -> Result<Root> {
     Root::from_slice(json).map_err(|e| {
         bad(
             name,
@@ -597,7 +597,19 @@ fn import_root(
         )
     })?;
     let buffers = load_buffers(doc.as_json(), bin, base, name)?;
-    let images = gltf::import_images(&doc, base, &buffers).map_err(|e| {
+    let images = import_images(&doc, base, &buffers, name)?;
+    Ok((doc, buffers, images))
+}
+
+/// Decode the document's images (the `gltf` importer), refusing textures over
+/// [`MAX_TEXTURE_PIXELS`].
+pub(crate) fn import_images(
+    doc: &gltf::Document,
+    base: Option<&Path>,
+    buffers: &[gltf::buffer::Data],
+    name: &Path,
+) -> Result<Vec<gltf::image::Data>> {
+    let images = gltf::import_images(doc, base, buffers).map_err(|e| {
         bad(
             name,
             format!("image: {}", input::clip_to(&e.to_string(), 400)),
@@ -614,19 +626,21 @@ fn import_root(
             ));
         }
     }
-    Ok((doc, buffers, images))
+    Ok(images)
+}
+
+/// The folder external URIs of `path` resolve in (`.` for a bare name).
+pub(crate) fn folder(path: &Path) -> PathBuf {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
 }
 
 /// [`import`] for a file: read it (regular file, bounded) and resolve URIs beside it.
 pub fn import_path(path: &Path) -> Result<Import> {
     let bytes = input::read_bounded(path, Cap::Mesh)?;
-    let base = path.parent().unwrap_or(Path::new("."));
-    let base = if base.as_os_str().is_empty() {
-        Path::new(".")
-    } else {
-        base
-    };
-    import_vec(bytes, Some(base), path)
+    import_vec(bytes, Some(&folder(path)), path)
 }
 
 /// [`import`] taking the bytes over: a GLB's BIN chunk becomes its buffer in place (the blob

@@ -19,6 +19,7 @@ pub mod footprint;
 pub mod gaussian;
 pub mod geom;
 pub mod gltf_check;
+pub mod gltf_stream;
 pub mod hit_record;
 pub mod kbuffer;
 pub mod lidar;

@@ -23,6 +23,7 @@ use glam::{DAffine3, DMat4, DQuat, DVec3, Vec2, Vec3, Vec4};
 
 use crate::backend::{fits_bvh, MAX_BVH_COORD};
 use crate::error::{Result, TraceError};
+use crate::gltf_stream::Buffers;
 use crate::model::{
     srgb_to_linear, AlphaMode, Channel, ChannelPath, Interpolation, Intrinsics, Material, Mesh,
     Node, Perspective, Texture, TriScene, Wrap,
@@ -36,8 +37,9 @@ pub fn load_path(path: &Path) -> Result<TriScene> {
         .unwrap_or_default();
     match ext.as_str() {
         "glb" | "gltf" => {
-            let (doc, buffers, images) = crate::gltf_check::import_path(path)?;
-            from_gltf(path, &doc, &buffers, &images)
+            // A GLB file is streamed: one accessor's bytes at a time beside the scene.
+            let (doc, mut buffers, images) = crate::gltf_stream::import_path(path)?;
+            from_gltf(path, &doc, &mut buffers, &images)
         }
         "obj" => load_obj(path),
         _ => Err(TraceError::format(
@@ -50,13 +52,13 @@ pub fn load_path(path: &Path) -> Result<TriScene> {
 /// [`load_glb_bytes`] taking the bytes over, so the GLB's blob is not copied.
 pub fn load_glb_vec(bytes: Vec<u8>, name: &Path) -> Result<TriScene> {
     let (doc, buffers, images) = crate::gltf_check::import_vec(bytes, None, name)?;
-    from_gltf(name, &doc, &buffers, &images)
+    from_gltf(name, &doc, &mut Buffers::whole(buffers), &images)
 }
 
 /// Load a GLB (or self-contained glTF JSON) from memory; `name` is used in error messages.
 pub fn load_glb_bytes(bytes: &[u8], name: &Path) -> Result<TriScene> {
     let (doc, buffers, images) = crate::gltf_check::import(bytes, None, name)?;
-    from_gltf(name, &doc, &buffers, &images)
+    from_gltf(name, &doc, &mut Buffers::whole(buffers), &images)
 }
 
 fn texture_from(path: &Path, tex: &gltf::Texture, images: &[gltf::image::Data]) -> Result<Texture> {
@@ -128,7 +130,7 @@ fn texture_from(path: &Path, tex: &gltf::Texture, images: &[gltf::image::Data]) 
 fn read_scalar_u32(
     path: &Path,
     acc: &gltf::Accessor,
-    buffers: &[gltf::buffer::Data],
+    buffers: &Buffers,
     what: &str,
 ) -> Result<Vec<u32>> {
     use gltf::accessor::{DataType, Dimensions, Iter};
@@ -138,7 +140,7 @@ fn read_scalar_u32(
             format!("{what}: accessor {} is not SCALAR", acc.index()),
         ));
     }
-    let get = |b: gltf::Buffer| buffers.get(b.index()).map(|d| &d.0[..]);
+    let get = |b: gltf::Buffer| buffers.get(b.index());
     let bad = || {
         TraceError::format(
             path,
@@ -188,7 +190,7 @@ fn read_scalar_u32(
 fn from_gltf(
     path: &Path,
     doc: &gltf::Document,
-    buffers: &[gltf::buffer::Data],
+    buffers: &mut Buffers,
     images: &[gltf::image::Data],
 ) -> Result<TriScene> {
     let textures = doc
@@ -200,7 +202,7 @@ fn from_gltf(
     let default_material = materials.len() as u32 - 1;
     let meshes = doc
         .meshes()
-        .map(|m| gltf_mesh(path, &m, buffers, default_material))
+        .map(|m| gltf_mesh(path, &m, &mut *buffers, default_material))
         .collect::<Result<Vec<_>>>()?;
     let nodes = gltf_nodes(path, doc)?;
     let channels = gltf_channels(path, doc, buffers)?;
@@ -263,7 +265,7 @@ fn gltf_primitive(
     path: &Path,
     p: &gltf::Primitive,
     what: &str,
-    buffers: &[gltf::buffer::Data],
+    buffers: &mut Buffers,
     default_material: u32,
 ) -> Result<Option<Primitive>> {
     use gltf::mesh::Mode;
@@ -273,12 +275,19 @@ fn gltf_primitive(
     ) {
         return Ok(None);
     }
-    let r = p.reader(|b: gltf::Buffer| buffers.get(b.index()).map(|d| &d.0[..]));
-    let pos: Vec<Vec3> = r
+    // Each accessor is made readable just before it is read and dropped after (streamed
+    // GLB files, `gltf_stream`; a no-op for buffers held whole).
+    let pos_acc = p
+        .get(&gltf::Semantic::Positions)
+        .ok_or_else(|| TraceError::format(path, format!("{what}: no POSITION")))?;
+    buffers.ensure_accessor(&pos_acc)?;
+    let pos: Vec<Vec3> = p
+        .reader(|b: gltf::Buffer| buffers.get(b.index()))
         .read_positions()
         .ok_or_else(|| TraceError::format(path, format!("{what}: no POSITION")))?
         .map(Vec3::from_array)
         .collect();
+    buffers.release_accessor(&pos_acc);
     if let Some(i) = pos.iter().position(|v| !fits_bvh(*v)) {
         return Err(TraceError::format(
             path,
@@ -286,8 +295,19 @@ fn gltf_primitive(
         ));
     }
     let n = pos.len();
-    let cols: Vec<Vec4> = match r.read_colors(0) {
-        Some(c) => c.into_rgba_f32().map(Vec4::from_array).collect(),
+    let cols: Vec<Vec4> = match p.get(&gltf::Semantic::Colors(0)) {
+        Some(acc) => {
+            buffers.ensure_accessor(&acc)?;
+            let c = p
+                .reader(|b: gltf::Buffer| buffers.get(b.index()))
+                .read_colors(0)
+                .ok_or_else(|| TraceError::format(path, format!("{what}: COLOR_0 cannot be read")))?
+                .into_rgba_f32()
+                .map(Vec4::from_array)
+                .collect();
+            buffers.release_accessor(&acc);
+            c
+        }
         None => vec![Vec4::ONE; n],
     };
     if cols.len() != n {
@@ -299,54 +319,80 @@ fn gltf_primitive(
             ),
         ));
     }
-    let uv: Option<Vec<Vec2>> = r
-        .read_tex_coords(0)
-        .map(|t| t.into_f32().map(Vec2::from_array).collect());
-    let gid = p
+    let uv: Option<Vec<Vec2>> = match p.get(&gltf::Semantic::TexCoords(0)) {
+        Some(acc) => {
+            buffers.ensure_accessor(&acc)?;
+            let u = p
+                .reader(|b: gltf::Buffer| buffers.get(b.index()))
+                .read_tex_coords(0)
+                .map(|t| t.into_f32().map(Vec2::from_array).collect());
+            buffers.release_accessor(&acc);
+            u
+        }
+        None => None,
+    };
+    let gid = match p
         .attributes()
         .find(|(s, _)| matches!(s, gltf::Semantic::Extras(name) if name == "GAUSSIAN_ID"))
-        .map(|(_, acc)| read_scalar_u32(path, &acc, buffers, &format!("{what}: _GAUSSIAN_ID")))
-        .transpose()?;
-    let mut indices: Box<dyn Iterator<Item = u32>> = match r.read_indices() {
-        Some(i) => Box::new(i.into_u32()),
-        None => Box::new(0..n as u32),
+    {
+        Some((_, acc)) => {
+            buffers.ensure_accessor(&acc)?;
+            let g = read_scalar_u32(path, &acc, buffers, &format!("{what}: _GAUSSIAN_ID"))?;
+            buffers.release_accessor(&acc);
+            Some(g)
+        }
+        None => None,
     };
-    let tris: Vec<[u32; 3]> = if p.mode() == Mode::Triangles {
-        // Straight into triangles: no separate index list (a third of a mesh's bytes).
-        let mut tris = Vec::with_capacity(indices.size_hint().0 / 3);
-        let mut t = [0u32; 3];
-        let mut k = 0;
-        for i in indices {
-            check_index(path, what, i, n)?;
-            t[k] = i;
-            k += 1;
-            if k == 3 {
-                tris.push(t);
-                k = 0;
+    let index_acc = p.indices();
+    if let Some(acc) = &index_acc {
+        buffers.ensure_accessor(acc)?;
+    }
+    let tris: Vec<[u32; 3]> = {
+        let reader = p.reader(|b: gltf::Buffer| buffers.get(b.index()));
+        let mut indices: Box<dyn Iterator<Item = u32>> = match reader.read_indices() {
+            Some(i) => Box::new(i.into_u32()),
+            None => Box::new(0..n as u32),
+        };
+        if p.mode() == Mode::Triangles {
+            // Straight into triangles: no separate index list (a third of a mesh's bytes).
+            let mut tris = Vec::with_capacity(indices.size_hint().0 / 3);
+            let mut t = [0u32; 3];
+            let mut k = 0;
+            for i in indices {
+                check_index(path, what, i, n)?;
+                t[k] = i;
+                k += 1;
+                if k == 3 {
+                    tris.push(t);
+                    k = 0;
+                }
+            }
+            tris
+        } else {
+            let idx: Vec<u32> = indices.by_ref().collect();
+            for &i in &idx {
+                check_index(path, what, i, n)?;
+            }
+            if p.mode() == Mode::TriangleStrip {
+                (2..idx.len())
+                    .map(|i| {
+                        if i % 2 == 0 {
+                            [idx[i - 2], idx[i - 1], idx[i]]
+                        } else {
+                            [idx[i - 1], idx[i - 2], idx[i]]
+                        }
+                    })
+                    .collect()
+            } else {
+                (2..idx.len())
+                    .map(|i| [idx[0], idx[i - 1], idx[i]])
+                    .collect()
             }
         }
-        tris
-    } else {
-        let idx: Vec<u32> = indices.by_ref().collect();
-        for &i in &idx {
-            check_index(path, what, i, n)?;
-        }
-        if p.mode() == Mode::TriangleStrip {
-            (2..idx.len())
-                .map(|i| {
-                    if i % 2 == 0 {
-                        [idx[i - 2], idx[i - 1], idx[i]]
-                    } else {
-                        [idx[i - 1], idx[i - 2], idx[i]]
-                    }
-                })
-                .collect()
-        } else {
-            (2..idx.len())
-                .map(|i| [idx[0], idx[i - 1], idx[i]])
-                .collect()
-        }
     };
+    if let Some(acc) = &index_acc {
+        buffers.release_accessor(acc);
+    }
     let material = p
         .material()
         .index()
@@ -389,7 +435,7 @@ fn gltf_primitive(
 fn gltf_mesh(
     path: &Path,
     m: &gltf::Mesh,
-    buffers: &[gltf::buffer::Data],
+    buffers: &mut Buffers,
     default_material: u32,
 ) -> Result<Mesh> {
     let mut mesh = Mesh {
@@ -550,11 +596,7 @@ fn gltf_camera(path: &Path, c: &gltf::Camera) -> Result<Option<Perspective>> {
 
 /// Every animation channel on translation, rotation or scale (morph weights are ignored),
 /// with finite, strictly increasing key times and finite values of the sampler's count.
-fn gltf_channels(
-    path: &Path,
-    doc: &gltf::Document,
-    buffers: &[gltf::buffer::Data],
-) -> Result<Vec<Channel>> {
+fn gltf_channels(path: &Path, doc: &gltf::Document, buffers: &mut Buffers) -> Result<Vec<Channel>> {
     let mut channels = Vec::new();
     for a in doc.animations() {
         for (ci, ch) in a.channels().enumerate() {
@@ -572,9 +614,8 @@ fn gltf_channel(
     path: &Path,
     ch: &gltf::animation::Channel,
     what: &str,
-    buffers: &[gltf::buffer::Data],
+    buffers: &mut Buffers,
 ) -> Result<Option<Channel>> {
-    use gltf::animation::util::ReadOutputs;
     use gltf::animation::Property;
     let path_kind = match ch.target().property() {
         Property::Translation => ChannelPath::Translation,
@@ -582,7 +623,29 @@ fn gltf_channel(
         Property::Scale => ChannelPath::Scale,
         Property::MorphTargetWeights => return Ok(None),
     };
-    let r = ch.reader(|b: gltf::Buffer| buffers.get(b.index()).map(|d| &d.0[..]));
+    // Keys and values are small: both are read, then dropped.
+    let (input, output) = (ch.sampler().input(), ch.sampler().output());
+    buffers.ensure_accessor(&input)?;
+    buffers.ensure_accessor(&output)?;
+    let values = channel_values(path, ch, what, buffers);
+    buffers.release_accessor(&input);
+    buffers.release_accessor(&output);
+    let Some((times, values)) = values? else {
+        return Ok(None);
+    };
+    channel_from(path, ch, what, path_kind, times, values)
+}
+
+/// A channel's key times and values as stored; `None` for morph weights.
+#[allow(clippy::type_complexity)]
+fn channel_values(
+    path: &Path,
+    ch: &gltf::animation::Channel,
+    what: &str,
+    buffers: &Buffers,
+) -> Result<Option<(Vec<f64>, Vec<[f64; 4]>)>> {
+    use gltf::animation::util::ReadOutputs;
+    let r = ch.reader(|b: gltf::Buffer| buffers.get(b.index()));
     let times: Vec<f64> = r
         .read_inputs()
         .ok_or_else(|| TraceError::format(path, format!("{what}: sampler input cannot be read")))?
@@ -604,6 +667,18 @@ fn gltf_channel(
         ReadOutputs::Rotations(it) => it.into_f32().map(|v| v.map(|x| x as f64)).collect(),
         ReadOutputs::MorphTargetWeights(_) => return Ok(None),
     };
+    Ok(Some((times, values)))
+}
+
+/// A channel from its key times and values, checked against its interpolation.
+fn channel_from(
+    path: &Path,
+    ch: &gltf::animation::Channel,
+    what: &str,
+    path_kind: ChannelPath,
+    times: Vec<f64>,
+    values: Vec<[f64; 4]>,
+) -> Result<Option<Channel>> {
     let interpolation = match ch.sampler().interpolation() {
         gltf::animation::Interpolation::Step => Interpolation::Step,
         gltf::animation::Interpolation::Linear => Interpolation::Linear,

@@ -113,3 +113,25 @@ fn runs_of_triangles_in_instances_hit_what_single_triangles_hit() {
         &look(DVec3::new(-0.2, 0.4, -4.0), DVec3::ZERO, 24, 18),
     );
 }
+
+/// Runs lengthen only on meshes past a million boxes' worth of triangles, and never past the
+/// cap; the lengths themselves are checked for identical hits above.
+#[test]
+fn run_length_grows_only_on_very_large_meshes() {
+    use splatbridge_raytrace::mesh_tracer::{
+        run_length, BOXES_PER_MESH, MAX_TRIANGLES_PER_BOX, TRIANGLES_PER_BOX,
+    };
+    assert_eq!(run_length(0), TRIANGLES_PER_BOX);
+    assert_eq!(run_length(1000), TRIANGLES_PER_BOX);
+    assert_eq!(
+        run_length(TRIANGLES_PER_BOX * BOXES_PER_MESH),
+        TRIANGLES_PER_BOX
+    );
+    assert_eq!(
+        run_length(TRIANGLES_PER_BOX * BOXES_PER_MESH + 1),
+        TRIANGLES_PER_BOX + 1
+    );
+    // The 37 M-triangle rings export the constant was measured on: runs of 36.
+    assert_eq!(run_length(36_856_560), 36);
+    assert_eq!(run_length(usize::MAX / 2), MAX_TRIANGLES_PER_BOX);
+}

@@ -316,12 +316,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let name = args.input.input.display().to_string();
     let all_frames = args.lidar_all_frames && args.input.mode == Mode::Mesh;
-    let p = args.input.prepare_with(all_frames)?;
+    let mut p = args.input.prepare_with(all_frames)?;
     let backend: BackendKind = args.backend.into();
     let preset: BuildPreset = args.input.preset.into();
     // One tracer for every shutter sample: mode mesh instances its nodes at each time, mode
     // gaussian re-poses its objects (no BVH rebuild per sample).
-    let mut tracer = Renderer::tracer(&p, backend, preset).with_context(|| name.clone())?;
+    let mut tracer =
+        Renderer::tracer_taking(&mut p, backend, preset).with_context(|| name.clone())?;
     let build_seconds = tracer.build_seconds();
     let lidar_dir = match &args.lidar_out {
         Some(d) => d.clone(),
@@ -490,8 +491,8 @@ fn run_frames(
         }
         let mut source = args.input.source()?;
         source.time = t;
-        let q = source.prepare(false, &print_warning)?;
-        *r = Renderer::tracer(&q, backend, preset)?;
+        let mut q = source.prepare(false, &print_warning)?;
+        *r = Renderer::tracer_taking(&mut q, backend, preset)?;
         built_at = t;
         Ok(Some(q.counters))
     };

@@ -146,6 +146,24 @@ impl Renderer {
         Ok(Renderer::Hybrid { options, split })
     }
 
+    /// As [`Renderer::tracer`], moving a triangle scene into the tracer instead of copying it
+    /// (`p.loaded` is left an empty scene): a command that builds one tracer holds the mesh
+    /// once, not twice (1.2 GB for a 37 M-triangle export).
+    pub fn tracer_taking(
+        p: &mut Prepared,
+        backend: BackendKind,
+        preset: BuildPreset,
+    ) -> anyhow::Result<Renderer> {
+        if let Loaded::Mesh(s) = &mut p.loaded {
+            let scene = std::mem::take(s);
+            return Ok(Renderer::Mesh {
+                tracer: MeshTracer::new(scene, backend, preset)?,
+                options: p.options.clone(),
+            });
+        }
+        Self::tracer(p, backend, preset)
+    }
+
     /// A tracer for a prepared input on one backend.
     pub fn tracer(
         p: &Prepared,
