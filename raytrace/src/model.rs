@@ -59,6 +59,75 @@ impl Default for Material {
     }
 }
 
+/// Each triangle's material, stored as runs (a primitive's triangles share one): an export's
+/// tens of millions of triangles have a handful of materials, so a `u32` per triangle (148 MB
+/// for a 37 M-triangle export) would hold the same number over and over.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct MaterialRuns {
+    /// First triangle of each run, ascending; `materials[i]` is run `i`'s material.
+    starts: Vec<u32>,
+    materials: Vec<u32>,
+    len: usize,
+}
+
+impl MaterialRuns {
+    /// Triangles covered.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Append one triangle of material `m`.
+    pub fn push(&mut self, m: u32) {
+        self.extend_with(1, m);
+    }
+
+    /// Append `n` triangles of material `m`.
+    pub fn extend_with(&mut self, n: usize, m: u32) {
+        if n == 0 {
+            return;
+        }
+        if self.materials.last() != Some(&m) {
+            self.starts.push(self.len as u32);
+            self.materials.push(m);
+        }
+        self.len += n;
+    }
+
+    /// Triangle `t`'s material (`t < len`).
+    #[inline]
+    pub fn get(&self, t: usize) -> u32 {
+        match self.materials.len() {
+            1 => self.materials[0],
+            _ => {
+                let run = self.starts.partition_point(|&s| s as usize <= t);
+                self.materials[run.saturating_sub(1)]
+            }
+        }
+    }
+
+    /// Every triangle's material, in order.
+    pub fn iter(&self) -> impl Iterator<Item = u32> + '_ {
+        (0..self.starts.len()).flat_map(move |i| {
+            let end = self.starts.get(i + 1).map_or(self.len, |&e| e as usize);
+            std::iter::repeat_n(self.materials[i], end - self.starts[i] as usize)
+        })
+    }
+}
+
+impl From<Vec<u32>> for MaterialRuns {
+    fn from(v: Vec<u32>) -> Self {
+        let mut r = MaterialRuns::default();
+        for m in v {
+            r.push(m);
+        }
+        r
+    }
+}
+
 /// One mesh (all its primitives merged), in its local frame.
 #[derive(Clone, Debug, Default)]
 pub struct Mesh {
@@ -69,7 +138,7 @@ pub struct Mesh {
     pub colors: Vec<Vec4>,
     pub uvs: Option<Vec<Vec2>>,
     pub tris: Vec<[u32; 3]>,
-    pub tri_material: Vec<u32>,
+    pub tri_material: MaterialRuns,
     /// The Gaussian each triangle came from (`_GAUSSIAN_ID` of its first vertex), or, without
     /// that attribute, the index of the connected component the triangle belongs to.
     pub tri_gaussian: Vec<u32>,
@@ -529,7 +598,7 @@ impl Mesh {
             self.colors[i0] * bary[0] + self.colors[i1] * bary[1] + self.colors[i2] * bary[2];
         let default = Material::default();
         let m = materials
-            .get(self.tri_material[tri] as usize)
+            .get(self.tri_material.get(tri) as usize)
             .unwrap_or(&default);
         c *= m.base_color;
         if let (Some(tex), Some(uvs)) = (m.texture.and_then(|t| textures.get(t)), &self.uvs) {
@@ -598,14 +667,23 @@ impl Mesh {
     /// Gaussian are orthogonal and parallel faces of a solid are offset by their separation.
     /// Returns (per-triangle group, group count).
     pub fn planar_groups(&self) -> (Vec<u32>, u32) {
-        let mut order: Vec<u32> = (0..self.tris.len() as u32).collect();
-        order.sort_by_key(|&t| self.tri_gaussian[t as usize]);
+        // Exports list a Gaussian's triangles together, in ascending order: then the order is
+        // the identity and is not materialised (4 bytes a triangle). Otherwise a stable sort,
+        // which gives the same order on ascending input, so groups do not depend on the path.
+        let ascending = self.tri_gaussian.windows(2).all(|w| w[0] <= w[1]);
+        let order: Box<dyn Iterator<Item = u32> + '_> = if ascending {
+            Box::new(0..self.tris.len() as u32)
+        } else {
+            let mut order: Vec<u32> = (0..self.tris.len() as u32).collect();
+            order.sort_by_key(|&t| self.tri_gaussian[t as usize]);
+            Box::new(order.into_iter())
+        };
         let mut group = vec![u32::MAX; self.tris.len()];
         let mut next = 0u32;
         // Representatives of the current Gaussian's groups: (normal, point, tolerance, id).
         let mut reps: Vec<(DVec3, DVec3, f64, u32)> = Vec::new();
         let mut cur = u32::MAX;
-        for &t in &order {
+        for t in order {
             let t = t as usize;
             let g = self.tri_gaussian[t];
             if g != cur {

@@ -25,8 +25,8 @@ use crate::backend::{fits_bvh, MAX_BVH_COORD};
 use crate::error::{Result, TraceError};
 use crate::gltf_stream::Buffers;
 use crate::model::{
-    srgb_to_linear, AlphaMode, Channel, ChannelPath, Interpolation, Intrinsics, Material, Mesh,
-    Node, Perspective, Texture, TriScene, Wrap,
+    srgb_to_linear, AlphaMode, Channel, ChannelPath, Interpolation, Intrinsics, Material,
+    MaterialRuns, Mesh, Node, Perspective, Texture, TriScene, Wrap,
 };
 
 /// Load a triangle scene by extension: `.glb`, `.gltf`, `.obj`.
@@ -474,7 +474,7 @@ fn gltf_mesh(
             }
         }
         mesh.tri_material
-            .resize(mesh.tri_material.len() + prim.tris.len(), prim.material);
+            .extend_with(prim.tris.len(), prim.material);
         if mesh.tris.is_empty() {
             mesh.tris = prim.tris;
         } else {
@@ -866,7 +866,11 @@ fn obj_scene(
             positions,
             colors,
             uvs: None,
-            tri_material: vec![mat; tris.len()],
+            tri_material: {
+                let mut m = MaterialRuns::default();
+                m.extend_with(tris.len(), mat);
+                m
+            },
             tris,
             tri_gaussian: Vec::new(),
             has_gaussian_ids: false,

@@ -255,7 +255,7 @@ fn empty_scene_and_degenerate_triangles_render_background() {
     m.positions = vec![Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, Vec3::X, Vec3::X * 2.0];
     m.colors = vec![glam::Vec4::ONE; 5];
     m.tris = vec![[0, 1, 2], [0, 3, 4]];
-    m.tri_material = vec![0, 0];
+    m.tri_material = vec![0, 0].into();
     m.tri_gaussian = vec![0, 1];
     for scene in [scene_of(m), TriScene::default()] {
         let tr = MeshTracer::new(scene, BackendKind::Obvhs, BuildPreset::Medium).unwrap();

@@ -321,8 +321,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let preset: BuildPreset = args.input.preset.into();
     // One tracer for every shutter sample: mode mesh instances its nodes at each time, mode
     // gaussian re-poses its objects (no BVH rebuild per sample).
-    let mut tracer =
-        Renderer::tracer_taking(&mut p, backend, preset).with_context(|| name.clone())?;
+    // One frame without every-frame scans needs nothing more of the scene's Gaussians once
+    // they are in the tracer (a sequence hashes the scene for its shards; an every-frame
+    // Gaussian scan builds tracers from it).
+    let take_gaussians = !args.frames && !args.lidar_all_frames;
+    let mut tracer = Renderer::tracer_taking(&mut p, backend, preset, take_gaussians)
+        .with_context(|| name.clone())?;
     let build_seconds = tracer.build_seconds();
     let lidar_dir = match &args.lidar_out {
         Some(d) => d.clone(),
@@ -492,7 +496,7 @@ fn run_frames(
         let mut source = args.input.source()?;
         source.time = t;
         let mut q = source.prepare(false, &print_warning)?;
-        *r = Renderer::tracer_taking(&mut q, backend, preset)?;
+        *r = Renderer::tracer_taking(&mut q, backend, preset, true)?;
         built_at = t;
         Ok(Some(q.counters))
     };

@@ -660,7 +660,7 @@ fn adam(
 /// vertex alpha by.
 fn hit_alpha_factor(scene: &TriScene, mesh: usize, tri: usize, bary: [f32; 3]) -> f32 {
     let m = &scene.meshes[mesh];
-    let Some(mat) = scene.materials.get(m.tri_material[tri] as usize) else {
+    let Some(mat) = scene.materials.get(m.tri_material.get(tri) as usize) else {
         return 1.0;
     };
     let mut a = mat.base_color.w;
@@ -678,7 +678,7 @@ fn check_white(scene: &TriScene) -> Result<()> {
     let white = |v: Vec3| (v - Vec3::ONE).abs().max_element() < 1e-6;
     let mut used = vec![false; scene.materials.len()];
     for m in &scene.meshes {
-        for &t in &m.tri_material {
+        for t in m.tri_material.iter() {
             if let Some(u) = used.get_mut(t as usize) {
                 *u = true;
             }
