@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 mod shards_common;
-use shards_common::{bin, list, merge, ok, street};
+use shards_common::{bin, count, list, merge, merged_is_one_run, ok, street, street_with_effects};
 
 #[test]
 fn convert_frames_shards_merge_into_one_export() {
@@ -55,15 +55,7 @@ fn convert_frames_shards_merge_into_one_export() {
         "one shard did every frame"
     );
 
-    let merged = tmp.path().join("merged");
-    ok(merge(&shards, &merged), "merge");
-    assert_eq!(list(&merged), files);
-    for f in &files {
-        assert!(
-            std::fs::read(one.join(f)).unwrap() == std::fs::read(merged.join(f)).unwrap(),
-            "{f} differs"
-        );
-    }
+    merged_is_one_run(&shards, &one, &tmp.path().join("merged"), "convert");
 
     // A missing shard is refused, and nothing is written.
     let partial = tmp.path().join("partial");
@@ -101,23 +93,7 @@ fn convert_frames_shards_merge_into_one_export() {
 #[test]
 fn lidar_frames_shards_merge_into_one_run() {
     let tmp = tempfile::tempdir().unwrap();
-    ok(
-        Command::new(bin())
-            .args([
-                "fixture",
-                "street",
-                "--count",
-                "600",
-                "--effects",
-                "lidar",
-                "-o",
-            ])
-            .arg(tmp.path().join("street"))
-            .output()
-            .unwrap(),
-        "fixture",
-    );
-    let scene = tmp.path().join("street/scene.json");
+    let scene = street_with_effects(tmp.path(), 600, "lidar");
     for mode in ["gaussian", "mesh"] {
         let trace = |out: &Path, shard: Option<&str>| {
             let mut c = Command::new(bin());
@@ -151,10 +127,7 @@ fn lidar_frames_shards_merge_into_one_run() {
         for (i, d) in shards.iter().enumerate() {
             trace(&d.join("t.png"), Some(&format!("{i}/3")));
         }
-        let per_shard: Vec<usize> = shards
-            .iter()
-            .map(|d| list(d).iter().filter(|f| f.ends_with(".ply")).count())
-            .collect();
+        let per_shard: Vec<usize> = shards.iter().map(|d| count(d, ".ply")).collect();
         assert_eq!(
             per_shard.iter().sum::<usize>(),
             scans,
@@ -164,15 +137,7 @@ fn lidar_frames_shards_merge_into_one_run() {
             per_shard.iter().filter(|&&n| n > 0).count() > 1,
             "{mode}: one shard scanned every frame: {per_shard:?}"
         );
-        let merged = root.join("merged");
-        ok(merge(&shards, &merged), "merge");
-        assert_eq!(list(&merged), files, "{mode}");
-        for f in &files {
-            assert!(
-                std::fs::read(one.join(f)).unwrap() == std::fs::read(merged.join(f)).unwrap(),
-                "{mode}: {f} differs"
-            );
-        }
+        merged_is_one_run(&shards, &one, &root.join("merged"), mode);
     }
 }
 
@@ -183,16 +148,7 @@ fn lidar_frames_shards_merge_into_one_run() {
 #[test]
 fn trace_frames_shards_merge_into_one_sequence() {
     let tmp = tempfile::tempdir().unwrap();
-    ok(
-        Command::new(bin())
-            .args(["fixture", "street", "--count", "600"])
-            .args(["--effects", "lidar,rain", "-o"])
-            .arg(tmp.path().join("street"))
-            .output()
-            .unwrap(),
-        "fixture",
-    );
-    let scene = tmp.path().join("street/scene.json");
+    let scene = street_with_effects(tmp.path(), 600, "lidar,rain");
     for mode in ["gaussian", "mesh"] {
         let trace = |out: &Path, extra: &[&str]| {
             let mut c = Command::new(bin());
@@ -235,10 +191,7 @@ fn trace_frames_shards_merge_into_one_sequence() {
                 &["--frames", "--shard", &format!("{i}/3")],
             );
         }
-        let per_shard: Vec<usize> = shards
-            .iter()
-            .map(|d| list(d).iter().filter(|f| f.ends_with(".png")).count())
-            .collect();
+        let per_shard: Vec<usize> = shards.iter().map(|d| count(d, ".png")).collect();
         assert_eq!(
             per_shard.iter().sum::<usize>(),
             frames,
@@ -248,15 +201,7 @@ fn trace_frames_shards_merge_into_one_sequence() {
             per_shard.iter().all(|&n| n > 0),
             "{mode}: a shard traced nothing: {per_shard:?}"
         );
-        let merged = root.join("merged");
-        ok(merge(&shards, &merged), "merge");
-        assert_eq!(list(&merged), files, "{mode}");
-        for f in &files {
-            assert!(
-                std::fs::read(one.join(f)).unwrap() == std::fs::read(merged.join(f)).unwrap(),
-                "{mode}: {f} differs"
-            );
-        }
+        merged_is_one_run(&shards, &one, &root.join("merged"), mode);
     }
     // --shard alone names what it splits.
     let out = Command::new(bin())

@@ -23,12 +23,18 @@ pub fn ok(out: Output, what: &str) {
 /// `fixture street --count COUNT` written under `dir`; its manifest. Dynamic (moving
 /// objects), so every frame's outputs differ.
 pub fn street(dir: &Path, count: usize) -> PathBuf {
+    street_with_effects(dir, count, "")
+}
+
+/// As [`street`], declaring `effects` (comma-separated, as `fixture --effects`; empty: none).
+pub fn street_with_effects(dir: &Path, count: usize, effects: &str) -> PathBuf {
+    let mut c = Command::new(bin());
+    c.args(["fixture", "street", "--count", &count.to_string()]);
+    if !effects.is_empty() {
+        c.args(["--effects", effects]);
+    }
     ok(
-        Command::new(bin())
-            .args(["fixture", "street", "--count", &count.to_string(), "-o"])
-            .arg(dir.join("street"))
-            .output()
-            .unwrap(),
+        c.arg("-o").arg(dir.join("street")).output().unwrap(),
         "fixture",
     );
     dir.join("street/scene.json")
@@ -53,4 +59,23 @@ pub fn list(d: &Path) -> Vec<String> {
         .collect();
     v.sort();
     v
+}
+
+/// How many of a folder's entries end with `ext`.
+pub fn count(d: &Path, ext: &str) -> usize {
+    list(d).iter().filter(|f| f.ends_with(ext)).count()
+}
+
+/// `merge` the shard folders into `merged` and check it holds exactly the files of the
+/// unsharded run in `one`, bit for bit.
+pub fn merged_is_one_run(shards: &[PathBuf], one: &Path, merged: &Path, what: &str) {
+    ok(merge(shards, merged), "merge");
+    let files = list(one);
+    assert_eq!(list(merged), files, "{what}");
+    for f in &files {
+        assert!(
+            std::fs::read(one.join(f)).unwrap() == std::fs::read(merged.join(f)).unwrap(),
+            "{what}: {f} differs"
+        );
+    }
 }
