@@ -96,11 +96,7 @@ pub fn describe(file: &Path, scene: &DynamicScene, info: &LoadInfo) -> Value {
     let is_manifest = info.format == SplatFormat::Manifest;
     // A scene without objects is described from its static cloud, not a copy of it (a 10 M
     // Gaussian file is 2.4 GB of cloud); the statistics read no object ids.
-    let composite = if scene.objects.is_empty() {
-        std::borrow::Cow::Borrowed(&scene.static_gaussians)
-    } else {
-        std::borrow::Cow::Owned(scene.composite(scene.time.start))
-    };
+    let composite = scene.composite_view(scene.time.start);
     let mut out = cloud_stats(&composite);
     let Some(obj) = out.as_object_mut() else {
         return out;

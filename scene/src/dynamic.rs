@@ -429,6 +429,17 @@ impl DynamicScene {
         out
     }
 
+    /// The Gaussians at `t` for a reader that needs positions, shapes and colours only (framing
+    /// a camera, statistics): a scene without objects lends its static cloud (which carries no
+    /// object ids) instead of copying it, a multi-gigabyte copy at 10 M Gaussians.
+    pub fn composite_view(&self, t: f64) -> std::borrow::Cow<'_, GaussianCloud> {
+        if self.objects.is_empty() {
+            std::borrow::Cow::Borrowed(&self.static_gaussians)
+        } else {
+            std::borrow::Cow::Owned(self.composite(t))
+        }
+    }
+
     /// [`DynamicScene::composite`] consuming the scene: a scene without objects hands over its
     /// static cloud instead of copying it (the same values and ids), so loading a file and
     /// writing it elsewhere holds one cloud, not two.

@@ -137,7 +137,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.height,
         )?
     } else {
-        let frame0 = scene.composite(times[0]);
+        let frame0 = scene.composite_view(times[0]);
         resolve_cameras(&args.cameras, &frame0, &scene, args.width, args.height)?
     };
     // The hybrid's split and blend; `--split auto` measures them on the first time's composite.

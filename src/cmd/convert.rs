@@ -460,7 +460,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             camera: Some(spec.clone()),
             ..Default::default()
         };
-        let composite = scene.composite(scene.time.start);
+        let composite = scene.composite_view(scene.time.start);
         let cam = cam_args
             .resolve(&composite, &scene.cameras)
             .with_context(|| format!("--view-order {spec}"))?;
@@ -483,7 +483,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             fov: 50.0,
             ..Default::default()
         };
-        let composite = scene.composite(scene.time.start);
+        let composite = scene.composite_view(scene.time.start);
         let cam = cam_args
             .resolve(&composite, &scene.cameras)
             .with_context(|| format!("--bake-view {spec}"))?;

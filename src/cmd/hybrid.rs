@@ -405,7 +405,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // Orbit rigs frame the composite (without particles), as `render` does.
     let cam = args
         .camera
-        .resolve(&scene.composite(t), &scene.cameras)
+        .resolve(&scene.composite_view(t), &scene.cameras)
         .with_context(|| name.clone())?;
     let (split, auto) = args
         .knobs

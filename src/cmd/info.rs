@@ -37,11 +37,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 n as usize
             });
         // The cloud `convert --tiles` partitions: objects placed at the scene's start.
-        let cloud = if scene.objects.is_empty() {
-            std::borrow::Cow::Borrowed(&scene.static_gaussians)
-        } else {
-            std::borrow::Cow::Owned(scene.composite(scene.time.start))
-        };
+        let cloud = scene.composite_view(scene.time.start);
         out["blocks"] = splatbridge_scene::blocks::Blocks::build(&cloud, n).summary();
     }
     if args.json {

@@ -238,7 +238,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // so frames share it.
     let cam = args
         .camera
-        .resolve(&scene.composite(times[0]), &scene.cameras)
+        .resolve(&scene.composite_view(times[0]), &scene.cameras)
         .with_context(|| name.clone())?;
     if !args.json {
         println!("render {name}: {}", args.knobs.describe());

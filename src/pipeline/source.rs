@@ -129,11 +129,10 @@ impl TraceSource {
         }
         let scene = load_scene_warn(&self.input, self.drop_invalid, warn)?;
         let effects = effects_of(&scene).with_context(|| name.clone())?;
-        let cloud = scene.composite(self.time);
         let camera = self
             .camera
             .resolve(CameraSource {
-                cloud: &cloud,
+                cloud: &scene.composite_view(self.time),
                 own: &scene.cameras,
             })
             .with_context(|| name.clone())?;
