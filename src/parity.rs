@@ -279,7 +279,7 @@ pub fn report_order(mut placed: Vec<Placed>) -> Vec<Record> {
 
 /// Run the comparison over every camera × time; images and heat-maps go to `dir`.
 pub fn compare(
-    scene: &DynamicScene,
+    scene: &mut DynamicScene,
     cams: &[Camera],
     times: &[f64],
     dir: &Path,
@@ -298,10 +298,11 @@ pub fn compare(
 /// OBJ) is exported, loaded with its BVH, traces every item and is dropped before the next.
 /// Every image and heat-map is written as soon as it is measured. The scene's cloud is never
 /// copied for a static scene (its composite is its static cloud); a dynamic scene's composite
-/// exists for one time at a time.
+/// exists for one time at a time. The Gaussian tracer borrows the scene's clouds (moved in,
+/// given back after its stage, also when it fails), so they are held once.
 #[allow(clippy::too_many_arguments)]
 pub fn compare_selected(
-    scene: &DynamicScene,
+    scene: &mut DynamicScene,
     cams: &[Camera],
     times: &[f64],
     dir: &Path,
@@ -498,26 +499,35 @@ pub fn compare_selected(
     // Stage 2: one BVH per part of the scene for every time and camera (times re-pose the
     // objects), dropped before the meshes are built.
     if cfg.gaussian_trace {
+        let g =
+            GaussianTracer::for_scene_taking(scene, times[items[0].0], cfg.backend, cfg.preset)?;
         let mut tracer = Renderer::Gaussian {
-            tracer: GaussianTracer::for_scene(scene, times[items[0].0], cfg.backend, cfg.preset)?,
+            tracer: g,
             options: TraceOptions::default(),
         };
-        for &(ti, ci) in &items {
-            tracer.set_time(times[ti]);
-            let tag = tag(ti, ci);
-            progress(&format!("trace gaussians {tag}"));
-            let g = render_gaussians(&mut tracer, &cams[ci], cfg.k)?;
-            let reference = refs.get(slot(ti, ci))?;
-            emit(
-                &mut placed,
-                &reference,
-                (ti, ci),
-                (2, 0),
-                format!("tracegauss_{tag}"),
-                &g.frame,
-                named("trace-gaussian", g.ms),
-            )?;
+        let traced = (|| -> anyhow::Result<()> {
+            for &(ti, ci) in &items {
+                tracer.set_time(times[ti]);
+                let tag = tag(ti, ci);
+                progress(&format!("trace gaussians {tag}"));
+                let g = render_gaussians(&mut tracer, &cams[ci], cfg.k)?;
+                let reference = refs.get(slot(ti, ci))?;
+                emit(
+                    &mut placed,
+                    &reference,
+                    (ti, ci),
+                    (2, 0),
+                    format!("tracegauss_{tag}"),
+                    &g.frame,
+                    named("trace-gaussian", g.ms),
+                )?;
+            }
+            Ok(())
+        })();
+        if let Renderer::Gaussian { tracer, .. } = tracer {
+            tracer.give_back(scene);
         }
+        traced?;
     }
 
     // Stage 3: each mesh file exported, read back, traced at every item, then dropped.

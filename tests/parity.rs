@@ -33,7 +33,7 @@ fn mean_psnr(records: &[Record], renderer: &str, profile: &str, format: &str) ->
     v.iter().sum::<f64>() / v.len() as f64
 }
 
-fn run(scene: &DynamicScene, cams: &[Camera], times: &[f64]) -> Vec<Record> {
+fn run(scene: &mut DynamicScene, cams: &[Camera], times: &[f64]) -> Vec<Record> {
     let dir = tempfile::tempdir().unwrap();
     let cfg = CompareConfig::default();
     let records = parity::compare(scene, cams, times, dir.path(), &cfg, &|_| {}).unwrap();
@@ -97,10 +97,10 @@ fn check(records: &[Record], f: &Floors, rings_beats_meshsplats: bool) {
 
 #[test]
 fn street_fixture_parity() {
-    let scene = fixtures::street(1);
+    let mut scene = fixtures::street(1);
     let cams: Vec<Camera> = scene.cameras.iter().map(|c| c.resized(320, 240)).collect();
     let times = [scene.time.start, 0.5 * (scene.time.start + scene.time.end)];
-    let records = run(&scene, &cams, &times);
+    let records = run(&mut scene, &cams, &times);
     // Measured (4 cameras × 2 times, 320×240): see the comment of each floor.
     check(
         &records,
@@ -145,8 +145,8 @@ fn fourth_st_parity() {
     };
     let cams = rig.cameras(&cloud, 4).unwrap();
     let cams = vec![cams[0].clone(), cams[2].clone()];
-    let scene = DynamicScene::from_static(cloud);
-    let records = run(&scene, &cams, &[0.0]);
+    let mut scene = DynamicScene::from_static(cloud);
+    let records = run(&mut scene, &cams, &[0.0]);
     check(
         &records,
         &Floors {

@@ -365,6 +365,22 @@ impl GaussianTracer {
         }
     }
 
+    /// Give the Gaussians of a tracer built by [`GaussianTracer::for_scene_taking`] back to
+    /// `scene` (the static cloud, then each object's, as taken), unchanged: a caller that needs
+    /// the scene again after tracing lends its clouds instead of copying them.
+    pub fn give_back(mut self, scene: &mut DynamicScene) {
+        if self.has_particles {
+            self.parts.pop();
+        }
+        let mut clouds = self.parts.into_iter().map(|p| p.cloud);
+        if let Some(c) = clouds.next() {
+            scene.static_gaussians = c;
+        }
+        for (o, c) in scene.objects.iter_mut().zip(clouds) {
+            o.gaussians = c;
+        }
+    }
+
     /// Replace the frame's particles (world-space Gaussians after the scene's, e.g. weather):
     /// only their own small BVH is built.
     pub fn set_particles(&mut self, particles: Option<GaussianCloud>) -> Result<()> {

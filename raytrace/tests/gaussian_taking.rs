@@ -1,6 +1,7 @@
 //! `GaussianTracer::for_scene_taking` (the scene's Gaussians moved into the tracer) against
 //! `for_scene` (copied), the reference: the same image, bit for bit, at two times of a scene
-//! with moving objects; and the scene is left with its tracks and empty clouds.
+//! with moving objects; the scene is left with its tracks and empty clouds, and
+//! `give_back` returns it exactly as it was.
 
 use glam::DVec3;
 use splatbridge_raytrace::{BackendKind, BuildPreset, GaussianTracer, RenderOptions};
@@ -42,5 +43,14 @@ fn taking_the_scene_traces_the_same_image() {
                 .all(|(x, y)| x.to_bits() == y.to_bits()),
             "t = {t}: images differ"
         );
+    }
+    b.give_back(&mut taken);
+    assert!(
+        taken.static_gaussians == scene.static_gaussians,
+        "static cloud differs"
+    );
+    assert_eq!(taken.objects.len(), scene.objects.len());
+    for (i, (a, b)) in taken.objects.iter().zip(&scene.objects).enumerate() {
+        assert!(a.gaussians == b.gaussians, "object {i}: cloud differs");
     }
 }

@@ -120,7 +120,7 @@ pub fn parse_profiles(names: &[String]) -> anyhow::Result<Vec<Profile>> {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let scene = common::load(&args.scene, args.drop_invalid)?;
+    let mut scene = common::load(&args.scene, args.drop_invalid)?;
     let times = if args.times.is_empty() {
         default_times(&scene)
     } else {
@@ -175,7 +175,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let shard = args.shard;
     let (placed, scene_hash) = match shard {
         None => (
-            parity::compare_selected(&scene, &cams, &times, &stage, &cfg, &|_, _| true, &progress)?,
+            parity::compare_selected(
+                &mut scene,
+                &cams,
+                &times,
+                &stage,
+                &cfg,
+                &|_, _| true,
+                &progress,
+            )?,
             String::new(),
         ),
         Some(shard) => {
@@ -187,8 +195,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 setting: String::new(),
             };
             let owned = |ti: usize, ci: usize| shard.owns(&key(ti, ci));
-            let placed =
-                parity::compare_selected(&scene, &cams, &times, &stage, &cfg, &owned, &progress)?;
+            let placed = parity::compare_selected(
+                &mut scene, &cams, &times, &stage, &cfg, &owned, &progress,
+            )?;
             (placed, hash)
         }
     };

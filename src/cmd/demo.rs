@@ -33,7 +33,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let out = &args.out;
     std::fs::create_dir_all(out)
         .with_context(|| format!("{}: cannot create the output folder", out.display()))?;
-    let scene = fixtures::street(args.seed);
+    let mut scene = fixtures::street(args.seed);
     let saved = splatbridge_scene::manifest::save_manifest(&out.join("scene"), &scene)?;
     let _ = saved;
 
@@ -55,9 +55,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let times = vec![scene.time.start, 0.5 * (scene.time.start + scene.time.end)];
     let cfg = CompareConfig::default();
     let pb = common::progress(0, "demo");
-    let records = parity::compare(&scene, &cams, &times, &out.join("compare"), &cfg, &|m| {
-        pb.set_message(m.to_string())
-    })?;
+    let records = parity::compare(
+        &mut scene,
+        &cams,
+        &times,
+        &out.join("compare"),
+        &cfg,
+        &|m| pb.set_message(m.to_string()),
+    )?;
     pb.finish_and_clear();
     let rel: Vec<_> = records
         .iter()
