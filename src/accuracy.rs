@@ -437,15 +437,23 @@ pub fn write_staged(stage: &Path, what: &str, records: &[Record]) -> anyhow::Res
     write_outputs(stage, what, records)
 }
 
-/// What one sweep measures: the cloud, the cameras and their reference frames, the time
-/// written into the records, and where temporary exports go.
+/// What one sweep measures: the cloud (as a static scene, so exports read it in place rather
+/// than from a copy), the cameras and their reference frames, the time written into the
+/// records, and where temporary exports go.
 pub struct Sweep<'a> {
-    pub cloud: &'a GaussianCloud,
+    pub scene: &'a DynamicScene,
     pub cameras: &'a [Camera],
     pub references: &'a [Frame],
     pub time: f64,
     pub work_dir: &'a Path,
     pub drop_invalid: bool,
+}
+
+impl Sweep<'_> {
+    /// The swept cloud.
+    pub fn cloud(&self) -> &GaussianCloud {
+        &self.scene.static_gaussians
+    }
 }
 
 /// The reference frames: native splatting with reference settings at every camera.
@@ -468,13 +476,7 @@ fn trace_sweep_mesh(
     push: &mut impl FnMut(&Frame, &Frame, f64, &Camera, u64, u64) -> anyhow::Result<()>,
 ) -> anyhow::Result<&'static str> {
     let path = s.work_dir.join(format!("sweep_{index}.glb"));
-    let mut m = parity::export_and_load(
-        &DynamicScene::from_static(s.cloud.clone()),
-        opts,
-        &path,
-        cfg.backend,
-        cfg.preset,
-    )?;
+    let mut m = parity::export_and_load(s.scene, opts, &path, cfg.backend, cfg.preset)?;
     for (c, reference) in s.cameras.iter().zip(s.references) {
         let img = parity::render_mesh_with(&mut m, c, 0.0, trace.clone())?;
         push(&img.frame, reference, img.ms, c, m.triangles, m.bytes)?;
@@ -536,7 +538,7 @@ pub fn measure_setting(
         }
         Setting::Native(o) => {
             for (c, reference) in views {
-                let img = parity::render_native(s.cloud, c, o)?;
+                let img = parity::render_native(s.cloud(), c, o)?;
                 push(&img.frame, reference, img.ms, c, 0, 0)?;
             }
             "native"
@@ -545,7 +547,7 @@ pub fn measure_setting(
             let path = s
                 .work_dir
                 .join(format!("sweep_{index}.{}", format_ending(f)));
-            let bytes = write_cloud(&path, s.cloud, *f)?;
+            let bytes = write_cloud(&path, s.cloud(), *f)?;
             let read = ReadOptions {
                 drop_invalid: s.drop_invalid,
             };
@@ -560,7 +562,7 @@ pub fn measure_setting(
         }
         Setting::MeshWith(opts, o) => trace_sweep_mesh(s, &cfg, index, opts, o.clone(), &mut push)?,
         Setting::Gaussian(o) => {
-            let tracer = GaussianTracer::new(s.cloud.clone(), cfg.backend, cfg.preset)?;
+            let tracer = GaussianTracer::new(s.cloud().clone(), cfg.backend, cfg.preset)?;
             let mut r = crate::pipeline::Renderer::Gaussian {
                 tracer,
                 options: o.clone(),
@@ -573,14 +575,14 @@ pub fn measure_setting(
         }
         Setting::Hybrid(split) => {
             for (c, reference) in views {
-                let img = parity::render_hybrid(s.cloud, c, *split, &cfg.ges)?;
+                let img = parity::render_hybrid(s.cloud(), c, *split, &cfg.ges)?;
                 push(&img.frame, reference, img.ms, c, 0, 0)?;
             }
             "hybrid"
         }
         Setting::HybridWith(split, ges) => {
             for (c, reference) in views {
-                let img = parity::render_hybrid(s.cloud, c, *split, ges)?;
+                let img = parity::render_hybrid(s.cloud(), c, *split, ges)?;
                 push(&img.frame, reference, img.ms, c, 0, 0)?;
             }
             "hybrid"

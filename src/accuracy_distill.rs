@@ -10,7 +10,6 @@ use std::path::Path;
 
 use anyhow::Context;
 use splatbridge_convert::{ConvertOptions, Profile};
-use splatbridge_scene::dynamic::DynamicScene;
 
 use crate::accuracy::Sweep;
 use crate::distill::{views, DistillOptions, Distiller};
@@ -55,8 +54,8 @@ pub struct CurvePoint {
 
 /// Fit each profile and measure the sweep's cameras at every checkpoint.
 pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<Vec<CurvePoint>> {
-    let scene = DynamicScene::from_static(s.cloud.clone());
-    let fit: Vec<_> = views::held_back(s.cloud, cfg.views, cfg.views, cfg.width, cfg.height)?
+    let scene = s.scene;
+    let fit: Vec<_> = views::held_back(s.cloud(), cfg.views, cfg.views, cfg.width, cfg.height)?
         .into_iter()
         .filter(|f| {
             s.cameras
@@ -76,7 +75,7 @@ pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<Vec<Cur
             iterations: last,
             ..cfg.options.clone()
         };
-        let mut d = Distiller::new(&scene, &convert, &fit, &opts)
+        let mut d = Distiller::new(scene, &convert, &fit, &opts)
             .with_context(|| format!("distilling profile {name}"))?;
         let triangles = d.triangles();
         loop {

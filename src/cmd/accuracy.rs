@@ -99,9 +99,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         cams = resolve_cameras(&args.cameras, &cloud, &scene, args.width, args.height)?;
         cloud
     };
-    let refs = reference_frames(&cloud, &cams)?;
+    // The sweep's exports read this scene in place (no copy of the cloud per export).
+    let swept = splatbridge_scene::dynamic::DynamicScene::from_static(cloud);
+    let cloud = &swept.static_gaussians;
+    let refs = reference_frames(cloud, &cams)?;
     let sweep = Sweep {
-        cloud: &cloud,
+        scene: &swept,
         cameras: &cams,
         references: &refs,
         time: args.time,
