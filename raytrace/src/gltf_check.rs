@@ -31,9 +31,9 @@ pub const MAX_NODE_DEPTH: usize = 1024;
 /// texture costs at most 1 GiB.
 pub const MAX_TEXTURE_PIXELS: u64 = 8192 * 8192;
 
-const GLB_MAGIC: &[u8; 4] = b"glTF";
-const CHUNK_JSON: u32 = 0x4E4F_534A;
-const CHUNK_BIN: u32 = 0x004E_4942;
+pub(crate) const GLB_MAGIC: &[u8; 4] = b"glTF";
+pub(crate) const CHUNK_JSON: u32 = 0x4E4F_534A;
+pub(crate) const CHUNK_BIN: u32 = 0x004E_4942;
 
 /// What the `gltf` importer returns, checked.
 pub type Import = (
@@ -42,11 +42,11 @@ pub type Import = (
     Vec<gltf::image::Data>,
 );
 
-fn bad(name: &Path, what: impl Into<String>) -> TraceError {
+pub(crate) fn bad(name: &Path, what: impl Into<String>) -> TraceError {
     TraceError::format(name, what)
 }
 
-fn le32(b: &[u8], at: usize) -> u32 {
+pub(crate) fn le32(b: &[u8], at: usize) -> u32 {
     u32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]])
 }
 

@@ -7,8 +7,8 @@
 //! gets a buffer view and a buffer of its own that span exactly its bytes in the BIN chunk
 //! (the view keeps the original byte stride, the accessor's offset becomes 0), and every image
 //! stored in a buffer view gets its own buffer likewise. The values read are therefore the
-//! values of the original document, byte for byte; [`Buffers::ensure`] reads a buffer's span
-//! from the file before an accessor is read and [`Buffers::release`] drops it after.
+//! values of the original document, byte for byte; [`Buffers::with_accessors`] reads an
+//! accessor's span from the file just before it is read and drops it after.
 //!
 //! Only the plain case is streamed: a GLB whose single buffer is its BIN chunk, with no sparse
 //! accessors, no matrix accessors (their columns are padded) and no buffer-view extensions
@@ -25,7 +25,7 @@ use gltf::json::{buffer, Index, Root};
 use splatbridge_scene::input::{self, Cap};
 
 use crate::error::{Result, TraceError};
-use crate::gltf_check::{self, Import};
+use crate::gltf_check::{self, bad, le32, Import, CHUNK_BIN, CHUNK_JSON, GLB_MAGIC};
 
 /// Where a streamed buffer's bytes are in the file.
 struct Source {
@@ -48,7 +48,7 @@ impl Buffers {
     }
 
     /// Make buffer `b` readable (a streamed buffer is read from the file).
-    pub fn ensure(&mut self, b: usize) -> Result<()> {
+    fn ensure(&mut self, b: usize) -> Result<()> {
         let Some(src) = &mut self.source else {
             return Ok(());
         };
@@ -71,16 +71,8 @@ impl Buffers {
         Ok(())
     }
 
-    /// Make the buffer of `acc`'s view readable.
-    pub fn ensure_accessor(&mut self, acc: &gltf::Accessor) -> Result<()> {
-        match acc.view() {
-            Some(v) => self.ensure(v.buffer().index()),
-            None => Ok(()),
-        }
-    }
-
     /// Drop a streamed buffer's bytes (no-op for buffers held whole).
-    pub fn release(&mut self, b: usize) {
+    fn release(&mut self, b: usize) {
         if self.source.is_some() {
             if let Some(slot) = self.data.get_mut(b) {
                 slot.0 = Vec::new();
@@ -88,11 +80,25 @@ impl Buffers {
         }
     }
 
-    /// Drop the bytes of `acc`'s buffer, if streamed.
-    pub fn release_accessor(&mut self, acc: &gltf::Accessor) {
-        if let Some(v) = acc.view() {
-            self.release(v.buffer().index());
+    /// Run `read` with the buffers of `accs` readable, then drop what was streamed for them
+    /// (also when `read` fails): every accessor read goes through here.
+    pub fn with_accessors<T>(
+        &mut self,
+        accs: &[&gltf::Accessor],
+        read: impl FnOnce(&Buffers) -> Result<T>,
+    ) -> Result<T> {
+        let ids: Vec<usize> = accs
+            .iter()
+            .filter_map(|a| a.view().map(|v| v.buffer().index()))
+            .collect();
+        let out = ids
+            .iter()
+            .try_for_each(|&b| self.ensure(b))
+            .and_then(|()| read(self));
+        for b in ids {
+            self.release(b);
         }
+        out
     }
 
     /// Buffer `b`'s bytes, if readable.
@@ -103,14 +109,6 @@ impl Buffers {
 
 /// A checked document with its buffers and decoded images.
 pub type StreamedImport = (gltf::Document, Buffers, Vec<gltf::image::Data>);
-
-fn bad(name: &Path, what: impl Into<String>) -> TraceError {
-    TraceError::format(name, what)
-}
-
-fn le32(b: &[u8], at: usize) -> u32 {
-    u32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]])
-}
 
 /// Import a glTF/GLB file: a plain GLB streamed (see the module documentation), anything else
 /// read whole through [`gltf_check::import_path`].
@@ -139,11 +137,11 @@ fn open_glb(path: &Path) -> Result<Option<StreamedImport>> {
     }
     file.read_exact(&mut head).map_err(io)?;
     // Anything unusual in the container is left to the whole-file reader's checks and errors.
-    if &head[..4] != b"glTF" || le32(&head, 4) != 2 || le32(&head, 8) as u64 != len {
+    if &head[..4] != GLB_MAGIC || le32(&head, 4) != 2 || le32(&head, 8) as u64 != len {
         return Ok(None);
     }
     let json_len = le32(&head, 12) as u64;
-    if le32(&head, 16) != 0x4E4F_534A || 20 + json_len + 8 > len {
+    if le32(&head, 16) != CHUNK_JSON || 20 + json_len + 8 > len {
         return Ok(None);
     }
     let mut json = vec![0u8; json_len as usize];
@@ -152,7 +150,7 @@ fn open_glb(path: &Path) -> Result<Option<StreamedImport>> {
     file.read_exact(&mut chunk).map_err(io)?;
     let bin_len = le32(&chunk, 0) as u64;
     let bin_start = 20 + json_len + 8;
-    if le32(&chunk, 4) != 0x004E_4942 || bin_len > len - bin_start {
+    if le32(&chunk, 4) != CHUNK_BIN || bin_len > len - bin_start {
         return Ok(None);
     }
     let root = gltf_check::parse_root(&json, path)?;

@@ -280,14 +280,13 @@ fn gltf_primitive(
     let pos_acc = p
         .get(&gltf::Semantic::Positions)
         .ok_or_else(|| TraceError::format(path, format!("{what}: no POSITION")))?;
-    buffers.ensure_accessor(&pos_acc)?;
-    let pos: Vec<Vec3> = p
-        .reader(|b: gltf::Buffer| buffers.get(b.index()))
-        .read_positions()
-        .ok_or_else(|| TraceError::format(path, format!("{what}: no POSITION")))?
-        .map(Vec3::from_array)
-        .collect();
-    buffers.release_accessor(&pos_acc);
+    let pos: Vec<Vec3> = buffers.with_accessors(&[&pos_acc], |bufs| {
+        Ok(p.reader(|b: gltf::Buffer| bufs.get(b.index()))
+            .read_positions()
+            .ok_or_else(|| TraceError::format(path, format!("{what}: no POSITION")))?
+            .map(Vec3::from_array)
+            .collect())
+    })?;
     if let Some(i) = pos.iter().position(|v| !fits_bvh(*v)) {
         return Err(TraceError::format(
             path,
@@ -296,18 +295,14 @@ fn gltf_primitive(
     }
     let n = pos.len();
     let cols: Vec<Vec4> = match p.get(&gltf::Semantic::Colors(0)) {
-        Some(acc) => {
-            buffers.ensure_accessor(&acc)?;
-            let c = p
-                .reader(|b: gltf::Buffer| buffers.get(b.index()))
+        Some(acc) => buffers.with_accessors(&[&acc], |bufs| {
+            Ok(p.reader(|b: gltf::Buffer| bufs.get(b.index()))
                 .read_colors(0)
                 .ok_or_else(|| TraceError::format(path, format!("{what}: COLOR_0 cannot be read")))?
                 .into_rgba_f32()
                 .map(Vec4::from_array)
-                .collect();
-            buffers.release_accessor(&acc);
-            c
-        }
+                .collect())
+        })?,
         None => vec![Vec4::ONE; n],
     };
     if cols.len() != n {
@@ -320,40 +315,31 @@ fn gltf_primitive(
         ));
     }
     let uv: Option<Vec<Vec2>> = match p.get(&gltf::Semantic::TexCoords(0)) {
-        Some(acc) => {
-            buffers.ensure_accessor(&acc)?;
-            let u = p
-                .reader(|b: gltf::Buffer| buffers.get(b.index()))
+        Some(acc) => buffers.with_accessors(&[&acc], |bufs| {
+            Ok(p.reader(|b: gltf::Buffer| bufs.get(b.index()))
                 .read_tex_coords(0)
-                .map(|t| t.into_f32().map(Vec2::from_array).collect());
-            buffers.release_accessor(&acc);
-            u
-        }
+                .map(|t| t.into_f32().map(Vec2::from_array).collect()))
+        })?,
         None => None,
     };
     let gid = match p
         .attributes()
         .find(|(s, _)| matches!(s, gltf::Semantic::Extras(name) if name == "GAUSSIAN_ID"))
     {
-        Some((_, acc)) => {
-            buffers.ensure_accessor(&acc)?;
-            let g = read_scalar_u32(path, &acc, buffers, &format!("{what}: _GAUSSIAN_ID"))?;
-            buffers.release_accessor(&acc);
-            Some(g)
-        }
+        Some((_, acc)) => Some(buffers.with_accessors(&[&acc], |bufs| {
+            read_scalar_u32(path, &acc, bufs, &format!("{what}: _GAUSSIAN_ID"))
+        })?),
         None => None,
     };
     let index_acc = p.indices();
-    if let Some(acc) = &index_acc {
-        buffers.ensure_accessor(acc)?;
-    }
-    let tris: Vec<[u32; 3]> = {
-        let reader = p.reader(|b: gltf::Buffer| buffers.get(b.index()));
+    let accs: Vec<&gltf::Accessor> = index_acc.iter().collect();
+    let tris: Vec<[u32; 3]> = buffers.with_accessors(&accs, |bufs| {
+        let reader = p.reader(|b: gltf::Buffer| bufs.get(b.index()));
         let mut indices: Box<dyn Iterator<Item = u32>> = match reader.read_indices() {
             Some(i) => Box::new(i.into_u32()),
             None => Box::new(0..n as u32),
         };
-        if p.mode() == Mode::Triangles {
+        Ok(if p.mode() == Mode::Triangles {
             // Straight into triangles: no separate index list (a third of a mesh's bytes).
             let mut tris = Vec::with_capacity(indices.size_hint().0 / 3);
             let mut t = [0u32; 3];
@@ -388,11 +374,8 @@ fn gltf_primitive(
                     .map(|i| [idx[0], idx[i - 1], idx[i]])
                     .collect()
             }
-        }
-    };
-    if let Some(acc) = &index_acc {
-        buffers.release_accessor(acc);
-    }
+        })
+    })?;
     let material = p
         .material()
         .index()
@@ -625,12 +608,10 @@ fn gltf_channel(
     };
     // Keys and values are small: both are read, then dropped.
     let (input, output) = (ch.sampler().input(), ch.sampler().output());
-    buffers.ensure_accessor(&input)?;
-    buffers.ensure_accessor(&output)?;
-    let values = channel_values(path, ch, what, buffers);
-    buffers.release_accessor(&input);
-    buffers.release_accessor(&output);
-    let Some((times, values)) = values? else {
+    let values = buffers.with_accessors(&[&input, &output], |bufs| {
+        channel_values(path, ch, what, bufs)
+    })?;
+    let Some((times, values)) = values else {
         return Ok(None);
     };
     channel_from(path, ch, what, path_kind, times, values)

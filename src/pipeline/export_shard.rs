@@ -79,7 +79,8 @@ pub fn folder_of(path: &Path) -> PathBuf {
     }
 }
 
-fn partial_report(
+/// A file-only shard's partial report: `files` are listed by name.
+pub(crate) fn partial_report(
     command: &str,
     scene_hash: String,
     canonical: &str,

@@ -18,9 +18,10 @@ use splatbridge_scene::image_io::stage_frame;
 use splatbridge_scene::output::OutputSet;
 use splatbridge_scene::Camera;
 
+use super::export_shard::partial_report;
 use super::frame::{render_frame, FrameRequest, LidarRequest, RenderedFrame};
 use super::renderer::Renderer;
-use crate::merge::{options_hash, scene_hash, PartialReport, PARTIAL_FORMAT, REPORT};
+use crate::merge::{scene_hash, REPORT};
 use crate::shard::{Shard, WorkKey};
 
 /// A sequence to render.
@@ -176,24 +177,7 @@ pub fn render_sequence(
         })?;
     }
     if let (Some(shard), Some(scene_hash)) = (req.shard, hash) {
-        let files = listed
-            .iter()
-            .filter_map(|p| p.file_name())
-            .map(|n| n.to_string_lossy().into_owned())
-            .collect();
-        let partial = PartialReport {
-            format: PARTIAL_FORMAT.into(),
-            command: req.command.into(),
-            version: env!("CARGO_PKG_VERSION").into(),
-            scene_hash,
-            options_hash: options_hash(&req.canonical),
-            shard,
-            title: String::new(),
-            preamble: String::new(),
-            files,
-            peak_memory_bytes: crate::memory::peak_bytes().unwrap_or(0),
-            records: Vec::new(),
-        };
+        let partial = partial_report(req.command, scene_hash, &req.canonical, shard, &listed);
         set.write(
             &out_dir.join(REPORT),
             serde_json::to_string_pretty(&partial)?.as_bytes(),
