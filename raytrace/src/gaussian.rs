@@ -715,13 +715,25 @@ impl GaussianTracer {
     /// built first and their build time is counted in the render's seconds).
     pub fn render(&self, cam: &Camera, opts: &RenderOptions) -> Result<(Frame, Stats)> {
         opts.validate()?;
-        let forward = cam.world_to_cam.row(2);
         let variance = opts.sample_footprint.variance_px2(opts.spp);
         let padded = self.for_camera(cam, opts.footprint, variance)?;
-        let (frame, mut stats) = render_frame_spp(cam, opts.spp, |o, d| {
-            let fp = padded
-                .as_ref()
-                .and_then(|p| RayFootprint::pinhole(cam, d, variance).map(|f| (f, p)));
+        let (frame, mut stats) = self.render_padded(cam, opts, padded.as_ref())?;
+        stats.seconds += padded.map_or(0.0, |p| p.build_seconds);
+        Ok((frame, stats))
+    }
+
+    /// [`GaussianTracer::render`] through per-camera footprint BVHs already built (`None`
+    /// without a footprint); the cull tests render the same frame with their cull disabled.
+    pub(crate) fn render_padded(
+        &self,
+        cam: &Camera,
+        opts: &RenderOptions,
+        padded: Option<&Padded>,
+    ) -> Result<(Frame, Stats)> {
+        let forward = cam.world_to_cam.row(2);
+        let variance = opts.sample_footprint.variance_px2(opts.spp);
+        render_frame_spp(cam, opts.spp, |o, d| {
+            let fp = padded.and_then(|p| RayFootprint::pinhole(cam, d, variance).map(|f| (f, p)));
             with_thread_buffer(opts.k, |b| {
                 self.trace_fp(
                     o,
@@ -732,9 +744,7 @@ impl GaussianTracer {
                     b,
                 )
             })
-        })?;
-        stats.seconds += padded.map_or(0.0, |p| p.build_seconds);
-        Ok((frame, stats))
+        })
     }
 }
 

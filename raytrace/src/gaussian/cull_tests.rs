@@ -4,33 +4,19 @@
 
 use glam::{DVec3, Quat, Vec3};
 use splatbridge_scene::dynamic::{DynamicScene, PoseKey, SceneObject, TimeRange, Track};
+use splatbridge_scene::rng::Rng;
 use splatbridge_scene::{Camera, Frame, GaussianCloud};
 
-use super::{with_thread_buffer, GaussianTracer};
+use super::GaussianTracer;
 use crate::backend::{BackendKind, BuildPreset};
-use crate::footprint::{Footprint, HitOrder, RayFootprint};
-use crate::render::{render_frame_spp, RenderOptions, Stats};
-
-/// A deterministic generator (SplitMix64).
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> f32 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
-    }
-    fn range(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * self.next()
-    }
-}
+use crate::footprint::{Footprint, HitOrder};
+use crate::render::{RenderOptions, Stats};
 
 /// A deep corridor of Gaussians (many per ray, so the k-buffer runs several rounds) whose
 /// sizes span three decades (so a part splits into several buckets), with a few large ones.
 fn corridor(seed: u64, n: usize) -> GaussianCloud {
-    let mut r = Rng(seed);
+    // The project's SplitMix64, started at state `seed`.
+    let mut r = Rng::new(seed ^ 0x9E37_79B9_7F4A_7C15);
     let mut c = GaussianCloud::new(1);
     for i in 0..n {
         let m = Vec3::new(r.range(-1.0, 1.0), r.range(-0.8, 0.8), r.range(0.5, 12.0));
@@ -84,7 +70,6 @@ fn render(
     opts: &RenderOptions,
     cull: bool,
 ) -> (Frame, Stats) {
-    let forward = cam.world_to_cam.row(2);
     let variance = opts.sample_footprint.variance_px2(opts.spp);
     let mut padded = tracer.for_camera(cam, opts.footprint, variance).unwrap();
     if !cull {
@@ -95,22 +80,7 @@ fn render(
             b.reach = f32::INFINITY;
         }
     }
-    render_frame_spp(cam, opts.spp, |o, d| {
-        let fp = padded
-            .as_ref()
-            .and_then(|p| RayFootprint::pinhole(cam, d, variance).map(|f| (f, p)));
-        with_thread_buffer(opts.k, |b| {
-            tracer.trace_fp(
-                o,
-                d,
-                Some(forward),
-                fp.as_ref().map(|(f, p)| (f, *p)),
-                opts,
-                b,
-            )
-        })
-    })
-    .unwrap()
+    tracer.render_padded(cam, opts, padded.as_ref()).unwrap()
 }
 
 fn bits(f: &Frame) -> Vec<u32> {
