@@ -105,12 +105,8 @@ pub(super) fn rekeyed_cull(k: f32, reach: f32, cos: f32) -> f32 {
     }
     let margin = reach / cos;
     let c = k + margin;
-    let c = c + (c.abs() + margin) * 1e-5 + 1e-4;
-    if c.is_finite() {
-        c
-    } else {
-        f32::INFINITY
-    }
+    // Never NaN: k is finite, cos > 0 and reach ≥ 0 (a diagonal length), so c is finite or +∞.
+    c + (c.abs() + margin) * 1e-5 + 1e-4
 }
 
 /// Split `boxes` (a part's grown proxies) into [`Bucket`]s by diagonal and build each one's
@@ -147,15 +143,10 @@ fn buckets(tracer: &GaussianTracer, boxes: &[(Vec3, Vec3)]) -> Result<Vec<Bucket
     };
     let used = members.iter().filter(|m| !m.is_empty()).count();
     if used == 1 {
-        let reach = diag.iter().copied().fold(0.0f32, f32::max);
         return Ok(vec![Bucket {
             accel: build_boxes(tracer.backend, tracer.preset, boxes)?,
             ids: None,
-            reach: if reach.is_finite() {
-                reach
-            } else {
-                f32::INFINITY
-            },
+            reach: diag.iter().copied().fold(0.0f32, f32::max),
         }]);
     }
     // Until the k-buffer is full nothing is culled, so the bucket most likely to fill it, the
@@ -165,15 +156,10 @@ fn buckets(tracer: &GaussianTracer, boxes: &[(Vec3, Vec3)]) -> Result<Vec<Bucket
     let mut out = Vec::with_capacity(used);
     for ids in members {
         let sub: Vec<(Vec3, Vec3)> = ids.iter().map(|&i| boxes[i as usize]).collect();
-        let reach = reach_of(&ids);
         out.push(Bucket {
             accel: build_boxes(tracer.backend, tracer.preset, &sub)?,
+            reach: reach_of(&ids),
             ids: Some(ids),
-            reach: if reach.is_finite() {
-                reach
-            } else {
-                f32::INFINITY
-            },
         });
     }
     Ok(out)
