@@ -559,9 +559,13 @@ impl GaussianTracer {
                         return;
                     };
                     if let Some(n) = near {
-                        if let Some(k) =
-                            camera::mean_depth_key(order, part.proxy[p].mean, ro, rd, n.forward)
-                        {
+                        if let Some(k) = camera::mean_depth_key(
+                            order,
+                            part.proxy[p].mean,
+                            ro,
+                            n.forward,
+                            forward_cos,
+                        ) {
                             t = k;
                         }
                     }

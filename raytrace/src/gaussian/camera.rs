@@ -469,14 +469,15 @@ fn splat_2d(
     half.is_finite().then_some((splat, half))
 }
 
-/// The hit key of a primary ray's hit under `order` (None: keep the hit's own `t`).
+/// The hit key of a primary ray's hit under `order` (None: keep the hit's own `t`): the mean's
+/// depth along the camera axis `f` over the ray's cosine `d·f` to it (computed once per ray).
 #[inline]
 pub(super) fn mean_depth_key(
     order: HitOrder,
     mean: Vec3,
     o: Vec3,
-    d: Vec3,
     f: Vec3,
+    cos: f32,
 ) -> Option<f32> {
-    (order == HitOrder::MeanDepth).then(|| (mean - o).dot(f) / d.dot(f))
+    (order == HitOrder::MeanDepth).then(|| (mean - o).dot(f) / cos)
 }
