@@ -293,10 +293,10 @@ fn cli_writes_tiles_and_reports_blocks() {
     assert_eq!(r.status.code(), Some(2));
 }
 
-#[cfg_attr(not(web_clients), allow(dead_code))]
 /// Render the tileset in `dir` with `client` (`cesium` or `3d-tiles-renderer`) into `out` at
 /// 320×240, a 50° camera `[eye, target, up]` given in capture coordinates (mapped into the
 /// tileset's frame as the root transform does), every tile refined (`--sse 0`).
+#[cfg_attr(not(web_clients), allow(dead_code))]
 fn render_tileset(
     client: &str,
     dir: &Path,
@@ -323,6 +323,7 @@ fn render_tileset(
     assert!(st.success(), "{client} failed");
 }
 
+#[cfg_attr(not(web_clients), allow(dead_code))]
 fn script(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("scripts")

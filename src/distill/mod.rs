@@ -277,12 +277,12 @@ impl Distiller {
             ParamMode::Auto => 4 * n as u64 > values,
         };
         let tied = per_gaussian.then(|| {
-            let keys: Vec<(u32, u32)> = vertex_gaussians(&tri)
+            let per_vertex = vertex_gaussians(&tri);
+            let keys = per_vertex
                 .iter()
                 .enumerate()
-                .flat_map(|(mi, g)| g.iter().map(move |&id| (mi as u32, id)))
-                .collect();
-            Tied::new(params.clone(), keys.into_iter())
+                .flat_map(|(mi, g)| g.iter().map(move |&id| (mi as u32, id)));
+            Tied::new(params.clone(), keys)
         });
         let moments = tied.as_ref().map_or(n, Tied::groups);
         let tracer = MeshTracer::new(tri, BackendKind::default(), BuildPreset::default())?;

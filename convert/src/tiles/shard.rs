@@ -292,13 +292,18 @@ impl ShardLeaves<'_> {
     }
 }
 
+/// An error in shard directory `dir`'s manifest.
+fn manifest_err(dir: &Path, what: String) -> ConvertError {
+    ConvertError::Format {
+        path: dir.join(MANIFEST),
+        what,
+    }
+}
+
 /// Read and check one shard directory's manifest.
 fn read_manifest(dir: &Path) -> Result<ShardManifest> {
     let path = dir.join(MANIFEST);
-    let bad = |what: String| ConvertError::Format {
-        path: path.clone(),
-        what,
-    };
+    let bad = |what: String| manifest_err(dir, what);
     let text = splatbridge_scene::input::read_bounded(&path, splatbridge_scene::input::Cap::Text)
         .map_err(|e| {
         bad(format!(
@@ -347,10 +352,7 @@ pub fn write_from_shards(
     let count = manifests[0].count;
     let mut seen: Vec<Option<&Path>> = vec![None; count as usize];
     for (m, d) in manifests.iter().zip(shard_dirs) {
-        let bad = |what: String| ConvertError::Format {
-            path: d.join(MANIFEST),
-            what,
-        };
+        let bad = |what: String| manifest_err(d, what);
         if m.count != count {
             return Err(bad(format!(
                 "shard {}/{} of another run: {} is a shard of {count}",
@@ -381,10 +383,7 @@ pub fn write_from_shards(
     let keys = leaf_keys(&blocks);
     let mut at = BTreeMap::new();
     for (m, d) in manifests.iter().zip(shard_dirs) {
-        let bad = |what: String| ConvertError::Format {
-            path: d.join(MANIFEST),
-            what,
-        };
+        let bad = |what: String| manifest_err(d, what);
         if m.partition != partition {
             return Err(bad(format!(
                 "written for another input or other options (partition {}, this run's {partition})",
