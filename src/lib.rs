@@ -5,6 +5,7 @@
 
 pub mod accuracy;
 pub mod accuracy_distill;
+pub mod budget;
 pub mod clients;
 pub mod describe;
 pub mod distill;

@@ -42,6 +42,9 @@ pub struct CompareConfig {
     pub clients: Vec<crate::clients::Client>,
     /// The client dispatcher (`scripts/client-render.sh`).
     pub client_script: PathBuf,
+    /// Skip a Gaussian-trace or mesh stage whose estimated peak (`budget.rs`) is over this many
+    /// bytes, with a note in the report (`None`: run every stage).
+    pub max_memory: Option<u64>,
 }
 
 impl Default for CompareConfig {
@@ -59,6 +62,7 @@ impl Default for CompareConfig {
             split: SplitParams::default(),
             clients: Vec::new(),
             client_script: crate::clients::default_script(),
+            max_memory: None,
         }
     }
 }
@@ -261,16 +265,22 @@ pub struct Placed {
 }
 
 /// The records of a comparison in report order: measured ones by `order`, then the first
-/// unavailable-client note per client. `placed` may come from several shards.
+/// skipped note per (renderer, profile, format): a client that is not installed, a stage over
+/// the memory budget. `placed` may come from several shards.
 pub fn report_order(mut placed: Vec<Placed>) -> Vec<Record> {
     placed.sort_by_key(|p| p.order);
     let (skipped, measured): (Vec<Placed>, Vec<Placed>) =
         placed.into_iter().partition(|p| p.skipped);
     let mut out: Vec<Record> = measured.into_iter().map(|p| p.record).collect();
-    let mut seen: Vec<String> = Vec::new();
+    let mut seen: Vec<(String, String, String)> = Vec::new();
     for p in skipped {
-        if !seen.contains(&p.record.renderer) {
-            seen.push(p.record.renderer.clone());
+        let key = (
+            p.record.renderer.clone(),
+            p.record.profile.clone(),
+            p.record.format.clone(),
+        );
+        if !seen.contains(&key) {
+            seen.push(key);
             out.push(p.record);
         }
     }
@@ -354,6 +364,33 @@ pub fn compare_selected(
             record: r,
         });
         Ok(())
+    };
+    // The budget's text when `estimate` is over it (`None`: the stage fits or there is none).
+    let over_budget = |estimate: u64| match cfg.max_memory {
+        Some(b) if estimate > b => Some(crate::budget::gb(b)),
+        _ => None,
+    };
+    // A stage left out for the budget: one note, placed at the first item (each shard places
+    // the same one; `report_order` keeps one per renderer, profile and format).
+    let (first_t, first_c) = items[0];
+    let skip = |placed: &mut Vec<Placed>,
+                (renderer, profile, format): (&str, &str, &str),
+                s: u64,
+                note: String| {
+        placed.push(Placed {
+            order: [first_t as u64, first_c as u64, s, 0],
+            skipped: true,
+            record: Record {
+                renderer: renderer.into(),
+                profile: profile.into(),
+                format: format.into(),
+                camera: cams[first_c].name.clone(),
+                time: times[first_t],
+                psnr: f64::NAN,
+                note,
+                ..Record::default()
+            },
+        });
     };
     // Mesh files traced for every item: (profile, format) in the order they are traced.
     let mut mesh_files: Vec<(Profile, &'static str)> = Vec::new();
@@ -473,11 +510,24 @@ pub fn compare_selected(
                     ..ConvertOptions::default()
                 };
                 let frame_scene = DynamicScene::from_static(cloud.clone().into_owned());
+                let size = crate::budget::mesh_size(&frame_scene, &opts)?;
+                // The frame's OBJ stage holds the scene and the frame's copy of its composite.
+                let estimate = crate::budget::mesh_stage_bytes(&frame_scene, size, "obj")
+                    + crate::budget::scene_bytes(scene);
+                if let Some(budget) = over_budget(estimate) {
+                    let why = mesh_skip_note(size, estimate, &budget);
+                    let s = 4 + (mesh_files.len() + pi) as u64;
+                    skip(&mut placed, ("trace-mesh", p.name(), "obj"), s, why);
+                    continue;
+                }
                 let obj = dir.join(format!("mesh_{}_{tag}.obj", p.name()));
                 let mut m = export_and_load(&frame_scene, &opts, &obj, cfg.backend, cfg.preset)?;
                 drop(frame_scene);
                 let img = render_mesh(&mut m, cam, 0.0, cfg.k)?;
-                let r = mesh_record(p.name(), "obj", img.ms, &m);
+                let r = Record {
+                    memory_estimate_bytes: estimate,
+                    ..mesh_record(p.name(), "obj", img.ms, &m)
+                };
                 emit(
                     &mut placed,
                     reference_frame,
@@ -498,7 +548,21 @@ pub fn compare_selected(
 
     // Stage 2: one BVH per part of the scene for every time and camera (times re-pose the
     // objects), dropped before the meshes are built.
-    if cfg.gaussian_trace {
+    let gaussian_estimate = crate::budget::gaussian_stage_bytes(scene);
+    let gaussian_fits = cfg.gaussian_trace
+        && match over_budget(gaussian_estimate) {
+            None => true,
+            Some(budget) => {
+                let why = format!(
+                    "skipped: tracing {} Gaussians needs about {}, over the memory budget of {budget} (--max-memory)",
+                    crate::budget::scene_gaussians(scene),
+                    crate::budget::gb(gaussian_estimate)
+                );
+                skip(&mut placed, ("trace-gaussian", "", ""), 2, why);
+                false
+            }
+        };
+    if gaussian_fits {
         let g =
             GaussianTracer::for_scene_taking(scene, times[items[0].0], cfg.backend, cfg.preset)?;
         let mut tracer = Renderer::Gaussian {
@@ -519,7 +583,10 @@ pub fn compare_selected(
                     (2, 0),
                     format!("tracegauss_{tag}"),
                     &g.frame,
-                    named("trace-gaussian", g.ms),
+                    Record {
+                        memory_estimate_bytes: gaussian_estimate,
+                        ..named("trace-gaussian", g.ms)
+                    },
                 )?;
             }
             Ok(())
@@ -537,13 +604,28 @@ pub fn compare_selected(
             profile: p,
             ..ConvertOptions::default()
         };
+        let size = crate::budget::mesh_size(scene, &opts)?;
+        let estimate = crate::budget::mesh_stage_bytes(scene, size, format);
+        if let Some(budget) = over_budget(estimate) {
+            let why = mesh_skip_note(size, estimate, &budget);
+            skip(
+                &mut placed,
+                ("trace-mesh", p.name(), format),
+                4 + mi as u64,
+                why,
+            );
+            continue;
+        }
         let path = dir.join(format!("mesh_{}.{format}", p.name()));
         let mut m = export_and_load(scene, &opts, &path, cfg.backend, cfg.preset)?;
         for &(ti, ci) in &items {
             let tag = tag(ti, ci);
             progress(&format!("trace {}.{format} {tag}", p.name()));
             let img = render_mesh(&mut m, &cams[ci], times[ti], cfg.k)?;
-            let r = mesh_record(p.name(), format, img.ms, &m);
+            let r = Record {
+                memory_estimate_bytes: estimate,
+                ..mesh_record(p.name(), format, img.ms, &m)
+            };
             let reference = refs.get(slot(ti, ci))?;
             emit(
                 &mut placed,
@@ -557,6 +639,16 @@ pub fn compare_selected(
         }
     }
     Ok(placed)
+}
+
+/// Why a mesh stage was left out: its size and estimated peak against the budget.
+fn mesh_skip_note(size: crate::budget::MeshSize, estimate: u64, budget: &str) -> String {
+    format!(
+        "skipped: {:.1} M vertices and {:.1} M triangles need about {} traced, over the memory budget of {budget} (--max-memory)",
+        size.vertices as f64 / 1e6,
+        size.triangles as f64 / 1e6,
+        crate::budget::gb(estimate)
+    )
 }
 
 /// The record of a traced mesh file (measured fields filled by `emit`).
@@ -591,9 +683,15 @@ pub fn write_reports(
         crate::report::markdown_table(&measured, true)
     );
     if !skipped.is_empty() {
-        md.push_str("\nSkipped clients:\n\n");
+        md.push_str("\nSkipped:\n\n");
         for r in &skipped {
-            md.push_str(&format!("- {} ({}): {}\n", r.renderer, r.profile, r.note));
+            let what = [r.profile.as_str(), r.format.as_str()]
+                .iter()
+                .filter(|s| !s.is_empty())
+                .copied()
+                .collect::<Vec<_>>()
+                .join(" ");
+            md.push_str(&format!("- {} ({what}): {}\n", r.renderer, r.note));
         }
     }
     splatbridge_scene::image_io::write_atomic(&dir.join("report.md"), md.as_bytes())?;

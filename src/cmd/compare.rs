@@ -61,6 +61,11 @@ pub struct Args {
     /// The client dispatcher script (default: the repository's scripts/client-render.sh).
     #[arg(long, value_name = "PATH")]
     pub client_script: Option<PathBuf>,
+    /// Skip a Gaussian-trace or mesh stage whose estimated peak memory is over this: `auto`
+    /// (the machine's physical memory), `none`, or a size such as `16G` or `512M`. A skipped
+    /// stage is a note in the report with its size and estimate (docs/scale.md).
+    #[arg(long, value_name = "SIZE", default_value = "auto")]
+    pub max_memory: String,
     /// Do only shard I of N (0 ≤ I < N) of the (time, camera) items and write a partial
     /// report.json for `splatbridge merge` (see docs/scale.md).
     #[arg(long, value_name = "I/N")]
@@ -120,6 +125,9 @@ pub fn parse_profiles(names: &[String]) -> anyhow::Result<Vec<Profile>> {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    // Options first: a bad one is reported before a large scene is loaded.
+    let max_memory = splatbridge::budget::parse_budget(&args.max_memory)
+        .map_err(|e| anyhow::anyhow!("--max-memory: {e}"))?;
     let mut scene = common::load(&args.scene, args.drop_invalid)?;
     let times = if args.times.is_empty() {
         default_times(&scene)
@@ -164,6 +172,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .client_script
             .clone()
             .unwrap_or_else(splatbridge::clients::default_script),
+        max_memory,
         ..CompareConfig::default()
     };
     let pb = common::progress(0, "compare");
@@ -246,7 +255,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 /// shards of differently configured runs do not merge). `--shard` and `--out` are not in it.
 fn options_text(args: &Args, times: &[f64]) -> String {
     format!(
-        "compare\ncameras={}\ntimes={:?}\nprofiles={:?}\nsize={}x{}\nbackend={}\nk={}\nno_obj={}\ndrop_invalid={}\nclients={:?}\nhybrid={}",
+        "compare\ncameras={}\ntimes={:?}\nprofiles={:?}\nsize={}x{}\nbackend={}\nk={}\nno_obj={}\ndrop_invalid={}\nclients={:?}\nhybrid={}\nmax_memory={}",
         args.cameras,
         times.iter().map(|t| t.to_bits()).collect::<Vec<_>>(),
         args.profiles,
@@ -257,7 +266,8 @@ fn options_text(args: &Args, times: &[f64]) -> String {
         args.no_obj,
         args.drop_invalid,
         args.clients,
-        args.hybrid_split.text()
+        args.hybrid_split.text(),
+        args.max_memory
     )
 }
 

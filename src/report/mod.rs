@@ -42,6 +42,11 @@ pub struct Record {
     /// `milliseconds`, a cost of the run, not part of the result (0: not recorded).
     #[serde(skip_serializing_if = "is_zero")]
     pub peak_memory_bytes: u64,
+    /// The stage's estimated peak memory (bytes, `budget.rs`), which `--max-memory` is held
+    /// against: Gaussian-trace and mesh records (0: not estimated). Deterministic, unlike
+    /// `peak_memory_bytes`.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub memory_estimate_bytes: u64,
 }
 
 fn is_zero(v: &u64) -> bool {

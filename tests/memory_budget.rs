@@ -1,0 +1,266 @@
+//! `compare --max-memory` skips a stage whose estimated peak is over the budget; the estimate
+//! must be an upper bound of what the stage allocates, or the budget protects nothing, and not
+//! so loose that stages which fit are skipped.
+//!
+//! The budget is held against resident memory, so that is what is measured: the process's
+//! peak resident set over export → read-back → BVH → one traced image, less the resident set
+//! before it. Linux resets the peak on request (`/proc/self/clear_refs`, proc(5)), and freed
+//! memory is handed back first (`malloc_trim`) so a stage cannot hide in pages an earlier one
+//! left resident. The heap's own count (`heap.rs`) is no measure here: it includes reserved
+//! capacity that is never touched (the GLB read-back's peak is 1.5× its resident size).
+
+use splatbridge::budget;
+use splatbridge_convert::{ConvertOptions, Profile};
+use splatbridge_raytrace::{BackendKind, BuildPreset, GaussianTracer, RenderOptions};
+use splatbridge_scene::dynamic::DynamicScene;
+use splatbridge_scene::Camera;
+
+/// The resident set is the process's: the stages are measured one at a time.
+static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+/// 100,000 Gaussians of the `large` fixture (SH 3): meshsplats 0.66 M vertices and 1.48 M
+/// triangles, rings 3.8 M and 7.4 M; large enough that every coefficient is seen over the
+/// stages' fixed costs, small enough for the test command.
+fn scene() -> DynamicScene {
+    DynamicScene::from_static(splatbridge_scene::fixtures::large(100_000, 7))
+}
+
+fn camera(scene: &DynamicScene) -> Camera {
+    let (lo, hi) = scene.static_gaussians.bounds().unwrap();
+    let c = (0.5 * (lo + hi)).as_dvec3();
+    let r = (hi - lo).length() as f64;
+    Camera::look_at(
+        c + glam::DVec3::new(0.0, -0.5 * r, -r),
+        c,
+        glam::DVec3::NEG_Y,
+        50.0,
+        96,
+        72,
+    )
+    .unwrap()
+}
+
+/// Resident bytes `f` adds at its peak, above the resident set when it started.
+fn stage_peak<T>(f: impl FnOnce() -> T) -> (u64, T) {
+    // SAFETY: malloc_trim only returns free memory of glibc's arenas to the system; it takes
+    // no pointers and no live allocation is touched.
+    unsafe { libc::malloc_trim(0) };
+    std::fs::write("/proc/self/clear_refs", "5").expect("reset the peak resident set");
+    let before = splatbridge::memory::resident_bytes().unwrap();
+    let out = f();
+    let peak = splatbridge::memory::peak_bytes().unwrap();
+    (peak.saturating_sub(before), out)
+}
+
+/// The estimate holds: what the stage adds to the resident set is at most its data estimate
+/// plus the process base (which covers the stage's fixed costs, such as the worker threads'
+/// malloc arenas it touches first), and the data estimate is at most twice what was added, so
+/// stages that fit are not skipped. Measured at 100k (MB added / data estimated): meshsplats
+/// GLB 147 / 162, rings GLB 473 / 558, texture GLB 103 / 89, OBJs 158 / 223, 456 / 681,
+/// 123 / 148; Gaussian tracer 39 / 56.
+fn fits(added: u64, data_estimate: u64) -> bool {
+    added <= data_estimate + budget::PROCESS_BASE_BYTES && data_estimate <= 2 * added
+}
+
+/// The mesh stage of every profile, GLB and OBJ.
+#[test]
+#[cfg_attr(
+    not(target_os = "linux"),
+    ignore = "resident memory is read from /proc (Linux)"
+)]
+fn mesh_stage_estimates_bound_what_the_stage_allocates() {
+    let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let scene = scene();
+    let cam = camera(&scene);
+    let n = budget::scene_gaussians(&scene);
+    let tmp = tempfile::tempdir().unwrap();
+    let mut bad = Vec::new();
+    for profile in [Profile::MeshSplats, Profile::Rings, Profile::Texture] {
+        for format in ["glb", "obj"] {
+            let opts = ConvertOptions {
+                profile,
+                ..ConvertOptions::default()
+            };
+            let size = budget::mesh_size(&scene, &opts).unwrap();
+            let estimate = budget::mesh_data_bytes(n, size, format);
+            let path = tmp.path().join(format!("m_{}.{format}", profile.name()));
+            let (peak, m) = stage_peak(|| {
+                let mut m = splatbridge::parity::export_and_load(
+                    &scene,
+                    &opts,
+                    &path,
+                    BackendKind::Obvhs,
+                    BuildPreset::default(),
+                )
+                .unwrap();
+                splatbridge::parity::render_mesh(&mut m, &cam, 0.0, 16).unwrap();
+                m
+            });
+            // The count is the export's: the estimate saw the mesh that was traced.
+            assert_eq!(m.triangles, size.triangles, "{profile:?} {format}");
+            println!(
+                "{} {format}: {} vertices, {} triangles: resident {:.1} MB, estimated {:.1} MB",
+                profile.name(),
+                size.vertices,
+                size.triangles,
+                peak as f64 / 1e6,
+                estimate as f64 / 1e6
+            );
+            if !fits(peak, estimate) {
+                bad.push(format!(
+                    "{} {format}: resident {peak} B, estimated {estimate} B",
+                    profile.name()
+                ));
+            }
+            drop(m);
+            std::fs::remove_file(&path).unwrap();
+        }
+    }
+    assert!(bad.is_empty(), "{}", bad.join("\n"));
+}
+
+/// The Gaussian-trace stage.
+#[test]
+#[cfg_attr(
+    not(target_os = "linux"),
+    ignore = "resident memory is read from /proc (Linux)"
+)]
+fn gaussian_stage_estimate_bounds_what_the_stage_allocates() {
+    let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let mut scene = scene();
+    let cam = camera(&scene);
+    let estimate = budget::gaussian_data_bytes(budget::scene_gaussians(&scene));
+    let (peak, _) = stage_peak(|| {
+        let g = GaussianTracer::for_scene_taking(
+            &mut scene,
+            0.0,
+            BackendKind::Obvhs,
+            BuildPreset::default(),
+        )
+        .unwrap();
+        g.render(&cam, &RenderOptions::default()).unwrap();
+        g.give_back(&mut scene);
+    });
+    println!(
+        "Gaussian tracer: resident {:.1} MB, estimated {:.1} MB",
+        peak as f64 / 1e6,
+        estimate as f64 / 1e6
+    );
+    assert!(
+        fits(peak, estimate),
+        "resident {peak} B, estimated {estimate} B"
+    );
+}
+
+fn compare(scene: &std::path::Path, out: &std::path::Path, budget: &str) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_splatbridge"))
+        .arg("compare")
+        .arg(scene)
+        .args([
+            "--cameras",
+            "orbit:2",
+            "--profiles",
+            "meshsplats,rings",
+            "--no-obj",
+        ])
+        .args([
+            "--width",
+            "64",
+            "--height",
+            "48",
+            "--max-memory",
+            budget,
+            "-o",
+        ])
+        .arg(out)
+        .output()
+        .unwrap()
+}
+
+fn records(dir: &std::path::Path) -> Vec<serde_json::Value> {
+    serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).unwrap()).unwrap()
+}
+
+/// With a budget between two stages' estimates, `compare` runs the smaller stage, skips the
+/// larger with one note saying why, and still succeeds; no budget runs both; a malformed
+/// budget is a usage error before anything is loaded.
+#[test]
+fn compare_skips_the_stages_over_its_budget() {
+    let tmp = tempfile::tempdir().unwrap();
+    let st = std::process::Command::new(env!("CARGO_BIN_EXE_splatbridge"))
+        .args(["fixture", "large", "--count", "20000", "-o"])
+        .arg(tmp.path())
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let scene = tmp.path().join("large.ply");
+    let all = tmp.path().join("all");
+    assert!(compare(&scene, &all, "none").status.success());
+    let full = records(&all);
+    let estimate = |profile: &str| {
+        full.iter()
+            .find(|r| r["profile"] == profile && r["renderer"] == "trace-mesh")
+            .and_then(|r| r["memory_estimate_bytes"].as_u64())
+            .unwrap()
+    };
+    let (small, large) = (estimate("meshsplats"), estimate("rings"));
+    let gauss = full
+        .iter()
+        .find(|r| r["renderer"] == "trace-gaussian")
+        .and_then(|r| r["memory_estimate_bytes"].as_u64())
+        .unwrap();
+    assert!(small < large, "{small} {large}");
+    let budget = (small + large) / 2;
+    let part = tmp.path().join("part");
+    let out = compare(&scene, &part, &budget.to_string());
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let got = records(&part);
+    let count = |renderer: &str, profile: &str, skipped: bool| {
+        got.iter()
+            .filter(|r| {
+                r["renderer"] == renderer
+                    && r["profile"] == profile
+                    && r.get("note").is_some() == skipped
+            })
+            .count()
+    };
+    assert_eq!(count("native", "", false), 2);
+    assert_eq!(count("trace-mesh", "meshsplats", false), 2);
+    assert_eq!(count("trace-mesh", "rings", false), 0);
+    assert_eq!(
+        count("trace-mesh", "rings", true),
+        1,
+        "one note, not one per camera"
+    );
+    let expect_gauss = if gauss > budget { (0, 1) } else { (2, 0) };
+    assert_eq!(
+        (
+            count("trace-gaussian", "", false),
+            count("trace-gaussian", "", true)
+        ),
+        expect_gauss
+    );
+    let note = got.iter().find_map(|r| r["note"].as_str()).unwrap();
+    assert!(note.contains("--max-memory"), "{note}");
+    assert!(
+        !part.join("mesh_rings.glb").exists(),
+        "a skipped stage exports nothing"
+    );
+    let md = std::fs::read_to_string(part.join("report.md")).unwrap();
+    assert!(md.contains("Skipped:") && md.contains("rings"), "{md}");
+    // Everything that ran is the image an unbudgeted run made.
+    for name in ["native_c0_t0.00.png", "mesh_meshsplats_glb_c1_t0.00.png"] {
+        assert_eq!(
+            std::fs::read(all.join(name)).unwrap(),
+            std::fs::read(part.join(name)).unwrap(),
+            "{name}"
+        );
+    }
+    let bad = compare(&scene, &tmp.path().join("bad"), "12X");
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).starts_with("error: --max-memory:"));
+}
