@@ -134,6 +134,30 @@ pub fn gaussian_data_bytes(gaussians: u64) -> u64 {
     GAUSSIAN_TRACER_BYTES * gaussians
 }
 
+/// An upper bound of the GLB a mesh of `size` makes: positions and normals (12 B each),
+/// RGBA u16 (8 B), the Gaussian id (4 B) and, for `texture`, UVs (8 B) a vertex; three u32
+/// indices a triangle; and 1 % + 16 MB for the JSON, padding, images and animation. Measured
+/// on the 100k fixture's rings export (compare's options): 3.76 M vertices and 7.38 M
+/// triangles are 224.0 MB of buffer views, exactly 36 B and 12 B each.
+pub fn glb_bytes_bound(size: MeshSize) -> u64 {
+    let data = (36 + if size.uv { 8 } else { 0 }) * size.vertices + 12 * size.triangles;
+    data + data / 100 + (16 << 20)
+}
+
+/// The largest GLB the format allows: its header's total length is a u32 (glTF 2.0 §4.4.3).
+pub const GLB_MAX_BYTES: u64 = u32::MAX as u64;
+
+/// The file a comparison exports a mesh of `size` to for `format`: `glb` unless the GLB could
+/// pass the format's 4 GiB, then `gltf` (JSON with the buffer in a `.bin` beside it, read back
+/// streamed the same way); `obj` as asked.
+pub fn export_format(size: MeshSize, format: &'static str) -> &'static str {
+    if format == "glb" && glb_bytes_bound(size) > GLB_MAX_BYTES {
+        "gltf"
+    } else {
+        format
+    }
+}
+
 /// Physical memory (`MemTotal` of `/proc/meminfo`), or `None` where it cannot be read.
 pub fn physical_memory() -> Option<u64> {
     let s = std::fs::read_to_string("/proc/meminfo").ok()?;
@@ -192,6 +216,22 @@ mod tests {
         for bad in ["", "G", "-1G", "0", "nanG", "1e30T", "12X"] {
             assert!(parse_budget(bad).is_err(), "{bad}");
         }
+    }
+
+    /// A mesh whose GLB could pass 4 GiB is exported as `.gltf`; OBJ is never renamed. The
+    /// bound is at its limit between 70 M and 71 M untextured vertices with 2 triangles each
+    /// (60.6 B a vertex with the margin).
+    #[test]
+    fn meshes_over_4_gib_export_as_gltf() {
+        let size = |vertices: u64| MeshSize {
+            vertices,
+            triangles: 2 * vertices,
+            uv: false,
+        };
+        assert_eq!(export_format(size(1_000_000), "glb"), "glb");
+        assert_eq!(export_format(size(70_000_000), "glb"), "glb");
+        assert_eq!(export_format(size(71_000_000), "glb"), "gltf");
+        assert_eq!(export_format(size(71_000_000), "obj"), "obj");
     }
 
     /// The cloud's byte count is what its vectors' lengths say (SH degree 3: 16 RGB triples).

@@ -605,6 +605,7 @@ pub fn compare_selected(
             ..ConvertOptions::default()
         };
         let size = crate::budget::mesh_size(scene, &opts)?;
+        let format = crate::budget::export_format(size, format);
         let estimate = crate::budget::mesh_stage_bytes(scene, size, format);
         if let Some(budget) = over_budget(estimate) {
             let why = mesh_skip_note(size, estimate, &budget);

@@ -36,6 +36,8 @@ fn streamed_glb_read_back_equals_the_whole_file_reader() {
         let (bytes, _) = splatbridge_convert::glb_bytes(&scene, None, &opts).unwrap();
         let path = tmp.path().join(format!("{name}.glb"));
         std::fs::write(&path, &bytes).unwrap();
+        let (_, buffers, _) = splatbridge_raytrace::gltf_stream::import_path(&path).unwrap();
+        assert!(buffers.is_streamed(), "{name}: the GLB was read whole");
         let whole = load_glb_bytes(&bytes, Path::new("x.glb")).unwrap();
         let streamed = load_path(&path).unwrap();
         assert!(whole.triangle_count() > 1000, "{name}: nothing exported");
@@ -52,6 +54,50 @@ fn streamed_glb_read_back_equals_the_whole_file_reader() {
             "{name}: the streamed read-back differs from the whole-file reader"
         );
     }
+}
+
+/// A `.gltf` with its buffer in an external `.bin` (the form of a mesh over GLB's 4 GiB) is
+/// streamed from the `.bin` the same way: the same scene, value for value, as the GLB export
+/// of the same options read whole; a `.bin` cut short is refused with the file named.
+#[test]
+fn streamed_gltf_with_external_buffer_equals_the_glb_read_whole() {
+    let scene = street_with(&StreetParams::new(2, 2500));
+    let tmp = tempfile::tempdir().unwrap();
+    for profile in [Profile::MeshSplats, Profile::Texture] {
+        let opts = ConvertOptions {
+            profile,
+            ..ConvertOptions::default()
+        };
+        let (bytes, _) = splatbridge_convert::glb_bytes(&scene, None, &opts).unwrap();
+        let whole = load_glb_bytes(&bytes, Path::new("x.glb")).unwrap();
+        let path = tmp.path().join(format!("{profile:?}.gltf"));
+        splatbridge_convert::convert_to_file(&path, &scene, None, &opts, false).unwrap();
+        let bins: Vec<_> = std::fs::read_dir(tmp.path())
+            .unwrap()
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|x| x == "bin"))
+            .collect();
+        assert!(!bins.is_empty(), "no external buffer written");
+        let (_, buffers, _) = splatbridge_raytrace::gltf_stream::import_path(&path).unwrap();
+        assert!(buffers.is_streamed(), "{profile:?}: the .gltf was read whole");
+        let streamed = load_path(&path).unwrap();
+        assert!(whole.triangle_count() > 1000, "{profile:?}: nothing exported");
+        assert!(
+            format!("{whole:?}") == format!("{streamed:?}"),
+            "{profile:?}: the streamed .gltf read-back differs from the GLB read whole"
+        );
+    }
+    // The external buffer shorter than the buffer's byteLength.
+    let path = tmp.path().join("MeshSplats.gltf");
+    let bin = std::fs::read_dir(tmp.path())
+        .unwrap()
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .find(|p| p.to_string_lossy().contains("MeshSplats") && p.extension().is_some_and(|x| x == "bin"))
+        .unwrap();
+    let data = std::fs::read(&bin).unwrap();
+    std::fs::write(&bin, &data[..data.len() - 4096]).unwrap();
+    let e = load_path(&path).unwrap_err().to_string();
+    assert!(e.contains("MeshSplats.gltf"), "{e}");
 }
 
 /// A truncated or corrupted export still fails with the file named, streamed or not.

@@ -98,6 +98,15 @@ fn mesh_stage_estimates_bound_what_the_stage_allocates() {
             });
             // The count is the export's: the estimate saw the mesh that was traced.
             assert_eq!(m.triangles, size.triangles, "{profile:?} {format}");
+            if format == "glb" {
+                // The GLB bound (which picks .gltf over 4 GiB) holds, within 10 % + 16 MB.
+                let bound = budget::glb_bytes_bound(size);
+                assert!(
+                    m.bytes <= bound && bound <= m.bytes + m.bytes / 10 + (16 << 20),
+                    "{profile:?}: GLB {} bytes, bound {bound}",
+                    m.bytes
+                );
+            }
             println!(
                 "{} {format}: {} vertices, {} triangles: resident {:.1} MB, estimated {:.1} MB",
                 profile.name(),

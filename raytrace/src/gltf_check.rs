@@ -123,7 +123,7 @@ fn percent_decode(uri: &str) -> Option<String> {
 }
 
 /// Where an external URI points, or an error naming it; `data:` URIs give `None`.
-fn external_path(
+pub(crate) fn external_path(
     uri: &str,
     base: Option<&Path>,
     name: &Path,

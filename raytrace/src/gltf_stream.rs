@@ -10,10 +10,16 @@
 //! values of the original document, byte for byte; [`Buffers::with_accessors`] reads an
 //! accessor's span from the file just before it is read and drops it after.
 //!
-//! Only the plain case is streamed: a GLB whose single buffer is its BIN chunk, with no sparse
-//! accessors, no matrix accessors (their columns are padded) and no buffer-view extensions
-//! (meshopt). Anything else, and every glTF given as bytes, is read whole by
-//! [`crate::gltf_check`], whose checks run first on the original document in both cases.
+//! Only the plain case is streamed: a GLB whose single buffer is its BIN chunk, or a `.gltf`
+//! whose single buffer is one external file (what `convert -o x.gltf` writes, and the only
+//! form of a mesh over GLB's 4 GiB), with no sparse accessors, no matrix accessors (their
+//! columns are padded) and no buffer-view extensions (meshopt). Anything else, and every glTF
+//! given as bytes, is read whole by [`crate::gltf_check`], whose checks run first on the
+//! original document in every case.
+//!
+//! The whole-file size cap (`input::Cap::Mesh`) bounds what one read allocates; a streamed
+//! external buffer is never read whole, and each accessor's span is checked against the
+//! buffer's declared length, which must fit in the file, so it is not held to that cap.
 
 use std::fs::File;
 use std::io::{Read, Seek, SeekFrom};
@@ -101,6 +107,11 @@ impl Buffers {
         out
     }
 
+    /// Whether the buffers are read from the file an accessor at a time (not held whole).
+    pub fn is_streamed(&self) -> bool {
+        self.source.is_some()
+    }
+
     /// Buffer `b`'s bytes, if readable.
     pub fn get(&self, b: usize) -> Option<&[u8]> {
         self.data.get(b).map(|d| &d.0[..])
@@ -110,16 +121,46 @@ impl Buffers {
 /// A checked document with its buffers and decoded images.
 pub type StreamedImport = (gltf::Document, Buffers, Vec<gltf::image::Data>);
 
-/// Import a glTF/GLB file: a plain GLB streamed (see the module documentation), anything else
-/// read whole through [`gltf_check::import_path`].
+/// Import a glTF/GLB file: a plain GLB or `.gltf` streamed (see the module documentation),
+/// anything else read whole through [`gltf_check::import_path`].
 pub fn import_path(path: &Path) -> Result<StreamedImport> {
-    match open_glb(path)? {
-        Some(x) => Ok(x),
-        None => {
-            let (doc, data, images) = gltf_check::import_path(path)?;
-            Ok((doc, Buffers::whole(data), images))
-        }
+    if let Some(x) = open_glb(path)? {
+        return Ok(x);
     }
+    if let Some(x) = open_gltf(path)? {
+        return Ok(x);
+    }
+    let (doc, data, images) = gltf_check::import_path(path)?;
+    Ok((doc, Buffers::whole(data), images))
+}
+
+/// The streamed import of a JSON glTF whose one buffer is an external file, or `None` for any
+/// other layout.
+fn open_gltf(path: &Path) -> Result<Option<StreamedImport>> {
+    let json = input::read_bounded(path, Cap::Mesh)?;
+    if json.starts_with(GLB_MAGIC) {
+        return Ok(None);
+    }
+    let root = gltf_check::parse_root(&json, path)?;
+    drop(json);
+    let base = gltf_check::folder(path);
+    let uri = match &root.buffers[..] {
+        [b] => match &b.uri {
+            Some(u) if !u.starts_with("data:") => u.clone(),
+            _ => return Ok(None),
+        },
+        _ => return Ok(None),
+    };
+    gltf_check::check_document(&root, Some(&base), path)?;
+    let Some(bin) = gltf_check::external_path(&uri, Some(&base), path, "buffer 0")? else {
+        return Ok(None);
+    };
+    let (file, bin_len) =
+        input::open_regular(&bin).map_err(|e| bad(path, format!("buffer 0: {e}")))?;
+    if !plain(&root, bin_len, true) {
+        return Ok(None);
+    }
+    stream(root, path, &base, file, &bin, 0).map(Some)
 }
 
 fn whole(import: Import) -> StreamedImport {
@@ -156,7 +197,7 @@ fn open_glb(path: &Path) -> Result<Option<StreamedImport>> {
     let root = gltf_check::parse_root(&json, path)?;
     let base = gltf_check::folder(path);
     gltf_check::check_document(&root, Some(&base), path)?;
-    if !plain(&root, bin_len) {
+    if !plain(&root, bin_len, false) {
         // Rare layouts: read whole, with the whole reader's own checks.
         let bytes = input::read_bounded(path, Cap::Mesh)?;
         return Ok(Some(whole(gltf_check::import_vec(
@@ -165,6 +206,19 @@ fn open_glb(path: &Path) -> Result<Option<StreamedImport>> {
             path,
         )?)));
     }
+    stream(root, path, &base, file, path, bin_start).map(Some)
+}
+
+/// The streamed import of a checked, plain document whose buffer's bytes start at `bin_start`
+/// in `file` (named `file_name` in read errors).
+fn stream(
+    root: Root,
+    path: &Path,
+    base: &Path,
+    file: File,
+    file_name: &Path,
+    bin_start: u64,
+) -> Result<StreamedImport> {
     let (root, spans) = rewrite(root, bin_start);
     let doc = gltf::Document::from_json(root).map_err(|e| {
         bad(
@@ -178,7 +232,7 @@ fn open_glb(path: &Path) -> Result<Option<StreamedImport>> {
             .collect(),
         source: Some(Source {
             file,
-            name: path.to_path_buf(),
+            name: file_name.to_path_buf(),
             spans,
         }),
     };
@@ -194,20 +248,21 @@ fn open_glb(path: &Path) -> Result<Option<StreamedImport>> {
     for &b in &image_buffers {
         buffers.ensure(b)?;
     }
-    let images = gltf_check::import_images(&doc, Some(&base), &buffers.data, path)?;
+    let images = gltf_check::import_images(&doc, Some(base), &buffers.data, path)?;
     for &b in &image_buffers {
         buffers.release(b);
     }
-    Ok(Some((doc, buffers, images)))
+    Ok((doc, buffers, images))
 }
 
-/// Whether the document can be streamed: one buffer, the BIN chunk (no URI) holding its
-/// declared length; no sparse or matrix accessors; no buffer-view extensions.
-fn plain(root: &Root, bin_len: u64) -> bool {
+/// Whether the document can be streamed: one buffer (the BIN chunk, or an external file when
+/// `external`) holding its declared length; no sparse or matrix accessors; no buffer-view
+/// extensions.
+fn plain(root: &Root, bin_len: u64, external: bool) -> bool {
     let [b] = &root.buffers[..] else {
         return false;
     };
-    b.uri.is_none()
+    b.uri.is_some() == external
         && b.byte_length.0 <= bin_len
         && root.buffer_views.iter().all(|v| v.extensions.is_none())
         && root.accessors.iter().all(|a| {
