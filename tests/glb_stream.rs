@@ -79,9 +79,15 @@ fn streamed_gltf_with_external_buffer_equals_the_glb_read_whole() {
             .collect();
         assert!(!bins.is_empty(), "no external buffer written");
         let (_, buffers, _) = splatbridge_raytrace::gltf_stream::import_path(&path).unwrap();
-        assert!(buffers.is_streamed(), "{profile:?}: the .gltf was read whole");
+        assert!(
+            buffers.is_streamed(),
+            "{profile:?}: the .gltf was read whole"
+        );
         let streamed = load_path(&path).unwrap();
-        assert!(whole.triangle_count() > 1000, "{profile:?}: nothing exported");
+        assert!(
+            whole.triangle_count() > 1000,
+            "{profile:?}: nothing exported"
+        );
         assert!(
             format!("{whole:?}") == format!("{streamed:?}"),
             "{profile:?}: the streamed .gltf read-back differs from the GLB read whole"
@@ -92,7 +98,9 @@ fn streamed_gltf_with_external_buffer_equals_the_glb_read_whole() {
     let bin = std::fs::read_dir(tmp.path())
         .unwrap()
         .filter_map(|e| e.ok().map(|e| e.path()))
-        .find(|p| p.to_string_lossy().contains("MeshSplats") && p.extension().is_some_and(|x| x == "bin"))
+        .find(|p| {
+            p.to_string_lossy().contains("MeshSplats") && p.extension().is_some_and(|x| x == "bin")
+        })
         .unwrap();
     let data = std::fs::read(&bin).unwrap();
     std::fs::write(&bin, &data[..data.len() - 4096]).unwrap();

@@ -335,6 +335,20 @@ fn script(name: &str) -> PathBuf {
 /// against native splatting of the whole scene. Returns (CesiumJS, Babylon.js) PSNR in dB.
 #[cfg_attr(not(web_clients), allow(dead_code))]
 fn cesium_and_babylon_against_native() -> (f64, f64) {
+    // A camera above the strip, looking down at 45° (capture up is −y).
+    let eye = glam::DVec3::new(20.0, -25.0, -22.0);
+    let target = glam::DVec3::new(20.0, 0.0, 3.0);
+    cesium_and_babylon_on(clusters(3000), [eye, target, glam::DVec3::NEG_Y], 400)
+}
+
+/// [`cesium_and_babylon_against_native`] for any cloud, camera `[eye, target, up]` (50°,
+/// 320×240) and tile budget.
+#[cfg_attr(not(web_clients), allow(dead_code))]
+fn cesium_and_babylon_on(
+    cloud: GaussianCloud,
+    [eye, target, up]: [glam::DVec3; 3],
+    max_per_tile: usize,
+) -> (f64, f64) {
     use splatbridge_scene::camera::Camera;
     // SPLATBRIDGE_KEEP_TEST_DIR=1 keeps the tileset and the images for a look.
     let tmp = tempfile::tempdir().unwrap();
@@ -342,15 +356,10 @@ fn cesium_and_babylon_against_native() -> (f64, f64) {
     if std::env::var_os("SPLATBRIDGE_KEEP_TEST_DIR").is_some() {
         println!("images in {}", tmp.keep().display());
     }
-    let cloud = clusters(3000);
     let scene = DynamicScene::from_static(cloud.clone());
-    let opts = options(TileContent::Splats, KhrCompression::SpzCesium, 400);
+    let opts = options(TileContent::Splats, KhrCompression::SpzCesium, max_per_tile);
     splatbridge::tiles::write_tiles(root.as_path(), &scene, &opts).unwrap();
-    // A camera above the strip, looking down at 45° (capture up is −y).
     let (w, h) = (320u32, 240u32);
-    let eye = glam::DVec3::new(20.0, -25.0, -22.0);
-    let target = glam::DVec3::new(20.0, 0.0, 3.0);
-    let up = glam::DVec3::NEG_Y;
     let cam = Camera::look_at(eye, target, up, 50.0, w, h).unwrap();
     let (native, _) =
         splatbridge_hybrid::native::render(&cloud, &cam, &Default::default()).unwrap();
@@ -657,4 +666,42 @@ fn parallel_tileset_is_byte_identical_to_the_one_thread_one() {
             assert!(da == db, "{na} differs between one and two threads");
         }
     }
+}
+
+/// CesiumJS against Babylon.js on the shared real captures, each through camera 0 of an
+/// 8-camera orbit around its robust bounds (50°, 320×240): the tiles goal measured where the
+/// Gaussians are trained, not synthetic. Prints the figures; asserts the goal.
+///
+/// Measured (CesiumJS / Babylon.js against native): tile_lod1 26.46 / 28.90 dB, donut
+/// 29.24 / 31.40, plant 16.07 / 27.67. The small-splat rule costs little here (native without
+/// those Gaussians: 37.7 and 35.4 dB); the scenes scaled by 100 (covariances far from
+/// CesiumJS's half-float range limits) score the same to 0.1 dB. On plant CesiumJS draws the
+/// scene about 11 pixels lower than native and Babylon.js (24.9 dB at the best shift), with the
+/// same tileset frame that places the other two exactly.
+#[test]
+#[ignore = "goal not met on real captures either: CesiumJS 2.2-2.4 dB below Babylon.js on tile_lod1 and donut, and plant drawn 11 px low (docs/tiles.md); needs chromium, the npm packages and ../shared/data/real"]
+fn cesium_within_1_db_of_babylon_on_real_captures() {
+    use splatbridge_scene::camera_spec::{CameraRequest, CameraSource, CameraSpec};
+    let mut short = Vec::new();
+    for name in ["tile_lod1", "donut", "plant"] {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../shared/data/real")
+            .join(format!("{name}.ply"));
+        let (cloud, _) =
+            splatbridge_scene::formats::load_cloud(&path, &Default::default()).unwrap();
+        let orbit = CameraRequest::new(CameraSpec::Orbit { n: 8, index: 0 })
+            .resolve(CameraSource {
+                cloud: &cloud,
+                own: &[],
+            })
+            .unwrap();
+        let r = orbit.world_to_cam;
+        let look = [orbit.centre, orbit.centre + r.row(2), -r.row(1)];
+        let (p, pb) = cesium_and_babylon_on(cloud, look, 20_000);
+        println!("{name}: CesiumJS {p:.2} dB, Babylon.js {pb:.2} dB against native");
+        if p < pb - 1.0 {
+            short.push(format!("{name}: CesiumJS {p:.2} dB, Babylon.js {pb:.2} dB"));
+        }
+    }
+    assert!(short.is_empty(), "{}", short.join("; "));
 }

@@ -281,7 +281,7 @@ pub fn print_summary(records: &[splatbridge::report::Record]) {
         }
     }
     for r in records.iter().filter(|r| !r.note.is_empty()) {
-        println!("{} {}: {}", r.renderer, r.profile, r.note);
+        println!("{}: {}", label(&r.renderer, &r.profile, &r.format), r.note);
     }
     let measured: Vec<_> = records.iter().filter(|r| r.note.is_empty()).collect();
     for (renderer, profile, format) in keys {
@@ -307,12 +307,17 @@ pub fn print_summary(records: &[splatbridge::report::Record]) {
             format!("{:.2} dB", finite.iter().sum::<f64>() / finite.len() as f64)
         };
         let ms = sel.iter().map(|r| r.milliseconds).sum::<f64>() / sel.len() as f64;
-        let name = [renderer.as_str(), profile.as_str(), format.as_str()]
-            .iter()
-            .filter(|s| !s.is_empty())
-            .copied()
-            .collect::<Vec<_>>()
-            .join(" ");
+        let name = label(&renderer, &profile, &format);
         println!("{name:28} PSNR {psnr:>10}  {ms:8.1} ms/frame");
     }
+}
+
+/// "renderer profile format", empty parts left out.
+fn label(renderer: &str, profile: &str, format: &str) -> String {
+    [renderer, profile, format]
+        .iter()
+        .filter(|s| !s.is_empty())
+        .copied()
+        .collect::<Vec<_>>()
+        .join(" ")
 }
