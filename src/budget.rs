@@ -158,24 +158,11 @@ pub fn export_format(size: MeshSize, format: &'static str) -> &'static str {
     }
 }
 
-/// Physical memory (`MemTotal` of `/proc/meminfo`), or `None` where it cannot be read.
-pub fn physical_memory() -> Option<u64> {
-    let s = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = s.lines().find(|l| l.starts_with("MemTotal:"))?;
-    let kb: u64 = line["MemTotal:".len()..]
-        .trim()
-        .trim_end_matches("kB")
-        .trim()
-        .parse()
-        .ok()?;
-    Some(kb * 1024)
-}
-
 /// A `--max-memory` value: `auto` (the physical memory), `none` (no budget), or a size with an
 /// optional binary suffix: `512M`, `16G`, `1.5G`, `2000000000`.
 pub fn parse_budget(s: &str) -> Result<Option<u64>, String> {
     match s.trim() {
-        "auto" => Ok(physical_memory()),
+        "auto" => Ok(crate::memory::physical_bytes()),
         "none" => Ok(None),
         t => {
             let (num, mult) = match t.chars().last() {

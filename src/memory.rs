@@ -4,7 +4,17 @@
 
 /// A `kB` field of `/proc/self/status`, in bytes.
 pub fn proc_status_bytes(field: &str) -> Option<u64> {
-    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    kb_field("/proc/self/status", field)
+}
+
+/// Physical memory (`MemTotal` of `/proc/meminfo`), in bytes.
+pub fn physical_bytes() -> Option<u64> {
+    kb_field("/proc/meminfo", "MemTotal:")
+}
+
+/// The `field  N kB` line of a proc(5) file, in bytes.
+fn kb_field(file: &str, field: &str) -> Option<u64> {
+    let s = std::fs::read_to_string(file).ok()?;
     let line = s.lines().find(|l| l.starts_with(field))?;
     let kb: u64 = line[field.len()..]
         .trim()
@@ -34,5 +44,6 @@ mod tests {
         let rss = super::resident_bytes().unwrap();
         let peak = super::peak_bytes().unwrap();
         assert!(rss > 0 && peak >= rss, "{rss} {peak}");
+        assert!(super::physical_bytes().unwrap() > peak);
     }
 }
