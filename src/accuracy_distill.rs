@@ -34,7 +34,7 @@ impl Default for DistillSweep {
     fn default() -> Self {
         DistillSweep {
             profiles: vec![Profile::MeshSplats, Profile::Rings, Profile::Texture],
-            views: 16,
+            views: crate::distill::DEFAULT_VIEWS,
             width: 240,
             height: 180,
             checkpoints: vec![0, 5, 10, 20, 40, 60],

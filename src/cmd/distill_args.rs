@@ -35,11 +35,11 @@ pub struct DistillArgs {
     #[arg(
         long,
         value_name = "LIST",
-        default_value = "orbit:16",
+        default_value = "orbit:48",
         requires = "distill"
     )]
     pub views: String,
-    /// Adam steps, each over every view.
+    /// Adam steps, each over a batch of views.
     #[arg(long, value_name = "K", default_value_t = DistillOptions::default().iterations, requires = "distill")]
     pub iterations: usize,
     /// Stop fitting after this many seconds (set-up included).
@@ -69,6 +69,13 @@ pub struct DistillArgs {
     /// pixel's BVH fewer times).
     #[arg(long, value_name = "K", default_value_t = DistillOptions::default().record_k, requires = "distill")]
     pub distill_record_k: usize,
+    /// Views per Adam step, spread around the rig and taken in turn (0: every view).
+    #[arg(long, value_name = "B", default_value_t = DistillOptions::default().batch, requires = "distill")]
+    pub distill_batch: usize,
+    /// Adam's ε in units of one pixel's loss (ε·W·H): vertices whose gradient is below it
+    /// move less than the step size, so what the views barely see stays as converted.
+    #[arg(long, value_name = "E", default_value_t = DistillOptions::default().eps_pixels, requires = "distill")]
+    pub distill_eps: f32,
 }
 
 impl DistillArgs {
@@ -92,6 +99,8 @@ impl DistillArgs {
                 ParamsArg::Auto => ParamMode::Auto,
             },
             record_k: self.distill_record_k,
+            batch: self.distill_batch,
+            eps_pixels: self.distill_eps,
             ..DistillOptions::default()
         };
         let req = ViewRequest {

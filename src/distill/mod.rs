@@ -14,7 +14,8 @@
 //! 4. Iterations: every view is composited from its hits with the current vertex RGBA
 //!    ([`composite`]), the loss ([`loss`]) and its image gradient are computed, the gradient is
 //!    carried back through front-to-back compositing analytically to the vertices, and one
-//!    Adam step (full batch over the views, projected onto [0, 1]) updates them.
+//!    Adam step (over a batch of views spread around the rig, projected onto [0, 1], with an
+//!    ε that keeps barely-seen vertices near the conversion) updates them.
 //! 5. The fitted colours go back to the writers as a [`VertexColours`] table keyed by
 //!    `_GAUSSIAN_ID` and template vertex, so the export is written by the same code as
 //!    any other (and is traced to the image the fit saw; tested).
@@ -32,6 +33,7 @@
 
 pub mod composite;
 pub mod loss;
+pub mod optim;
 pub mod run;
 pub mod tied;
 pub mod views;
@@ -50,6 +52,7 @@ use splatbridge_scene::{Camera, Frame};
 
 use composite::{Rec, Shading, ViewHits};
 pub use loss::Loss;
+use optim::{adam, batch_views, mean_pixels};
 pub use tied::ParamMode;
 pub use tied::Tied;
 
@@ -70,6 +73,11 @@ pub enum DistillError {
 
 pub type Result<T, E = DistillError> = std::result::Result<T, E>;
 
+/// Fitting views of the default `orbit:N` rig: three times MeshSplats-like 16, taken 16 to a
+/// step ([`DistillOptions::batch`]); on `fourth_st` 48 views in batches of 16 gained 3.0 dB on
+/// held-back views where 16 views gained 2.3 dB at the same ε (docs/distill.md).
+pub const DEFAULT_VIEWS: usize = 48;
+
 /// What to fit and how.
 #[derive(Clone, Debug)]
 pub struct DistillOptions {
@@ -78,7 +86,7 @@ pub struct DistillOptions {
     /// Scene times for dynamic scenes, given to the views in turn (view i at
     /// `times[i % len]`); empty: every view at `time`.
     pub times: Vec<f64>,
-    /// Adam steps (each over every view).
+    /// Adam steps (each over a batch of views).
     pub iterations: usize,
     /// Stop fitting once this many seconds have passed since the start (set-up included).
     pub max_seconds: Option<f64>,
@@ -98,6 +106,17 @@ pub struct DistillOptions {
     /// same keys), a larger buffer walks the BVH fewer times for a deep pixel (64 halved
     /// the set-up's wall time on `tile_lod1` against 16; docs/distill.md).
     pub record_k: usize,
+    /// Views per Adam step: 0 for all of them (full batch), else that many in turn
+    /// ([`Distiller::batch`]).
+    pub batch: usize,
+    /// Adam's ε in units of one pixel's loss: ε = eps_pixels / (W·H). A view's loss is a
+    /// mean over its pixels, so a vertex's gradient is about (its pixel weight in a view) /
+    /// (W·H) whatever the view count; 0.04 is the gradient of a vertex that sets one pixel
+    /// with full weight in one view of 25. A vertex seen less than that takes steps smaller
+    /// than the step size, so what the views barely constrain stays near the conversion
+    /// instead of following noise at full step (Adam's usual 1e-8 lets it; on `fourth_st`
+    /// held-back views peaked after 20 steps and then fell; docs/distill.md).
+    pub eps_pixels: f32,
 }
 
 impl Default for DistillOptions {
@@ -115,6 +134,8 @@ impl Default for DistillOptions {
             record_transmittance: 1e-6,
             params: ParamMode::Vertex,
             record_k: 64,
+            batch: 16,
+            eps_pixels: 0.04,
         }
     }
 }
@@ -143,6 +164,12 @@ impl DistillOptions {
         }
         if self.times.iter().any(|t| !t.is_finite()) {
             return bad("distillation times must be finite".into());
+        }
+        if !(self.eps_pixels >= 0.0 && self.eps_pixels.is_finite()) {
+            return bad(format!(
+                "--distill-eps {} must be a finite number ≥ 0",
+                self.eps_pixels
+            ));
         }
         if !(1..=1024).contains(&self.k) {
             return bad(format!("k-buffer size {} is outside 1..=1024", self.k));
@@ -220,6 +247,8 @@ pub struct Distiller {
     start: Instant,
     pub history: Vec<Progress>,
     report: DistillReport,
+    /// Adam's ε for these views' size ([`DistillOptions::eps_pixels`]).
+    eps: f32,
 }
 
 impl Distiller {
@@ -312,6 +341,7 @@ impl Distiller {
             opts: opts.clone(),
             start,
             history: Vec::new(),
+            eps: opts.eps_pixels / mean_pixels(cameras),
         };
         let mut stored = 0u64;
         let times = opts.view_times(cameras.len());
@@ -407,10 +437,16 @@ impl Distiller {
 
     /// Mean loss over the views and its gradient with respect to every vertex's RGBA.
     pub fn loss_and_gradient(&mut self) -> Result<(f64, Vec<[f32; 4]>)> {
+        let all: Vec<usize> = (0..self.views.len()).collect();
+        self.loss_and_gradient_over(&all)
+    }
+
+    /// Mean loss over the views `which` and its gradient with respect to every vertex's RGBA.
+    pub fn loss_and_gradient_over(&mut self, which: &[usize]) -> Result<(f64, Vec<[f32; 4]>)> {
         let mut grad = vec![[0.0f32; 4]; self.params.len()];
-        let nviews = self.views.len() as f64;
+        let nviews = which.len().max(1) as f64;
         let mut total = 0.0;
-        let streamed = self.views.iter().any(|v| v.hits.is_none());
+        let streamed = which.iter().any(|&i| self.views[i].hits.is_none());
         if streamed {
             self.apply();
         }
@@ -419,13 +455,13 @@ impl Distiller {
         // work per view), then the backward passes in view order, so the sums do not depend
         // on the thread count. A chunk holds one image gradient per thread.
         let chunk = rayon::current_num_threads().max(1);
-        let mut first = 0;
-        while first < self.views.len() {
-            let end = (first + chunk).min(self.views.len());
+        for group in which.chunks(chunk) {
             let (params, shading, kind) = (&self.params, &self.shading, self.opts.loss);
-            let losses: Vec<Option<(f64, Vec<f32>)>> = self.views[first..end]
+            let views = &self.views;
+            let losses: Vec<Option<(f64, Vec<f32>)>> = group
                 .par_iter()
-                .map(|v| {
+                .map(|&i| {
+                    let v = &views[i];
                     v.hits.as_ref().map(|hits| {
                         let (w, h) = (hits.width as usize, hits.height as usize);
                         let img = composite::render(hits, params, shading);
@@ -433,7 +469,7 @@ impl Distiller {
                     })
                 })
                 .collect();
-            for (i, stored) in (first..end).zip(losses) {
+            for (&i, stored) in group.iter().zip(losses) {
                 let owned;
                 let (hits, (l, mut dimg)) = match (&self.views[i].hits, stored) {
                     (Some(h), Some(lg)) => (h, lg),
@@ -450,14 +486,21 @@ impl Distiller {
                 dimg.iter_mut().for_each(|g| *g *= s);
                 composite::backward(hits, &self.params, &self.shading, &dimg, &mut grad);
             }
-            first = end;
         }
         Ok((total, grad))
     }
 
+    /// The views of step `t` (0-based): every view, or `batch` of them taken in turn from the
+    /// strided order 0, s, 2s, …, 1, 1 + s, … (s = ⌈n / batch⌉), so a batch of an orbit sees
+    /// the scene from all sides and every view is used once per `n / batch` steps.
+    pub fn batch(&self, t: usize) -> Vec<usize> {
+        batch_views(self.views.len(), self.opts.batch, t)
+    }
+
     /// One Adam step over every view; returns the loss before the step.
     pub fn step(&mut self) -> Result<f64> {
-        let (loss, grad) = self.loss_and_gradient()?;
+        let which = self.batch(self.history.len());
+        let (loss, grad) = self.loss_and_gradient_over(&which)?;
         let t = self.history.len() as i32 + 1;
         let lr = [
             self.opts.lr_colour,
@@ -473,6 +516,7 @@ impl Distiller {
                 &grad,
                 lr,
                 t,
+                self.eps,
                 |p| p.iter_mut().for_each(|x| *x = x.clamp(0.0, 1.0)),
             ),
             Some(tied) => {
@@ -484,6 +528,7 @@ impl Distiller {
                     &g,
                     lr,
                     t,
+                    self.eps,
                     Tied::project,
                 );
                 tied.expand(&mut self.params);
@@ -622,38 +667,6 @@ fn vertex_gaussians(scene: &TriScene) -> Vec<Vec<u32>> {
         per_vertex.push(g);
     }
     per_vertex
-}
-
-/// One Adam step (β 0.9/0.999, ε 1e-8, bias-corrected at step `t`) on every lane with a
-/// gradient or momentum, then `project`.
-fn adam(
-    p: &mut [[f32; 4]],
-    m: &mut [[f32; 4]],
-    v: &mut [[f32; 4]],
-    g: &[[f32; 4]],
-    lr: [f32; 4],
-    t: i32,
-    project: impl Fn(&mut [f32; 4]) + Sync,
-) {
-    let (b1, b2, eps) = (0.9f32, 0.999f32, 1e-8f32);
-    let c1 = 1.0 - b1.powi(t);
-    let c2 = 1.0 - b2.powi(t);
-    p.par_iter_mut()
-        .zip(m.par_iter_mut())
-        .zip(v.par_iter_mut())
-        .zip(g.par_iter())
-        .for_each(|(((p, m), v), g)| {
-            let lanes = p.iter_mut().zip(m.iter_mut()).zip(v.iter_mut());
-            for (((p, m), v), (&g, &lr)) in lanes.zip(g.iter().zip(&lr)) {
-                if g == 0.0 && *m == 0.0 {
-                    continue;
-                }
-                *m = b1 * *m + (1.0 - b1) * g;
-                *v = b2 * *v + (1.0 - b2) * g * g;
-                *p -= lr * (*m / c1) / ((*v / c2).sqrt() + eps);
-            }
-            project(p);
-        });
 }
 
 /// The material and texture alpha of a hit: what `Mesh::shade` multiplies the interpolated

@@ -46,7 +46,7 @@ pub struct ViewRequest {
 impl Default for ViewRequest {
     fn default() -> Self {
         ViewRequest {
-            spec: "orbit:16".into(),
+            spec: format!("orbit:{}", super::DEFAULT_VIEWS),
             width: 240,
             height: 180,
             held_back: 4,
