@@ -62,8 +62,22 @@ pub fn widen_cloud(
     cameras: &[Camera],
     to_world: impl Fn(Vec3) -> Vec3,
 ) -> Widened {
+    widen_cloud_keeping(cloud, cameras, to_world, |_, _| false)
+}
+
+/// As [`widen_cloud`], but a Gaussian for which `flat(cloud, i)` holds keeps its smallest
+/// scale: its two largest axes (the plane of its fan) widen and the third does not, so a
+/// flat Gaussian stays flat, and a volumetric one, all of whose scales move towards each
+/// other, stays volumetric: the converter's classification and triangle count are unchanged.
+pub fn widen_cloud_keeping(
+    cloud: &mut GaussianCloud,
+    cameras: &[Camera],
+    to_world: impl Fn(Vec3) -> Vec3,
+    flat: impl Fn(&GaussianCloud, usize) -> bool,
+) -> Widened {
     let mut out = Widened::default();
     for i in 0..cloud.len() {
+        let keep_smallest = flat(cloud, i);
         let p = to_world(cloud.means[i]).as_dvec3();
         let Some(s2) = footprint_variance(p, cameras) else {
             out.unseen += 1;
@@ -79,7 +93,12 @@ pub fn widen_cloud(
                 l
             }
         };
-        cloud.log_scales[i] = DVec3::new(widen(ls.x), widen(ls.y), widen(ls.z)).as_vec3();
+        let mut w = [widen(ls.x), widen(ls.y), widen(ls.z)];
+        if keep_smallest {
+            let smallest = (0..3).min_by(|&a, &b| ls[a].total_cmp(&ls[b])).unwrap_or(2);
+            w[smallest] = ls[smallest];
+        }
+        cloud.log_scales[i] = DVec3::from_array(w).as_vec3();
         out.widened += 1;
         out.max_sigma = out.max_sigma.max(s2.sqrt());
     }
@@ -103,16 +122,26 @@ pub fn widen_scene_for(
         .iter()
         .map(|c| c.resized(width, height))
         .collect();
-    let mut total = widen_cloud(&mut scene.static_gaussians, &cameras, |p| p);
+    Ok(widen_scene_with(scene, &cameras, |_, _| false))
+}
+
+/// Widen a whole scene for `cameras` as they are (objects at their pose at the clip's start);
+/// `flat` as in [`widen_cloud_keeping`].
+pub fn widen_scene_with(
+    scene: &mut DynamicScene,
+    cameras: &[Camera],
+    flat: impl Fn(&GaussianCloud, usize) -> bool + Copy,
+) -> Widened {
+    let mut total = widen_cloud_keeping(&mut scene.static_gaussians, cameras, |p| p, flat);
     let t0 = scene.time.start;
     for o in &mut scene.objects {
         let pose = o.track.sample(t0);
-        let w = widen_cloud(&mut o.gaussians, &cameras, |p| pose.transform_point(p));
+        let w = widen_cloud_keeping(&mut o.gaussians, cameras, |p| pose.transform_point(p), flat);
         total.widened += w.widened;
         total.unseen += w.unseen;
         total.max_sigma = total.max_sigma.max(w.max_sigma);
     }
-    Ok(total)
+    total
 }
 
 #[cfg(test)]

@@ -513,7 +513,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.output.display()
         );
     }
-    args.distill.apply(&scene, &mut opts)?;
+    args.distill.apply(&mut scene, &mut opts)?;
     pb.set_message("converting");
     pb.inc(1);
     let kind = if args.splats {

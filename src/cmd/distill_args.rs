@@ -76,11 +76,22 @@ pub struct DistillArgs {
     /// move less than the step size, so what the views barely see stays as converted.
     #[arg(long, value_name = "E", default_value_t = DistillOptions::default().eps_pixels, requires = "distill")]
     pub distill_eps: f32,
+    /// Make the mesh from the Gaussians widened by native splatting's 0.3 px² low-pass at
+    /// their depth in the fitting views (as --footprint-for does for given cameras), so the
+    /// fit starts from fans that blur as native does at the fitting size.
+    #[arg(long, value_enum, default_value = "on", requires = "distill")]
+    pub distill_footprint: OnOff,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum OnOff {
+    On,
+    Off,
 }
 
 impl DistillArgs {
     /// Fit when asked, setting the options' vertex colours; prints what it did.
-    pub fn apply(&self, scene: &DynamicScene, opts: &mut ConvertOptions) -> anyhow::Result<()> {
+    pub fn apply(&self, scene: &mut DynamicScene, opts: &mut ConvertOptions) -> anyhow::Result<()> {
         if !self.distill {
             return Ok(());
         }
@@ -101,6 +112,7 @@ impl DistillArgs {
             record_k: self.distill_record_k,
             batch: self.distill_batch,
             eps_pixels: self.distill_eps,
+            footprint: self.distill_footprint == OnOff::On,
             ..DistillOptions::default()
         };
         let req = ViewRequest {

@@ -102,4 +102,26 @@ mod tests {
         }
         assert!(seen.iter().all(|&c| c >= 1), "{seen:?}");
     }
+
+    /// Adam's ε sets the scale below which a gradient no longer takes a full step: a lane
+    /// whose gradient is far above ε moves by the step size on the first step whatever the
+    /// gradient's size (Adam's normalisation), one far below moves by about lr·g/ε.
+    #[test]
+    fn epsilon_damps_gradients_below_it() {
+        let eps = 1e-6;
+        let g = [[1e-3, 1e-9, 0.0, -1e-3]];
+        let mut p = [[0.5f32; 4]];
+        let (mut m, mut v) = ([[0.0f32; 4]], [[0.0f32; 4]]);
+        adam(&mut p, &mut m, &mut v, &g, [0.02; 4], 1, eps, |_| {});
+        let step = p[0].map(|x| x - 0.5);
+        // Full steps (0.02 down for a positive gradient) up to lr·ε/|g| = 2e-5 and rounding.
+        assert!(
+            (step[0] + 0.02).abs() < 3e-5 && (step[3] - 0.02).abs() < 3e-5,
+            "{step:?}"
+        );
+        // 1e-9 against ε 1e-6: lr·g/(|g| + ε) = 0.02 · 1e-9 / 1.001e-6 ≈ 2e-5.
+        assert!(step[1] < 0.0 && step[1].abs() < 3e-5, "{step:?}");
+        // No gradient and no momentum: untouched.
+        assert_eq!(step[2], 0.0);
+    }
 }

@@ -95,9 +95,10 @@ pub struct Outcome {
 }
 
 /// Fit `convert`'s mesh of `scene` and set its vertex colours (and the metadata's
-/// description) in `convert`; `on_step` sees the progress.
+/// description) in `convert`; `on_step` sees the progress. With `opts.footprint` the scene
+/// is widened in place for the fitting views (the mesh to write is made from it).
 pub fn distill_export(
-    scene: &DynamicScene,
+    scene: &mut DynamicScene,
     convert: &mut ConvertOptions,
     req: &ViewRequest,
     opts: &DistillOptions,
@@ -108,7 +109,14 @@ pub fn distill_export(
     if opts.times.is_empty() {
         opts.times = fitting_times(scene, req.times);
     }
-    let mut d = Distiller::new(scene, convert, &cams, &opts)?;
+    let widened = super::widen_for_fit(scene, &cams, &opts, convert);
+    let mut d = Distiller::with_mesh_scene(
+        scene,
+        widened.as_ref().unwrap_or(scene),
+        convert,
+        &cams,
+        &opts,
+    )?;
     // Held-back views take the fitting times in turn too, so a dynamic scene is measured
     // over the poses it was fitted for.
     let held_times = opts.view_times(held.len());
@@ -124,13 +132,21 @@ pub fn distill_export(
         None => None,
     };
     let colours = d.vertex_colours()?;
+    if let Some(w) = widened {
+        *scene = w;
+    }
     let report = d.report();
     let description = format!(
-        "{} views '{}' at {}×{}{}, {} iterations of Adam on {} in {:.1} s",
+        "{} views '{}' at {}×{}{}{}, {} iterations of Adam on {} in {:.1} s",
         report.views,
         req.spec,
         report.width,
         report.height,
+        if opts.footprint {
+            ", Gaussians widened by the low-pass of those views"
+        } else {
+            ""
+        },
         if opts.times.len() > 1 {
             format!(" over {} scene times", opts.times.len())
         } else {
