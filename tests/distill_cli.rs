@@ -1,0 +1,153 @@
+//! `convert --distill` from the command line: a dynamic scene's distilled export keeps its
+//! animated objects and cameras, says how it was fitted, passes the glTF validator and
+//! imports into Blender; a bad distillation option is refused with exit 2.
+
+mod cli_common;
+
+use std::path::Path;
+use std::process::Command;
+
+use cli_common::{ok, path, run, street, temp_dir};
+use serde_json::Value;
+
+/// The JSON chunk of a GLB.
+fn glb_json(bytes: &[u8]) -> Value {
+    assert_eq!(&bytes[..4], b"glTF", "not a GLB");
+    let len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    serde_json::from_slice(&bytes[20..20 + len]).expect("GLB JSON chunk")
+}
+
+/// A small distillation of the street fixture (moving cars): four 32×24 views over two
+/// scene times, three steps.
+fn distilled_street(dir: &Path) -> (std::path::PathBuf, String) {
+    let out = dir.join("street_distilled.glb");
+    let scene = street();
+    let r = ok(&[
+        "convert",
+        scene.as_str(),
+        "--profile",
+        "meshsplats",
+        "--distill",
+        "--views",
+        "orbit:4",
+        "--distill-width",
+        "32",
+        "--distill-height",
+        "24",
+        "--iterations",
+        "3",
+        "--held-back",
+        "1",
+        "--distill-times",
+        "2",
+        "-o",
+        path(&out),
+    ]);
+    (out, String::from_utf8_lossy(&r.stderr).into_owned())
+}
+
+#[test]
+fn distilled_dynamic_export_keeps_its_animation_and_says_how_it_was_fitted() {
+    let dir = temp_dir("distill-cli", "anim");
+    let (out, stderr) = distilled_street(&dir);
+    assert!(stderr.contains("held-back PSNR"), "{stderr}");
+    let plain = dir.join("street_plain.glb");
+    let scene = street();
+    ok(&[
+        "convert",
+        scene.as_str(),
+        "--profile",
+        "meshsplats",
+        "-o",
+        path(&plain),
+    ]);
+    let (d, p) = (
+        glb_json(&std::fs::read(&out).unwrap()),
+        glb_json(&std::fs::read(&plain).unwrap()),
+    );
+    let how = d["asset"]["extras"]["splatbridge"]["options"]["distilled"]
+        .as_str()
+        .unwrap_or_else(|| panic!("no distillation note in {}", d["asset"]));
+    assert!(
+        how.contains("4 views") && how.contains("over 2 scene times"),
+        "{how}"
+    );
+    assert!(
+        how.contains("widened"),
+        "the default footprint is noted: {how}"
+    );
+    // The cars stay animated nodes, and the cameras and node tree are the plain export's.
+    for key in ["animations", "cameras", "nodes"] {
+        let (a, b) = (d[key].as_array(), p[key].as_array());
+        assert_eq!(
+            a.map(Vec::len),
+            b.map(Vec::len),
+            "{key}: distilled and plain exports differ"
+        );
+    }
+    assert!(!d["animations"].as_array().unwrap().is_empty());
+    assert_eq!(
+        d["animations"], p["animations"],
+        "the animation is unchanged"
+    );
+}
+
+#[test]
+fn bad_distillation_options_exit_2_naming_the_option() {
+    let dir = temp_dir("distill-cli", "bad");
+    let out = dir.join("x.glb");
+    let scene = street();
+    for arg in ["--distill-eps=-1", "--distill-eps=nan", "--distill-eps=inf"] {
+        let r = run(&[
+            "convert",
+            scene.as_str(),
+            "--distill",
+            arg,
+            "-o",
+            path(&out),
+        ]);
+        let stderr = String::from_utf8_lossy(&r.stderr);
+        assert_eq!(r.status.code(), Some(2), "{arg}: {stderr}");
+        assert!(stderr.contains("--distill-eps"), "{arg}: {stderr}");
+        assert!(!out.exists(), "{arg}: an output was written");
+    }
+}
+
+#[test]
+#[cfg_attr(
+    not(gltf_tools),
+    ignore = "needs the glTF validator wrapper (../shared/tools), node and npm"
+)]
+fn distilled_export_is_validator_clean() {
+    let dir = temp_dir("distill-cli", "validator");
+    let (out, _) = distilled_street(&dir);
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let r = Command::new(root.join("scripts/validate-exports.sh"))
+        .arg("--mesh")
+        .arg(&out)
+        .output()
+        .expect("run validate-exports.sh");
+    let stdout = String::from_utf8_lossy(&r.stdout);
+    println!("{stdout}{}", String::from_utf8_lossy(&r.stderr));
+    assert_eq!(
+        r.status.code(),
+        Some(0),
+        "validator reported problems:\n{stdout}"
+    );
+}
+
+#[test]
+#[cfg_attr(not(blender), ignore = "needs Blender on PATH")]
+fn distilled_export_imports_into_blender() {
+    let dir = temp_dir("distill-cli", "blender");
+    let (out, _) = distilled_street(&dir);
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let r = Command::new(root.join("scripts/blender-check.sh"))
+        .arg(&out)
+        .output()
+        .expect("run blender-check.sh");
+    let stdout = String::from_utf8_lossy(&r.stdout);
+    println!("{stdout}{}", String::from_utf8_lossy(&r.stderr));
+    assert_eq!(r.status.code(), Some(0), "Blender check failed:\n{stdout}");
+    assert!(stdout.contains("\"problems\": []"), "{stdout}");
+}
