@@ -5,9 +5,8 @@
 mod cli_common;
 
 use std::path::Path;
-use std::process::Command;
 
-use cli_common::{ok, path, run, street, temp_dir};
+use cli_common::{client_check, ok, path, run, street, temp_dir};
 use serde_json::Value;
 
 /// The JSON chunk of a GLB.
@@ -121,19 +120,7 @@ fn bad_distillation_options_exit_2_naming_the_option() {
 fn distilled_export_is_validator_clean() {
     let dir = temp_dir("distill-cli", "validator");
     let (out, _) = distilled_street(&dir);
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let r = Command::new(root.join("scripts/validate-exports.sh"))
-        .arg("--mesh")
-        .arg(&out)
-        .output()
-        .expect("run validate-exports.sh");
-    let stdout = String::from_utf8_lossy(&r.stdout);
-    println!("{stdout}{}", String::from_utf8_lossy(&r.stderr));
-    assert_eq!(
-        r.status.code(),
-        Some(0),
-        "validator reported problems:\n{stdout}"
-    );
+    client_check("validate-exports.sh", &["--mesh"], &out);
 }
 
 #[test]
@@ -141,13 +128,6 @@ fn distilled_export_is_validator_clean() {
 fn distilled_export_imports_into_blender() {
     let dir = temp_dir("distill-cli", "blender");
     let (out, _) = distilled_street(&dir);
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let r = Command::new(root.join("scripts/blender-check.sh"))
-        .arg(&out)
-        .output()
-        .expect("run blender-check.sh");
-    let stdout = String::from_utf8_lossy(&r.stdout);
-    println!("{stdout}{}", String::from_utf8_lossy(&r.stderr));
-    assert_eq!(r.status.code(), Some(0), "Blender check failed:\n{stdout}");
+    let stdout = client_check("blender-check.sh", &[], &out);
     assert!(stdout.contains("\"problems\": []"), "{stdout}");
 }

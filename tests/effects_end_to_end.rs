@@ -5,8 +5,9 @@
 //! per-frame particle nodes and animations, which passes the glTF validator and imports into
 //! Blender (those two ignored, with the reason, when the tool is missing).
 
+mod cli_common;
+
 use std::path::Path;
-use std::process::Command;
 
 use serde_json::json;
 use splatbridge_convert::{ConvertOptions, FrameClouds};
@@ -221,19 +222,7 @@ fn street_with_rain_inserted_car_and_shadows_exports_per_frame_particles() {
 fn street_effects_export_is_validator_clean() {
     let dir = tempfile::tempdir().unwrap();
     let (_, path) = effects_export(dir.path());
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let out = Command::new(root.join("scripts/validate-exports.sh"))
-        .arg("--mesh")
-        .arg(&path)
-        .output()
-        .expect("run validate-exports.sh");
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    println!("{stdout}{}", String::from_utf8_lossy(&out.stderr));
-    assert_eq!(
-        out.status.code(),
-        Some(0),
-        "validator reported problems:\n{stdout}"
-    );
+    cli_common::client_check("validate-exports.sh", &["--mesh"], &path);
 }
 
 #[test]
@@ -241,18 +230,7 @@ fn street_effects_export_is_validator_clean() {
 fn street_effects_export_imports_into_blender() {
     let dir = tempfile::tempdir().unwrap();
     let (_, path) = effects_export(dir.path());
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let out = Command::new(root.join("scripts/blender-check.sh"))
-        .arg(&path)
-        .output()
-        .expect("run blender-check.sh");
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    println!("{stdout}{}", String::from_utf8_lossy(&out.stderr));
-    assert_eq!(
-        out.status.code(),
-        Some(0),
-        "Blender check failed:\n{stdout}"
-    );
+    let stdout = cli_common::client_check("blender-check.sh", &[], &path);
     // Moving objects and the 41 per-frame particle nodes (STEP scale visibility) are all
     // animated objects in Blender; the check accounts for both kinds.
     assert!(stdout.contains("\"problems\": []"), "{stdout}");

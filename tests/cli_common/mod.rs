@@ -58,3 +58,23 @@ pub fn hybrid_json(out: &Path, size: &[&str], knobs: &[&str]) -> Value {
     a.extend_from_slice(&["-o", path(out), "--json"]);
     serde_json::from_slice(&ok(&a).stdout).expect("JSON report")
 }
+
+/// Run one of the repository's real-client check scripts (`scripts/validate-exports.sh
+/// --mesh`, `scripts/blender-check.sh`) on `file`, failing the test unless it exits 0; its
+/// standard output.
+pub fn client_check(script: &str, args: &[&str], file: &Path) -> String {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let r = Command::new(root.join("scripts").join(script))
+        .args(args)
+        .arg(file)
+        .output()
+        .unwrap_or_else(|e| panic!("run {script}: {e}"));
+    let stdout = String::from_utf8_lossy(&r.stdout).into_owned();
+    println!("{stdout}{}", String::from_utf8_lossy(&r.stderr));
+    assert_eq!(
+        r.status.code(),
+        Some(0),
+        "{script} reported problems:\n{stdout}"
+    );
+    stdout
+}
