@@ -40,8 +40,9 @@ pub struct Args {
     /// footprint-default (only when named: `trace`'s default, footprint on with mean-depth
     /// order, alone),
     /// mesh-spp (the default profile's mesh traced at 1 and 4 samples per pixel), distill (only
-    /// when named: each profile's mesh distilled on 16 views between the orbit's, measured on
-    /// these cameras against distillation time; writes distill.md).
+    /// when named: each profile's mesh distilled at these cameras' size on 48 views between the
+    /// orbit's, in batches of 16, measured on these cameras against distillation time; writes
+    /// distill.md).
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
     #[arg(long)]
