@@ -81,6 +81,10 @@ pub struct DistillArgs {
     /// fit starts from fans that blur as native does at the fitting size.
     #[arg(long, value_enum, default_value = "on", requires = "distill")]
     pub distill_footprint: OnOff,
+    /// Highest SH degree of the native targets (and held-back references); 0 fits and
+    /// measures against view-independent colour, to see what view-dependence costs.
+    #[arg(long, value_name = "D", default_value_t = 3, value_parser = clap::value_parser!(u8).range(0..=3), requires = "distill")]
+    pub distill_sh_degree: u8,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -113,6 +117,7 @@ impl DistillArgs {
             batch: self.distill_batch,
             eps_pixels: self.distill_eps,
             footprint: self.distill_footprint == OnOff::On,
+            target_sh_degree: self.distill_sh_degree,
             ..DistillOptions::default()
         };
         let req = ViewRequest {

@@ -123,6 +123,10 @@ pub struct DistillOptions {
     /// cover what native splatting blurs them over. Applied by the callers that own the
     /// scene (`run::distill_export`, the accuracy sweep), which export the widened scene.
     pub footprint: bool,
+    /// Highest SH degree of the native targets (3: all the scene has). Degree 0 makes the
+    /// targets view-independent, so a fit to them measures what view-dependence costs a
+    /// mesh (docs/distill.md, "Where the remaining error is").
+    pub target_sh_degree: u8,
 }
 
 impl Default for DistillOptions {
@@ -143,6 +147,7 @@ impl Default for DistillOptions {
             batch: 16,
             eps_pixels: 0.04,
             footprint: true,
+            target_sh_degree: 3,
         }
     }
 }
@@ -334,7 +339,10 @@ impl Distiller {
         });
         let moments = tied.as_ref().map_or(n, Tied::groups);
         let tracer = MeshTracer::new(tri, BackendKind::default(), BuildPreset::default())?;
-        let native = NativeOptions::default();
+        let native = NativeOptions {
+            sh_degree_cap: opts.target_sh_degree,
+            ..NativeOptions::default()
+        };
         let mut renderer = splatbridge_hybrid::native::Renderer::new();
         let mut d = Distiller {
             tracer,
@@ -791,6 +799,25 @@ pub fn native_targets_at(
     cameras: &[Camera],
     times: &[f64],
 ) -> Result<Vec<Frame>> {
+    native_targets_sh(
+        scene,
+        cameras,
+        times,
+        NativeOptions::default().sh_degree_cap,
+    )
+}
+
+/// [`native_targets_at`] with SH up to degree `sh_degree`.
+pub fn native_targets_sh(
+    scene: &DynamicScene,
+    cameras: &[Camera],
+    times: &[f64],
+    sh_degree: u8,
+) -> Result<Vec<Frame>> {
+    let native = NativeOptions {
+        sh_degree_cap: sh_degree,
+        ..NativeOptions::default()
+    };
     let mut r = splatbridge_hybrid::native::Renderer::new();
     let mut out = Vec::with_capacity(cameras.len());
     let mut cached: Option<(f64, splatbridge_scene::GaussianCloud)> = None;
@@ -799,7 +826,7 @@ pub fn native_targets_at(
             cached = Some((t, scene.composite(t)));
         }
         if let Some((_, cloud)) = &cached {
-            out.push(r.render(cloud, c, &NativeOptions::default())?.0);
+            out.push(r.render(cloud, c, &native)?.0);
         }
     }
     Ok(out)

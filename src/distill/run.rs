@@ -11,7 +11,7 @@ use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::Camera;
 
 use super::{
-    mean_psnr_at, native_targets_at, views, DistillOptions, DistillReport, Distiller, Result,
+    mean_psnr_at, native_targets_sh, views, DistillOptions, DistillReport, Distiller, Result,
 };
 
 /// `n` times evenly over the scene's time range, start and end included (the start alone
@@ -120,7 +120,7 @@ pub fn distill_export(
     // Held-back views take the fitting times in turn too, so a dynamic scene is measured
     // over the poses it was fitted for.
     let held_times = opts.view_times(held.len());
-    let held_targets = native_targets_at(scene, &held, &held_times)?;
+    let held_targets = native_targets_sh(scene, &held, &held_times, opts.target_sh_degree)?;
     let before = if held.is_empty() {
         None
     } else {
