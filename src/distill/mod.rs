@@ -6,7 +6,9 @@
 //!    views.
 //! 2. The mesh: the glTF export built in memory with the export's own options
 //!    (`convert::glb_bytes`, the same bytes the file gets) and loaded by the tracer, so the
-//!    fitted vertices are the written vertices.
+//!    fitted vertices are the written vertices. By default it is made from the Gaussians
+//!    widened by native splatting's 0.3 px² low-pass in the fitting views ([`widen_for_fit`];
+//!    the 3DGS EWA dilation, which fans otherwise lack), and that scene is what is exported.
 //! 3. Hits: per view and pixel, the ordered hit list the compositor uses
 //!    (`raytrace::hit_record`), recorded once (the geometry is fixed; only colours and
 //!    opacities change) down to a transmittance of `record_transmittance`, below the
