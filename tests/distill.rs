@@ -422,3 +422,42 @@ fn the_footprint_widened_fit_beats_the_plain_one_on_small_gaussians() {
         "plain {plain_before:.2} → {plain_after:.2} dB, widened {wide_before:.2} → {wide_after:.2} dB"
     );
 }
+
+/// `target_sh_degree` caps the targets' SH: at degree 0 they are native splatting of the DC
+/// term alone (bit for bit the render of a degree-0 copy), and at the full degree they
+/// differ where the scene has view-dependent colour.
+#[test]
+fn target_sh_degree_caps_the_targets_sh() {
+    let mut cloud = large(300, 7);
+    let n = cloud.len();
+    let k = cloud.sh.len() / n.max(1);
+    let dc: Vec<glam::Vec3> = (0..n).map(|i| cloud.sh[i * k]).collect();
+    // Degree 1 with the same DC and a strong first band.
+    cloud.sh_degree = 1;
+    cloud.sh = dc
+        .iter()
+        .flat_map(|&c| {
+            [
+                c,
+                glam::Vec3::splat(0.5),
+                glam::Vec3::new(-0.4, 0.3, 0.2),
+                glam::Vec3::splat(-0.3),
+            ]
+        })
+        .collect();
+    let scene = DynamicScene::from_static(cloud.clone());
+    let cams = views::orbit(&cloud, 4, 0..2, 32, 24).unwrap();
+    let times = [0.0, 0.0];
+    let full = splatbridge::distill::native_targets_sh(&scene, &cams, &times, 3).unwrap();
+    let capped = splatbridge::distill::native_targets_sh(&scene, &cams, &times, 0).unwrap();
+    let mut flat = cloud;
+    flat.sh_degree = 0;
+    flat.sh = dc;
+    let plain =
+        splatbridge::distill::native_targets_at(&DynamicScene::from_static(flat), &cams, &times)
+            .unwrap();
+    for ((f, c), p) in full.iter().zip(&capped).zip(&plain) {
+        assert_eq!(c.rgb, p.rgb, "degree 0 is the DC term's render");
+        assert_ne!(f.rgb, c.rgb, "the first band shows at the full degree");
+    }
+}
