@@ -581,7 +581,7 @@ pub(crate) fn parse_root(json: &[u8], name: &Path) -> Result<Root> {
 
 /// The checks, the document and its buffers and images, from the parsed JSON and the GLB's
 /// BIN chunk (moved into its buffer).
-fn import_root(
+pub(crate) fn import_root(
     root: Root,
     bin: Option<Vec<u8>>,
     base: Option<&Path>,

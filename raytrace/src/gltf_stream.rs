@@ -122,45 +122,61 @@ impl Buffers {
 pub type StreamedImport = (gltf::Document, Buffers, Vec<gltf::image::Data>);
 
 /// Import a glTF/GLB file: a plain GLB or `.gltf` streamed (see the module documentation),
-/// anything else read whole through [`gltf_check::import_path`].
+/// anything else read whole with [`gltf_check`]'s checks. A file that is not a plain GLB is
+/// read once: its bytes go to the whole-file reader, or its parsed JSON to [`open_gltf`].
 pub fn import_path(path: &Path) -> Result<StreamedImport> {
     if let Some(x) = open_glb(path)? {
         return Ok(x);
     }
-    if let Some(x) = open_gltf(path)? {
-        return Ok(x);
+    let bytes = input::read_bounded(path, Cap::Mesh)?;
+    let base = gltf_check::folder(path);
+    if bytes.starts_with(GLB_MAGIC) {
+        return Ok(whole(gltf_check::import_vec(bytes, Some(&base), path)?));
     }
-    let (doc, data, images) = gltf_check::import_path(path)?;
-    Ok((doc, Buffers::whole(data), images))
+    let root = gltf_check::parse_root(&bytes, path)?;
+    drop(bytes);
+    open_gltf(root, &base, path)
 }
 
-/// The streamed import of a JSON glTF whose one buffer is an external file, or `None` for any
-/// other layout.
-fn open_gltf(path: &Path) -> Result<Option<StreamedImport>> {
-    let json = input::read_bounded(path, Cap::Mesh)?;
-    if json.starts_with(GLB_MAGIC) {
-        return Ok(None);
-    }
-    let root = gltf_check::parse_root(&json, path)?;
-    drop(json);
-    let base = gltf_check::folder(path);
+/// A JSON glTF: streamed when its one buffer is an external file (and the document is plain),
+/// else read whole.
+fn open_gltf(root: Root, base: &Path, path: &Path) -> Result<StreamedImport> {
     let uri = match &root.buffers[..] {
         [b] => match &b.uri {
-            Some(u) if !u.starts_with("data:") => u.clone(),
-            _ => return Ok(None),
+            Some(u) if !u.starts_with("data:") => Some(u.clone()),
+            _ => None,
         },
-        _ => return Ok(None),
+        _ => None,
     };
-    gltf_check::check_document(&root, Some(&base), path)?;
-    let Some(bin) = gltf_check::external_path(&uri, Some(&base), path, "buffer 0")? else {
-        return Ok(None);
+    let Some(uri) = uri else {
+        return Ok(whole(gltf_check::import_root(
+            root,
+            None,
+            Some(base),
+            path,
+        )?));
+    };
+    gltf_check::check_document(&root, Some(base), path)?;
+    let Some(bin) = gltf_check::external_path(&uri, Some(base), path, "buffer 0")? else {
+        return Ok(whole(gltf_check::import_root(
+            root,
+            None,
+            Some(base),
+            path,
+        )?));
     };
     let (file, bin_len) =
         input::open_regular(&bin).map_err(|e| bad(path, format!("buffer 0: {e}")))?;
     if !plain(&root, bin_len, true) {
-        return Ok(None);
+        drop(file);
+        return Ok(whole(gltf_check::import_root(
+            root,
+            None,
+            Some(base),
+            path,
+        )?));
     }
-    stream(root, path, &base, file, &bin, 0).map(Some)
+    stream(root, path, base, file, &bin, 0)
 }
 
 fn whole(import: Import) -> StreamedImport {

@@ -35,7 +35,7 @@ pub struct DistillArgs {
     #[arg(
         long,
         value_name = "LIST",
-        default_value = "orbit:48",
+        default_value_t = ViewRequest::default().spec,
         requires = "distill"
     )]
     pub views: String,

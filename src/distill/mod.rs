@@ -341,10 +341,7 @@ impl Distiller {
         });
         let moments = tied.as_ref().map_or(n, Tied::groups);
         let tracer = MeshTracer::new(tri, BackendKind::default(), BuildPreset::default())?;
-        let native = NativeOptions {
-            sh_degree_cap: opts.target_sh_degree,
-            ..NativeOptions::default()
-        };
+        let native = native_options(opts.target_sh_degree);
         let mut renderer = splatbridge_hybrid::native::Renderer::new();
         let mut d = Distiller {
             tracer,
@@ -816,10 +813,7 @@ pub fn native_targets_sh(
     times: &[f64],
     sh_degree: u8,
 ) -> Result<Vec<Frame>> {
-    let native = NativeOptions {
-        sh_degree_cap: sh_degree,
-        ..NativeOptions::default()
-    };
+    let native = native_options(sh_degree);
     let mut r = splatbridge_hybrid::native::Renderer::new();
     let mut out = Vec::with_capacity(cameras.len());
     let mut cached: Option<(f64, splatbridge_scene::GaussianCloud)> = None;
@@ -832,6 +826,14 @@ pub fn native_targets_sh(
         }
     }
     Ok(out)
+}
+
+/// Native splatting's reference settings with SH up to degree `sh_degree`.
+fn native_options(sh_degree: u8) -> NativeOptions {
+    NativeOptions {
+        sh_degree_cap: sh_degree,
+        ..NativeOptions::default()
+    }
 }
 
 /// Native targets (reference settings) of `scene` at `time` from `cameras`.
