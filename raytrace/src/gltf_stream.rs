@@ -141,42 +141,34 @@ pub fn import_path(path: &Path) -> Result<StreamedImport> {
 /// A JSON glTF: streamed when its one buffer is an external file (and the document is plain),
 /// else read whole.
 fn open_gltf(root: Root, base: &Path, path: &Path) -> Result<StreamedImport> {
+    match external_buffer(&root, base, path)? {
+        Some((file, bin)) => stream(root, path, base, file, &bin, 0),
+        None => Ok(whole(gltf_check::import_root(
+            root,
+            None,
+            Some(base),
+            path,
+        )?)),
+    }
+}
+
+/// The opened file of a checked, plain document's one external buffer, or `None` for any
+/// other layout.
+fn external_buffer(root: &Root, base: &Path, path: &Path) -> Result<Option<(File, PathBuf)>> {
     let uri = match &root.buffers[..] {
         [b] => match &b.uri {
-            Some(u) if !u.starts_with("data:") => Some(u.clone()),
-            _ => None,
+            Some(u) if !u.starts_with("data:") => u,
+            _ => return Ok(None),
         },
-        _ => None,
+        _ => return Ok(None),
     };
-    let Some(uri) = uri else {
-        return Ok(whole(gltf_check::import_root(
-            root,
-            None,
-            Some(base),
-            path,
-        )?));
-    };
-    gltf_check::check_document(&root, Some(base), path)?;
-    let Some(bin) = gltf_check::external_path(&uri, Some(base), path, "buffer 0")? else {
-        return Ok(whole(gltf_check::import_root(
-            root,
-            None,
-            Some(base),
-            path,
-        )?));
+    gltf_check::check_document(root, Some(base), path)?;
+    let Some(bin) = gltf_check::external_path(uri, Some(base), path, "buffer 0")? else {
+        return Ok(None);
     };
     let (file, bin_len) =
         input::open_regular(&bin).map_err(|e| bad(path, format!("buffer 0: {e}")))?;
-    if !plain(&root, bin_len, true) {
-        drop(file);
-        return Ok(whole(gltf_check::import_root(
-            root,
-            None,
-            Some(base),
-            path,
-        )?));
-    }
-    stream(root, path, base, file, &bin, 0)
+    Ok(plain(root, bin_len, true).then_some((file, bin)))
 }
 
 fn whole(import: Import) -> StreamedImport {
