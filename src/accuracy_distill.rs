@@ -51,6 +51,9 @@ pub struct CurvePoint {
     pub seconds: f64,
     pub iterations: usize,
     pub profile: String,
+    /// The undistilled MeshSplats profile made from the Gaussians as they are: the MeshSplats
+    /// default, marked in the plot (not when the fit's mesh is widened for the footprint).
+    pub baseline: bool,
 }
 
 /// Fit each profile and measure the sweep's cameras at every checkpoint.
@@ -125,6 +128,7 @@ pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<Vec<Cur
                 record.psnr = psnr;
                 record.milliseconds = ms;
                 out.push(CurvePoint {
+                    baseline: profile == Profile::MeshSplats && it == 0 && widened.is_none(),
                     record,
                     seconds,
                     iterations: it,
@@ -157,7 +161,7 @@ pub fn write_curve(out: &Path, what: &str, points: &[CurvePoint]) -> anyhow::Res
             series: p.profile.clone(),
             cost: p.seconds.max(1e-3),
             psnr: p.record.psnr,
-            baseline: p.profile == "meshsplats" && p.iterations == 0,
+            baseline: p.baseline,
         })
         .collect();
     plot::plot(
