@@ -91,6 +91,44 @@ fn distilled_dynamic_export_keeps_its_animation_and_says_how_it_was_fitted() {
     );
 }
 
+/// `--distill-order splat` (a measurement) runs on a dynamic scene, whose animated cars
+/// are regrouped in their pose at each fitting time, and the export says it was fitted in
+/// that order.
+#[test]
+fn splat_order_distillation_says_so_in_the_export() {
+    let dir = temp_dir("distill-cli", "order");
+    let out = dir.join("street_splat_order.glb");
+    let scene = street();
+    let r = ok(&[
+        "convert",
+        scene.as_str(),
+        "--distill",
+        "--distill-order",
+        "splat",
+        "--views",
+        "orbit:4",
+        "--distill-width",
+        "32",
+        "--distill-height",
+        "24",
+        "--iterations",
+        "2",
+        "--held-back",
+        "1",
+        "--distill-times",
+        "2",
+        "-o",
+        path(&out),
+    ]);
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert!(stderr.contains("held-back PSNR"), "{stderr}");
+    let d = glb_json(&std::fs::read(&out).unwrap());
+    let how = d["asset"]["extras"]["splatbridge"]["options"]["distilled"]
+        .as_str()
+        .unwrap_or_else(|| panic!("no distillation note in {}", d["asset"]));
+    assert!(how.contains("splat order"), "{how}");
+}
+
 #[test]
 fn bad_distillation_options_exit_2_naming_the_option() {
     let dir = temp_dir("distill-cli", "bad");
@@ -101,6 +139,7 @@ fn bad_distillation_options_exit_2_naming_the_option() {
         "--distill-eps=nan",
         "--distill-eps=inf",
         "--distill-sh-degree=4",
+        "--distill-order=diagonal",
     ] {
         let r = run(&[
             "convert",

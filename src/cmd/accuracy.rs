@@ -45,6 +45,13 @@ pub struct Args {
     /// distill.md).
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
+    /// Converter profiles the distill sweep fits (with `--only distill`), comma-separated.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "meshsplats,rings,texture"
+    )]
+    pub distill_profiles: Vec<String>,
     #[arg(long)]
     pub drop_invalid: bool,
     /// Re-draw the plots and table from OUT/accuracy.json without measuring again.
@@ -72,6 +79,9 @@ fn print_records(records: &[Record]) {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    // Options first: a bad one is reported before a large scene is loaded.
+    let distill_profiles = super::compare::parse_profiles(&args.distill_profiles)
+        .map_err(|e| anyhow::anyhow!("--distill-profiles: {e}"))?;
     if args.replot {
         let records = read_records(&args.out)?;
         let what = format!("`{}` (re-plotted from accuracy.json)", args.scene.display());
@@ -156,7 +166,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     pb.finish_and_clear();
     let curve = if args.only.iter().any(|o| o == "distill") {
-        let cfg = splatbridge::accuracy_distill::DistillSweep::default();
+        let cfg = splatbridge::accuracy_distill::DistillSweep {
+            profiles: distill_profiles,
+            ..Default::default()
+        };
         let pts = splatbridge::accuracy_distill::distill_rows(&sweep, &cfg)?;
         records.extend(pts.iter().map(|p| p.record.clone()));
         Some(pts)

@@ -3,7 +3,7 @@
 
 use anyhow::Context;
 use splatbridge::distill::run::{distill_export, ViewRequest};
-use splatbridge::distill::{DistillOptions, Loss, ParamMode};
+use splatbridge::distill::{DistillOptions, HitOrder, Loss, ParamMode};
 use splatbridge_convert::ConvertOptions;
 use splatbridge_scene::dynamic::DynamicScene;
 
@@ -85,6 +85,18 @@ pub struct DistillArgs {
     /// measures against view-independent colour, to see what view-dependence costs.
     #[arg(long, value_name = "D", default_value_t = 3, value_parser = clap::value_parser!(u8).range(0..=3), requires = "distill")]
     pub distill_sh_degree: u8,
+    /// The order the fit composites each pixel's hits in: ray (the tracer's, what every viewer
+    /// draws) or splat (whole Gaussians by the depth of their centres, as native splatting
+    /// sorts). Splat is a measurement of what ray order costs: the held-back figures are in
+    /// that order, and the export, drawn in ray order by viewers, is not what was fitted.
+    #[arg(long, value_enum, default_value = "ray", requires = "distill")]
+    pub distill_order: OrderArg,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum OrderArg {
+    Ray,
+    Splat,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -118,6 +130,10 @@ impl DistillArgs {
             eps_pixels: self.distill_eps,
             footprint: self.distill_footprint == OnOff::On,
             target_sh_degree: self.distill_sh_degree,
+            order: match self.distill_order {
+                OrderArg::Ray => HitOrder::Ray,
+                OrderArg::Splat => HitOrder::Splat,
+            },
             ..DistillOptions::default()
         };
         let req = ViewRequest {

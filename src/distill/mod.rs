@@ -36,7 +36,10 @@
 pub mod composite;
 pub mod loss;
 pub mod optim;
+pub mod options;
+pub mod order;
 pub mod run;
+pub mod targets;
 pub mod tied;
 pub mod views;
 
@@ -46,7 +49,6 @@ use glam::Vec3;
 use rayon::prelude::*;
 use splatbridge_convert::vertex_colours::VertexColours;
 use splatbridge_convert::ConvertOptions;
-use splatbridge_hybrid::native::RenderOptions as NativeOptions;
 use splatbridge_raytrace::model::TriScene;
 use splatbridge_raytrace::{BackendKind, BuildPreset, MeshTracer, RenderOptions};
 use splatbridge_scene::dynamic::DynamicScene;
@@ -55,6 +57,13 @@ use splatbridge_scene::{Camera, Frame};
 use composite::{Rec, Shading, ViewHits};
 pub use loss::Loss;
 use optim::{adam, batch_views, mean_pixels};
+pub use options::DistillOptions;
+use order::Centres;
+pub use order::HitOrder;
+use targets::native_options;
+pub use targets::{
+    mean_psnr, mean_psnr_at, native_targets, native_targets_at, native_targets_sh, widen_for_fit,
+};
 pub use tied::ParamMode;
 pub use tied::Tied;
 
@@ -79,132 +88,6 @@ pub type Result<T, E = DistillError> = std::result::Result<T, E>;
 /// step ([`DistillOptions::batch`]); on `fourth_st` 48 views in batches of 16 gained 3.0 dB on
 /// held-back views where 16 views gained 2.3 dB at the same ε (docs/distill.md).
 pub const DEFAULT_VIEWS: usize = 48;
-
-/// What to fit and how.
-#[derive(Clone, Debug)]
-pub struct DistillOptions {
-    /// Scene time the views are fitted at (and the time [`Distiller::render`] traces).
-    pub time: f64,
-    /// Scene times for dynamic scenes, given to the views in turn (view i at
-    /// `times[i % len]`); empty: every view at `time`.
-    pub times: Vec<f64>,
-    /// Adam steps (each over a batch of views).
-    pub iterations: usize,
-    /// Stop fitting once this many seconds have passed since the start (set-up included).
-    pub max_seconds: Option<f64>,
-    pub loss: Loss,
-    /// Adam step sizes for the linear RGB and the alpha of a vertex.
-    pub lr_colour: f32,
-    pub lr_alpha: f32,
-    /// The tracer's k-buffer size.
-    pub k: usize,
-    /// Bytes of hit lists kept between iterations; views beyond are re-traced each time.
-    pub hit_budget: u64,
-    /// Hits are recorded until the transmittance falls below this.
-    pub record_transmittance: f32,
-    /// Per-vertex or per-Gaussian parameters ([`tied`]).
-    pub params: ParamMode,
-    /// The k-buffer size of hit recording: the order is the tracer's (hits sorted by the
-    /// same keys), a larger buffer walks the BVH fewer times for a deep pixel (64 halved
-    /// the set-up's wall time on `tile_lod1` against 16; docs/distill.md).
-    pub record_k: usize,
-    /// Views per Adam step: 0 for all of them (full batch), else that many in turn
-    /// ([`Distiller::batch`]).
-    pub batch: usize,
-    /// Adam's ε in units of one pixel's loss: ε = eps_pixels / (W·H). A view's loss is a
-    /// mean over its pixels, so a vertex's gradient is about (its pixel weight in a view) /
-    /// (W·H) whatever the view count; 0.04 is the gradient of a vertex that sets one pixel
-    /// with full weight in one view of 25. A vertex seen less than that takes steps smaller
-    /// than the step size, so what the views barely constrain stays near the conversion
-    /// instead of following noise at full step (Adam's usual 1e-8 lets it; on `fourth_st`
-    /// held-back views peaked after 20 steps and then fell; docs/distill.md).
-    pub eps_pixels: f32,
-    /// Make the fitted mesh from the Gaussians widened by native splatting's 0.3 px² low-pass
-    /// at their depth in the fitting views ([`widen_for_fit`], `convert --footprint-for`'s
-    /// widening sized by the fitting cameras), so the fans of Gaussians near or under a pixel
-    /// cover what native splatting blurs them over. Applied by the callers that own the
-    /// scene (`run::distill_export`, the accuracy sweep), which export the widened scene.
-    pub footprint: bool,
-    /// Highest SH degree of the native targets (3: all the scene has). Degree 0 makes the
-    /// targets view-independent, so a fit to them measures what view-dependence costs a
-    /// mesh (docs/distill.md, "Where the remaining error is").
-    pub target_sh_degree: u8,
-}
-
-impl Default for DistillOptions {
-    fn default() -> Self {
-        DistillOptions {
-            time: 0.0,
-            times: Vec::new(),
-            iterations: 60,
-            max_seconds: None,
-            loss: Loss::default(),
-            lr_colour: 0.02,
-            lr_alpha: 0.02,
-            k: 16,
-            hit_budget: 2 << 30,
-            record_transmittance: 1e-6,
-            params: ParamMode::Vertex,
-            record_k: 64,
-            batch: 16,
-            eps_pixels: 0.04,
-            footprint: true,
-            target_sh_degree: 3,
-        }
-    }
-}
-
-impl DistillOptions {
-    /// The scene time of each of `n` views: `times` in turn, or `time`.
-    pub fn view_times(&self, n: usize) -> Vec<f64> {
-        if self.times.is_empty() {
-            vec![self.time; n]
-        } else {
-            (0..n).map(|i| self.times[i % self.times.len()]).collect()
-        }
-    }
-
-    pub fn validate(&self) -> Result<()> {
-        let bad = |m: String| Err(DistillError::Invalid(m));
-        if !(self.lr_colour > 0.0 && self.lr_colour.is_finite())
-            || !(self.lr_alpha >= 0.0 && self.lr_alpha.is_finite())
-        {
-            return bad("distillation step sizes must be finite and positive".into());
-        }
-        if let Some(s) = self.max_seconds {
-            if !(s >= 0.0 && s.is_finite()) {
-                return bad(format!("--distill-time {s} must be a finite number ≥ 0"));
-            }
-        }
-        if self.times.iter().any(|t| !t.is_finite()) {
-            return bad("distillation times must be finite".into());
-        }
-        if !(self.eps_pixels >= 0.0 && self.eps_pixels.is_finite()) {
-            return bad(format!(
-                "--distill-eps {} must be a finite number ≥ 0",
-                self.eps_pixels
-            ));
-        }
-        if !(1..=1024).contains(&self.k) {
-            return bad(format!("k-buffer size {} is outside 1..=1024", self.k));
-        }
-        if !(1..=1024).contains(&self.record_k) {
-            return bad(format!(
-                "--distill-record-k {} is outside 1..=1024",
-                self.record_k
-            ));
-        }
-        if !(self.record_transmittance > 0.0 && self.record_transmittance < 1.0) {
-            return bad("record transmittance must be in (0, 1)".into());
-        }
-        if let Loss::L1Ssim(l) = self.loss {
-            if !(0.0..=1.0).contains(&l) {
-                return bad(format!("SSIM weight {l} is outside [0, 1]"));
-            }
-        }
-        Ok(())
-    }
-}
 
 /// One point of the fit's progress.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -263,6 +146,8 @@ pub struct Distiller {
     report: DistillReport,
     /// Adam's ε for these views' size ([`DistillOptions::eps_pixels`]).
     eps: f32,
+    /// The Gaussians' centres when hits are composited in splat order.
+    centres: Option<Centres>,
 }
 
 impl Distiller {
@@ -340,6 +225,7 @@ impl Distiller {
             Tied::new(params.clone(), keys)
         });
         let moments = tied.as_ref().map_or(n, Tied::groups);
+        let centres = (opts.order == HitOrder::Splat).then(|| Centres::new(&tri));
         let tracer = MeshTracer::new(tri, BackendKind::default(), BuildPreset::default())?;
         let native = native_options(opts.target_sh_degree);
         let mut renderer = splatbridge_hybrid::native::Renderer::new();
@@ -368,6 +254,7 @@ impl Distiller {
             start,
             history: Vec::new(),
             eps: opts.eps_pixels / mean_pixels(cameras),
+            centres,
         };
         let mut stored = 0u64;
         let times = opts.view_times(cameras.len());
@@ -408,13 +295,16 @@ impl Distiller {
 
     /// Trace one view's hit lists at scene time `time` with the tracer's current colours.
     fn record(&self, cam: &Camera, time: f64) -> Result<ViewHits> {
-        let lists = self.tracer.record_hits(
+        let mut lists = self.tracer.record_hits(
             cam,
             time,
             self.opts.record_k,
             self.opts.record_transmittance,
         )?;
         let scene = &self.tracer.scene;
+        if let Some(c) = &self.centres {
+            c.reorder(scene, &mut lists, cam, time);
+        }
         let hits = lists
             .hits
             .iter()
@@ -600,10 +490,14 @@ impl Distiller {
         for (mi, m) in self.tracer.scene.meshes.iter_mut().enumerate() {
             let b = self.base[mi];
             for (j, c) in m.colors.iter_mut().enumerate() {
-                let p = self.params[b + j].map(|x| (x.clamp(0.0, 1.0) * 65535.0).round() / 65535.0);
-                *c = glam::Vec4::from_array(p);
+                *c = glam::Vec4::from_array(quantise(self.params[b + j]));
             }
         }
+    }
+
+    /// The fitted colours as the file stores them.
+    fn quantised(&self) -> Vec<[f32; 4]> {
+        self.params.iter().map(|&p| quantise(p)).collect()
     }
 
     /// Trace the fitted mesh from `cam` at the options' `time` (the tracer's defaults, k as
@@ -612,9 +506,16 @@ impl Distiller {
         self.render_at(cam, self.opts.time)
     }
 
-    /// Trace the fitted mesh from `cam` at scene time `time`.
+    /// Trace the fitted mesh from `cam` at scene time `time` (in splat order, composited from
+    /// its recorded hits: [`order`]).
     pub fn render_at(&mut self, cam: &Camera, time: f64) -> Result<Frame> {
         self.apply();
+        if self.centres.is_some() {
+            let hits = self.record(cam, time)?;
+            let mut f = Frame::new(hits.width, hits.height);
+            f.rgb = composite::render(&hits, &self.quantised(), &self.shading);
+            return Ok(f);
+        }
         let opts = RenderOptions {
             k: self.opts.k,
             ..RenderOptions::default()
@@ -671,30 +572,6 @@ impl Distiller {
     }
 }
 
-/// The scene the mesh is made from for `cameras`: `scene` widened by native splatting's
-/// low-pass at each Gaussian's depth in them when `opts.footprint`, else None (the scene as
-/// it is). The widening is a property of the export, so callers write this scene. Gaussians
-/// the converter makes flat keep their smallest scale, so every Gaussian keeps its class and
-/// the mesh its triangle count (widening all three scales turned 46 % more of `donut`'s
-/// triangles volumetric: 1.40 M → 2.05 M).
-pub fn widen_for_fit(
-    scene: &DynamicScene,
-    cameras: &[Camera],
-    opts: &DistillOptions,
-    convert: &ConvertOptions,
-) -> Option<DynamicScene> {
-    use splatbridge_convert::classify::{classify, Kind};
-    let three = convert.volumetric == splatbridge_convert::VolumetricMode::ThreeFans;
-    let ratio = convert.flat_ratio;
-    opts.footprint.then(|| {
-        let mut s = scene.clone();
-        crate::footprint_export::widen_scene_with(&mut s, cameras, |c, i| {
-            classify(c, i, ratio, three, false) != Kind::Volumetric
-        });
-        s
-    })
-}
-
 /// Per mesh, the Gaussian id of every vertex (`u32::MAX` for a vertex before any triangle).
 fn vertex_gaussians(scene: &TriScene) -> Vec<Vec<u32>> {
     let mut per_vertex = Vec::with_capacity(scene.meshes.len());
@@ -717,6 +594,11 @@ fn vertex_gaussians(scene: &TriScene) -> Vec<Vec<u32>> {
         per_vertex.push(g);
     }
     per_vertex
+}
+
+/// One vertex RGBA as the file stores it: normalized u16.
+fn quantise(p: [f32; 4]) -> [f32; 4] {
+    p.map(|x| (x.clamp(0.0, 1.0) * 65535.0).round() / 65535.0)
 }
 
 /// The material and texture alpha of a hit: what `Mesh::shade` multiplies the interpolated
@@ -768,80 +650,4 @@ fn check_white(scene: &TriScene) -> Result<()> {
         }
     }
     Ok(())
-}
-
-/// Mean PSNR of the fitted mesh against `targets` from `cameras` (at the options' time).
-pub fn mean_psnr(d: &mut Distiller, cameras: &[Camera], targets: &[Frame]) -> Result<f64> {
-    let t = d.opts.time;
-    let times = vec![t; cameras.len()];
-    mean_psnr_at(d, cameras, &times, targets)
-}
-
-/// Mean PSNR of the fitted mesh against `targets` from `cameras`, camera i at `times[i]`.
-pub fn mean_psnr_at(
-    d: &mut Distiller,
-    cameras: &[Camera],
-    times: &[f64],
-    targets: &[Frame],
-) -> Result<f64> {
-    let mut s = 0.0;
-    for ((c, &time), t) in cameras.iter().zip(times).zip(targets) {
-        let img = d.render_at(c, time)?;
-        s += splatbridge_scene::metrics::psnr(&img, t)?;
-    }
-    Ok(s / cameras.len().max(1) as f64)
-}
-
-/// Native targets of `scene` from `cameras`, camera i at scene time `times[i]`.
-pub fn native_targets_at(
-    scene: &DynamicScene,
-    cameras: &[Camera],
-    times: &[f64],
-) -> Result<Vec<Frame>> {
-    native_targets_sh(
-        scene,
-        cameras,
-        times,
-        NativeOptions::default().sh_degree_cap,
-    )
-}
-
-/// [`native_targets_at`] with SH up to degree `sh_degree`.
-pub fn native_targets_sh(
-    scene: &DynamicScene,
-    cameras: &[Camera],
-    times: &[f64],
-    sh_degree: u8,
-) -> Result<Vec<Frame>> {
-    let native = native_options(sh_degree);
-    let mut r = splatbridge_hybrid::native::Renderer::new();
-    let mut out = Vec::with_capacity(cameras.len());
-    let mut cached: Option<(f64, splatbridge_scene::GaussianCloud)> = None;
-    for (c, &t) in cameras.iter().zip(times) {
-        if cached.as_ref().is_none_or(|(ct, _)| *ct != t) {
-            cached = Some((t, scene.composite(t)));
-        }
-        if let Some((_, cloud)) = &cached {
-            out.push(r.render(cloud, c, &native)?.0);
-        }
-    }
-    Ok(out)
-}
-
-/// Native splatting's reference settings with SH up to degree `sh_degree`.
-fn native_options(sh_degree: u8) -> NativeOptions {
-    NativeOptions {
-        sh_degree_cap: sh_degree,
-        ..NativeOptions::default()
-    }
-}
-
-/// Native targets (reference settings) of `scene` at `time` from `cameras`.
-pub fn native_targets(scene: &DynamicScene, time: f64, cameras: &[Camera]) -> Result<Vec<Frame>> {
-    let cloud = scene.composite(time);
-    let mut r = splatbridge_hybrid::native::Renderer::new();
-    cameras
-        .iter()
-        .map(|c| Ok(r.render(&cloud, c, &NativeOptions::default())?.0))
-        .collect()
 }

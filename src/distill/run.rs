@@ -137,7 +137,7 @@ pub fn distill_export(
     }
     let report = d.report();
     let description = format!(
-        "{} views '{}' at {}×{}{}{}, {} iterations of Adam on {} in {:.1} s",
+        "{} views '{}' at {}×{}{}{}, {} iterations of Adam on {}{} in {:.1} s",
         report.views,
         req.spec,
         report.width,
@@ -154,6 +154,11 @@ pub fn distill_export(
         },
         report.iterations,
         report.loss,
+        if opts.order == super::HitOrder::Splat {
+            " composited in splat order (a measurement: viewers draw ray order)"
+        } else {
+            ""
+        },
         report.seconds
     );
     convert.vertex_colours = Some(Arc::new(colours));

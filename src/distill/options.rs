@@ -1,0 +1,134 @@
+//! What a distillation fits and how: the options and their validation.
+
+use super::{DistillError, HitOrder, Loss, ParamMode, Result};
+
+/// What to fit and how.
+#[derive(Clone, Debug)]
+pub struct DistillOptions {
+    /// Scene time the views are fitted at (and the time [`Distiller::render`] traces).
+    pub time: f64,
+    /// Scene times for dynamic scenes, given to the views in turn (view i at
+    /// `times[i % len]`); empty: every view at `time`.
+    pub times: Vec<f64>,
+    /// Adam steps (each over a batch of views).
+    pub iterations: usize,
+    /// Stop fitting once this many seconds have passed since the start (set-up included).
+    pub max_seconds: Option<f64>,
+    pub loss: Loss,
+    /// Adam step sizes for the linear RGB and the alpha of a vertex.
+    pub lr_colour: f32,
+    pub lr_alpha: f32,
+    /// The tracer's k-buffer size.
+    pub k: usize,
+    /// Bytes of hit lists kept between iterations; views beyond are re-traced each time.
+    pub hit_budget: u64,
+    /// Hits are recorded until the transmittance falls below this.
+    pub record_transmittance: f32,
+    /// Per-vertex or per-Gaussian parameters ([`tied`]).
+    pub params: ParamMode,
+    /// The k-buffer size of hit recording: the order is the tracer's (hits sorted by the
+    /// same keys), a larger buffer walks the BVH fewer times for a deep pixel (64 halved
+    /// the set-up's wall time on `tile_lod1` against 16; docs/distill.md).
+    pub record_k: usize,
+    /// Views per Adam step: 0 for all of them (full batch), else that many in turn
+    /// ([`Distiller::batch`]).
+    pub batch: usize,
+    /// Adam's ε in units of one pixel's loss: ε = eps_pixels / (W·H). A view's loss is a
+    /// mean over its pixels, so a vertex's gradient is about (its pixel weight in a view) /
+    /// (W·H) whatever the view count; 0.04 is the gradient of a vertex that sets one pixel
+    /// with full weight in one view of 25. A vertex seen less than that takes steps smaller
+    /// than the step size, so what the views barely constrain stays near the conversion
+    /// instead of following noise at full step (Adam's usual 1e-8 lets it; on `fourth_st`
+    /// held-back views peaked after 20 steps and then fell; docs/distill.md).
+    pub eps_pixels: f32,
+    /// Make the fitted mesh from the Gaussians widened by native splatting's 0.3 px² low-pass
+    /// at their depth in the fitting views ([`widen_for_fit`], `convert --footprint-for`'s
+    /// widening sized by the fitting cameras), so the fans of Gaussians near or under a pixel
+    /// cover what native splatting blurs them over. Applied by the callers that own the
+    /// scene (`run::distill_export`, the accuracy sweep), which export the widened scene.
+    pub footprint: bool,
+    /// Highest SH degree of the native targets (3: all the scene has). Degree 0 makes the
+    /// targets view-independent, so a fit to them measures what view-dependence costs a
+    /// mesh (docs/distill.md, "Where the remaining error is").
+    pub target_sh_degree: u8,
+    /// The order each pixel's hits are composited in, fitting and measuring alike: the
+    /// tracer's (what viewers draw) or native splatting's, a measurement of what ray order
+    /// costs ([`order`]).
+    pub order: HitOrder,
+}
+
+impl Default for DistillOptions {
+    fn default() -> Self {
+        DistillOptions {
+            time: 0.0,
+            times: Vec::new(),
+            iterations: 60,
+            max_seconds: None,
+            loss: Loss::default(),
+            lr_colour: 0.02,
+            lr_alpha: 0.02,
+            k: 16,
+            hit_budget: 2 << 30,
+            record_transmittance: 1e-6,
+            params: ParamMode::Vertex,
+            record_k: 64,
+            batch: 16,
+            eps_pixels: 0.04,
+            footprint: true,
+            target_sh_degree: 3,
+            order: HitOrder::Ray,
+        }
+    }
+}
+
+impl DistillOptions {
+    /// The scene time of each of `n` views: `times` in turn, or `time`.
+    pub fn view_times(&self, n: usize) -> Vec<f64> {
+        if self.times.is_empty() {
+            vec![self.time; n]
+        } else {
+            (0..n).map(|i| self.times[i % self.times.len()]).collect()
+        }
+    }
+
+    pub fn validate(&self) -> Result<()> {
+        let bad = |m: String| Err(DistillError::Invalid(m));
+        if !(self.lr_colour > 0.0 && self.lr_colour.is_finite())
+            || !(self.lr_alpha >= 0.0 && self.lr_alpha.is_finite())
+        {
+            return bad("distillation step sizes must be finite and positive".into());
+        }
+        if let Some(s) = self.max_seconds {
+            if !(s >= 0.0 && s.is_finite()) {
+                return bad(format!("--distill-time {s} must be a finite number ≥ 0"));
+            }
+        }
+        if self.times.iter().any(|t| !t.is_finite()) {
+            return bad("distillation times must be finite".into());
+        }
+        if !(self.eps_pixels >= 0.0 && self.eps_pixels.is_finite()) {
+            return bad(format!(
+                "--distill-eps {} must be a finite number ≥ 0",
+                self.eps_pixels
+            ));
+        }
+        if !(1..=1024).contains(&self.k) {
+            return bad(format!("k-buffer size {} is outside 1..=1024", self.k));
+        }
+        if !(1..=1024).contains(&self.record_k) {
+            return bad(format!(
+                "--distill-record-k {} is outside 1..=1024",
+                self.record_k
+            ));
+        }
+        if !(self.record_transmittance > 0.0 && self.record_transmittance < 1.0) {
+            return bad("record transmittance must be in (0, 1)".into());
+        }
+        if let Loss::L1Ssim(l) = self.loss {
+            if !(0.0..=1.0).contains(&l) {
+                return bad(format!("SSIM weight {l} is outside [0, 1]"));
+            }
+        }
+        Ok(())
+    }
+}
