@@ -129,6 +129,31 @@ fn splat_order_distillation_says_so_in_the_export() {
     assert!(how.contains("splat order"), "{how}");
 }
 
+/// Position fitting's bad settings exit 2 naming the option: a negative step, and the
+/// texture profile (the default for glTF), whose opacity comes from a texture.
+#[test]
+fn bad_position_fitting_exits_2_naming_the_option() {
+    let dir = temp_dir("distill-cli", "positions");
+    let out = dir.join("x.glb");
+    let scene = street();
+    for (args, flag) in [
+        (
+            vec!["--distill-positions", "--distill-position-step=-1"],
+            "--distill-position-step",
+        ),
+        (vec!["--distill-positions"], "--distill-positions"),
+    ] {
+        let mut all = vec!["convert", scene.as_str(), "--distill"];
+        all.extend(args.iter().copied());
+        all.extend(["-o", path(&out)]);
+        let r = run(&all);
+        let stderr = String::from_utf8_lossy(&r.stderr);
+        assert_eq!(r.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(stderr.contains(flag), "{args:?}: {stderr}");
+        assert!(!out.exists(), "{args:?}: an output was written");
+    }
+}
+
 #[test]
 fn bad_distillation_options_exit_2_naming_the_option() {
     let dir = temp_dir("distill-cli", "bad");

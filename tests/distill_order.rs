@@ -2,6 +2,8 @@
 //! Gaussians sorted by the view-space depth of their means, checked against a sort by the
 //! cloud's own means, and the fit's images in that order.
 
+mod distill_common;
+
 use std::path::Path;
 
 use splatbridge::distill::order::Centres;
@@ -10,31 +12,6 @@ use splatbridge_convert::{ConvertOptions, Profile};
 use splatbridge_raytrace::hit_record::RecordedHit;
 use splatbridge_raytrace::{BackendKind, BuildPreset, MeshTracer};
 use splatbridge_scene::dynamic::DynamicScene;
-use splatbridge_scene::GaussianCloud;
-
-/// `n` Gaussians of random orientation, flat and volumetric, packed in a unit cube at sizes
-/// around a tenth of it, so their fans cut through each other (a splitmix64 stream, fixed).
-fn crossing_cloud(n: usize) -> GaussianCloud {
-    let mut state = 0x9e37_79b9_7f4a_7c15u64;
-    let mut next = move || {
-        state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        ((z ^ (z >> 31)) >> 11) as f32 / (1u64 << 53) as f32
-    };
-    let mut c = GaussianCloud::with_capacity(0, n);
-    for i in 0..n {
-        let p = glam::Vec3::new(next(), next(), next()) - 0.5;
-        let flat = if i % 2 == 0 { 0.05 } else { 1.0 };
-        let s = glam::Vec3::new(0.05 + 0.1 * next(), 0.05 + 0.1 * next(), 0.1 * flat);
-        let q = glam::Quat::from_xyzw(next() - 0.5, next() - 0.5, next() - 0.5, next() - 0.5)
-            .normalize();
-        let rgb = glam::Vec3::new(next(), next(), next());
-        c.push_activated(p, s, q, 0.5 + 0.45 * next(), rgb);
-    }
-    c
-}
 
 fn opts(profile: Profile) -> ConvertOptions {
     ConvertOptions {
@@ -49,7 +26,7 @@ fn opts(profile: Profile) -> ConvertOptions {
 /// other), so the check is not of a no-op.
 #[test]
 fn splat_order_sorts_whole_gaussians_by_the_depth_of_their_means() {
-    let cloud = crossing_cloud(300);
+    let cloud = distill_common::crossing_cloud(300);
     let scene = DynamicScene::from_static(cloud.clone());
     let cam = views::orbit(&cloud, 4, 0..1, 48, 36).unwrap().remove(0);
     for profile in [Profile::MeshSplats, Profile::Rings, Profile::Texture] {
@@ -97,7 +74,7 @@ fn splat_order_sorts_whole_gaussians_by_the_depth_of_their_means() {
 /// mesh where fans cross.
 #[test]
 fn splat_order_fits_and_measures_in_the_same_order() {
-    let scene = DynamicScene::from_static(crossing_cloud(300));
+    let scene = DynamicScene::from_static(distill_common::crossing_cloud(300));
     let cloud = scene.composite(0.0);
     let cams = views::orbit(&cloud, 4, 0..2, 40, 30).unwrap();
     let splat_opts = DistillOptions {

@@ -245,7 +245,7 @@ impl<'a> Mesher<'a> {
         };
         let mut out = MeshSoup::default();
         let mut s = Scratch::default();
-        self.emit_frame(&f, Vec3::ONE, 0, volumetric, None, &mut out, &mut s);
+        self.emit_frame(&f, Vec3::ONE, 0, volumetric, None, None, &mut out, &mut s);
         out
     }
 
@@ -343,6 +343,7 @@ impl<'a> Mesher<'a> {
         id: u32,
         volumetric: bool,
         fitted: Option<&[[f32; 4]]>,
+        fitted_at: Option<&[[f32; 3]]>,
         out: &mut S,
         s: &mut Scratch,
     ) {
@@ -379,7 +380,10 @@ impl<'a> Mesher<'a> {
                         continue;
                     }
                 }
-                let p = f.mean + ea * v.x + eb * v.y;
+                let p = match fitted_at.and_then(|q| q.get(own)) {
+                    Some(q) => Vec3::from_array(*q),
+                    None => f.mean + ea * v.x + eb * v.y,
+                };
                 let alpha = if !S::FULL {
                     0.0
                 } else if correct {
@@ -418,7 +422,17 @@ impl<'a> Mesher<'a> {
                 f.mean += f.normal() * crate::classify::coplanar_offset(id, reach);
             }
             if !S::FULL {
-                self.emit_frame(&f, Vec3::ZERO, 0, kind == Kind::Volumetric, None, out, s);
+                let at = self.fitted.as_deref().and_then(|v| v.positions_of(id));
+                self.emit_frame(
+                    &f,
+                    Vec3::ZERO,
+                    0,
+                    kind == Kind::Volumetric,
+                    None,
+                    at,
+                    out,
+                    s,
+                );
                 continue;
             }
             let mut rgb = self.display_colour(i, f.mean);
@@ -430,7 +444,8 @@ impl<'a> Mesher<'a> {
                 );
             }
             let fitted = self.fitted.as_deref().and_then(|v| v.of(id));
-            self.emit_frame(&f, rgb, id, kind == Kind::Volumetric, fitted, out, s);
+            let at = self.fitted.as_deref().and_then(|v| v.positions_of(id));
+            self.emit_frame(&f, rgb, id, kind == Kind::Volumetric, fitted, at, out, s);
         }
     }
 

@@ -91,6 +91,13 @@ pub struct DistillArgs {
     /// that order, and the export, drawn in ray order by viewers, is not what was fitted.
     #[arg(long, value_enum, default_value = "ray", requires = "distill")]
     pub distill_order: OrderArg,
+    /// Fit vertex positions too (meshsplats and rings profiles): each step re-traces its
+    /// views with the moved mesh, so each step costs a BVH rebuild.
+    #[arg(long, requires = "distill")]
+    pub distill_positions: bool,
+    /// Adam's step for positions, in units of each Gaussian's size (with --distill-positions).
+    #[arg(long, value_name = "S", default_value_t = DistillOptions::default().lr_position, requires = "distill_positions")]
+    pub distill_position_step: f32,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -134,6 +141,8 @@ impl DistillArgs {
                 OrderArg::Ray => HitOrder::Ray,
                 OrderArg::Splat => HitOrder::Splat,
             },
+            positions: self.distill_positions,
+            lr_position: self.distill_position_step,
             ..DistillOptions::default()
         };
         let req = ViewRequest {

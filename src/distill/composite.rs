@@ -153,16 +153,15 @@ pub fn render(view: &ViewHits, params: &[[f32; 4]], s: &Shading) -> Vec<f32> {
     img
 }
 
-/// Add the gradient of the loss with respect to every vertex's RGBA to `grad`, given
-/// `dimg = ∂L/∂image` (interleaved RGB). Rows are differentiated in parallel; the scatter to
-/// vertices runs in row order, so the sum does not depend on the thread count.
-pub fn backward(
+/// Per hit of a view, in hit order, the loss gradient with respect to its interpolated linear
+/// RGB and vertex alpha, given `dimg = ∂L/∂image` (interleaved RGB). Rows are differentiated
+/// in parallel and joined in row order.
+pub fn hit_gradients(
     view: &ViewHits,
     params: &[[f32; 4]],
     s: &Shading,
     dimg: &[f32],
-    grad: &mut [[f32; 4]],
-) {
+) -> Vec<[f32; 4]> {
     let w = view.width as usize;
     let h = view.height as usize;
     let rows: Vec<Vec<[f32; 4]>> = (0..h)
@@ -179,15 +178,31 @@ pub fn backward(
             out
         })
         .collect();
-    for (row, d) in rows.into_iter().enumerate() {
-        let first = view.offsets[row * w] as usize;
-        for (j, dh) in d.iter().enumerate() {
-            let hit = &view.hits[first + j];
-            for (&v, &b) in hit.v.iter().zip(&hit.bary) {
-                for (gc, dc) in grad[v as usize].iter_mut().zip(dh) {
-                    *gc += b * dc;
-                }
+    rows.concat()
+}
+
+/// Add the gradient of the loss with respect to every vertex's RGBA to `grad`, given the
+/// per-hit gradients of [`hit_gradients`]. The scatter to vertices runs in hit order, so the
+/// sum does not depend on the thread count.
+pub fn scatter(view: &ViewHits, dh: &[[f32; 4]], grad: &mut [[f32; 4]]) {
+    for (hit, d) in view.hits.iter().zip(dh) {
+        for (&v, &b) in hit.v.iter().zip(&hit.bary) {
+            for (gc, dc) in grad[v as usize].iter_mut().zip(d) {
+                *gc += b * dc;
             }
         }
     }
+}
+
+/// Add the gradient of the loss with respect to every vertex's RGBA to `grad`, given
+/// `dimg = ∂L/∂image` (interleaved RGB).
+pub fn backward(
+    view: &ViewHits,
+    params: &[[f32; 4]],
+    s: &Shading,
+    dimg: &[f32],
+    grad: &mut [[f32; 4]],
+) {
+    let dh = hit_gradients(view, params, s, dimg);
+    scatter(view, &dh, grad);
 }

@@ -38,6 +38,7 @@ pub mod loss;
 pub mod optim;
 pub mod options;
 pub mod order;
+pub mod positions;
 pub mod run;
 pub mod targets;
 pub mod tied;
@@ -148,6 +149,12 @@ pub struct Distiller {
     eps: f32,
     /// The Gaussians' centres when hits are composited in splat order.
     centres: Option<Centres>,
+    /// Fitted positions ([`DistillOptions::positions`]), their Adam moments and the last
+    /// position gradient (∂L/∂p per vertex, fourth lane unused).
+    positions: Option<positions::Positions>,
+    pos_m: Vec<[f32; 4]>,
+    pos_v: Vec<[f32; 4]>,
+    pos_grad: Vec<[f32; 4]>,
 }
 
 impl Distiller {
@@ -226,6 +233,18 @@ impl Distiller {
         });
         let moments = tied.as_ref().map_or(n, Tied::groups);
         let centres = (opts.order == HitOrder::Splat).then(|| Centres::new(&tri));
+        if opts.positions && convert.profile == splatbridge_convert::Profile::Texture {
+            return Err(DistillError::Invalid(
+                "--distill-positions fits the meshsplats and rings profiles: the texture \
+                 profile's opacity comes from its texture, which the position gradient does \
+                 not carry"
+                    .into(),
+            ));
+        }
+        let fitted_positions = opts
+            .positions
+            .then(|| positions::Positions::new(&tri, &vertex_gaussians(&tri)));
+        let pos_len = fitted_positions.as_ref().map_or(0, |p| p.start.len());
         let tracer = MeshTracer::new(tri, BackendKind::default(), BuildPreset::default())?;
         let native = native_options(opts.target_sh_degree);
         let mut renderer = splatbridge_hybrid::native::Renderer::new();
@@ -255,6 +274,10 @@ impl Distiller {
             history: Vec::new(),
             eps: opts.eps_pixels / mean_pixels(cameras),
             centres,
+            positions: fitted_positions,
+            pos_m: vec![[0.0; 4]; pos_len],
+            pos_v: vec![[0.0; 4]; pos_len],
+            pos_grad: vec![[0.0; 4]; pos_len],
         };
         let mut stored = 0u64;
         let times = opts.view_times(cameras.len());
@@ -270,9 +293,14 @@ impl Distiller {
                     continue;
                 }
                 let (frame, _) = renderer.render(&cloud, cam, &native)?;
-                let hits = d.record(cam, t)?;
+                // Moving vertices change the hits in every step: none are kept.
+                let hits = if opts.positions {
+                    ViewHits::default()
+                } else {
+                    d.record(cam, t)?
+                };
                 d.report.hits += hits.hits.len() as u64;
-                let keep = stored + hits.bytes() <= opts.hit_budget;
+                let keep = !opts.positions && stored + hits.bytes() <= opts.hit_budget;
                 if keep {
                     stored += hits.bytes();
                     d.report.stored_views += 1;
@@ -360,6 +388,7 @@ impl Distiller {
     /// Mean loss over the views `which` and its gradient with respect to every vertex's RGBA.
     pub fn loss_and_gradient_over(&mut self, which: &[usize]) -> Result<(f64, Vec<[f32; 4]>)> {
         let mut grad = vec![[0.0f32; 4]; self.params.len()];
+        let mut pos_grad = vec![[0.0f32; 4]; self.pos_grad.len()];
         let nviews = which.len().max(1) as f64;
         let mut total = 0.0;
         let streamed = which.iter().any(|&i| self.views[i].hits.is_none());
@@ -400,10 +429,52 @@ impl Distiller {
                 };
                 total += l / nviews;
                 dimg.iter_mut().for_each(|g| *g *= s);
-                composite::backward(hits, &self.params, &self.shading, &dimg, &mut grad);
+                let dh = composite::hit_gradients(hits, &self.params, &self.shading, &dimg);
+                composite::scatter(hits, &dh, &mut grad);
+                if self.positions.is_some() {
+                    let view = &self.views[i];
+                    let mut to_local = vec![None; self.base.len()];
+                    for inst in self.tracer.prepare(view.time) {
+                        to_local[inst.mesh].get_or_insert(inst.to_local);
+                    }
+                    let rays = positions::ViewRays {
+                        camera: &view.camera,
+                        to_local,
+                        scene: &self.tracer.scene,
+                        base: &self.base,
+                    };
+                    positions::gradient(hits, &dh, &self.params, &rays, &mut pos_grad);
+                }
             }
         }
+        self.pos_grad = pos_grad;
         Ok((total, grad))
+    }
+
+    /// ∂L/∂p per vertex (fourth lane unused) of the last [`Self::loss_and_gradient_over`],
+    /// when positions are fitted.
+    pub fn position_gradient(&self) -> &[[f32; 4]] {
+        &self.pos_grad
+    }
+
+    /// The fitted positions, when positions are fitted.
+    pub fn positions(&self) -> Option<&positions::Positions> {
+        self.positions.as_ref()
+    }
+
+    /// The fitted positions to change; [`Self::refresh_geometry`] makes the tracer see them.
+    pub fn positions_mut(&mut self) -> Option<&mut positions::Positions> {
+        self.positions.as_mut()
+    }
+
+    /// Write the fitted positions into the tracer's meshes and rebuild its BVHs.
+    pub fn refresh_geometry(&mut self) -> Result<()> {
+        if let Some(p) = &self.positions {
+            let mut scene = std::mem::take(&mut self.tracer.scene);
+            p.write(&mut scene, &self.base);
+            self.tracer = MeshTracer::new(scene, BackendKind::default(), BuildPreset::default())?;
+        }
+        Ok(())
     }
 
     /// The views of step `t` (0-based): every view, or `batch` of them taken in turn from the
@@ -450,6 +521,27 @@ impl Distiller {
                 tied.expand(&mut self.params);
             }
         }
+        if let Some(pos) = &mut self.positions {
+            // Adam on the offsets in units of each Gaussian's size: ∂L/∂offset = size·∂L/∂p.
+            let g: Vec<[f32; 4]> = self
+                .pos_grad
+                .iter()
+                .zip(&pos.size)
+                .map(|(g, &s)| [g[0] * s, g[1] * s, g[2] * s, 0.0])
+                .collect();
+            let lr = self.opts.lr_position;
+            adam(
+                &mut pos.offset,
+                &mut self.pos_m,
+                &mut self.pos_v,
+                &g,
+                [lr, lr, lr, 0.0],
+                t,
+                self.eps,
+                |_| {},
+            );
+        }
+        self.refresh_geometry()?;
         self.history.push(Progress {
             iteration: self.history.len(),
             seconds: self.start.elapsed().as_secs_f64(),
@@ -533,9 +625,14 @@ impl Distiller {
             .map(|&x| x as usize + 1)
             .max()
             .unwrap_or(0);
-        let mut vc = VertexColours::new(ids);
+        let mut vc = if self.positions.is_some() {
+            VertexColours::with_positions(ids)
+        } else {
+            VertexColours::new(ids)
+        };
         for (mi, g) in per_vertex.iter().enumerate() {
             let b = self.base[mi];
+            let mesh = &self.tracer.scene.meshes[mi];
             let mut s = 0;
             while s < g.len() {
                 let mut e = s + 1;
@@ -543,8 +640,15 @@ impl Distiller {
                     e += 1;
                 }
                 if g[s] != u32::MAX {
-                    vc.set(g[s], &self.params[b + s..b + e])
-                        .map_err(DistillError::Invalid)?;
+                    let colours = &self.params[b + s..b + e];
+                    if self.positions.is_some() {
+                        let at: Vec<[f32; 3]> =
+                            mesh.positions[s..e].iter().map(|p| p.to_array()).collect();
+                        vc.set_positions(g[s], colours, &at)
+                    } else {
+                        vc.set(g[s], colours)
+                    }
+                    .map_err(DistillError::Invalid)?;
                 }
                 s = e;
             }

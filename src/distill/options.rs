@@ -55,6 +55,11 @@ pub struct DistillOptions {
     /// tracer's (what viewers draw) or native splatting's, a measurement of what ray order
     /// costs ([`order`]).
     pub order: HitOrder,
+    /// Fit vertex positions too ([`super::positions`]): every step re-traces its views with
+    /// the moved mesh. Off by default; not for the texture profile.
+    pub positions: bool,
+    /// Adam's step for positions, in units of each Gaussian's size.
+    pub lr_position: f32,
 }
 
 impl Default for DistillOptions {
@@ -77,6 +82,8 @@ impl Default for DistillOptions {
             footprint: true,
             target_sh_degree: 3,
             order: HitOrder::Ray,
+            positions: false,
+            lr_position: 0.01,
         }
     }
 }
@@ -105,6 +112,12 @@ impl DistillOptions {
         }
         if self.times.iter().any(|t| !t.is_finite()) {
             return bad("distillation times must be finite".into());
+        }
+        if !(self.lr_position >= 0.0 && self.lr_position.is_finite()) {
+            return bad(format!(
+                "--distill-position-step {} must be a finite number ≥ 0",
+                self.lr_position
+            ));
         }
         if !(self.eps_pixels >= 0.0 && self.eps_pixels.is_finite()) {
             return bad(format!(

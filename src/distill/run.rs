@@ -154,10 +154,12 @@ pub fn distill_export(
         },
         report.iterations,
         report.loss,
-        if opts.order == super::HitOrder::Splat {
-            " composited in splat order (a measurement: viewers draw ray order)"
-        } else {
-            ""
+        match (opts.order == super::HitOrder::Splat, opts.positions) {
+            (true, true) =>
+                " with positions, composited in splat order (a measurement: viewers draw ray order)",
+            (true, false) => " composited in splat order (a measurement: viewers draw ray order)",
+            (false, true) => " with positions",
+            (false, false) => "",
         },
         report.seconds
     );
