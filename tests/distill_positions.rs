@@ -60,7 +60,7 @@ fn position_gradient_matches_finite_differences() {
             // the loss that no gradient carries).
             let e = 1e-4f32;
             let o0 = d.positions().unwrap().offset[v][c];
-            let mut at = |o: f32, d: &mut Distiller| {
+            let at = |o: f32, d: &mut Distiller| {
                 d.positions_mut().unwrap().offset[v][c] = o;
                 d.refresh_geometry().unwrap();
                 d.loss_and_gradient().unwrap().0
