@@ -7,8 +7,8 @@ use splatbridge::distill::run::{distill_export, ViewRequest};
 use splatbridge::distill::{
     mean_psnr, native_targets, views, DistillOptions, Distiller, Loss, ParamMode,
 };
-use splatbridge_convert::{ConvertOptions, Profile};
-use splatbridge_raytrace::{BackendKind, BuildPreset, MeshTracer, RenderOptions};
+use splatbridge_convert::Profile;
+use splatbridge_raytrace::RenderOptions;
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::fixtures::large;
 use splatbridge_scene::{Camera, Frame};
@@ -17,12 +17,7 @@ fn small_scene(n: usize) -> DynamicScene {
     DynamicScene::from_static(large(n, 7))
 }
 
-fn opts(profile: Profile) -> ConvertOptions {
-    ConvertOptions {
-        profile,
-        ..ConvertOptions::default()
-    }
-}
+use distill_common::{grad_scale, largest, opts, refit, small_request, trace_export};
 
 /// Analytic gradient of the loss through front-to-back compositing against central
 /// differences of the same loss, for the vertices with the largest gradients (colour and
@@ -43,18 +38,19 @@ fn gradient_matches_finite_differences() {
             };
             let mut d = Distiller::new(&scene, &opts(profile), &cams, &d_opts).unwrap();
             let (_, grad) = d.loss_and_gradient().unwrap();
-            assert!(grad_scale(&grad) > 0.0, "{profile:?} {loss:?}: no gradient");
+            assert!(
+                grad_scale(&grad, 4) > 0.0,
+                "{profile:?} {loss:?}: no gradient"
+            );
             // The 8 largest components away from the [0, 1] bounds (a clamp has a one-sided
             // derivative there).
-            let mut idx: Vec<(usize, usize)> = (0..grad.len())
-                .flat_map(|v| (0..4).map(move |c| (v, c)))
-                .filter(|&(v, c)| {
-                    let p = d.params()[v][c];
-                    p > 0.01 && p < 0.99
-                })
-                .collect();
-            idx.sort_by(|a, b| grad[b.0][b.1].abs().total_cmp(&grad[a.0][a.1].abs()));
-            idx.truncate(8);
+            let params = d.params().to_vec();
+            let idx = largest(
+                &grad,
+                4,
+                |v, c| params[v][c] > 0.01 && params[v][c] < 0.99,
+                8,
+            );
             assert!(!idx.is_empty(), "{profile:?}: no vertex is hit");
             let mut checked_alpha = false;
             for (v, c) in idx {
@@ -72,7 +68,7 @@ fn gradient_matches_finite_differences() {
                 // worst; curvature over ±2e-3 (sRGB, SSIM) adds under 3 % here; L1's kink
                 // can sit inside the interval for a few pixels, so 10 % of the value or 2 %
                 // of the largest component.
-                let tol = (0.1 * fd.abs()).max(0.02 * grad_scale(&grad));
+                let tol = (0.1 * fd.abs()).max(0.02 * grad_scale(&grad, 4));
                 assert!(
                     (g - fd).abs() <= tol,
                     "{profile:?} {loss:?}: vertex {v} channel {c}: analytic {g:e} vs finite difference {fd:e}"
@@ -82,12 +78,6 @@ fn gradient_matches_finite_differences() {
             let _ = checked_alpha;
         }
     }
-}
-
-fn grad_scale(grad: &[[f32; 4]]) -> f64 {
-    grad.iter()
-        .flat_map(|g| g.iter())
-        .fold(0.0f64, |m, &x| m.max(x.abs() as f64))
 }
 
 /// The compositor over recorded hits reproduces the tracer's image before any fitting (the
@@ -176,14 +166,7 @@ fn distilled_export_traces_like_the_fitted_mesh() {
     let mut scene = original.clone();
     let mut convert = opts(Profile::MeshSplats).for_viewers();
     convert.coplanar_offset = true;
-    let req = ViewRequest {
-        spec: "orbit:4".into(),
-        width: 40,
-        height: 30,
-        held_back: 1,
-        held_size: None,
-        times: 1,
-    };
+    let req = small_request();
     let d_opts = DistillOptions {
         iterations: 5,
         ..DistillOptions::default()
@@ -199,16 +182,8 @@ fn distilled_export_traces_like_the_fitted_mesh() {
     );
     // The fitted mesh in memory (targets of the original scene, mesh of the widened one),
     // and the same fit written through the writers.
-    let (fit_cams, _) = splatbridge::distill::run::resolve_views(&scene, 0.0, &req).unwrap();
-    let mut plain = convert.clone();
-    plain.vertex_colours = None;
-    let mut d = Distiller::with_mesh_scene(&original, &scene, &plain, &fit_cams, &d_opts).unwrap();
-    d.run(|_| {}).unwrap();
-    let (bytes, _) = splatbridge_convert::glb_bytes(&scene, None, &convert).unwrap();
-    let mut tri =
-        splatbridge_raytrace::scene_load::load_glb_bytes(&bytes, "distilled.glb".as_ref()).unwrap();
-    tri.to_capture_frame();
-    let tracer = MeshTracer::new(tri, BackendKind::default(), BuildPreset::default()).unwrap();
+    let (mut d, fit_cams) = refit(&original, &scene, &convert, &req, &d_opts);
+    let (tracer, bytes) = trace_export(&scene, &convert);
     for cam in &fit_cams {
         let mem = d.render(cam).unwrap();
         let (file, _) = tracer.render(cam, 0.0, &RenderOptions::default()).unwrap();
@@ -237,6 +212,8 @@ fn distilled_export_traces_like_the_fitted_mesh() {
         );
     }
     // And the fit changed the colours (the comparison is not of two unfitted meshes).
+    let mut plain = convert.clone();
+    plain.vertex_colours = None;
     let (plain_bytes, _) = splatbridge_convert::glb_bytes(&scene, None, &plain).unwrap();
     assert_ne!(plain_bytes, bytes);
 }

@@ -16,16 +16,13 @@ fn glb_json(bytes: &[u8]) -> Value {
     serde_json::from_slice(&bytes[20..20 + len]).expect("GLB JSON chunk")
 }
 
-/// A small distillation of the street fixture (moving cars): four 32×24 views over two
-/// scene times, three steps.
-fn distilled_street(dir: &Path) -> (std::path::PathBuf, String) {
-    let out = dir.join("street_distilled.glb");
+/// A small distillation of the street fixture (moving cars) into `out`: four 32×24 views
+/// over two scene times, one held back, with `extra` options; returns stderr.
+fn distil_street(out: &Path, extra: &[&str]) -> String {
     let scene = street();
-    let r = ok(&[
+    let mut args = vec![
         "convert",
         scene.as_str(),
-        "--profile",
-        "meshsplats",
         "--distill",
         "--views",
         "orbit:4",
@@ -33,16 +30,21 @@ fn distilled_street(dir: &Path) -> (std::path::PathBuf, String) {
         "32",
         "--distill-height",
         "24",
-        "--iterations",
-        "3",
         "--held-back",
         "1",
         "--distill-times",
         "2",
-        "-o",
-        path(&out),
-    ]);
-    (out, String::from_utf8_lossy(&r.stderr).into_owned())
+    ];
+    args.extend_from_slice(extra);
+    args.extend(["-o", path(out)]);
+    String::from_utf8_lossy(&ok(&args).stderr).into_owned()
+}
+
+/// The MeshSplats profile distilled for three steps.
+fn distilled_street(dir: &Path) -> (std::path::PathBuf, String) {
+    let out = dir.join("street_distilled.glb");
+    let stderr = distil_street(&out, &["--profile", "meshsplats", "--iterations", "3"]);
+    (out, stderr)
 }
 
 #[test]
@@ -98,29 +100,7 @@ fn distilled_dynamic_export_keeps_its_animation_and_says_how_it_was_fitted() {
 fn splat_order_distillation_says_so_in_the_export() {
     let dir = temp_dir("distill-cli", "order");
     let out = dir.join("street_splat_order.glb");
-    let scene = street();
-    let r = ok(&[
-        "convert",
-        scene.as_str(),
-        "--distill",
-        "--distill-order",
-        "splat",
-        "--views",
-        "orbit:4",
-        "--distill-width",
-        "32",
-        "--distill-height",
-        "24",
-        "--iterations",
-        "2",
-        "--held-back",
-        "1",
-        "--distill-times",
-        "2",
-        "-o",
-        path(&out),
-    ]);
-    let stderr = String::from_utf8_lossy(&r.stderr);
+    let stderr = distil_street(&out, &["--distill-order", "splat", "--iterations", "2"]);
     assert!(stderr.contains("held-back PSNR"), "{stderr}");
     let d = glb_json(&std::fs::read(&out).unwrap());
     let how = d["asset"]["extras"]["splatbridge"]["options"]["distilled"]

@@ -8,17 +8,12 @@ use std::path::Path;
 
 use splatbridge::distill::order::Centres;
 use splatbridge::distill::{views, DistillOptions, Distiller, HitOrder};
-use splatbridge_convert::{ConvertOptions, Profile};
+use splatbridge_convert::Profile;
 use splatbridge_raytrace::hit_record::RecordedHit;
 use splatbridge_raytrace::{BackendKind, BuildPreset, MeshTracer};
 use splatbridge_scene::dynamic::DynamicScene;
 
-fn opts(profile: Profile) -> ConvertOptions {
-    ConvertOptions {
-        profile,
-        ..ConvertOptions::default()
-    }
-}
+use distill_common::opts;
 
 /// The reordered hits of every pixel are the ray-order hits stably sorted by the depth of
 /// their Gaussian's mean as the cloud stores it (the slow reference: no vertex means), for

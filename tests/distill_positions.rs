@@ -4,19 +4,14 @@
 
 mod distill_common;
 
-use splatbridge::distill::run::{distill_export, ViewRequest};
+use splatbridge::distill::run::distill_export;
 use splatbridge::distill::{views, DistillOptions, Distiller, Loss};
-use splatbridge_convert::{ConvertOptions, Profile};
-use splatbridge_raytrace::{BackendKind, BuildPreset, MeshTracer, RenderOptions};
+use splatbridge_convert::Profile;
+use splatbridge_raytrace::RenderOptions;
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::fixtures::large;
 
-fn opts(profile: Profile) -> ConvertOptions {
-    ConvertOptions {
-        profile,
-        ..ConvertOptions::default()
-    }
-}
+use distill_common::{grad_scale, largest, opts, refit, small_request, trace_export};
 
 fn with_positions(loss: Loss) -> DistillOptions {
     DistillOptions {
@@ -41,21 +36,14 @@ fn position_gradient_matches_finite_differences() {
             Distiller::new(&scene, &opts(profile), &cams, &with_positions(Loss::L2)).unwrap();
         d.loss_and_gradient().unwrap();
         let grad = d.position_gradient().to_vec();
-        let scale = grad
-            .iter()
-            .flat_map(|g| g[..3].iter())
-            .fold(0.0f32, |m, x| m.max(x.abs())) as f64;
+        let scale = grad_scale(&grad, 3);
         assert!(scale > 0.0, "{profile:?}: no position gradient");
-        let mut idx: Vec<(usize, usize)> = (0..grad.len())
-            .flat_map(|v| (0..3).map(move |c| (v, c)))
-            .collect();
-        idx.sort_by(|a, b| grad[b.0][b.1].abs().total_cmp(&grad[a.0][a.1].abs()));
-        idx.truncate(8);
-        for (v, c) in idx {
+        for (v, c) in largest(&grad, 3, |_, _| true, 8) {
             let size = d.positions().unwrap().size[v];
             assert!(size > 0.0);
             // A step of 1e-4 of the Gaussian's size: far above f32 position rounding (the
-            // fixture's coordinates are under 100, 1e-5 of a size of ~1), small enough that
+            // coordinates are under 1, rounded to 6e-8; a size of 0.05 to 0.15 makes the
+            // step 5e-6 to 1.5e-5), small enough that
             // no ray's set of hits changes (a hit appearing or vanishing would be a step in
             // the loss that no gradient carries).
             let e = 1e-4f32;
@@ -90,14 +78,7 @@ fn export_with_fitted_positions_traces_like_the_fitted_mesh() {
     let original = DynamicScene::from_static(large(1500, 7));
     let mut scene = original.clone();
     let mut convert = opts(Profile::MeshSplats).for_viewers();
-    let req = ViewRequest {
-        spec: "orbit:4".into(),
-        width: 40,
-        height: 30,
-        held_back: 1,
-        held_size: None,
-        times: 1,
-    };
+    let req = small_request();
     let d_opts = DistillOptions {
         iterations: 4,
         ..with_positions(Loss::default())
@@ -108,11 +89,7 @@ fn export_with_fitted_positions_traces_like_the_fitted_mesh() {
         "{}",
         out.description
     );
-    let (fit_cams, _) = splatbridge::distill::run::resolve_views(&scene, 0.0, &req).unwrap();
-    let mut plain = convert.clone();
-    plain.vertex_colours = None;
-    let mut d = Distiller::with_mesh_scene(&original, &scene, &plain, &fit_cams, &d_opts).unwrap();
-    d.run(|_| {}).unwrap();
+    let (mut d, fit_cams) = refit(&original, &scene, &convert, &req, &d_opts);
     let moved = d
         .positions()
         .unwrap()
@@ -121,11 +98,7 @@ fn export_with_fitted_positions_traces_like_the_fitted_mesh() {
         .filter(|o| o[..3].iter().any(|&x| x != 0.0))
         .count();
     assert!(moved > 0, "no vertex moved");
-    let (bytes, _) = splatbridge_convert::glb_bytes(&scene, None, &convert).unwrap();
-    let mut tri =
-        splatbridge_raytrace::scene_load::load_glb_bytes(&bytes, "distilled.glb".as_ref()).unwrap();
-    tri.to_capture_frame();
-    let tracer = MeshTracer::new(tri, BackendKind::default(), BuildPreset::default()).unwrap();
+    let (tracer, _) = trace_export(&scene, &convert);
     for cam in &fit_cams {
         let mem = d.render(cam).unwrap();
         let (file, _) = tracer.render(cam, 0.0, &RenderOptions::default()).unwrap();
@@ -144,6 +117,8 @@ fn export_with_fitted_positions_traces_like_the_fitted_mesh() {
         );
     }
     // The written positions are the fitted ones, not the converted ones.
+    let mut plain = convert.clone();
+    plain.vertex_colours = None;
     let (plain_bytes, _) = splatbridge_convert::glb_bytes(&scene, None, &plain).unwrap();
     let mut unfitted =
         splatbridge_raytrace::scene_load::load_glb_bytes(&plain_bytes, "plain.glb".as_ref())

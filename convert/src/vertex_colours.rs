@@ -114,25 +114,25 @@ impl VertexColours {
     /// Gaussian `id`'s colours, if the table has them.
     #[inline]
     pub fn of(&self, id: u32) -> Option<&[[f32; 4]]> {
+        self.colours.get(self.span(id)?)
+    }
+
+    /// Where Gaussian `id`'s entries are in the table, if it has them.
+    #[inline]
+    fn span(&self, id: u32) -> Option<std::ops::Range<usize>> {
         let i = id as usize;
         let s = *self.start.get(i)?;
         if s == u32::MAX {
             return None;
         }
         let s = s as usize;
-        self.colours.get(s..s + self.count[i] as usize)
+        Some(s..s + self.count[i] as usize)
     }
 
     /// Gaussian `id`'s fitted positions, if the table has them.
     #[inline]
     pub fn positions_of(&self, id: u32) -> Option<&[[f32; 3]]> {
-        let i = id as usize;
-        let s = *self.start.get(i)?;
-        if s == u32::MAX {
-            return None;
-        }
-        let s = s as usize;
-        self.positions.as_ref()?.get(s..s + self.count[i] as usize)
+        self.positions.as_ref()?.get(self.span(id)?)
     }
 
     /// Gaussians with colours in the table.

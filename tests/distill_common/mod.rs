@@ -1,6 +1,46 @@
-//! Scenes shared by the distillation tests.
+//! Scenes and helpers shared by the distillation tests.
 
-use splatbridge_scene::GaussianCloud;
+// Each test crate that includes this module uses a subset of it.
+#![allow(dead_code)]
+
+use splatbridge::distill::run::{resolve_views, ViewRequest};
+use splatbridge::distill::{DistillOptions, Distiller};
+use splatbridge_convert::{ConvertOptions, Profile};
+use splatbridge_raytrace::{BackendKind, BuildPreset, MeshTracer};
+use splatbridge_scene::dynamic::DynamicScene;
+use splatbridge_scene::{Camera, GaussianCloud};
+
+/// The converter's defaults with `profile`.
+pub fn opts(profile: Profile) -> ConvertOptions {
+    ConvertOptions {
+        profile,
+        ..ConvertOptions::default()
+    }
+}
+
+/// The largest magnitude among the first `lanes` components of a gradient.
+pub fn grad_scale(grad: &[[f32; 4]], lanes: usize) -> f64 {
+    grad.iter()
+        .flat_map(|g| g[..lanes].iter())
+        .fold(0.0f64, |m, &x| m.max(x.abs() as f64))
+}
+
+/// The `n` (vertex, lane) components of largest magnitude among the first `lanes` lanes
+/// that `keep` accepts, largest first: the ones a finite-difference check is worth making on.
+pub fn largest(
+    grad: &[[f32; 4]],
+    lanes: usize,
+    keep: impl Fn(usize, usize) -> bool,
+    n: usize,
+) -> Vec<(usize, usize)> {
+    let mut idx: Vec<(usize, usize)> = (0..grad.len())
+        .flat_map(|v| (0..lanes).map(move |c| (v, c)))
+        .filter(|&(v, c)| keep(v, c))
+        .collect();
+    idx.sort_by(|a, b| grad[b.0][b.1].abs().total_cmp(&grad[a.0][a.1].abs()));
+    idx.truncate(n);
+    idx
+}
 
 /// `n` Gaussians of random orientation, flat and volumetric, packed in a unit cube at sizes
 /// around a tenth of it, so their fans cut through each other (a splitmix64 stream, fixed).
@@ -24,4 +64,43 @@ pub fn crossing_cloud(n: usize) -> GaussianCloud {
         c.push_activated(p, s, q, 0.5 + 0.45 * next(), rgb);
     }
     c
+}
+
+/// The small fit of the export tests: `orbit:4` at 40×30, one view held back, one time.
+pub fn small_request() -> ViewRequest {
+    ViewRequest {
+        spec: "orbit:4".into(),
+        width: 40,
+        height: 30,
+        held_back: 1,
+        held_size: None,
+        times: 1,
+    }
+}
+
+/// The fit `distill_export` made, made again in memory: targets of `original`, the mesh of
+/// `scene` (the widened scene it exported) with `convert`'s options but their fitted colours.
+pub fn refit(
+    original: &DynamicScene,
+    scene: &DynamicScene,
+    convert: &ConvertOptions,
+    req: &ViewRequest,
+    d_opts: &DistillOptions,
+) -> (Distiller, Vec<Camera>) {
+    let (fit_cams, _) = resolve_views(scene, 0.0, req).unwrap();
+    let mut plain = convert.clone();
+    plain.vertex_colours = None;
+    let mut d = Distiller::with_mesh_scene(original, scene, &plain, &fit_cams, d_opts).unwrap();
+    d.run(|_| {}).unwrap();
+    (d, fit_cams)
+}
+
+/// The tracer over `convert`'s GLB of `scene`, read back from its bytes as a viewer would.
+pub fn trace_export(scene: &DynamicScene, convert: &ConvertOptions) -> (MeshTracer, Vec<u8>) {
+    let (bytes, _) = splatbridge_convert::glb_bytes(scene, None, convert).unwrap();
+    let mut tri =
+        splatbridge_raytrace::scene_load::load_glb_bytes(&bytes, "distilled.glb".as_ref()).unwrap();
+    tri.to_capture_frame();
+    let tracer = MeshTracer::new(tri, BackendKind::default(), BuildPreset::default()).unwrap();
+    (tracer, bytes)
 }
