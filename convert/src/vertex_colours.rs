@@ -140,3 +140,38 @@ impl VertexColours {
         self.start.iter().filter(|&&s| s != u32::MAX).count()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn positions_travel_with_their_colours() {
+        let mut t = VertexColours::with_positions(3);
+        let c = [[0.1, 0.2, 0.3, 0.4], [0.5, 0.6, 0.7, 0.8]];
+        let p = [[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]];
+        t.set_positions(2, &c, &p).unwrap();
+        t.set_positions(0, &c[..1], &p[1..]).unwrap();
+        assert_eq!(t.of(2), Some(&c[..]));
+        assert_eq!(t.positions_of(2), Some(&p[..]));
+        assert_eq!(t.positions_of(0), Some(&p[1..]));
+        assert_eq!(t.positions_of(1), None);
+        assert_eq!(t.gaussians(), 2);
+    }
+
+    #[test]
+    fn a_positions_table_refuses_what_would_misalign_it() {
+        let mut t = VertexColours::with_positions(2);
+        let c = [[0.1, 0.2, 0.3, 0.4]];
+        // Colours alone would leave the positions one entry short of the colours.
+        assert!(t.set(0, &c).is_err());
+        assert!(t.set_positions(0, &c, &[]).is_err());
+        assert!(t.set_positions(0, &c, &[[f32::NAN, 0.0, 0.0]]).is_err());
+        // Nothing above was stored: the id is still free.
+        t.set_positions(0, &c, &[[0.0; 3]]).unwrap();
+        assert!(t.set_positions(0, &c, &[[0.0; 3]]).is_err(), "set twice");
+        let mut plain = VertexColours::new(1);
+        assert!(plain.set_positions(0, &c, &[[0.0; 3]]).is_err());
+        assert_eq!(plain.positions_of(0), None);
+    }
+}
