@@ -173,6 +173,35 @@ fn distilled_export_is_validator_clean() {
     client_check("validate-exports.sh", &["--mesh"], &out);
 }
 
+/// With positions fitted (the cars' vertices in their own frames, moved), the export is
+/// still validator-clean, keeps its animation and imports into Blender.
+#[test]
+#[cfg_attr(not(blender), ignore = "needs Blender on PATH")]
+fn position_fitted_export_passes_the_validator_and_blender() {
+    let dir = temp_dir("distill-cli", "positions-ok");
+    let out = dir.join("street_positions.glb");
+    let stderr = distil_street(
+        &out,
+        &[
+            "--profile",
+            "meshsplats",
+            "--distill-positions",
+            "--iterations",
+            "2",
+        ],
+    );
+    assert!(stderr.contains("held-back PSNR"), "{stderr}");
+    let d = glb_json(&std::fs::read(&out).unwrap());
+    let how = d["asset"]["extras"]["splatbridge"]["options"]["distilled"]
+        .as_str()
+        .unwrap_or_default();
+    assert!(how.contains("with positions"), "{how}");
+    assert!(!d["animations"].as_array().unwrap().is_empty());
+    client_check("validate-exports.sh", &["--mesh"], &out);
+    let stdout = client_check("blender-check.sh", &[], &out);
+    assert!(stdout.contains("\"problems\": []"), "{stdout}");
+}
+
 #[test]
 #[cfg_attr(not(blender), ignore = "needs Blender on PATH")]
 fn distilled_export_imports_into_blender() {
