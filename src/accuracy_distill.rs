@@ -84,15 +84,8 @@ pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<Vec<Cur
             iterations: last,
             ..cfg.options.clone()
         };
-        let widened = crate::distill::widen_for_fit(scene, &fit, &opts, &convert);
-        let mut d = Distiller::with_mesh_scene(
-            scene,
-            widened.as_ref().unwrap_or(scene),
-            &convert,
-            &fit,
-            &opts,
-        )
-        .with_context(|| format!("distilling profile {name}"))?;
+        let (mut d, widened) = Distiller::for_export(scene, &convert, &fit, &opts)
+            .with_context(|| format!("distilling profile {name}"))?;
         let triangles = d.triangles();
         loop {
             let it = d.history.len();

@@ -17,7 +17,9 @@ fn small_scene(n: usize) -> DynamicScene {
     DynamicScene::from_static(large(n, 7))
 }
 
-use distill_common::{grad_scale, largest, opts, refit, small_request, trace_export};
+use distill_common::{
+    grad_scale, largest, opts, refit, small_request, trace_export, worst_difference,
+};
 
 /// Analytic gradient of the loss through front-to-back compositing against central
 /// differences of the same loss, for the vertices with the largest gradients (colour and
@@ -95,11 +97,7 @@ fn recorded_hits_composite_to_the_traced_image() {
             assert!(!hits.hits.is_empty(), "{profile:?} view {i}: no hits");
             let img = splatbridge::distill::composite::render(&hits, d.params(), &d.shading());
             let traced = d.render(cam).unwrap();
-            let worst = img
-                .iter()
-                .zip(&traced.rgb)
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0f32, f32::max);
+            let worst = worst_difference(&img, &traced.rgb);
             // The same hits in the same order; the tracer stops at T < 1e-4 and the record
             // goes on to 1e-6, so up to 1e-4 of colour differs; colours are u16-quantised
             // in both (the tracer's scene was loaded from the same bytes).
@@ -343,11 +341,7 @@ fn recording_k_does_not_change_the_hits() {
     }
     assert_eq!(images[0].0, images[1].0, "hit counts differ");
     for (a, b) in images[0].1.iter().zip(&images[1].1) {
-        let worst = a
-            .iter()
-            .zip(b)
-            .map(|(x, y)| (x - y).abs())
-            .fold(0.0f32, f32::max);
+        let worst = worst_difference(a, b);
         // At the k-th key of a full buffer a fan may be represented by another of its
         // triangles (other barycentrics, same colour up to rounding; see
         // distilled_export_traces_like_the_fitted_mesh), so the bound is rounding, not 0.

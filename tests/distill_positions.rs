@@ -11,7 +11,9 @@ use splatbridge_raytrace::RenderOptions;
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::fixtures::large;
 
-use distill_common::{grad_scale, largest, opts, refit, small_request, trace_export};
+use distill_common::{
+    grad_scale, largest, opts, refit, small_request, trace_export, worst_difference,
+};
 
 fn with_positions(loss: Loss) -> DistillOptions {
     DistillOptions {
@@ -102,12 +104,7 @@ fn export_with_fitted_positions_traces_like_the_fitted_mesh() {
     for cam in &fit_cams {
         let mem = d.render(cam).unwrap();
         let (file, _) = tracer.render(cam, 0.0, &RenderOptions::default()).unwrap();
-        let worst = mem
-            .rgb
-            .iter()
-            .zip(&file.rgb)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0f32, f32::max);
+        let worst = worst_difference(&mem.rgb, &file.rgb);
         // The same positions (f32, as the file stores them) and quantised colours; the
         // colour-only test measured at most one f32 step (2e-8) from separately built BVHs.
         assert!(

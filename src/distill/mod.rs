@@ -149,12 +149,8 @@ pub struct Distiller {
     eps: f32,
     /// The Gaussians' centres when hits are composited in splat order.
     centres: Option<Centres>,
-    /// Fitted positions ([`DistillOptions::positions`]), their Adam moments and the last
-    /// position gradient (∂L/∂p per vertex, fourth lane unused).
+    /// Fitted positions ([`DistillOptions::positions`]).
     positions: Option<positions::Positions>,
-    pos_m: Vec<[f32; 4]>,
-    pos_v: Vec<[f32; 4]>,
-    pos_grad: Vec<[f32; 4]>,
 }
 
 impl Distiller {
@@ -187,6 +183,14 @@ impl Distiller {
         if convert.surfels.is_some() {
             return Err(DistillError::Invalid(
                 "distillation fits the profile's vertex colours; it does not take --surfels".into(),
+            ));
+        }
+        if opts.positions && convert.profile == splatbridge_convert::Profile::Texture {
+            return Err(DistillError::Invalid(
+                "--distill-positions fits the meshsplats and rings profiles: the texture \
+                 profile's opacity comes from its texture, which the position gradient does \
+                 not carry"
+                    .into(),
             ));
         }
         let mut fit_opts = convert.clone();
@@ -233,18 +237,7 @@ impl Distiller {
         });
         let moments = tied.as_ref().map_or(n, Tied::groups);
         let centres = (opts.order == HitOrder::Splat).then(|| Centres::new(&tri));
-        if opts.positions && convert.profile == splatbridge_convert::Profile::Texture {
-            return Err(DistillError::Invalid(
-                "--distill-positions fits the meshsplats and rings profiles: the texture \
-                 profile's opacity comes from its texture, which the position gradient does \
-                 not carry"
-                    .into(),
-            ));
-        }
-        let fitted_positions = opts
-            .positions
-            .then(|| positions::Positions::new(&tri, &vertex_gaussians(&tri)));
-        let pos_len = fitted_positions.as_ref().map_or(0, |p| p.start.len());
+        let fitted_positions = opts.positions.then(|| positions::Positions::new(&tri));
         let tracer = MeshTracer::new(tri, BackendKind::default(), BuildPreset::default())?;
         let native = native_options(opts.target_sh_degree);
         let mut renderer = splatbridge_hybrid::native::Renderer::new();
@@ -275,9 +268,6 @@ impl Distiller {
             eps: opts.eps_pixels / mean_pixels(cameras),
             centres,
             positions: fitted_positions,
-            pos_m: vec![[0.0; 4]; pos_len],
-            pos_v: vec![[0.0; 4]; pos_len],
-            pos_grad: vec![[0.0; 4]; pos_len],
         };
         let mut stored = 0u64;
         let times = opts.view_times(cameras.len());
@@ -319,6 +309,26 @@ impl Distiller {
         d.report.hit_bytes = stored;
         d.report.setup_seconds = start.elapsed().as_secs_f64();
         Ok(d)
+    }
+
+    /// The distiller of an export: the mesh made from `scene` widened for `cameras` when
+    /// `opts.footprint` ([`widen_for_fit`]), the targets from `scene` as it is. Returns the
+    /// widened scene too, which is what the export is to be written from (None: `scene`).
+    pub fn for_export(
+        scene: &DynamicScene,
+        convert: &ConvertOptions,
+        cameras: &[Camera],
+        opts: &DistillOptions,
+    ) -> Result<(Self, Option<DynamicScene>)> {
+        let widened = widen_for_fit(scene, cameras, opts, convert);
+        let d = Self::with_mesh_scene(
+            scene,
+            widened.as_ref().unwrap_or(scene),
+            convert,
+            cameras,
+            opts,
+        )?;
+        Ok((d, widened))
     }
 
     /// Trace one view's hit lists at scene time `time` with the tracer's current colours.
@@ -388,7 +398,7 @@ impl Distiller {
     /// Mean loss over the views `which` and its gradient with respect to every vertex's RGBA.
     pub fn loss_and_gradient_over(&mut self, which: &[usize]) -> Result<(f64, Vec<[f32; 4]>)> {
         let mut grad = vec![[0.0f32; 4]; self.params.len()];
-        let mut pos_grad = vec![[0.0f32; 4]; self.pos_grad.len()];
+        let mut pos_grad = vec![[0.0f32; 4]; self.positions.as_ref().map_or(0, |p| p.start.len())];
         let nviews = which.len().max(1) as f64;
         let mut total = 0.0;
         let streamed = which.iter().any(|&i| self.views[i].hits.is_none());
@@ -447,14 +457,16 @@ impl Distiller {
                 }
             }
         }
-        self.pos_grad = pos_grad;
+        if let Some(p) = &mut self.positions {
+            p.grad = pos_grad;
+        }
         Ok((total, grad))
     }
 
     /// ∂L/∂p per vertex (fourth lane unused) of the last [`Self::loss_and_gradient_over`],
-    /// when positions are fitted.
+    /// when positions are fitted (empty otherwise).
     pub fn position_gradient(&self) -> &[[f32; 4]] {
-        &self.pos_grad
+        self.positions.as_ref().map_or(&[], |p| &p.grad)
     }
 
     /// The fitted positions, when positions are fitted.
@@ -523,8 +535,8 @@ impl Distiller {
         }
         if let Some(pos) = &mut self.positions {
             // Adam on the offsets in units of each Gaussian's size: ∂L/∂offset = size·∂L/∂p.
-            let g: Vec<[f32; 4]> = self
-                .pos_grad
+            let g: Vec<[f32; 4]> = pos
+                .grad
                 .iter()
                 .zip(&pos.size)
                 .map(|(g, &s)| [g[0] * s, g[1] * s, g[2] * s, 0.0])
@@ -532,8 +544,8 @@ impl Distiller {
             let lr = self.opts.lr_position;
             adam(
                 &mut pos.offset,
-                &mut self.pos_m,
-                &mut self.pos_v,
+                &mut pos.m,
+                &mut pos.v,
                 &g,
                 [lr, lr, lr, 0.0],
                 t,
@@ -674,6 +686,28 @@ impl Distiller {
     pub fn elapsed(&self) -> f64 {
         self.start.elapsed().as_secs_f64()
     }
+}
+
+/// The Gaussians of one mesh: each id's index in `centres`, and the centres themselves (the
+/// mean of the vertices carrying the id; `ids` gives each vertex's, from
+/// [`vertex_gaussians`]). Every profile's template is point-symmetric about the Gaussian's
+/// mean, so that mean is the Gaussian's centre.
+fn gaussian_centres(
+    m: &splatbridge_raytrace::model::Mesh,
+    ids: &[u32],
+) -> (std::collections::HashMap<u32, usize>, Vec<glam::DVec3>) {
+    let mut index = std::collections::HashMap::new();
+    let mut sums: Vec<(glam::DVec3, u32)> = Vec::new();
+    for (p, &g) in m.positions.iter().zip(ids) {
+        let k = *index.entry(g).or_insert_with(|| {
+            sums.push((glam::DVec3::ZERO, 0));
+            sums.len() - 1
+        });
+        sums[k].0 += p.as_dvec3();
+        sums[k].1 += 1;
+    }
+    let centres = sums.iter().map(|(s, n)| *s / (*n).max(1) as f64).collect();
+    (index, centres)
 }
 
 /// Per mesh, the Gaussian id of every vertex (`u32::MAX` for a vertex before any triangle).

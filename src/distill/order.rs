@@ -59,24 +59,14 @@ impl Centres {
         let per_vertex = super::vertex_gaussians(scene);
         let mut out = Centres::default();
         for (m, ids) in scene.meshes.iter().zip(&per_vertex) {
-            let mut index = std::collections::HashMap::new();
-            let mut sums: Vec<(DVec3, u32)> = Vec::new();
-            for (p, &g) in m.positions.iter().zip(ids) {
-                let k = *index.entry(g).or_insert_with(|| {
-                    sums.push((DVec3::ZERO, 0));
-                    sums.len() - 1
-                });
-                sums[k].0 += p.as_dvec3();
-                sums[k].1 += 1;
-            }
+            let (index, centres) = super::gaussian_centres(m, ids);
             let tri_group = m
                 .tri_gaussian
                 .iter()
                 .map(|g| index.get(g).map_or(u32::MAX, |&k| k as u32))
                 .collect();
             out.tri_group.push(tri_group);
-            out.local
-                .push(sums.iter().map(|(s, n)| *s / (*n).max(1) as f64).collect());
+            out.local.push(centres);
         }
         out
     }

@@ -27,46 +27,50 @@ use super::composite::ViewHits;
 
 /// The fitted positions: per vertex (in the tracer's global vertex order) its converted
 /// position, its offset in units of its Gaussian's size (the parameter Adam moves; the fourth
-/// lane unused) and that size.
+/// lane unused) and that size; Adam's moments of the offsets and the last gradient ∂L/∂p.
 #[derive(Clone, Debug)]
 pub struct Positions {
     pub start: Vec<[f32; 3]>,
     pub offset: Vec<[f32; 4]>,
     pub size: Vec<f32>,
+    pub(super) m: Vec<[f32; 4]>,
+    pub(super) v: Vec<[f32; 4]>,
+    pub(super) grad: Vec<[f32; 4]>,
 }
 
 impl Positions {
-    /// The positions of `scene`'s vertices as converted; `per_vertex` gives each vertex's
-    /// Gaussian (per mesh).
-    pub fn new(scene: &TriScene, per_vertex: &[Vec<u32>]) -> Self {
+    /// The positions of `scene`'s vertices as converted, each sized by its Gaussian (the
+    /// `_GAUSSIAN_ID` the distiller derives per vertex from the triangles).
+    pub fn new(scene: &TriScene) -> Self {
+        let per_vertex = super::vertex_gaussians(scene);
         let mut start = Vec::new();
         let mut size = Vec::new();
-        for (m, ids) in scene.meshes.iter().zip(per_vertex) {
-            let mut groups: std::collections::HashMap<u32, (DVec3, f64, u32)> =
-                std::collections::HashMap::new();
-            for (p, &g) in m.positions.iter().zip(ids) {
-                let e = groups.entry(g).or_insert((DVec3::ZERO, 0.0, 0));
-                e.0 += p.as_dvec3();
-                e.2 += 1;
+        for (m, ids) in scene.meshes.iter().zip(&per_vertex) {
+            let (index, centres) = super::gaussian_centres(m, ids);
+            // Per Gaussian: the summed distance of its vertices from its centre, and their count.
+            let mut spread = vec![(0.0f64, 0u32); centres.len()];
+            for (p, g) in m.positions.iter().zip(ids) {
+                let k = index[g];
+                spread[k].0 += (p.as_dvec3() - centres[k]).length();
+                spread[k].1 += 1;
             }
-            for (p, &g) in m.positions.iter().zip(ids) {
-                if let Some(e) = groups.get_mut(&g) {
-                    let c = e.0 / e.2 as f64;
-                    e.1 += (p.as_dvec3() - c).length();
-                }
-            }
-            for (p, &g) in m.positions.iter().zip(ids) {
-                let r = groups.get(&g).map_or(0.0, |e| e.1 / e.2 as f64);
+            for (p, g) in m.positions.iter().zip(ids) {
+                let (d, n) = spread[index[g]];
+                let r = d / n as f64;
                 start.push(p.to_array());
-                // A degenerate Gaussian (all its vertices at one point) does not move.
+                // A Gaussian of size 0 (all its vertices at one point) does not move, nor one
+                // whose size is not finite.
                 size.push(if r.is_finite() { r as f32 } else { 0.0 });
             }
         }
-        let offset = vec![[0.0; 4]; start.len()];
+        let zero = vec![[0.0; 4]; start.len()];
         Positions {
             start,
-            offset,
+            offset: zero.clone(),
             size,
+            m: zero.clone(),
+            v: zero.clone(),
+            grad: zero,
         }
     }
 

@@ -109,14 +109,7 @@ pub fn distill_export(
     if opts.times.is_empty() {
         opts.times = fitting_times(scene, req.times);
     }
-    let widened = super::widen_for_fit(scene, &cams, &opts, convert);
-    let mut d = Distiller::with_mesh_scene(
-        scene,
-        widened.as_ref().unwrap_or(scene),
-        convert,
-        &cams,
-        &opts,
-    )?;
+    let (mut d, widened) = Distiller::for_export(scene, convert, &cams, &opts)?;
     // Held-back views take the fitting times in turn too, so a dynamic scene is measured
     // over the poses it was fitted for.
     let held_times = opts.view_times(held.len());
@@ -136,6 +129,16 @@ pub fn distill_export(
         *scene = w;
     }
     let report = d.report();
+    // The measurement-only and optional parts of the fit, said after the loss.
+    let what_else = [
+        opts.positions.then_some(" with positions"),
+        (opts.order == super::HitOrder::Splat)
+            .then_some(" composited in splat order (a measurement: viewers draw ray order)"),
+    ]
+    .into_iter()
+    .flatten()
+    .collect::<Vec<_>>()
+    .join(",");
     let description = format!(
         "{} views '{}' at {}×{}{}{}, {} iterations of Adam on {}{} in {:.1} s",
         report.views,
@@ -154,13 +157,7 @@ pub fn distill_export(
         },
         report.iterations,
         report.loss,
-        match (opts.order == super::HitOrder::Splat, opts.positions) {
-            (true, true) =>
-                " with positions, composited in splat order (a measurement: viewers draw ray order)",
-            (true, false) => " composited in splat order (a measurement: viewers draw ray order)",
-            (false, true) => " with positions",
-            (false, false) => "",
-        },
+        what_else,
         report.seconds
     );
     convert.vertex_colours = Some(Arc::new(colours));

@@ -18,6 +18,14 @@ pub fn opts(profile: Profile) -> ConvertOptions {
     }
 }
 
+/// The largest absolute difference between two images' values.
+pub fn worst_difference(a: &[f32], b: &[f32]) -> f32 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0f32, f32::max)
+}
+
 /// The largest magnitude among the first `lanes` components of a gradient.
 pub fn grad_scale(grad: &[[f32; 4]], lanes: usize) -> f64 {
     grad.iter()
