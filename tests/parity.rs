@@ -84,7 +84,7 @@ fn check(records: &[Record], f: &Floors, rings_beats_meshsplats: bool) {
     assert!(obj >= f.obj, "rings OBJ {obj:.2} dB < {}", f.obj);
     assert!(hy >= f.hybrid, "hybrid {hy:.2} dB < {}", f.hybrid);
     // Losing alpha (OBJ) must cost something, and where the margin was measured to be large
-    // the opacity-aware profile must beat the MeshSplats cone it replaces: claims the README
+    // the opacity-aware profile must beat the MeshSplats cone it replaces: claims docs/parity.md
     // makes.
     if rings_beats_meshsplats {
         assert!(

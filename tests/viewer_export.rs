@@ -180,7 +180,7 @@ fn stock_web_viewers_draw_the_exports_close_to_native() {
         &d("babylon.png"),
     );
     // Floors: measured on this fixture and camera at 160×120 with three.js 0.187 and
-    // Babylon.js 9.35 on SwiftShader (README, viewer check): three.js 26.14 dB (the input
+    // Babylon.js 9.35 on SwiftShader (docs/viewers.md, viewer check): three.js 26.14 dB (the input
     // layout 25.76, our tracer 26.97), Babylon.js splats 32.68 dB; less 0.5 dB for three.js
     // (a deterministic rasteriser) and 1 dB for Babylon.js, whose splat sort runs on a worker
     // and may settle one frame later.

@@ -237,7 +237,7 @@ impl ConvertOptions {
             || self.view_order.is_some()
     }
 
-    /// The arrangement for stock viewers: measured in the README's viewer table.
+    /// The arrangement for stock viewers: measured in docs/viewers.md.
     pub fn for_viewers(mut self) -> Self {
         self.chunk_size = crate::order::VIEWER_CHUNK;
         self.chunk_order = ChunkOrder::Normal;

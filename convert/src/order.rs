@@ -32,7 +32,7 @@ use crate::{FrameClouds, Result, Role};
 use splatbridge_scene::dynamic::DynamicScene;
 
 /// Gaussians per spatial chunk in the arrangement for viewers
-/// ([`ConvertOptions::for_viewers`]); chosen by the measurements in the README's viewer table.
+/// ([`ConvertOptions::for_viewers`]); chosen by the measurements in docs/viewers.md.
 pub const VIEWER_CHUNK: usize = 256;
 
 /// One mesh node of an arranged scene: its own copy of the Gaussians in draw order, their
