@@ -3,9 +3,9 @@
 
 mod cmd;
 
-/// Counted, so `bench` can report what a stage allocates at its peak (`splatbridge::heap`).
+/// Counted, so `bench` can report what a stage allocates at its peak (`splatbridge::measure::heap`).
 #[global_allocator]
-static ALLOC: splatbridge::heap::Counting = splatbridge::heap::Counting;
+static ALLOC: splatbridge::measure::heap::Counting = splatbridge::measure::heap::Counting;
 
 use clap::{Parser, Subcommand};
 

@@ -10,7 +10,7 @@
 use std::path::Path;
 use std::process::Command;
 
-use splatbridge::parity::{export_and_load, render_mesh, render_native};
+use splatbridge::measure::parity::{export_and_load, render_mesh, render_native};
 use splatbridge_convert::{ConvertOptions, Profile};
 use splatbridge_hybrid::native::RenderOptions as NativeOptions;
 use splatbridge_raytrace::{BackendKind, BuildPreset};

@@ -5,9 +5,9 @@ use splatbridge_scene::output::OutputSet;
 use std::path::PathBuf;
 
 use anyhow::Context;
-use splatbridge::merge::{self, PartialReport};
-use splatbridge::parity::{self, CompareConfig};
-use splatbridge::shard::{Shard, WorkKey};
+use splatbridge::batch::merge::{self, PartialReport};
+use splatbridge::measure::parity::{self, CompareConfig};
+use splatbridge::batch::shard::{Shard, WorkKey};
 use splatbridge_convert::Profile;
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::{Camera, GaussianCloud};
@@ -126,7 +126,7 @@ pub fn parse_profiles(names: &[String]) -> anyhow::Result<Vec<Profile>> {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     // Options first: a bad one is reported before a large scene is loaded.
-    let max_memory = splatbridge::budget::parse_budget(&args.max_memory)
+    let max_memory = splatbridge::measure::budget::parse_budget(&args.max_memory)
         .map_err(|e| anyhow::anyhow!("--max-memory: {e}"))?;
     let mut scene = common::load(&args.scene, args.drop_invalid)?;
     let times = if args.times.is_empty() {
@@ -164,14 +164,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         backend: args.backend.parse()?,
         k: args.k,
         clients: match &args.clients {
-            Some(l) => splatbridge::clients::Client::parse_list(l)
+            Some(l) => splatbridge::measure::clients::Client::parse_list(l)
                 .map_err(|e| anyhow::anyhow!("--clients: {e}"))?,
             None => Vec::new(),
         },
         client_script: args
             .client_script
             .clone()
-            .unwrap_or_else(splatbridge::clients::default_script),
+            .unwrap_or_else(splatbridge::measure::clients::default_script),
         max_memory,
         ..CompareConfig::default()
     };
@@ -221,7 +221,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.height
     );
     let title = "splatbridge compare";
-    let peak = splatbridge::memory::peak_bytes().unwrap_or(0) as f64 / 1e6;
+    let peak = splatbridge::measure::memory::peak_bytes().unwrap_or(0) as f64 / 1e6;
     if let Some(shard) = shard {
         let n = placed.len();
         let report = PartialReport {
@@ -272,7 +272,7 @@ fn options_text(args: &Args, times: &[f64]) -> String {
 }
 
 /// Mean PSNR per renderer/profile/format, one line each.
-pub fn print_summary(records: &[splatbridge::report::Record]) {
+pub fn print_summary(records: &[splatbridge::measure::report::Record]) {
     let mut keys: Vec<(String, String, String)> = Vec::new();
     for r in records {
         let k = (r.renderer.clone(), r.profile.clone(), r.format.clone());

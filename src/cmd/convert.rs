@@ -170,7 +170,7 @@ pub struct Args {
     /// report.json for `splatbridge merge` (see docs/scale.md). With --tiles: write only the
     /// leaves shard I owns, for --from-shards (see docs/tiles.md).
     #[arg(long, value_name = "I/N")]
-    pub shard: Option<splatbridge::shard::Shard>,
+    pub shard: Option<splatbridge::batch::shard::Shard>,
     /// Write native splats (KHR_gaussian_splatting, .glb/.gltf) instead of a mesh.
     #[arg(long)]
     pub splats: bool,
@@ -376,7 +376,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         if cloud_out.is_some() {
             bail!("--footprint-for: widens Gaussians for a mesh export; a splat output keeps the Gaussians native splatting filters itself");
         }
-        let done = splatbridge::footprint_export::widen_scene_for(&mut scene, w, h)
+        let done = splatbridge::distill::footprint::widen_scene_for(&mut scene, w, h)
             .map_err(|e| anyhow::anyhow!("--footprint-for: {e}"))?;
         eprintln!(
             "footprint for {w}×{h}: {} Gaussians widened (largest σ added {:.3e}), {} behind every camera left as they are",

@@ -13,7 +13,7 @@ use std::path::PathBuf;
 use anyhow::{bail, Context};
 use serde_json::json;
 use splatbridge::pipeline::{render_frame, FrameRequest, FrameStats, Renderer, SurfelSplit};
-use splatbridge::split_auto::{
+use splatbridge::pipeline::split_auto::{
     blend_name, choose, params_json, AutoChoice, AutoConfig, DEFAULT_BLEND, DEFAULT_MIN_PSNR,
     DISC_FOOTPRINT_SIGMAS,
 };

@@ -1,10 +1,10 @@
 //! `splatbridge info`: describe any scene file (every splat format, or a manifest) with
-//! `splatbridge::describe`, as text or one JSON object.
+//! `splatbridge::measure::describe`, as text or one JSON object.
 
 use std::path::PathBuf;
 
 use serde_json::Value;
-use splatbridge::describe::{QUANTILES, ROBUST_P, TINY_LOG_SCALE};
+use splatbridge::measure::describe::{QUANTILES, ROBUST_P, TINY_LOG_SCALE};
 
 use crate::cmd::common::load_with_info;
 
@@ -29,7 +29,7 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let (scene, info) = load_with_info(&args.file, args.drop_invalid)?;
-    let mut out = splatbridge::describe::describe(&args.file, &scene, &info);
+    let mut out = splatbridge::measure::describe::describe(&args.file, &scene, &info);
     if args.blocks {
         let n = args
             .max_gaussians_per_tile

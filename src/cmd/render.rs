@@ -127,7 +127,7 @@ pub struct Args {
     /// With --frames: render only shard I of N (0 ≤ I < N) of the frames and write a partial
     /// report.json beside them for `splatbridge merge` (see docs/scale.md).
     #[arg(long, value_name = "I/N", requires = "frames")]
-    pub shard: Option<splatbridge::shard::Shard>,
+    pub shard: Option<splatbridge::batch::shard::Shard>,
     #[command(flatten)]
     pub knobs: RenderKnobs,
     /// Drop invalid Gaussians (NaN, zero quaternion) with a counted warning instead of failing.

@@ -1,5 +1,5 @@
 //! `splatbridge convert SCENE --tiles DIR`: the 3D Tiles options and their summary. The work
-//! is `splatbridge::tiles::write_tiles`.
+//! is `splatbridge::pipeline::tiles::write_tiles`.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -149,7 +149,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         bail!("--shard and --from-shards with --tiles need a binary .ply input");
     }
     if let Some(shard) = args.shard {
-        let rep = splatbridge::tiles::write_tiles_shard(
+        let rep = splatbridge::pipeline::tiles::write_tiles_shard(
             dir,
             &args.scene,
             args.drop_invalid,
@@ -170,7 +170,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         return Ok(());
     }
     let streamed = if !args.tiles.from_shards.is_empty() {
-        Some(splatbridge::tiles::write_tiles_from_shards(
+        Some(splatbridge::pipeline::tiles::write_tiles_from_shards(
             dir,
             &args.scene,
             args.drop_invalid,
@@ -179,7 +179,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         )?)
     } else if is_ply {
         // Errors name their file (the PLY or the tile written).
-        splatbridge::tiles::write_tiles_from_ply(dir, &args.scene, args.drop_invalid, &opts)?
+        splatbridge::pipeline::tiles::write_tiles_from_ply(dir, &args.scene, args.drop_invalid, &opts)?
     } else {
         None
     };
@@ -187,7 +187,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         Some(rep) => rep,
         None => {
             let scene = load_export_input(&args.scene, args.drop_invalid, &common::print_warning)?;
-            splatbridge::tiles::write_tiles(dir, &scene, &opts)
+            splatbridge::pipeline::tiles::write_tiles(dir, &scene, &opts)
                 .with_context(|| dir.display().to_string())?
         }
     };

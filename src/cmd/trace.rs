@@ -223,7 +223,7 @@ pub struct Args {
     /// shard, identically). Either writes a partial report.json for `splatbridge merge` (see
     /// docs/scale.md).
     #[arg(long, value_name = "I/N")]
-    pub shard: Option<splatbridge::shard::Shard>,
+    pub shard: Option<splatbridge::batch::shard::Shard>,
     /// Print one JSON object (options, stats, effect counters, LiDAR files) instead of the
     /// summary.
     #[arg(long)]

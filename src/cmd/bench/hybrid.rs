@@ -184,7 +184,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let hpsnr = psnr(&hframe, &native)?;
     println!(
         "hybrid ({}; {}): {} surfels, {} Gaussians; split {:.1} ms",
-        splatbridge::split_auto::describe_params(&p),
+        splatbridge::pipeline::split_auto::describe_params(&p),
         args.knobs.describe(),
         s.len(),
         g.len(),
@@ -332,11 +332,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "threads": rayon::current_num_threads(),
             "native_ms": ms(t_native), "hybrid_ms": ms(t_h), "split_ms": ms(split_time),
             "speed_ratio": ratio, "psnr_db": hpsnr, "surfels": s.len(),
-            "blend": splatbridge::split_auto::blend_name(opts.blend), "sorted": hs.sorted,
+            "blend": splatbridge::pipeline::split_auto::blend_name(opts.blend), "sorted": hs.sorted,
             "native_blends": nstats.blends, "hybrid_blends": hs.blends,
             "hybrid_tile_pairs": hs.tile_pairs,
             "min_opacity": p.min_opacity, "max_flatness": p.max_flatness,
-            "split_params": splatbridge::split_auto::params_json(&p),
+            "split_params": splatbridge::pipeline::split_auto::params_json(&p),
             "split_auto": auto.as_ref().map(|a| a.to_json()),
             "sweep": sweep,
         });

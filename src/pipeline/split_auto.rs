@@ -437,8 +437,8 @@ impl AutoChoice {
 /// The `accuracy` sweep's rows for the guards (family `hybrid`): the default split without
 /// any guard, and each guard looser and stricter than its default with the others at theirs,
 /// so the plot shows what each guard trades (dB against ms).
-pub fn accuracy_rows() -> Vec<(&'static str, String, crate::accuracy::Setting, bool)> {
-    use crate::accuracy::Setting;
+pub fn accuracy_rows() -> Vec<(&'static str, String, crate::measure::accuracy::Setting, bool)> {
+    use crate::measure::accuracy::Setting;
     let d = SplitParams::default();
     let mut v = vec![(
         "hybrid",
@@ -484,8 +484,8 @@ pub fn accuracy_rows() -> Vec<(&'static str, String, crate::accuracy::Setting, b
 /// The `accuracy` sweep's rows for the blend (family `blend`): the default split and no
 /// surfels, each with the unsorted and the sorted blend, so the plot shows what sorting costs
 /// and buys with and without the surfels' occlusion.
-pub fn blend_accuracy_rows() -> Vec<(&'static str, String, crate::accuracy::Setting, bool)> {
-    use crate::accuracy::Setting;
+pub fn blend_accuracy_rows() -> Vec<(&'static str, String, crate::measure::accuracy::Setting, bool)> {
+    use crate::measure::accuracy::Setting;
     let mut v = Vec::new();
     for (name, split) in [
         ("guarded", SplitParams::default()),
