@@ -6,17 +6,17 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
+use splatbridge::batch::merge::{self, PartialReport};
+use splatbridge::batch::shard::{Shard, WorkKey};
 use splatbridge::measure::accuracy::{
     commit_outputs, measure_setting, read_records, reference_frames, settings, Sweep,
 };
-use splatbridge::batch::merge::{self, PartialReport};
 use splatbridge::measure::parity::Placed;
 use splatbridge::measure::report::Record;
-use splatbridge::batch::shard::{Shard, WorkKey};
 use splatbridge_scene::{Camera, GaussianCloud};
 
 use super::common;
-use super::compare::resolve_cameras;
+use splatbridge::measure::compare::{parse_profiles, resolve_cameras};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -80,7 +80,7 @@ fn print_records(records: &[Record]) {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     // Options first: a bad one is reported before a large scene is loaded.
-    let distill_profiles = super::compare::parse_profiles(&args.distill_profiles)
+    let distill_profiles = parse_profiles(&args.distill_profiles)
         .map_err(|e| anyhow::anyhow!("--distill-profiles: {e}"))?;
     if args.replot {
         let records = read_records(&args.out)?;

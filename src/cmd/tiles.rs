@@ -9,11 +9,11 @@ use clap::ValueEnum;
 use splatbridge::pipeline::export::load_export_input;
 use splatbridge_convert::splats_gltf::KhrCompression;
 use splatbridge_convert::tiles::{TileContent, TileOptions, TILE_GZIP_LEVEL};
-use splatbridge_convert::{ColorEncoding, ConvertOptions, Profile, UpAxis};
+use splatbridge_convert::Profile;
 use splatbridge_scene::blocks::DEFAULT_MAX_PER_BLOCK;
 
 use crate::cmd::common;
-use crate::cmd::convert::{Args, ColorArg, ProfileArg, UpArg};
+use crate::cmd::convert::Args;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum TileContentArg {
@@ -119,24 +119,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             Some(TileCompressionArg::Spz) | None => KhrCompression::SpzCesium,
         },
         gzip_level: args.tiles.tile_gzip_level.unwrap_or(TILE_GZIP_LEVEL),
-        convert: ConvertOptions {
-            profile: match args.profile {
-                Some(ProfileArg::Meshsplats) => Profile::MeshSplats,
-                Some(ProfileArg::Rings) => Profile::Rings,
-                Some(ProfileArg::Texture) | None => Profile::Texture,
-            },
-            up: match args.up {
-                UpArg::Y => UpAxis::Y,
-                UpArg::Z => UpAxis::Z,
-                UpArg::NegY => UpAxis::NegY,
-            },
-            color_encoding: match args.color_encoding {
-                ColorArg::Linear => ColorEncoding::Linear,
-                ColorArg::Display => ColorEncoding::Display,
-            },
-            gaussian_ids: !args.no_ids,
-            ..Default::default()
-        },
+        convert: args.base_options(Profile::Texture),
     };
     let pb = common::progress(1, "writing tiles");
     // A binary PLY is streamed (two passes, memory bounded by the partition and a tile);
@@ -179,7 +162,12 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         )?)
     } else if is_ply {
         // Errors name their file (the PLY or the tile written).
-        splatbridge::pipeline::tiles::write_tiles_from_ply(dir, &args.scene, args.drop_invalid, &opts)?
+        splatbridge::pipeline::tiles::write_tiles_from_ply(
+            dir,
+            &args.scene,
+            args.drop_invalid,
+            &opts,
+        )?
     } else {
         None
     };
