@@ -20,7 +20,7 @@ use splatbridge::measure::compare::{parse_profiles, resolve_cameras};
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// A 3DGS PLY or a splatbridge-scene/1 manifest (measured at --time).
+    #[arg(help = concat!("The scene: ", scene_formats!(), " (measured at --time)."))]
     pub scene: PathBuf,
     /// Cameras, comma-separated (as `compare --cameras`).
     #[arg(long, default_value = "orbit:3")]

@@ -16,7 +16,7 @@ use super::common;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// A 3DGS PLY or a splatbridge-scene/1 manifest.
+    #[arg(help = concat!("The scene: ", scene_formats!(), "."))]
     pub scene: PathBuf,
     /// Cameras, comma-separated: `orbit:N` (all N), `orbit:N:I`, `scene` (all of the scene's),
     /// `scene:I`, `PATH.json:I`.

@@ -10,8 +10,7 @@ use crate::cmd::common::load_with_info;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// A splat file (3DGS or compressed PLY, .splat, .spz, .sog/meta.json, glTF/GLB) or a
-    /// splatbridge-scene/1 manifest; the format is recognised by content.
+    #[arg(help = concat!("The scene: ", scene_formats!(), "; the format is recognised by content."))]
     pub file: PathBuf,
     /// Print one JSON object instead of text.
     #[arg(long)]

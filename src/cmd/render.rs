@@ -102,7 +102,7 @@ impl RenderKnobs {
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// A 3DGS PLY or a splatbridge-scene/1 manifest (rendered as the composite at --time).
+    #[arg(help = concat!("The scene: ", scene_formats!(), " (rendered as the composite at --time)."))]
     pub scene: PathBuf,
     #[command(flatten)]
     pub camera: CameraArgs,

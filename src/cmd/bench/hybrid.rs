@@ -28,7 +28,7 @@ use crate::cmd::hybrid::HybridKnobs;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// A PLY or manifest, or `large:N` (the synthetic large fixture with N Gaussians).
+    #[arg(help = concat!("The scene: ", scene_formats!(), "; or `large:N` (the synthetic large fixture with N Gaussians)."))]
     pub scene: String,
     #[command(flatten)]
     pub camera: CameraArgs,

@@ -22,7 +22,7 @@ use splatbridge_scene::GaussianCloud;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// A splat file in any supported format (3DGS or compressed PLY, .splat, .spz, .sog, glTF).
+    #[arg(help = concat!("The scene: ", scene_formats!(), "."))]
     pub file: PathBuf,
     /// Also time encoding the loaded cloud (in memory) in this format.
     #[arg(long, value_enum)]

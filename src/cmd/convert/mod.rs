@@ -26,7 +26,7 @@ translucent Gaussians are lost. OBJ and PLY have no node hierarchy: the up rotat
 objects' poses (at the scene's start, or per frame with --frames) are baked into vertices.\n\
 glTF COLOR_0 is linear: display colours are sRGB-decoded unless --color-encoding display.")]
 pub struct Args {
-    /// Input scene: a 3DGS PLY, a splatbridge-scene/1 manifest, or a KHR_gaussian_splatting glTF.
+    #[arg(help = concat!("The scene: ", scene_formats!(), "."))]
     pub scene: PathBuf,
     /// Output file: .glb, .gltf, .obj, .ply, .compressed.ply, .splat or .spz.
     #[arg(

@@ -27,7 +27,7 @@ use crate::cmd::common::{print_warning, CameraArgs};
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// A 3DGS PLY (or a GES PLY), or a splatbridge-scene/1 manifest (composite at --time).
+    #[arg(help = concat!("The scene: ", scene_formats!(), "; or a GES PLY (composite at --time)."))]
     pub scene: PathBuf,
     #[command(flatten)]
     pub camera: CameraArgs,

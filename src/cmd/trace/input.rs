@@ -107,7 +107,12 @@ pub enum ProfileArg {
 /// What is traced, shared with `bench trace`.
 #[derive(clap::Args, Clone, Debug)]
 pub struct TraceInput {
-    /// GLB, glTF or OBJ (traced as exported), or a scene: 3DGS PLY or manifest.
+    #[arg(
+        help = "A GLB, glTF or OBJ mesh, traced as exported (a .glb or .gltf is read as a mesh, so \
+                the Gaussians of a glTF with KHR_gaussian_splatting are not traced: convert it to \
+                .ply first), or a scene: a 3DGS PLY, a compressed PLY, .splat, .spz, SOG (a \
+                folder's meta.json or a .sog zip), or a splatbridge-scene/1 manifest (JSON)."
+    )]
     pub input: PathBuf,
     #[command(flatten)]
     pub camera: CameraArgs,
