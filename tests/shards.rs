@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 mod shards_common;
-use shards_common::{bin, list, merge, ok, street};
+use shards_common::{bin, list, merge, merged_is_one_run, ok, sharded, street};
 
 fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -198,21 +198,14 @@ fn render_frames_shards_merge_into_one_sequence() {
     let tmp = tempfile::tempdir().unwrap();
     let scene = street(tmp.path(), 1500);
     let render = |out: &Path, shard: Option<&str>| {
-        let mut c = Command::new(bin());
-        c.arg("render").arg(&scene).args([
-            "--camera",
-            "orbit:4:1",
-            "--width",
-            "32",
-            "--height",
-            "24",
-            "--frames",
-        ]);
-        if let Some(s) = shard {
-            c.args(["--shard", s]);
-        }
-        std::fs::create_dir_all(out.parent().unwrap()).unwrap();
-        ok(c.arg("-o").arg(out).output().unwrap(), "render --frames");
+        let size = ["--camera", "orbit:4:1", "--width", "32", "--height", "24"];
+        sharded(
+            "render",
+            &scene,
+            &[&size[..], &["--frames"]].concat(),
+            shard,
+            out,
+        );
     };
     let one = tmp.path().join("one");
     render(&one.join("f.png"), None);
@@ -220,17 +213,9 @@ fn render_frames_shards_merge_into_one_sequence() {
     for (i, d) in shards.iter().enumerate() {
         render(&d.join("f.png"), Some(&format!("{i}/3")));
     }
-    let merged = tmp.path().join("merged");
-    ok(merge(&shards, &merged), "merge frames");
     let frames = list(&one);
     assert!(frames.len() > 3, "{frames:?}");
-    assert_eq!(frames, list(&merged));
-    for f in &frames {
-        assert!(
-            std::fs::read(one.join(f)).unwrap() == std::fs::read(merged.join(f)).unwrap(),
-            "{f} differs"
-        );
-    }
+    merged_is_one_run(&shards, &one, &tmp.path().join("merged"), "render --frames");
 }
 
 /// `accuracy --shard I/N`: the settings split across shards; the merge writes the unsharded
@@ -240,21 +225,9 @@ fn accuracy_shards_merge_into_one_sweep() {
     let tmp = tempfile::tempdir().unwrap();
     let scene = street(tmp.path(), 1500);
     let sweep = |out: &Path, shard: Option<&str>| {
-        let mut c = Command::new(bin());
-        c.arg("accuracy").arg(&scene).args([
-            "--only",
-            "profile,format",
-            "--cameras",
-            "orbit:2",
-            "--width",
-            "32",
-            "--height",
-            "24",
-        ]);
-        if let Some(s) = shard {
-            c.args(["--shard", s]);
-        }
-        ok(c.arg("-o").arg(out).output().unwrap(), "accuracy");
+        let only = ["--only", "profile,format", "--cameras", "orbit:2"];
+        let size = ["--width", "32", "--height", "24"];
+        sharded("accuracy", &scene, &[&only[..], &size].concat(), shard, out);
     };
     let one = tmp.path().join("one");
     sweep(&one, None);
