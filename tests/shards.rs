@@ -4,6 +4,7 @@
 //! against one unsharded run: the same files, bit for bit, and the same records (timings and
 //! memory figures aside). Then the merge's refusals: missing, duplicate and mismatched shards.
 
+use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -61,6 +62,18 @@ fn same_run(a: &Path, b: &Path) {
     assert_eq!(ra, rb);
 }
 
+/// The variables the Slurm and Kubernetes job scripts read: the scene, the output folder, the
+/// comparison's cameras and options, and the binary.
+fn job_env<'a>(scene: &'a Path, out: &'a Path) -> [(&'static str, &'a OsStr); 5] {
+    [
+        ("SCENE", scene.as_os_str()),
+        ("OUT", out.as_os_str()),
+        ("CAMERAS", OsStr::new(CAMERAS)),
+        ("ARGS", OsStr::new(ARGS)),
+        ("SPLATBRIDGE", OsStr::new(bin())),
+    ]
+}
+
 #[test]
 fn slurm_and_kubernetes_shards_merge_into_one_run() {
     let tmp = tempfile::tempdir().unwrap();
@@ -77,11 +90,7 @@ fn slurm_and_kubernetes_shards_merge_into_one_run() {
             .env("SLURM_ARRAY_TASK_ID", i.to_string())
             .env("SLURM_ARRAY_TASK_COUNT", "3")
             .env("SLURM_ARRAY_TASK_MIN", "0")
-            .env("SCENE", &scene)
-            .env("OUT", &slurm)
-            .env("CAMERAS", CAMERAS)
-            .env("ARGS", ARGS)
-            .env("SPLATBRIDGE", bin())
+            .envs(job_env(&scene, &slurm))
             .output()
             .unwrap();
         ok(out, "slurm task");
@@ -92,11 +101,7 @@ fn slurm_and_kubernetes_shards_merge_into_one_run() {
         .arg(&script)
         .env("SLURM_ARRAY_TASK_ID", "1")
         .env("SLURM_ARRAY_TASK_COUNT", "3")
-        .env("SCENE", &scene)
-        .env("OUT", &slurm)
-        .env("CAMERAS", CAMERAS)
-        .env("ARGS", ARGS)
-        .env("SPLATBRIDGE", bin())
+        .envs(job_env(&scene, &slurm))
         .output()
         .unwrap();
     ok(rerun, "slurm task re-run");
@@ -125,11 +130,7 @@ fn slurm_and_kubernetes_shards_merge_into_one_run() {
             .arg(format!("exec {command}"))
             .env("JOB_COMPLETION_INDEX", i.to_string())
             .env("SHARD_COUNT", "2")
-            .env("SCENE", &scene)
-            .env("OUT", &k8s)
-            .env("CAMERAS", CAMERAS)
-            .env("ARGS", ARGS)
-            .env("SPLATBRIDGE", bin())
+            .envs(job_env(&scene, &k8s))
             .output()
             .unwrap();
         ok(out, "kubernetes pod");
