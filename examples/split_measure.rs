@@ -17,7 +17,7 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use splatbridge::split_auto::{blend_name, choose, AutoConfig, DISC_FOOTPRINT_SIGMAS};
+use splatbridge::pipeline::split_auto::{blend_name, choose, AutoConfig, DISC_FOOTPRINT_SIGMAS};
 use splatbridge_hybrid::ges::{render_ges, Blend, GesOptions};
 use splatbridge_hybrid::{render, RenderOptions};
 use splatbridge_scene::camera_spec::{CameraRequest, CameraSource, CameraSpec};

@@ -1,22 +1,17 @@
 //! The splatbridge library face of the CLI crate: what combines the stage crates (`scene` ←
-//! `convert`, `hybrid`, `raytrace`): the frame pipeline every command renders through, the
-//! parity pipeline, the accuracy sweep, scene descriptions and the reports. End-to-end tests
-//! and the commands share it.
+//! `convert`, `hybrid`, `raytrace` ← `distill`). Its folders are its parts:
+//!
+//! - [`pipeline`]: the frame pipeline every command renders through (load, renderer, one
+//!   frame with its effects, sequences, exports, 3D Tiles, the automatic surfel split).
+//! - [`measure`]: measurement against native splatting (parity, the accuracy sweep, viewer
+//!   clients, the memory budget and memory figures, scene descriptions, reports).
+//! - [`batch`]: work split across processes (shards) and joined again (merge).
+//!
+//! Mesh distillation is its own crate, `splatbridge_distill`, re-exported as [`distill`].
+//! End-to-end tests and the commands share this library.
 
-pub mod accuracy;
-pub mod accuracy_distill;
-pub mod budget;
-pub mod clients;
-pub mod describe;
-pub mod distill;
-pub mod footprint_export;
-pub mod frame_store;
-pub mod heap;
-pub mod memory;
-pub mod merge;
-pub mod parity;
+pub mod batch;
+pub mod measure;
 pub mod pipeline;
-pub mod report;
-pub mod shard;
-pub mod split_auto;
-pub mod tiles;
+
+pub use splatbridge_distill as distill;

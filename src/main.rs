@@ -1,16 +1,25 @@
 //! The `splatbridge` command line: one subcommand per capability, errors printed as
 //! `error: FILE: what went wrong` with exit status 2.
 
+/// Every scene format the reading commands accept (`splatbridge_scene::formats`, recognised
+/// by content), as help text; `concat!` puts it into each command's help.
+macro_rules! scene_formats {
+    () => {
+        "a 3DGS PLY, a compressed PLY, .splat, .spz, SOG (a folder's meta.json or a .sog zip), \
+         glTF/GLB with KHR_gaussian_splatting, or a splatbridge-scene/1 manifest (JSON)"
+    };
+}
+
 mod cmd;
 
-/// Counted, so `bench` can report what a stage allocates at its peak (`splatbridge::heap`).
+/// Counted, so `bench` can report what a stage allocates at its peak (`splatbridge::measure::heap`).
 #[global_allocator]
-static ALLOC: splatbridge::heap::Counting = splatbridge::heap::Counting;
+static ALLOC: splatbridge::measure::heap::Counting = splatbridge::measure::heap::Counting;
 
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
-#[command(name = "splatbridge", version, about = "Take trained 3D Gaussian Splatting scenes to meshes, surfel hybrids and a BVH ray tracer, and measure what each approximation costs.", long_about = None)]
+#[command(name = "splatbridge", version, about = "Take trained 3D Gaussian Splatting scenes to meshes, surfel hybrids and a BVH ray tracer, and measure what each approximation costs.", long_about = None, after_help = concat!("Scenes are read from ", scene_formats!(), "; the format is recognised by content. trace also reads GLB, glTF and OBJ meshes."))]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -18,7 +27,7 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Describe a PLY or a scene manifest: counts, SH degree, bounds, distributions, invalid values.
+    /// Describe a scene (any splat format or a manifest): counts, SH degree, bounds, distributions, invalid values.
     #[command(after_help = "Example:\n  splatbridge info scene.ply --json")]
     Info(cmd::info::Args),
     /// Generate a deterministic synthetic scene (street, large, hard).

@@ -7,19 +7,46 @@
 //! Ignored unless `blender` and `xvfb-run` are installed (`cfg(blender_render)`, see
 //! `build/shared_cfg.rs`; `scripts/setup.sh` installs both).
 
+mod cli_common;
+
 use std::path::Path;
 use std::process::Command;
 
-use splatbridge::parity::{export_and_load, render_mesh, render_native};
+use cli_common::ok as run;
+
+use splatbridge::measure::parity::{export_and_load, render_mesh, render_native};
 use splatbridge_convert::{ConvertOptions, Profile};
 use splatbridge_hybrid::native::RenderOptions as NativeOptions;
 use splatbridge_raytrace::{BackendKind, BuildPreset};
 use splatbridge_scene::fixtures::{street_with, StreetParams};
 use splatbridge_scene::image_io::load_png;
 use splatbridge_scene::metrics::psnr;
+use splatbridge_scene::Frame;
 
 const W: u32 = 80;
 const H: u32 = 60;
+
+/// `scripts/blender-render.sh` with `engine` and `samples` on `glb`'s first camera at W×H
+/// (`extra`: more options), failing the test unless it succeeds; the image it wrote.
+fn blender(glb: &Path, out: &Path, engine: &str, samples: &str, extra: &[&str]) -> Frame {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/blender-render.sh");
+    let r = Command::new(&script)
+        .arg(glb)
+        .arg(out)
+        .args(["--engine", engine, "--camera", "0", "--samples", samples])
+        .args(["--size", &format!("{W}x{H}")])
+        .args(extra)
+        .output()
+        .expect("run blender-render.sh");
+    assert!(
+        r.status.success(),
+        "{engine}: exit {:?}\n{}{}",
+        r.status.code(),
+        String::from_utf8_lossy(&r.stdout),
+        String::from_utf8_lossy(&r.stderr)
+    );
+    load_png(out).unwrap()
+}
 
 #[test]
 #[cfg_attr(
@@ -54,24 +81,9 @@ fn eevee_and_cycles_render_the_street_export_close_to_our_tracer() {
     .unwrap();
     let trace = render_mesh(&mut traced, &cam, t, 16).unwrap().frame;
     let trace_db = psnr(&native, &trace).unwrap();
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/blender-render.sh");
     for (engine, samples) in [("cycles", "32"), ("eevee", "4")] {
         let out = dir.path().join(format!("{engine}.png"));
-        let run = Command::new(&script)
-            .arg(&glb)
-            .arg(&out)
-            .args(["--engine", engine, "--camera", "0", "--samples", samples])
-            .args(["--size", &format!("{W}x{H}"), "--time", &t.to_string()])
-            .output()
-            .expect("run blender-render.sh");
-        assert!(
-            run.status.success(),
-            "{engine}: exit {:?}\n{}{}",
-            run.status.code(),
-            String::from_utf8_lossy(&run.stdout),
-            String::from_utf8_lossy(&run.stderr)
-        );
-        let img = load_png(&out).unwrap();
+        let img = blender(&glb, &out, engine, samples, &["--time", &t.to_string()]);
         assert_eq!((img.width, img.height), (W, H), "{engine}");
         let db = psnr(&native, &img).unwrap();
         println!("{engine}: {db:.2} dB against native; our tracer {trace_db:.2} dB");
@@ -95,18 +107,6 @@ fn eevee_and_cycles_render_the_street_export_close_to_our_tracer() {
     ignore = "needs blender and xvfb-run on PATH (scripts/setup.sh installs them) and ../shared/data/real"
 )]
 fn eevee_and_cycles_render_a_real_capture_close_to_our_tracer() {
-    let bin = env!("CARGO_BIN_EXE_splatbridge");
-    let run = |args: &[&str]| {
-        let out = Command::new(bin)
-            .args(args)
-            .output()
-            .expect("splatbridge runs");
-        assert!(
-            out.status.success(),
-            "splatbridge {args:?}: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-    };
     let dir = tempfile::tempdir().unwrap();
     let p = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
     let real = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real/plant.ply");
@@ -135,24 +135,13 @@ fn eevee_and_cycles_render_a_real_capture_close_to_our_tracer() {
     .concat());
     let native = load_png(Path::new(&native_png)).unwrap();
     let trace_db = psnr(&native, &load_png(Path::new(&trace_png)).unwrap()).unwrap();
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/blender-render.sh");
     for (engine, samples) in [("cycles", "32"), ("eevee", "4")] {
         let out = dir.path().join(format!("{engine}.png"));
-        let r = Command::new(&script)
-            .arg(&glb)
-            .arg(&out)
-            .args(["--engine", engine, "--camera", "0", "--samples", samples])
-            .args(["--size", &format!("{W}x{H}")])
-            .output()
-            .expect("run blender-render.sh");
-        assert!(
-            r.status.success(),
-            "{engine}: exit {:?}\n{}{}",
-            r.status.code(),
-            String::from_utf8_lossy(&r.stdout),
-            String::from_utf8_lossy(&r.stderr)
-        );
-        let db = psnr(&native, &load_png(&out).unwrap()).unwrap();
+        let db = psnr(
+            &native,
+            &blender(Path::new(&glb), &out, engine, samples, &[]),
+        )
+        .unwrap();
         println!("plant cut, {engine}: {db:.2} dB against native; our tracer {trace_db:.2} dB");
         // The viewers goal itself: Blender within 1 dB of our tracer on the same file.
         assert!(

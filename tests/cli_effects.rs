@@ -528,14 +528,21 @@ fn empty_effects_object_renders_bit_identically_to_no_key() {
     );
 }
 
-#[test]
-fn unknown_effect_fails_naming_the_file() {
-    let dir = tempfile::tempdir().unwrap();
-    let m = street(dir.path(), "plain", &[], &[]);
+/// The plain street manifest under `dir`, and a copy beside it declaring an unknown effect
+/// (`fog`).
+fn fog_manifest(dir: &Path) -> (PathBuf, PathBuf) {
+    let m = street(dir, "plain", &[], &[]);
     let mut v = read_json(&m);
     v["effects"] = serde_json::json!({"fog": {"density": 0.1}});
     let bad = m.with_file_name("fog.json");
     write_json(&bad, &v);
+    (m, bad)
+}
+
+#[test]
+fn unknown_effect_fails_naming_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let (m, bad) = fog_manifest(dir.path());
     let glb = dir.path().join("out.glb");
     let name = bad.display().to_string();
     let check = |what: &str, err: anyhow::Error| {
@@ -651,11 +658,7 @@ fn cli_reports_print_the_effect_counters() {
 #[test]
 fn cli_unknown_effect_exits_2_naming_the_file() {
     let dir = tempfile::tempdir().unwrap();
-    let m = street(dir.path(), "plain", &[], &[]);
-    let mut v = read_json(&m);
-    v["effects"] = serde_json::json!({"fog": {"density": 0.1}});
-    let bad = m.with_file_name("fog.json");
-    write_json(&bad, &v);
+    let (m, bad) = fog_manifest(dir.path());
     let img = dir.path().join("img.png");
     let glb = dir.path().join("out.glb");
     for args in [

@@ -2,28 +2,16 @@
 //! closer to native splatting than the plain mesh (native low-pass filters small splats, a
 //! mesh does not); the option's bad values exit 2 naming it.
 
+mod cli_common;
+
 use std::path::Path;
-use std::process::Command;
+
+use cli_common::{ok, run};
 
 use splatbridge_scene::fixtures::large;
 use splatbridge_scene::image_io::load_png;
 use splatbridge_scene::metrics;
 use splatbridge_scene::ply::{write_ply, PlyFormat};
-
-const BIN: &str = env!("CARGO_BIN_EXE_splatbridge");
-
-fn run(args: &[&str]) -> std::process::Output {
-    Command::new(BIN).args(args).output().unwrap()
-}
-
-fn ok(args: &[&str]) {
-    let out = run(args);
-    assert!(
-        out.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-}
 
 /// The synthetic capture of `tests/trace_footprint.rs` (trained-scene scale and opacity
 /// distributions; most Gaussians sub-pixel at 64×48).

@@ -9,7 +9,11 @@
 //! degree 3) runs everywhere; the shared real files (`fourth_st.spz` from Niantic's encoder,
 //! `plant.splat`) run when `../shared/data/real` exists.
 
+mod cli_common;
+
 use std::path::{Path, PathBuf};
+
+use cli_common::{bin, succeeded};
 
 use splatbridge_convert::splats_gltf::{write_file_with, KhrCompression};
 use splatbridge_convert::ConvertOptions;
@@ -173,17 +177,12 @@ fn real_files_render_like_their_plys() {
 #[test]
 fn accuracy_reports_the_cost_of_each_format() {
     let dir = tempfile::tempdir().unwrap();
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_splatbridge"))
-        .args(["accuracy", "--only", "format", "--cameras", "orbit:2"])
-        .args(["--width", "48", "--height", "32", "-o"])
-        .arg(dir.path())
-        .arg(fixture("cut300.ply"))
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    succeeded(
+        bin()
+            .args(["accuracy", "--only", "format", "--cameras", "orbit:2"])
+            .args(["--width", "48", "--height", "32", "-o"])
+            .arg(dir.path())
+            .arg(fixture("cut300.ply")),
     );
     let text = std::fs::read_to_string(dir.path().join("accuracy.json")).unwrap();
     let records: serde_json::Value = serde_json::from_str(&text).unwrap();

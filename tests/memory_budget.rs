@@ -9,7 +9,7 @@
 //! left resident. The heap's own count (`heap.rs`) is no measure here: it includes reserved
 //! capacity that is never touched (the GLB read-back's peak is 1.5× its resident size).
 
-use splatbridge::budget;
+use splatbridge::measure::budget;
 use splatbridge_convert::{ConvertOptions, Profile};
 use splatbridge_raytrace::{BackendKind, BuildPreset, GaussianTracer, RenderOptions};
 use splatbridge_scene::dynamic::DynamicScene;
@@ -46,9 +46,9 @@ fn stage_peak<T>(f: impl FnOnce() -> T) -> (u64, T) {
     // no pointers and no live allocation is touched.
     unsafe { libc::malloc_trim(0) };
     std::fs::write("/proc/self/clear_refs", "5").expect("reset the peak resident set");
-    let before = splatbridge::memory::resident_bytes().unwrap();
+    let before = splatbridge::measure::memory::resident_bytes().unwrap();
     let out = f();
-    let peak = splatbridge::memory::peak_bytes().unwrap();
+    let peak = splatbridge::measure::memory::peak_bytes().unwrap();
     (peak.saturating_sub(before), out)
 }
 
@@ -85,7 +85,7 @@ fn mesh_stage_estimates_bound_what_the_stage_allocates() {
             let estimate = budget::mesh_data_bytes(n, size, format);
             let path = tmp.path().join(format!("m_{}.{format}", profile.name()));
             let (peak, m) = stage_peak(|| {
-                let mut m = splatbridge::parity::export_and_load(
+                let mut m = splatbridge::measure::parity::export_and_load(
                     &scene,
                     &opts,
                     &path,
@@ -93,7 +93,7 @@ fn mesh_stage_estimates_bound_what_the_stage_allocates() {
                     BuildPreset::default(),
                 )
                 .unwrap();
-                splatbridge::parity::render_mesh(&mut m, &cam, 0.0, 16).unwrap();
+                splatbridge::measure::parity::render_mesh(&mut m, &cam, 0.0, 16).unwrap();
                 m
             });
             // The count is the export's: the estimate saw the mesh that was traced.

@@ -12,8 +12,11 @@
 //! one-off step that says nothing about what the program holds. `MALLOC_MMAP_THRESHOLD_` fixes
 //! the threshold (and turns that adjustment off) for the runs.
 
+mod cli_common;
+
 use std::path::Path;
-use std::process::Command;
+
+use cli_common::{bin, succeeded};
 
 /// Measured on the 20,000-Gaussian fixture at 320×240 (release build, fixed threshold): 1
 /// camera, 4 cameras and 3 exports peaked at 123.1, 123.4 and 123.4 MB. The former code, which
@@ -23,19 +26,14 @@ use std::process::Command;
 const ALLOWANCE_BYTES: u64 = 8 << 20;
 
 fn peak(dir: &Path, cameras: &str, profiles: &str, scene: &Path) -> u64 {
-    let out = Command::new(env!("CARGO_BIN_EXE_splatbridge"))
-        .arg("compare")
-        .arg(scene)
-        .args(["--cameras", cameras, "--profiles", profiles, "--no-obj"])
-        .args(["--width", "320", "--height", "240", "-o"])
-        .arg(dir)
-        .env("MALLOC_MMAP_THRESHOLD_", "131072")
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    succeeded(
+        bin()
+            .arg("compare")
+            .arg(scene)
+            .args(["--cameras", cameras, "--profiles", profiles, "--no-obj"])
+            .args(["--width", "320", "--height", "240", "-o"])
+            .arg(dir)
+            .env("MALLOC_MMAP_THRESHOLD_", "131072"),
     );
     let text = std::fs::read_to_string(dir.join("report.json")).unwrap();
     let records: Vec<serde_json::Value> = serde_json::from_str(&text).unwrap();
@@ -53,12 +51,11 @@ fn peak(dir: &Path, cameras: &str, profiles: &str, scene: &Path) -> u64 {
 )]
 fn compare_peak_does_not_grow_with_cameras_or_profiles() {
     let tmp = tempfile::tempdir().unwrap();
-    let fixture = Command::new(env!("CARGO_BIN_EXE_splatbridge"))
-        .args(["fixture", "large", "--count", "20000", "-o"])
-        .arg(tmp.path())
-        .output()
-        .unwrap();
-    assert!(fixture.status.success());
+    succeeded(
+        bin()
+            .args(["fixture", "large", "--count", "20000", "-o"])
+            .arg(tmp.path()),
+    );
     let scene = tmp.path().join("large.ply");
     let one = peak(&tmp.path().join("one"), "orbit:1", "meshsplats", &scene);
     let cams = peak(&tmp.path().join("cams"), "orbit:4", "meshsplats", &scene);

@@ -9,8 +9,8 @@
 
 use std::path::PathBuf;
 
-use splatbridge::parity::{self, CompareConfig};
-use splatbridge::report::Record;
+use splatbridge::measure::parity::{self, CompareConfig};
+use splatbridge::measure::report::Record;
 use splatbridge_scene::camera::OrbitRig;
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::ply::{read_ply, ReadOptions};

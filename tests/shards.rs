@@ -4,11 +4,12 @@
 //! against one unsharded run: the same files, bit for bit, and the same records (timings and
 //! memory figures aside). Then the merge's refusals: missing, duplicate and mismatched shards.
 
+use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 mod shards_common;
-use shards_common::{bin, list, merge, ok, street};
+use shards_common::{bin, list, merge, merged_is_one_run, ok, sharded, street};
 
 fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -61,6 +62,18 @@ fn same_run(a: &Path, b: &Path) {
     assert_eq!(ra, rb);
 }
 
+/// The variables the Slurm and Kubernetes job scripts read: the scene, the output folder, the
+/// comparison's cameras and options, and the binary.
+fn job_env<'a>(scene: &'a Path, out: &'a Path) -> [(&'static str, &'a OsStr); 5] {
+    [
+        ("SCENE", scene.as_os_str()),
+        ("OUT", out.as_os_str()),
+        ("CAMERAS", OsStr::new(CAMERAS)),
+        ("ARGS", OsStr::new(ARGS)),
+        ("SPLATBRIDGE", OsStr::new(bin())),
+    ]
+}
+
 #[test]
 fn slurm_and_kubernetes_shards_merge_into_one_run() {
     let tmp = tempfile::tempdir().unwrap();
@@ -77,11 +90,7 @@ fn slurm_and_kubernetes_shards_merge_into_one_run() {
             .env("SLURM_ARRAY_TASK_ID", i.to_string())
             .env("SLURM_ARRAY_TASK_COUNT", "3")
             .env("SLURM_ARRAY_TASK_MIN", "0")
-            .env("SCENE", &scene)
-            .env("OUT", &slurm)
-            .env("CAMERAS", CAMERAS)
-            .env("ARGS", ARGS)
-            .env("SPLATBRIDGE", bin())
+            .envs(job_env(&scene, &slurm))
             .output()
             .unwrap();
         ok(out, "slurm task");
@@ -92,11 +101,7 @@ fn slurm_and_kubernetes_shards_merge_into_one_run() {
         .arg(&script)
         .env("SLURM_ARRAY_TASK_ID", "1")
         .env("SLURM_ARRAY_TASK_COUNT", "3")
-        .env("SCENE", &scene)
-        .env("OUT", &slurm)
-        .env("CAMERAS", CAMERAS)
-        .env("ARGS", ARGS)
-        .env("SPLATBRIDGE", bin())
+        .envs(job_env(&scene, &slurm))
         .output()
         .unwrap();
     ok(rerun, "slurm task re-run");
@@ -125,11 +130,7 @@ fn slurm_and_kubernetes_shards_merge_into_one_run() {
             .arg(format!("exec {command}"))
             .env("JOB_COMPLETION_INDEX", i.to_string())
             .env("SHARD_COUNT", "2")
-            .env("SCENE", &scene)
-            .env("OUT", &k8s)
-            .env("CAMERAS", CAMERAS)
-            .env("ARGS", ARGS)
-            .env("SPLATBRIDGE", bin())
+            .envs(job_env(&scene, &k8s))
             .output()
             .unwrap();
         ok(out, "kubernetes pod");
@@ -198,21 +199,14 @@ fn render_frames_shards_merge_into_one_sequence() {
     let tmp = tempfile::tempdir().unwrap();
     let scene = street(tmp.path(), 1500);
     let render = |out: &Path, shard: Option<&str>| {
-        let mut c = Command::new(bin());
-        c.arg("render").arg(&scene).args([
-            "--camera",
-            "orbit:4:1",
-            "--width",
-            "32",
-            "--height",
-            "24",
-            "--frames",
-        ]);
-        if let Some(s) = shard {
-            c.args(["--shard", s]);
-        }
-        std::fs::create_dir_all(out.parent().unwrap()).unwrap();
-        ok(c.arg("-o").arg(out).output().unwrap(), "render --frames");
+        let size = ["--camera", "orbit:4:1", "--width", "32", "--height", "24"];
+        sharded(
+            "render",
+            &scene,
+            &[&size[..], &["--frames"]].concat(),
+            shard,
+            out,
+        );
     };
     let one = tmp.path().join("one");
     render(&one.join("f.png"), None);
@@ -220,17 +214,9 @@ fn render_frames_shards_merge_into_one_sequence() {
     for (i, d) in shards.iter().enumerate() {
         render(&d.join("f.png"), Some(&format!("{i}/3")));
     }
-    let merged = tmp.path().join("merged");
-    ok(merge(&shards, &merged), "merge frames");
     let frames = list(&one);
     assert!(frames.len() > 3, "{frames:?}");
-    assert_eq!(frames, list(&merged));
-    for f in &frames {
-        assert!(
-            std::fs::read(one.join(f)).unwrap() == std::fs::read(merged.join(f)).unwrap(),
-            "{f} differs"
-        );
-    }
+    merged_is_one_run(&shards, &one, &tmp.path().join("merged"), "render --frames");
 }
 
 /// `accuracy --shard I/N`: the settings split across shards; the merge writes the unsharded
@@ -240,21 +226,9 @@ fn accuracy_shards_merge_into_one_sweep() {
     let tmp = tempfile::tempdir().unwrap();
     let scene = street(tmp.path(), 1500);
     let sweep = |out: &Path, shard: Option<&str>| {
-        let mut c = Command::new(bin());
-        c.arg("accuracy").arg(&scene).args([
-            "--only",
-            "profile,format",
-            "--cameras",
-            "orbit:2",
-            "--width",
-            "32",
-            "--height",
-            "24",
-        ]);
-        if let Some(s) = shard {
-            c.args(["--shard", s]);
-        }
-        ok(c.arg("-o").arg(out).output().unwrap(), "accuracy");
+        let only = ["--only", "profile,format", "--cameras", "orbit:2"];
+        let size = ["--width", "32", "--height", "24"];
+        sharded("accuracy", &scene, &[&only[..], &size].concat(), shard, out);
     };
     let one = tmp.path().join("one");
     sweep(&one, None);

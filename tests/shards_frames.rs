@@ -7,21 +7,16 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 mod shards_common;
-use shards_common::{bin, count, list, merge, merged_is_one_run, ok, street, street_with_effects};
+use shards_common::{
+    bin, count, list, merge, merged_is_one_run, ok, sharded, street, street_with_effects,
+};
 
 #[test]
 fn convert_frames_shards_merge_into_one_export() {
     let tmp = tempfile::tempdir().unwrap();
     let scene = street(tmp.path(), 800);
-    let convert = |out: &Path, shard: Option<&str>| {
-        let mut c = Command::new(bin());
-        c.arg("convert").arg(&scene).arg("--frames");
-        if let Some(s) = shard {
-            c.args(["--shard", s]);
-        }
-        std::fs::create_dir_all(out.parent().unwrap()).unwrap();
-        ok(c.arg("-o").arg(out).output().unwrap(), "convert --frames");
-    };
+    let convert =
+        |out: &Path, shard: Option<&str>| sharded("convert", &scene, &["--frames"], shard, out);
     let one = tmp.path().join("one");
     convert(&one.join("m.obj"), None);
     let files = list(&one);
@@ -96,26 +91,9 @@ fn lidar_frames_shards_merge_into_one_run() {
     let scene = street_with_effects(tmp.path(), 600, "lidar");
     for mode in ["gaussian", "mesh"] {
         let trace = |out: &Path, shard: Option<&str>| {
-            let mut c = Command::new(bin());
-            c.arg("trace").arg(&scene).args([
-                "--mode",
-                mode,
-                "--camera",
-                "orbit:4:1",
-                "--width",
-                "16",
-                "--height",
-                "12",
-                "--lidar-all-frames",
-            ]);
-            if let Some(s) = shard {
-                c.args(["--shard", s]);
-            }
-            std::fs::create_dir_all(out.parent().unwrap()).unwrap();
-            ok(
-                c.arg("-o").arg(out).output().unwrap(),
-                "trace --lidar-all-frames",
-            );
+            let size = ["--camera", "orbit:4:1", "--width", "16", "--height", "12"];
+            let args = [&["--mode", mode][..], &size, &["--lidar-all-frames"]].concat();
+            sharded("trace", &scene, &args, shard, out);
         };
         let root = tmp.path().join(mode);
         let one = root.join("one");

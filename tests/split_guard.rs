@@ -1,5 +1,5 @@
 //! The guarded surfel split (`splatbridge_scene::surfel_guard`) and `--split auto`
-//! (`splatbridge::split_auto`), on small synthetic scenes rendered natively (the reference) and
+//! (`splatbridge::pipeline::split_auto`), on small synthetic scenes rendered natively (the reference) and
 //! with the GES hybrid:
 //!
 //! - one test per guard: the failure it prevents is visible without it (the hybrid far from
@@ -13,7 +13,9 @@
 use std::process::Command;
 
 use glam::{DVec3, Quat, Vec3};
-use splatbridge::split_auto::{choose, choose_from, ladder, AutoConfig, DISC_FOOTPRINT_SIGMAS};
+use splatbridge::pipeline::split_auto::{
+    choose, choose_from, ladder, AutoConfig, DISC_FOOTPRINT_SIGMAS,
+};
 use splatbridge_hybrid::ges::{render_ges, Blend, GesOptions};
 use splatbridge_hybrid::{render, RenderOptions};
 use splatbridge_scene::metrics::psnr;

@@ -1,4 +1,4 @@
-//! 3D Tiles output (`convert --tiles`, `splatbridge::tiles`): a structural check of the
+//! 3D Tiles output (`convert --tiles`, `splatbridge::pipeline::tiles`): a structural check of the
 //! tileset (every content file exists and is a valid GLB that reads back, bounding volumes
 //! contain their content's centres, child errors below their parent's, each Gaussian in
 //! exactly one leaf), the atomic write, the CLI, and, with chromium and the npm packages
@@ -162,7 +162,7 @@ fn splat_tileset_is_structurally_sound_and_partitions_the_gaussians() {
     let dir = tempfile::tempdir().unwrap();
     let opts = options(TileContent::Splats, KhrCompression::None, 300);
     let scene = DynamicScene::from_static(cloud.clone());
-    let rep = splatbridge::tiles::write_tiles(dir.path(), &scene, &opts).unwrap();
+    let rep = splatbridge::pipeline::tiles::write_tiles(dir.path(), &scene, &opts).unwrap();
     assert!(rep.leaves >= 10 && rep.tiles > rep.leaves);
     let w = check_tileset(dir.path(), &opts, &cloud);
     // Lossless float attributes: the leaves hold exactly the input's centres, each once.
@@ -188,7 +188,7 @@ fn spz_and_mesh_tilesets_are_structurally_sound() {
     for compression in [KhrCompression::SpzCesium, KhrCompression::Spz] {
         let dir = tempfile::tempdir().unwrap();
         let opts = options(TileContent::Splats, compression, 200);
-        splatbridge::tiles::write_tiles(dir.path(), &scene, &opts).unwrap();
+        splatbridge::pipeline::tiles::write_tiles(dir.path(), &scene, &opts).unwrap();
         check_tileset(dir.path(), &opts, &cloud);
         let ts: Value =
             serde_json::from_slice(&std::fs::read(dir.path().join("tileset.json")).unwrap())
@@ -207,7 +207,7 @@ fn spz_and_mesh_tilesets_are_structurally_sound() {
     }
     let dir = tempfile::tempdir().unwrap();
     let opts = options(TileContent::Mesh, KhrCompression::None, 200);
-    splatbridge::tiles::write_tiles(dir.path(), &scene, &opts).unwrap();
+    splatbridge::pipeline::tiles::write_tiles(dir.path(), &scene, &opts).unwrap();
     check_tileset(dir.path(), &opts, &cloud);
 }
 
@@ -369,7 +369,7 @@ fn cesium_and_babylon_on(
         origin,
         ..options(TileContent::Splats, KhrCompression::SpzCesium, max_per_tile)
     };
-    splatbridge::tiles::write_tiles(root.as_path(), &scene, &opts).unwrap();
+    splatbridge::pipeline::tiles::write_tiles(root.as_path(), &scene, &opts).unwrap();
     let (w, h) = (320u32, 240u32);
     let cam = Camera::look_at(eye, target, up, 50.0, w, h).unwrap();
     let (native, _) =
@@ -460,7 +460,7 @@ fn cesium_and_babylon_on(
         origin,
         ..options(TileContent::Splats, KhrCompression::SpzCesium, 1 << 20)
     };
-    splatbridge::tiles::write_tiles(&one_dir, &scene, &opts1).unwrap();
+    splatbridge::pipeline::tiles::write_tiles(&one_dir, &scene, &opts1).unwrap();
     let out1 = root.join("cesium_one_tile.png");
     render_tileset("cesium", &one_dir, &out1, &opts1, [eye, target, up]);
     let p1 = splatbridge_scene::metrics::psnr(
@@ -520,7 +520,7 @@ fn three_tiles_renderer_draws_the_mesh_tileset_like_one_file() {
     let cloud = clusters(1200);
     let scene = DynamicScene::from_static(cloud.clone());
     let opts = options(TileContent::Mesh, KhrCompression::None, 200);
-    let rep = splatbridge::tiles::write_tiles(dir.path(), &scene, &opts).unwrap();
+    let rep = splatbridge::pipeline::tiles::write_tiles(dir.path(), &scene, &opts).unwrap();
     assert!(rep.leaves > 1, "the check needs several content tiles");
     let (w, h) = (320u32, 240u32);
     let eye = glam::DVec3::new(20.0, -25.0, -22.0);
@@ -604,13 +604,17 @@ fn streamed_tileset_is_byte_identical_to_the_in_memory_one() {
         )
         .unwrap();
         let whole = dir.path().join("whole");
-        let rep_a =
-            splatbridge::tiles::write_tiles(&whole, &DynamicScene::from_static(read), &opts)
-                .unwrap();
+        let rep_a = splatbridge::pipeline::tiles::write_tiles(
+            &whole,
+            &DynamicScene::from_static(read),
+            &opts,
+        )
+        .unwrap();
         let streamed = dir.path().join("streamed");
-        let rep_b = splatbridge::tiles::write_tiles_from_ply(&streamed, &ply, true, &opts)
-            .unwrap()
-            .expect("a binary PLY streams");
+        let rep_b =
+            splatbridge::pipeline::tiles::write_tiles_from_ply(&streamed, &ply, true, &opts)
+                .unwrap()
+                .expect("a binary PLY streams");
         assert_eq!(rep_a.gaussians, 1498);
         assert_eq!((rep_a.tiles, rep_a.bytes), (rep_b.tiles, rep_b.bytes));
         let (a, b) = (files(&whole), files(&streamed));
@@ -624,9 +628,14 @@ fn streamed_tileset_is_byte_identical_to_the_in_memory_one() {
         std::fs::remove_dir_all(&streamed).unwrap();
     }
     let opts = options(TileContent::Splats, KhrCompression::SpzCesium, 150);
-    let err = splatbridge::tiles::write_tiles_from_ply(&dir.path().join("t"), &ply, false, &opts)
-        .unwrap_err()
-        .to_string();
+    let err = splatbridge::pipeline::tiles::write_tiles_from_ply(
+        &dir.path().join("t"),
+        &ply,
+        false,
+        &opts,
+    )
+    .unwrap_err()
+    .to_string();
     assert!(err.contains("vertex 7"), "{err}");
     assert!(!dir.path().join("t").join("tileset.json").exists());
 }
@@ -654,12 +663,12 @@ fn parallel_tileset_is_byte_identical_to_the_one_thread_one() {
             .unwrap();
         pool.install(|| {
             if streamed {
-                splatbridge::tiles::write_tiles_from_ply(&out, &ply, false, &opts)
+                splatbridge::pipeline::tiles::write_tiles_from_ply(&out, &ply, false, &opts)
                     .unwrap()
                     .expect("a binary PLY streams");
             } else {
                 let scene = DynamicScene::from_static(cloud.clone());
-                splatbridge::tiles::write_tiles(&out, &scene, &opts).unwrap();
+                splatbridge::pipeline::tiles::write_tiles(&out, &scene, &opts).unwrap();
             }
         });
         files(&out)

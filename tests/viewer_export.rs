@@ -10,30 +10,20 @@
 //!   stock three.js and Babylon.js render the exports through `scripts/client-render.sh`
 //!   within a PSNR floor of native splatting.
 
+mod cli_common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use cli_common::ok as run;
+
 use splatbridge_scene::camera_spec::{CameraRequest, CameraSource};
 use splatbridge_scene::Camera;
-
-const BIN: &str = env!("CARGO_BIN_EXE_splatbridge");
 
 fn fixture(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("fixtures/street")
         .join(name)
-}
-
-fn run(args: &[&str]) {
-    let out = Command::new(BIN)
-        .args(args)
-        .output()
-        .expect("splatbridge runs");
-    assert!(
-        out.status.success(),
-        "splatbridge {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
 }
 
 fn resolve(spec: &str, input: &Path, w: u32, h: u32) -> Camera {

@@ -1,26 +1,26 @@
 //! `splatbridge accuracy`: sweep the named knobs one at a time around the defaults and measure
 //! error against the reference (native splatting, reference settings) and time
-//! (`splatbridge::accuracy`). Writes `accuracy.json`, `accuracy.md` and plots of PSNR against
+//! (`splatbridge::measure::accuracy`). Writes `accuracy.json`, `accuracy.md` and plots of PSNR against
 //! time and against triangles, with the Pareto front and the MeshSplats default marked.
 
 use std::path::PathBuf;
 
 use anyhow::Context;
-use splatbridge::accuracy::{
+use splatbridge::batch::merge::{self, PartialReport};
+use splatbridge::batch::shard::{Shard, WorkKey};
+use splatbridge::measure::accuracy::{
     commit_outputs, measure_setting, read_records, reference_frames, settings, Sweep,
 };
-use splatbridge::merge::{self, PartialReport};
-use splatbridge::parity::Placed;
-use splatbridge::report::Record;
-use splatbridge::shard::{Shard, WorkKey};
+use splatbridge::measure::parity::Placed;
+use splatbridge::measure::report::Record;
 use splatbridge_scene::{Camera, GaussianCloud};
 
 use super::common;
-use super::compare::resolve_cameras;
+use splatbridge::measure::compare::{parse_profiles, resolve_cameras};
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// A 3DGS PLY or a splatbridge-scene/1 manifest (measured at --time).
+    #[arg(help = concat!("The scene: ", scene_formats!(), " (measured at --time)."))]
     pub scene: PathBuf,
     /// Cameras, comma-separated (as `compare --cameras`).
     #[arg(long, default_value = "orbit:3")]
@@ -80,7 +80,7 @@ fn print_records(records: &[Record]) {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     // Options first: a bad one is reported before a large scene is loaded.
-    let distill_profiles = super::compare::parse_profiles(&args.distill_profiles)
+    let distill_profiles = parse_profiles(&args.distill_profiles)
         .map_err(|e| anyhow::anyhow!("--distill-profiles: {e}"))?;
     if args.replot {
         let records = read_records(&args.out)?;
@@ -134,7 +134,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         settings.push((
             "hybrid",
             args.hybrid_split.text(),
-            splatbridge::accuracy::Setting::HybridWith(r.params, r.ges),
+            splatbridge::measure::accuracy::Setting::HybridWith(r.params, r.ges),
             false,
         ));
     }
@@ -166,11 +166,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     pb.finish_and_clear();
     let curve = if args.only.iter().any(|o| o == "distill") {
-        let cfg = splatbridge::accuracy_distill::DistillSweep {
+        let cfg = splatbridge::measure::accuracy_distill::DistillSweep {
             profiles: distill_profiles,
             ..Default::default()
         };
-        let pts = splatbridge::accuracy_distill::distill_rows(&sweep, &cfg)?;
+        let pts = splatbridge::measure::accuracy_distill::distill_rows(&sweep, &cfg)?;
         records.extend(pts.iter().map(|p| p.record.clone()));
         Some(pts)
     } else {
@@ -220,7 +220,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     commit_outputs(&args.out, &what, &records)?;
     if let Some(pts) = curve {
-        splatbridge::accuracy_distill::write_curve(&args.out, &what, &pts)?;
+        splatbridge::measure::accuracy_distill::write_curve(&args.out, &what, &pts)?;
         println!("wrote {}", args.out.join("distill.md").display());
     }
     print_records(&records);

@@ -135,6 +135,11 @@ impl CameraArgs {
     }
 }
 
+/// An f32 knob as the f64 its shortest decimal form denotes (0.99, not 0.9900000095367432).
+pub fn short(x: f32) -> f64 {
+    x.to_string().parse().unwrap_or(x as f64)
+}
+
 /// Parse `R,G,B` in [0, 1].
 pub fn parse_rgb(s: &str) -> Result<glam::Vec3, String> {
     let v = parse_vec3(s)?;

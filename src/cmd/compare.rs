@@ -1,24 +1,22 @@
 //! `splatbridge compare`: every renderer and converter profile against native splatting at the
-//! same cameras and times; images, heat-maps, `report.json` and `report.md`.
+//! same cameras and times; images, heat-maps, `report.json` and `report.md`. The run is
+//! `splatbridge::measure::compare`'s; this module parses the options and prints.
 
-use splatbridge_scene::output::OutputSet;
 use std::path::PathBuf;
 
 use anyhow::Context;
-use splatbridge::merge::{self, PartialReport};
-use splatbridge::parity::{self, CompareConfig};
-use splatbridge::shard::{Shard, WorkKey};
-use splatbridge_convert::Profile;
-use splatbridge_scene::dynamic::DynamicScene;
-use splatbridge_scene::{Camera, GaussianCloud};
-
-use splatbridge_scene::camera_spec::{parse_camera_list, CameraRequest, CameraSource, CameraSpec};
+use splatbridge::batch::merge;
+use splatbridge::batch::shard::Shard;
+use splatbridge::measure::compare::{
+    default_times, parse_profiles, run_compare, scene_cameras, Compared,
+};
+use splatbridge::measure::parity::CompareConfig;
 
 use super::common;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// A 3DGS PLY or a splatbridge-scene/1 manifest.
+    #[arg(help = concat!("The scene: ", scene_formats!(), "."))]
     pub scene: PathBuf,
     /// Cameras, comma-separated: `orbit:N` (all N), `orbit:N:I`, `scene` (all of the scene's),
     /// `scene:I`, `PATH.json:I`.
@@ -77,56 +75,9 @@ pub struct Args {
     pub out: PathBuf,
 }
 
-/// Resolve a comma-separated camera list.
-/// The cameras of a `--cameras` list at `width`×`height` (orbit rigs frame `cloud`).
-pub fn resolve_cameras(
-    spec: &str,
-    cloud: &GaussianCloud,
-    scene: &DynamicScene,
-    width: u32,
-    height: u32,
-) -> anyhow::Result<Vec<Camera>> {
-    let items = parse_camera_list(spec).with_context(|| format!("--cameras '{spec}'"))?;
-    let mut request = CameraRequest::new(CameraSpec::Scene(0));
-    request.width = Some(width);
-    request.height = Some(height);
-    let cams = request.resolve_list(
-        &items,
-        CameraSource {
-            cloud,
-            own: &scene.cameras,
-        },
-    )?;
-    if cams.is_empty() {
-        anyhow::bail!("--cameras '{spec}' names no camera");
-    }
-    Ok(cams)
-}
-
-pub fn default_times(scene: &DynamicScene) -> Vec<f64> {
-    if scene.objects.is_empty() {
-        vec![scene.time.start]
-    } else {
-        let (a, b) = (scene.time.start, scene.time.end);
-        vec![a, 0.5 * (a + b), b]
-    }
-}
-
-pub fn parse_profiles(names: &[String]) -> anyhow::Result<Vec<Profile>> {
-    names
-        .iter()
-        .map(|n| match n.as_str() {
-            "meshsplats" => Ok(Profile::MeshSplats),
-            "rings" => Ok(Profile::Rings),
-            "texture" => Ok(Profile::Texture),
-            other => anyhow::bail!("unknown profile '{other}' (meshsplats, rings, texture)"),
-        })
-        .collect()
-}
-
 pub fn run(args: Args) -> anyhow::Result<()> {
     // Options first: a bad one is reported before a large scene is loaded.
-    let max_memory = splatbridge::budget::parse_budget(&args.max_memory)
+    let max_memory = splatbridge::measure::budget::parse_budget(&args.max_memory)
         .map_err(|e| anyhow::anyhow!("--max-memory: {e}"))?;
     let mut scene = common::load(&args.scene, args.drop_invalid)?;
     let times = if args.times.is_empty() {
@@ -134,20 +85,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         args.times.clone()
     };
-    // Orbit rigs frame the first time's composite; a static scene's is its own cloud, and a
-    // dynamic scene's copy is dropped before anything is rendered.
-    let cams = if scene.objects.is_empty() {
-        resolve_cameras(
-            &args.cameras,
-            &scene.static_gaussians,
-            &scene,
-            args.width,
-            args.height,
-        )?
-    } else {
-        let frame0 = scene.composite_view(times[0]);
-        resolve_cameras(&args.cameras, &frame0, &scene, args.width, args.height)?
-    };
+    let cams = scene_cameras(&args.cameras, &scene, &times, args.width, args.height)?;
     // The hybrid's split and blend; `--split auto` measures them on the first time's composite.
     let hybrid = args
         .hybrid_split
@@ -164,53 +102,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         backend: args.backend.parse()?,
         k: args.k,
         clients: match &args.clients {
-            Some(l) => splatbridge::clients::Client::parse_list(l)
+            Some(l) => splatbridge::measure::clients::Client::parse_list(l)
                 .map_err(|e| anyhow::anyhow!("--clients: {e}"))?,
             None => Vec::new(),
         },
         client_script: args
             .client_script
             .clone()
-            .unwrap_or_else(splatbridge::clients::default_script),
+            .unwrap_or_else(splatbridge::measure::clients::default_script),
         max_memory,
         ..CompareConfig::default()
     };
     let pb = common::progress(0, "compare");
-    // Every image, heat-map, export and report is written to a staging folder inside `--out`
-    // and moved into place only when the whole comparison succeeded.
-    let mut outputs = OutputSet::new();
-    let stage = outputs.stage_dir(&args.out)?;
     let progress = |m: &str| pb.set_message(m.to_string());
-    let shard = args.shard;
-    let (placed, scene_hash) = match shard {
-        None => (
-            parity::compare_selected(
-                &mut scene,
-                &cams,
-                &times,
-                &stage,
-                &cfg,
-                &|_, _| true,
-                &progress,
-            )?,
-            String::new(),
-        ),
-        Some(shard) => {
-            let hash = merge::scene_hash(&scene);
-            let key = |ti: usize, ci: usize| WorkKey {
-                scene: hash.clone(),
-                time: times[ti],
-                camera: format!("{ci}:{}", cams[ci].name),
-                setting: String::new(),
-            };
-            let owned = |ti: usize, ci: usize| shard.owns(&key(ti, ci));
-            let placed = parity::compare_selected(
-                &mut scene, &cams, &times, &stage, &cfg, &owned, &progress,
-            )?;
-            (placed, hash)
-        }
-    };
-    pb.finish_and_clear();
     let preamble = format!(
         "Scene `{}`: {} cameras × {} times, {}×{} pixels. Reference: native splatting with reference settings. \
          PSNR/SSIM against the reference; milliseconds are render times on this machine (BVH builds and exports excluded).",
@@ -220,34 +124,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.width,
         args.height
     );
-    let title = "splatbridge compare";
-    let peak = splatbridge::memory::peak_bytes().unwrap_or(0) as f64 / 1e6;
-    if let Some(shard) = shard {
-        let n = placed.len();
-        let report = PartialReport {
-            format: merge::PARTIAL_FORMAT.into(),
-            command: "compare".into(),
-            version: env!("CARGO_PKG_VERSION").into(),
-            scene_hash,
-            options_hash: merge::options_hash(&options_text(&args, &times)),
-            shard,
-            title: title.into(),
-            preamble,
-            files: Vec::new(),
-            peak_memory_bytes: 0,
-            records: placed,
-        };
-        merge::commit_shard(outputs, &stage, report)?;
-        println!("shard {shard}: {n} records; peak memory {peak:.1} MB");
-        println!("wrote {}", args.out.join(merge::REPORT).display());
-        return Ok(());
+    let options = options_text(&args, &times);
+    let compared = run_compare(
+        &mut scene, &cams, &times, &cfg, &args.out, args.shard, &options, preamble, &progress,
+    )?;
+    pb.finish_and_clear();
+    let peak = splatbridge::measure::memory::peak_bytes().unwrap_or(0) as f64 / 1e6;
+    match compared {
+        Compared::Shard(shard, n) => {
+            println!("shard {shard}: {n} records; peak memory {peak:.1} MB");
+            println!("wrote {}", args.out.join(merge::REPORT).display());
+        }
+        Compared::Whole(records) => {
+            print_summary(&records);
+            println!("peak memory {peak:.1} MB");
+            println!("wrote {}", args.out.join("report.md").display());
+        }
     }
-    let records = parity::report_order(placed);
-    parity::write_reports(&stage, title, &preamble, &records)?;
-    outputs.commit()?;
-    print_summary(&records);
-    println!("peak memory {peak:.1} MB");
-    println!("wrote {}", args.out.join("report.md").display());
     Ok(())
 }
 
@@ -272,7 +165,7 @@ fn options_text(args: &Args, times: &[f64]) -> String {
 }
 
 /// Mean PSNR per renderer/profile/format, one line each.
-pub fn print_summary(records: &[splatbridge::report::Record]) {
+pub fn print_summary(records: &[splatbridge::measure::report::Record]) {
     let mut keys: Vec<(String, String, String)> = Vec::new();
     for r in records {
         let k = (r.renderer.clone(), r.profile.clone(), r.format.clone());

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context;
-use splatbridge::parity::{self, CompareConfig};
+use splatbridge::measure::parity::{self, CompareConfig};
 use splatbridge_convert::ConvertOptions;
 use splatbridge_scene::fixtures;
 

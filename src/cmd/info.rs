@@ -1,17 +1,16 @@
 //! `splatbridge info`: describe any scene file (every splat format, or a manifest) with
-//! `splatbridge::describe`, as text or one JSON object.
+//! `splatbridge::measure::describe`, as text or one JSON object.
 
 use std::path::PathBuf;
 
 use serde_json::Value;
-use splatbridge::describe::{QUANTILES, ROBUST_P, TINY_LOG_SCALE};
+use splatbridge::measure::describe::{QUANTILES, ROBUST_P, TINY_LOG_SCALE};
 
 use crate::cmd::common::load_with_info;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// A splat file (3DGS or compressed PLY, .splat, .spz, .sog/meta.json, glTF/GLB) or a
-    /// splatbridge-scene/1 manifest; the format is recognised by content.
+    #[arg(help = concat!("The scene: ", scene_formats!(), "; the format is recognised by content."))]
     pub file: PathBuf,
     /// Print one JSON object instead of text.
     #[arg(long)]
@@ -29,7 +28,7 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let (scene, info) = load_with_info(&args.file, args.drop_invalid)?;
-    let mut out = splatbridge::describe::describe(&args.file, &scene, &info);
+    let mut out = splatbridge::measure::describe::describe(&args.file, &scene, &info);
     if args.blocks {
         let n = args
             .max_gaussians_per_tile

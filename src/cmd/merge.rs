@@ -1,9 +1,9 @@
 //! `splatbridge merge SHARD_DIR... -o OUT`: join the folders of a sharded `compare` or
-//! `accuracy` run (`--shard I/N`) into what the unsharded run writes (`splatbridge::merge`).
+//! `accuracy` run (`--shard I/N`) into what the unsharded run writes (`splatbridge::batch::merge`).
 
 use std::path::PathBuf;
 
-use splatbridge::merge;
+use splatbridge::batch::merge;
 
 #[derive(clap::Args)]
 pub struct Args {

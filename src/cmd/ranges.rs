@@ -55,9 +55,28 @@ fn in_range(s: &str, lo: usize, hi: usize) -> Result<usize, String> {
     Ok(v)
 }
 
+/// `--alpha-clamp`: 0.99 (reference) or 0.999 (gsplat).
+pub fn alpha_clamp(s: &str) -> Result<f32, String> {
+    match s.trim() {
+        "0.99" => Ok(0.99),
+        "0.999" => Ok(0.999),
+        _ => Err(format!(
+            "'{s}': alpha clamp is 0.99 (reference) or 0.999 (gsplat)"
+        )),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn alpha_clamp_accepts_only_the_named_values() {
+        assert_eq!(alpha_clamp("0.99"), Ok(0.99));
+        assert_eq!(alpha_clamp("0.999"), Ok(0.999));
+        assert!(alpha_clamp("0.9").is_err());
+        assert!(alpha_clamp("1").is_err());
+    }
 
     #[test]
     fn ranges_accept_their_bounds_and_refuse_beyond() {

@@ -1,23 +1,21 @@
 //! `splatbridge render`: render a scene with the native 3DGS splatting renderer (the reference
 //! forward pass; knobs and their reference defaults in `splatbridge_hybrid::native`).
 //!
-//! Frames come from `splatbridge::pipeline::render_frame` (the composite plus declared weather
+//! Frames come from `splatbridge::pipeline::still` (`render_frame`: the composite plus declared weather
 //! particles, one cloud per motion-blur sample, averaged; shadows and LiDAR are ray-traced
 //! effects, listed as not simulated). This module parses the options and prints.
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Context};
+use anyhow::bail;
 use serde_json::json;
-use splatbridge::pipeline::sequence::{render_sequence, SequenceRequest};
-use splatbridge::pipeline::{render_frame, FrameRequest, FrameStats, RenderedFrame, Renderer};
+use splatbridge::pipeline::sequence::SequenceFrame;
+use splatbridge::pipeline::still::{check_image_output, Still};
+use splatbridge::pipeline::{FrameStats, RenderedFrame, Renderer};
 use splatbridge_hybrid::{Extent, RenderOptions, RenderStats};
-use splatbridge_scene::effects::EffectCounters;
-use splatbridge_scene::effects_run::effects_of;
-use splatbridge_scene::image_io::save_frame;
 use splatbridge_scene::Camera;
 
-use crate::cmd::common::{load, parse_rgb, CameraArgs};
+use crate::cmd::common::{parse_rgb, print_warning, short, CameraArgs};
 
 /// Footprint extent (see `splatbridge_hybrid::Extent`).
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -37,17 +35,6 @@ impl From<ExtentArg> for Extent {
     }
 }
 
-/// Parse the α clamp: 0.99 (reference) or 0.999 (gsplat).
-pub fn parse_alpha_clamp(s: &str) -> Result<f32, String> {
-    match s.trim() {
-        "0.99" => Ok(0.99),
-        "0.999" => Ok(0.999),
-        _ => Err(format!(
-            "'{s}': alpha clamp is 0.99 (reference) or 0.999 (gsplat)"
-        )),
-    }
-}
-
 /// The renderer knobs shared by `render` and `bench render`.
 #[derive(clap::Args, Clone, Debug)]
 pub struct RenderKnobs {
@@ -62,7 +49,7 @@ pub struct RenderKnobs {
     #[arg(long, value_enum, default_value_t = ExtentArg::Sigma3)]
     pub extent: ExtentArg,
     /// α clamp: 0.99 (reference) or 0.999 (gsplat).
-    #[arg(long, value_parser = parse_alpha_clamp, default_value = "0.99")]
+    #[arg(long, value_parser = super::ranges::alpha_clamp, default_value = "0.99")]
     pub alpha_clamp: f32,
     /// Highest SH degree evaluated (0–3; the scene's own degree if lower).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(0..=3))]
@@ -81,13 +68,17 @@ impl RenderKnobs {
         }
     }
 
+    fn extent_name(&self) -> &'static str {
+        match self.extent {
+            ExtentArg::Sigma3 => "sigma3",
+            ExtentArg::Alpha => "alpha",
+        }
+    }
+
     /// The knobs as JSON (for `--json` reports).
     pub fn to_json(&self) -> serde_json::Value {
         json!({
-            "extent": match self.extent {
-                ExtentArg::Sigma3 => "sigma3",
-                ExtentArg::Alpha => "alpha",
-            },
+            "extent": self.extent_name(),
             "alpha_clamp": short(self.alpha_clamp),
             "sh_degree": self.sh_degree,
             "near": short(self.near),
@@ -98,10 +89,7 @@ impl RenderKnobs {
     pub fn describe(&self) -> String {
         format!(
             "extent {}, alpha clamp {}, SH degree cap {}, near {}, background {},{},{}",
-            match self.extent {
-                ExtentArg::Sigma3 => "sigma3",
-                ExtentArg::Alpha => "alpha",
-            },
+            self.extent_name(),
             self.alpha_clamp,
             self.sh_degree,
             self.near,
@@ -114,7 +102,7 @@ impl RenderKnobs {
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// A 3DGS PLY or a splatbridge-scene/1 manifest (rendered as the composite at --time).
+    #[arg(help = concat!("The scene: ", scene_formats!(), " (rendered as the composite at --time)."))]
     pub scene: PathBuf,
     #[command(flatten)]
     pub camera: CameraArgs,
@@ -127,7 +115,7 @@ pub struct Args {
     /// With --frames: render only shard I of N (0 ≤ I < N) of the frames and write a partial
     /// report.json beside them for `splatbridge merge` (see docs/scale.md).
     #[arg(long, value_name = "I/N", requires = "frames")]
-    pub shard: Option<splatbridge::shard::Shard>,
+    pub shard: Option<splatbridge::batch::shard::Shard>,
     #[command(flatten)]
     pub knobs: RenderKnobs,
     /// Drop invalid Gaussians (NaN, zero quaternion) with a counted warning instead of failing.
@@ -139,11 +127,6 @@ pub struct Args {
     /// Print one JSON object (knobs, per-frame stats, effect counters) instead of the summary.
     #[arg(long)]
     pub json: bool,
-}
-
-/// An f32 knob as the f64 its shortest decimal form denotes (0.99, not 0.9900000095367432).
-pub fn short(x: f32) -> f64 {
-    x.to_string().parse().unwrap_or(x as f64)
 }
 
 /// The stats of a render as JSON (times in milliseconds).
@@ -211,39 +194,22 @@ pub fn warn_near(stats: &RenderStats, near: f32) {
     }
 }
 
-fn check_output(out: &Path) -> anyhow::Result<()> {
-    let ext = out
-        .extension()
-        .map(|e| e.to_string_lossy().to_ascii_lowercase())
-        .unwrap_or_default();
-    if ext != "png" && ext != "exr" {
-        bail!("{}: output must end in .png or .exr", out.display());
-    }
-    Ok(())
-}
-
 pub fn run(args: Args) -> anyhow::Result<()> {
-    check_output(&args.out)?;
-    let name = args.scene.display().to_string();
-    let scene = load(&args.scene, args.drop_invalid)?;
-    let effects = effects_of(&scene).with_context(|| name.clone())?;
+    check_image_output(&args.out)?;
+    let still = Still::load(
+        &args.scene,
+        args.drop_invalid,
+        &print_warning,
+        &|| args.camera.request(),
+        args.time,
+        args.frames,
+    )?;
     let mut renderer = Renderer::native(args.knobs.options())?;
-    let near = args.knobs.near;
-    let times = if args.frames {
-        scene.frame_times()
-    } else {
-        vec![args.time.unwrap_or(scene.time.start)]
-    };
-    // The camera is resolved once (orbit rigs frame the first composite, without particles),
-    // so frames share it.
-    let cam = args
-        .camera
-        .resolve(&scene.composite_view(times[0]), &scene.cameras)
-        .with_context(|| name.clone())?;
+    let (name, cam, near) = (&still.name, &still.camera, args.knobs.near);
     if !args.json {
         println!("render {name}: {}", args.knobs.describe());
     }
-    let mut frames_json = Vec::with_capacity(times.len());
+    let mut frames_json = Vec::with_capacity(still.times.len());
     let mut print_frame = |out: &Path, t: f64, r: &RenderedFrame| -> anyhow::Result<()> {
         let FrameStats::Native(stats) = &r.stats else {
             bail!("{name}: native splatting returned another renderer's stats");
@@ -266,46 +232,32 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             } else {
                 println!("{} (t = {t})", out.display());
             }
-            print_summary(&cam, stats, near);
+            print_summary(cam, stats, near);
         }
         Ok(())
     };
     let counters = if args.frames {
         // A `--frames` sequence appears together or not at all (and never half old, half new).
-        let req = SequenceRequest {
-            command: "render",
-            scene: &scene,
-            effects: &effects,
-            camera: &cam,
-            out: &args.out,
-            content: EffectCounters::default(),
-            lidar: None,
-            shard: args.shard,
-            canonical: format!(
-                "render\ncamera={:?}\nknobs={}\ndrop_invalid={}\nout={:?}",
-                cam,
-                args.knobs.describe(),
-                args.drop_invalid,
-                args.out.file_name()
-            ),
-        };
-        let run = render_sequence(&mut renderer, &req, &mut |_, _| Ok(None), &mut |f| {
-            print_frame(&f.path, f.time, f.rendered)
-        })
-        .with_context(|| name.clone())?;
+        let canonical = format!(
+            "render\ncamera={:?}\nknobs={}\ndrop_invalid={}\nout={:?}",
+            cam,
+            args.knobs.describe(),
+            args.drop_invalid,
+            args.out.file_name()
+        );
+        let mut on_frame = |f: &SequenceFrame| print_frame(&f.path, f.time, f.rendered);
+        let run = still.render_frames(
+            &mut renderer,
+            &args.out,
+            "render",
+            args.shard,
+            canonical,
+            &mut on_frame,
+        )?;
         run.counters
     } else {
-        let req = FrameRequest {
-            scene: Some(&scene),
-            effects: &effects,
-            camera: &cam,
-            time: times[0],
-            content: EffectCounters::default(),
-            lidar: None,
-        };
-        let r = render_frame(&mut renderer, &req).with_context(|| name.clone())?;
-        save_frame(&args.out, &r.frame)?;
-        print_frame(&args.out, times[0], &r)?;
+        let r = still.render_one(&mut renderer, &args.out)?;
+        print_frame(&args.out, still.times[0], &r)?;
         r.counters
     };
     if args.json {
@@ -322,25 +274,4 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("{}", counters.summary());
     }
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn alpha_clamp_accepts_only_the_named_values() {
-        assert_eq!(parse_alpha_clamp("0.99"), Ok(0.99));
-        assert_eq!(parse_alpha_clamp("0.999"), Ok(0.999));
-        assert!(parse_alpha_clamp("0.9").is_err());
-        assert!(parse_alpha_clamp("1").is_err());
-    }
-
-    #[test]
-    fn outputs_must_be_png_or_exr() {
-        assert!(check_output(Path::new("a/b.PNG")).is_ok());
-        assert!(check_output(Path::new("b.exr")).is_ok());
-        assert!(check_output(Path::new("b.jpg")).is_err());
-        assert!(check_output(Path::new("b")).is_err());
-    }
 }

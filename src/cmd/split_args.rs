@@ -2,7 +2,7 @@
 //! renderers (`compare`, `accuracy`): the same choices as `hybrid`'s own
 //! ([`super::hybrid::HybridKnobs`]), with the other hybrid knobs at their defaults.
 
-use splatbridge::split_auto::{
+use splatbridge::pipeline::split_auto::{
     blend_name, choose, AutoChoice, AutoConfig, DEFAULT_BLEND, DEFAULT_MIN_PSNR,
     DISC_FOOTPRINT_SIGMAS,
 };

@@ -1,5 +1,5 @@
 //! `splatbridge convert SCENE --tiles DIR`: the 3D Tiles options and their summary. The work
-//! is `splatbridge::tiles::write_tiles`.
+//! is `splatbridge::pipeline::tiles::write_tiles`.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -9,11 +9,11 @@ use clap::ValueEnum;
 use splatbridge::pipeline::export::load_export_input;
 use splatbridge_convert::splats_gltf::KhrCompression;
 use splatbridge_convert::tiles::{TileContent, TileOptions, TILE_GZIP_LEVEL};
-use splatbridge_convert::{ColorEncoding, ConvertOptions, Profile, UpAxis};
+use splatbridge_convert::Profile;
 use splatbridge_scene::blocks::DEFAULT_MAX_PER_BLOCK;
 
 use crate::cmd::common;
-use crate::cmd::convert::{Args, ColorArg, ProfileArg, UpArg};
+use crate::cmd::convert::Args;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum TileContentArg {
@@ -119,24 +119,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             Some(TileCompressionArg::Spz) | None => KhrCompression::SpzCesium,
         },
         gzip_level: args.tiles.tile_gzip_level.unwrap_or(TILE_GZIP_LEVEL),
-        convert: ConvertOptions {
-            profile: match args.profile {
-                Some(ProfileArg::Meshsplats) => Profile::MeshSplats,
-                Some(ProfileArg::Rings) => Profile::Rings,
-                Some(ProfileArg::Texture) | None => Profile::Texture,
-            },
-            up: match args.up {
-                UpArg::Y => UpAxis::Y,
-                UpArg::Z => UpAxis::Z,
-                UpArg::NegY => UpAxis::NegY,
-            },
-            color_encoding: match args.color_encoding {
-                ColorArg::Linear => ColorEncoding::Linear,
-                ColorArg::Display => ColorEncoding::Display,
-            },
-            gaussian_ids: !args.no_ids,
-            ..Default::default()
-        },
+        convert: args.base_options(Profile::Texture),
     };
     let pb = common::progress(1, "writing tiles");
     // A binary PLY is streamed (two passes, memory bounded by the partition and a tile);
@@ -149,7 +132,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         bail!("--shard and --from-shards with --tiles need a binary .ply input");
     }
     if let Some(shard) = args.shard {
-        let rep = splatbridge::tiles::write_tiles_shard(
+        let rep = splatbridge::pipeline::tiles::write_tiles_shard(
             dir,
             &args.scene,
             args.drop_invalid,
@@ -170,7 +153,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         return Ok(());
     }
     let streamed = if !args.tiles.from_shards.is_empty() {
-        Some(splatbridge::tiles::write_tiles_from_shards(
+        Some(splatbridge::pipeline::tiles::write_tiles_from_shards(
             dir,
             &args.scene,
             args.drop_invalid,
@@ -179,7 +162,12 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         )?)
     } else if is_ply {
         // Errors name their file (the PLY or the tile written).
-        splatbridge::tiles::write_tiles_from_ply(dir, &args.scene, args.drop_invalid, &opts)?
+        splatbridge::pipeline::tiles::write_tiles_from_ply(
+            dir,
+            &args.scene,
+            args.drop_invalid,
+            &opts,
+        )?
     } else {
         None
     };
@@ -187,7 +175,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         Some(rep) => rep,
         None => {
             let scene = load_export_input(&args.scene, args.drop_invalid, &common::print_warning)?;
-            splatbridge::tiles::write_tiles(dir, &scene, &opts)
+            splatbridge::pipeline::tiles::write_tiles(dir, &scene, &opts)
                 .with_context(|| dir.display().to_string())?
         }
     };

@@ -1,7 +1,7 @@
 //! Per-frame runs split into shards, whose result is files (no records to join):
 //!
 //! - `convert --frames --shard I/N`, one shard of a per-frame OBJ export. The work item of frame
-//!   `i` at time `t` is (scene hash, t, "", `convert i`) (`crate::shard`); the shard writes the
+//!   `i` at time `t` is (scene hash, t, "", `convert i`) (`crate::batch::shard`); the shard writes the
 //!   OBJs of the frames it owns, the shared MTL, and a partial `report.json` beside them, all in
 //!   one atomic output set (a re-run replaces the folder's outputs as a whole).
 //! - `trace --lidar-all-frames --shard I/N`: the LiDAR scans of the frames the shard owns (work
@@ -18,8 +18,8 @@ use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::effects::EffectCounters;
 use splatbridge_scene::output::OutputSet;
 
-use crate::merge::{options_hash, scene_hash, PartialReport, PARTIAL_FORMAT, REPORT};
-use crate::shard::{Shard, WorkKey};
+use crate::batch::merge::{options_hash, scene_hash, PartialReport, PARTIAL_FORMAT, REPORT};
+use crate::batch::shard::{Shard, WorkKey};
 
 /// The work key of frame `index` at `time` of a per-frame export.
 pub fn frame_key(scene_hash: &str, index: usize, time: f64) -> WorkKey {
@@ -101,7 +101,7 @@ pub(crate) fn partial_report(
             .filter_map(|p| p.file_name())
             .map(|n| n.to_string_lossy().into_owned())
             .collect(),
-        peak_memory_bytes: crate::memory::peak_bytes().unwrap_or(0),
+        peak_memory_bytes: crate::measure::memory::peak_bytes().unwrap_or(0),
         records: Vec::new(),
     }
 }

@@ -45,13 +45,13 @@ pub struct LidarRequest {
     pub backend: BackendKind,
     pub preset: BuildPreset,
     /// With `all_frames`: scan only the frames this shard owns (work key: scene hash, the
-    /// frame's time, no camera, `lidar I`; see `crate::shard`).
-    pub shard: Option<crate::shard::Shard>,
+    /// frame's time, no camera, `lidar I`; see `crate::batch::shard`).
+    pub shard: Option<crate::batch::shard::Shard>,
 }
 
 /// The work key of LiDAR frame `index` at `time`.
-pub fn lidar_key(scene_hash: &str, index: usize, time: f64) -> crate::shard::WorkKey {
-    crate::shard::WorkKey {
+pub fn lidar_key(scene_hash: &str, index: usize, time: f64) -> crate::batch::shard::WorkKey {
+    crate::batch::shard::WorkKey {
         scene: scene_hash.to_string(),
         time,
         camera: String::new(),
@@ -273,7 +273,7 @@ fn run_lidar(
         return Ok(None);
     };
     if l.all_frames {
-        let hash = l.shard.map(|_| crate::merge::scene_hash(scene));
+        let hash = l.shard.map(|_| crate::batch::merge::scene_hash(scene));
         let keep = |i: usize, t: f64| match (l.shard, &hash) {
             (Some(s), Some(h)) => s.owns(&lidar_key(h, i, t)),
             _ => true,

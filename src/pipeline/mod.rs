@@ -11,16 +11,26 @@
 //! - [`sequence`]: [`sequence::render_sequence`], every frame of a scene's time range as one
 //!   atomic set of images (and LiDAR scans), sharded with `--shard I/N`.
 //! - [`export`]: a scene to a mesh, glTF splats or a single-cloud splat file, with its
-//!   per-frame content and effect counters (what `convert` runs).
+//!   per-frame content and effect counters (what `convert` runs); [`export_shard`] a
+//!   sharded frame export; [`export_request`] what `convert` asks, checked and resolved.
+//! - [`still`]: a scene rendered by native splatting or the hybrid, one frame or a sequence
+//!   (`render`, `hybrid`); [`trace_job`]: `trace`'s frame or sequence.
+//! - [`tiles`]: 3D Tiles with geometric errors measured by rendering (`convert --tiles`).
+//! - [`split_auto`]: `--split auto`, the hybrid renderer's surfel split chosen by measuring.
 //!
 //! Cameras are chosen with `splatbridge_scene::camera_spec`.
 
 pub mod export;
+pub mod export_request;
 pub mod export_shard;
 pub mod frame;
 pub mod renderer;
 pub mod sequence;
 pub mod source;
+pub mod split_auto;
+pub mod still;
+pub mod tiles;
+pub mod trace_job;
 
 pub use frame::{render_frame, FrameRequest, LidarRequest, RenderedFrame};
 pub use renderer::{FrameStats, Renderer, SurfelSplit};

@@ -78,7 +78,7 @@ impl SurfelSplit {
         }
         let p = &self.checked_params()?;
         let (s, g, counts) = split_counted(cloud, p);
-        let mut how = crate::split_auto::describe_params(p);
+        let mut how = crate::pipeline::split_auto::describe_params(p);
         if counts.candidates > s.len() {
             how += &format!(
                 " ({} candidates: {} too large for the scene, {} isolated, {} too large for their neighbours)",

@@ -5,7 +5,7 @@
 //! frame (`lidar_NNNN.ply`, staged with the frames), and with `--shard I/N` a partial
 //! `report.json` appear together when the last frame is done, or not at all. A shard renders
 //! the frames it owns (work item: scene hash, the frame's time, the camera's name,
-//! `COMMAND i`; `crate::shard`), so `splatbridge merge` of N shards gives the unsharded run's
+//! `COMMAND i`; `crate::batch::shard`), so `splatbridge merge` of N shards gives the unsharded run's
 //! files bit for bit. Frames are rendered one at a time and written as they are staged: memory
 //! holds one frame, not the sequence.
 
@@ -21,8 +21,8 @@ use splatbridge_scene::Camera;
 use super::export_shard::partial_report;
 use super::frame::{render_frame, FrameRequest, LidarRequest, RenderedFrame};
 use super::renderer::Renderer;
-use crate::merge::{scene_hash, REPORT};
-use crate::shard::{Shard, WorkKey};
+use crate::batch::merge::{scene_hash, REPORT};
+use crate::batch::shard::{Shard, WorkKey};
 
 /// A sequence to render.
 pub struct SequenceRequest<'a> {

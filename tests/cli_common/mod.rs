@@ -34,6 +34,22 @@ pub fn ok(args: &[&str]) -> Output {
     r
 }
 
+/// The binary with arguments or an environment [`ok`] cannot give (paths, variables).
+pub fn bin() -> Command {
+    Command::new(BIN)
+}
+
+/// Run `cmd`, failing the test with its stderr unless it succeeds.
+pub fn succeeded(cmd: &mut Command) -> Output {
+    let r = cmd.output().expect("the command runs");
+    assert!(
+        r.status.success(),
+        "{cmd:?} failed:\n{}",
+        String::from_utf8_lossy(&r.stderr)
+    );
+    r
+}
+
 /// A fresh folder `splatbridge-PREFIX-PID-NAME` under the system's temporary folder.
 pub fn temp_dir(prefix: &str, name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!(

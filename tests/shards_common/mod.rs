@@ -40,6 +40,18 @@ pub fn street_with_effects(dir: &Path, count: usize, effects: &str) -> PathBuf {
     dir.join("street/scene.json")
 }
 
+/// `splatbridge COMMAND SCENE ARGS… [--shard SHARD] -o OUT` (OUT's folder made first), failing
+/// the test unless it succeeds.
+pub fn sharded(command: &str, scene: &Path, args: &[&str], shard: Option<&str>, out: &Path) {
+    let mut c = Command::new(bin());
+    c.arg(command).arg(scene).args(args);
+    if let Some(s) = shard {
+        c.args(["--shard", s]);
+    }
+    std::fs::create_dir_all(out.parent().unwrap()).unwrap();
+    ok(c.arg("-o").arg(out).output().unwrap(), command);
+}
+
 /// `splatbridge merge DIRS… -o OUT`.
 pub fn merge(dirs: &[PathBuf], out: &Path) -> Output {
     Command::new(bin())

@@ -16,7 +16,7 @@ use crate::cmd::common;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Scene to convert (PLY or manifest); default: the `large` fixture.
+    #[arg(help = concat!("The scene to convert: ", scene_formats!(), "; default: the `large` fixture."))]
     pub scene: Option<PathBuf>,
     /// Gaussians of the generated `large` fixture.
     #[arg(long, default_value_t = 1_000_000)]

@@ -25,7 +25,7 @@ use crate::cmd::common::{load, CameraArgs};
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Scene (PLY or manifest); default: the street fixture in memory.
+    #[arg(help = concat!("The scene: ", scene_formats!(), "; default: the street fixture in memory."))]
     pub scene: Option<PathBuf>,
     #[command(flatten)]
     pub camera: CameraArgs,

@@ -9,24 +9,26 @@
 //! sweep of the two split thresholds (opacity A × flatness R) and of the pass knobs at the
 //! default thresholds, each with its surfel count, median time and PSNR against native.
 //!
+//! The measuring is `splatbridge::measure::hybrid_bench`'s; this module prints.
+//!
 //! SCENE is a PLY or manifest, or `large:N` for the synthetic `large` fixture with N Gaussians.
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use splatbridge_hybrid::ges::{render_ges, Blend, GesOptions, GesStats};
-use splatbridge_hybrid::{render, RenderOptions};
+use splatbridge::measure::hybrid_bench::{head_to_head, sweep, Row};
+use splatbridge::pipeline::split_auto::{blend_name, describe_params, params_json};
+use splatbridge_hybrid::RenderOptions;
 use splatbridge_scene::metrics::psnr;
-use splatbridge_scene::surfels::{split, SplitParams};
-use splatbridge_scene::{Frame, GaussianCloud};
+use splatbridge_scene::surfels::split;
 
 use crate::cmd::common::{load, CameraArgs};
 use crate::cmd::hybrid::HybridKnobs;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// A PLY or manifest, or `large:N` (the synthetic large fixture with N Gaussians).
+    #[arg(help = concat!("The scene: ", scene_formats!(), "; or `large:N` (the synthetic large fixture with N Gaussians)."))]
     pub scene: String,
     #[command(flatten)]
     pub camera: CameraArgs,
@@ -55,58 +57,8 @@ pub struct Args {
     pub json: bool,
 }
 
-fn median(mut v: Vec<Duration>) -> Duration {
-    v.sort();
-    v[v.len() / 2]
-}
-
 fn ms(d: Duration) -> f64 {
     d.as_secs_f64() * 1e3
-}
-
-/// Median time of `repeat` runs of `f` after one warm-up; returns the last output.
-fn timed<T>(
-    repeat: usize,
-    mut f: impl FnMut() -> anyhow::Result<T>,
-) -> anyhow::Result<(Duration, T)> {
-    let mut out = f()?;
-    let mut times = Vec::with_capacity(repeat);
-    for _ in 0..repeat.max(1) {
-        let t0 = Instant::now();
-        out = f()?;
-        times.push(t0.elapsed());
-    }
-    Ok((median(times), out))
-}
-
-struct Row {
-    label: String,
-    surfels: usize,
-    gaussians: usize,
-    ms: f64,
-    psnr: f64,
-    stats: GesStats,
-}
-
-fn hybrid_row(
-    label: String,
-    cloud: &GaussianCloud,
-    p: &SplitParams,
-    cam: &splatbridge_scene::Camera,
-    opts: &GesOptions,
-    native: &Frame,
-    repeat: usize,
-) -> anyhow::Result<Row> {
-    let (s, g) = split(cloud, p);
-    let (t, (frame, stats)) = timed(repeat, || Ok(render_ges(&s, &g, cam, opts)?))?;
-    Ok(Row {
-        label,
-        surfels: s.len(),
-        gaussians: g.len(),
-        ms: ms(t),
-        psnr: psnr(&frame, native)?,
-        stats,
-    })
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -155,19 +107,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let t0 = Instant::now();
     let (s, g) = split(&cloud, &p);
     let split_time = t0.elapsed();
-    // Native and hybrid renders alternate, so load from other processes hits both alike.
-    let (mut native, mut nstats) = render(&cloud, &cam, &nopts)?;
-    let (mut hframe, mut hs) = render_ges(&s, &g, &cam, &opts)?;
-    let (mut tn, mut th) = (Vec::new(), Vec::new());
-    for _ in 0..args.repeat.max(1) {
-        let t0 = Instant::now();
-        (native, nstats) = render(&cloud, &cam, &nopts)?;
-        tn.push(t0.elapsed());
-        let t0 = Instant::now();
-        (hframe, hs) = render_ges(&s, &g, &cam, &opts)?;
-        th.push(t0.elapsed());
-    }
-    let (t_native, t_h) = (median(tn), median(th));
+    let h = head_to_head(&cloud, (&s, &g), &cam, &nopts, &opts, args.repeat)?;
+    let (native, nstats, t_native) = (&h.native, &h.native_stats, h.native_time);
+    let (hframe, hs, t_h) = (&h.hybrid, &h.hybrid_stats, h.hybrid_time);
     let nt = &nstats.times;
     println!(
         "native: {:.1} ms median (projection {:.1}, sorting {:.1}, binning {:.1}, blending {:.1}); {} tile pairs, {} blends",
@@ -181,10 +123,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
 
     let ht = &hs.times;
-    let hpsnr = psnr(&hframe, &native)?;
+    let hpsnr = psnr(hframe, native)?;
     println!(
         "hybrid ({}; {}): {} surfels, {} Gaussians; split {:.1} ms",
-        splatbridge::split_auto::describe_params(&p),
+        describe_params(&p),
         args.knobs.describe(),
         s.len(),
         g.len(),
@@ -219,103 +161,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             );
             rows.push(r);
         };
-        let none = SplitParams::none();
-        push(hybrid_row(
-            "no surfels (pass 2 only)".into(),
+        sweep(
             &cloud,
-            &none,
+            &p,
             &cam,
             &opts,
-            &native,
+            native,
+            (&args.sweep_opacity, &args.sweep_flatness),
             args.sweep_repeat,
-        )?);
-        for &a in &args.sweep_opacity {
-            for &r in &args.sweep_flatness {
-                let sp = SplitParams {
-                    min_opacity: a,
-                    max_flatness: r,
-                    ..p
-                };
-                push(hybrid_row(
-                    format!("A={a} R={r}"),
-                    &cloud,
-                    &sp,
-                    &cam,
-                    &opts,
-                    &native,
-                    args.sweep_repeat,
-                )?);
-            }
-        }
-        // The other surfel footprint than the one benchmarked: GES's rim or the √2σ disc.
-        let (fp_label, fp) = if opts.footprint_sigmas == std::f32::consts::SQRT_2 {
-            (
-                "defaults, footprint 3.33σ",
-                splatbridge_scene::surfels::FOOTPRINT_SIGMAS,
-            )
-        } else {
-            ("defaults, footprint 1.41σ", std::f32::consts::SQRT_2)
-        };
-        let other = match opts.blend {
-            Blend::Sorted => ("defaults, unsorted blend", Blend::Unsorted),
-            Blend::Unsorted => ("defaults, sorted blend", Blend::Sorted),
-        };
-        let variants: [(&str, GesOptions); 7] = [
-            (
-                other.0,
-                GesOptions {
-                    blend: other.1,
-                    ..opts
-                },
-            ),
-            (
-                fp_label,
-                GesOptions {
-                    footprint_sigmas: fp,
-                    ..opts
-                },
-            ),
-            ("defaults, blur on", GesOptions { blur: true, ..opts }),
-            (
-                "defaults, supersample 4",
-                GesOptions {
-                    supersample: 4,
-                    ..opts
-                },
-            ),
-            (
-                "defaults, ε factor 2",
-                GesOptions {
-                    epsilon_factor: 2.0,
-                    ..opts
-                },
-            ),
-            (
-                "defaults, ε factor 10",
-                GesOptions {
-                    epsilon_factor: 10.0,
-                    ..opts
-                },
-            ),
-            (
-                "defaults, ε factor 0",
-                GesOptions {
-                    epsilon_factor: 0.0,
-                    ..opts
-                },
-            ),
-        ];
-        for (label, o) in variants {
-            push(hybrid_row(
-                label.into(),
-                &cloud,
-                &p,
-                &cam,
-                &o,
-                &native,
-                args.sweep_repeat,
-            )?);
-        }
+            &mut push,
+        )?;
     }
     if args.json {
         let sweep: Vec<serde_json::Value> = rows
@@ -332,11 +187,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "threads": rayon::current_num_threads(),
             "native_ms": ms(t_native), "hybrid_ms": ms(t_h), "split_ms": ms(split_time),
             "speed_ratio": ratio, "psnr_db": hpsnr, "surfels": s.len(),
-            "blend": splatbridge::split_auto::blend_name(opts.blend), "sorted": hs.sorted,
+            "blend": blend_name(opts.blend), "sorted": hs.sorted,
             "native_blends": nstats.blends, "hybrid_blends": hs.blends,
             "hybrid_tile_pairs": hs.tile_pairs,
             "min_opacity": p.min_opacity, "max_flatness": p.max_flatness,
-            "split_params": splatbridge::split_auto::params_json(&p),
+            "split_params": params_json(&p),
             "split_auto": auto.as_ref().map(|a| a.to_json()),
             "sweep": sweep,
         });

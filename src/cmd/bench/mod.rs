@@ -67,7 +67,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Target::Effects(a) => effects::run(a),
     };
     // On stderr, so a `--json` report on stdout stays one JSON document.
-    if let Some(peak) = splatbridge::memory::peak_bytes() {
+    if let Some(peak) = splatbridge::measure::memory::peak_bytes() {
         eprintln!("peak memory {:.1} MB (VmHWM)", peak as f64 / 1e6);
     }
     result

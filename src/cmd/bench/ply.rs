@@ -6,7 +6,7 @@
 //! wall time, file MB/s at the median (MB = 10⁶ bytes), and the process's peak resident memory
 //! (`VmHWM` from `/proc/self/status`) above its resident size before the first load, relative
 //! to the size of the loaded cloud's arrays; and the most the load held on the heap at once
-//! (`splatbridge::heap`, the counting allocator), which leaves out the fixed runtime costs the
+//! (`splatbridge::measure::heap`, the counting allocator), which leaves out the fixed runtime costs the
 //! resident figure includes (code pages, thread stacks, malloc arenas). Each cloud is dropped before the next load, so
 //! the peak is one load's.
 
@@ -14,15 +14,15 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context;
-use splatbridge::heap;
-use splatbridge::memory::proc_status_bytes;
+use splatbridge::measure::heap;
+use splatbridge::measure::memory::proc_status_bytes;
 use splatbridge_scene::formats::{compressed_ply, load_cloud, splat, spz};
 use splatbridge_scene::ply::ReadOptions;
 use splatbridge_scene::GaussianCloud;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// A splat file in any supported format (3DGS or compressed PLY, .splat, .spz, .sog, glTF).
+    #[arg(help = concat!("The scene: ", scene_formats!(), "."))]
     pub file: PathBuf,
     /// Also time encoding the loaded cloud (in memory) in this format.
     #[arg(long, value_enum)]

@@ -19,7 +19,7 @@ use crate::cmd::render::RenderKnobs;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// A 3DGS PLY or a manifest (its composite at the start time). Omit with --large.
+    #[arg(help = concat!("The scene: ", scene_formats!(), " (its composite at the start time). Omit with --large."))]
     pub scene: Option<PathBuf>,
     /// Generate the `large` fixture with this many Gaussians instead of loading a file.
     #[arg(long, conflicts_with = "scene")]

@@ -34,6 +34,7 @@
 //! pose it takes. Per-frame content (weather) is not part of the fitted mesh.
 
 pub mod composite;
+pub mod footprint;
 pub mod loss;
 pub mod optim;
 pub mod options;

@@ -1,5 +1,5 @@
 //! Sharded runs and their merge. A run given `--shard I/N` does the work items shard I owns
-//! ([`crate::shard`]) and writes, beside its images, a partial `report.json`
+//! ([`crate::batch::shard`]) and writes, beside its images, a partial `report.json`
 //! ([`PartialReport`]): the command, the tool's version, the scene hash, the options hash, the
 //! shard id, the files it wrote and its records with their places in the unsharded report.
 //! [`merge`] checks that the shards are one run's complete, disjoint set and writes what the
@@ -15,9 +15,9 @@ use splatbridge_scene::input::Cap;
 use splatbridge_scene::output::OutputSet;
 use thiserror::Error;
 
-use crate::parity::Placed;
-use crate::report::Record;
-use crate::shard::{Fnv1a, Shard};
+use crate::batch::shard::{Fnv1a, Shard};
+use crate::measure::parity::Placed;
+use crate::measure::report::Record;
 
 /// The `format` field of a partial report.
 pub const PARTIAL_FORMAT: &str = "splatbridge-shard/1";
@@ -55,8 +55,8 @@ pub struct PartialReport {
 mod exact {
     use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
-    use crate::parity::Placed;
-    use crate::report::Record;
+    use crate::measure::parity::Placed;
+    use crate::measure::report::Record;
 
     #[derive(Serialize, Deserialize)]
     struct Wire {
@@ -175,7 +175,7 @@ pub fn commit_shard(set: OutputSet, stage: &Path, mut report: PartialReport) -> 
     }
     files.sort();
     report.files = files;
-    report.peak_memory_bytes = crate::memory::peak_bytes().unwrap_or(0);
+    report.peak_memory_bytes = crate::measure::memory::peak_bytes().unwrap_or(0);
     let json = serde_json::to_string_pretty(&report)?;
     std::fs::write(stage.join(REPORT), json)?;
     set.commit()?;
@@ -362,7 +362,7 @@ pub fn write_merged(
 
 /// The merged records in report order (measured by place, then one note per skipped client).
 pub fn records(merged: &Merged) -> Vec<Record> {
-    crate::parity::report_order(merged.records.clone())
+    crate::measure::parity::report_order(merged.records.clone())
 }
 
 /// Write the merged run into `out` (files and reports, committed together); returns the main
@@ -371,13 +371,18 @@ pub fn write_report(merged: &Merged, out: &Path) -> anyhow::Result<&'static str>
     match merged.first.command.as_str() {
         "compare" => {
             write_merged(merged, out, &|stage, m| {
-                crate::parity::write_reports(stage, &m.first.title, &m.first.preamble, &records(m))
+                crate::measure::parity::write_reports(
+                    stage,
+                    &m.first.title,
+                    &m.first.preamble,
+                    &records(m),
+                )
             })?;
             Ok("report.md")
         }
         "accuracy" => {
             write_merged(merged, out, &|stage, m| {
-                crate::accuracy::write_staged(stage, &m.first.preamble, &records(m))
+                crate::measure::accuracy::write_staged(stage, &m.first.preamble, &records(m))
             })?;
             Ok("accuracy.md")
         }

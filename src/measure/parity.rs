@@ -20,9 +20,9 @@ use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::surfels::SplitParams;
 use splatbridge_scene::{metrics, Camera, Frame, GaussianCloud};
 
-use crate::frame_store::FrameStore;
+use crate::measure::frame_store::FrameStore;
+use crate::measure::report::Record;
 use crate::pipeline::{Renderer, SurfelSplit};
-use crate::report::Record;
 
 /// Which renderers and profiles a comparison runs, and how.
 #[derive(Clone, Debug)]
@@ -39,7 +39,7 @@ pub struct CompareConfig {
     pub ges: GesOptions,
     pub split: SplitParams,
     /// Viewer clients to render the exports in (`clients.rs`), at the first time only.
-    pub clients: Vec<crate::clients::Client>,
+    pub clients: Vec<crate::measure::clients::Client>,
     /// The client dispatcher (`scripts/client-render.sh`).
     pub client_script: PathBuf,
     /// Skip a Gaussian-trace or mesh stage whose estimated peak (`budget.rs`) is over this many
@@ -58,10 +58,10 @@ impl Default for CompareConfig {
             preset: BuildPreset::default(),
             k: 16,
             native: NativeOptions::default(),
-            ges: crate::split_auto::default_ges_options(),
+            ges: crate::pipeline::split_auto::default_ges_options(),
             split: SplitParams::default(),
             clients: Vec::new(),
-            client_script: crate::clients::default_script(),
+            client_script: crate::measure::clients::default_script(),
             max_memory: None,
         }
     }
@@ -357,7 +357,7 @@ pub fn compare_selected(
             },
         )?;
         save_pair(dir, &name, reference, img, &mut r)?;
-        r.peak_memory_bytes = crate::memory::peak_bytes().unwrap_or(0);
+        r.peak_memory_bytes = crate::measure::memory::peak_bytes().unwrap_or(0);
         placed.push(Placed {
             order: [ti as u64, ci as u64, s, sub],
             skipped: false,
@@ -367,7 +367,7 @@ pub fn compare_selected(
     };
     // The budget's text when `estimate` is over it (`None`: the stage fits or there is none).
     let over_budget = |estimate: u64| match cfg.max_memory {
-        Some(b) if estimate > b => Some(crate::budget::gb(b)),
+        Some(b) if estimate > b => Some(crate::measure::budget::gb(b)),
         _ => None,
     };
     // A stage left out for the budget: one note, placed at the first item (each shard places
@@ -407,13 +407,18 @@ pub fn compare_selected(
         None
     } else {
         progress("export for clients");
-        Some(crate::clients::export(scene, cams, &cfg.clients, dir)?)
+        Some(crate::measure::clients::export(
+            scene,
+            cams,
+            &cfg.clients,
+            dir,
+        )?)
     };
 
     // Stage 1, per time: the composite, then per camera the reference (stored), the hybrid,
     // the viewer clients and a dynamic scene's per-frame OBJs, which all draw that composite.
     let mut refs = FrameStore::new(times.len() * cams.len())?;
-    let mut unavailable: Vec<crate::clients::Client> = Vec::new();
+    let mut unavailable: Vec<crate::measure::clients::Client> = Vec::new();
     for (ti, &t) in times.iter().enumerate() {
         if !items.iter().any(|&(i, _)| i == ti) {
             continue;
@@ -458,7 +463,7 @@ pub fn compare_selected(
                     .copied()
                     .filter(|c| !unavailable.contains(c))
                     .collect();
-                let results = crate::clients::render_all(
+                let results = crate::measure::clients::render_all(
                     &cfg.client_script,
                     &active,
                     files,
@@ -475,7 +480,7 @@ pub fn compare_selected(
                         ..named(res.client.name(), res.ms)
                     };
                     match res.outcome {
-                        crate::clients::Outcome::Image(img) => emit(
+                        crate::measure::clients::Outcome::Image(img) => emit(
                             &mut placed,
                             reference_frame,
                             (ti, ci),
@@ -484,7 +489,7 @@ pub fn compare_selected(
                             &img,
                             r,
                         )?,
-                        crate::clients::Outcome::Unavailable(why) => {
+                        crate::measure::clients::Outcome::Unavailable(why) => {
                             if !unavailable.contains(&res.client) {
                                 unavailable.push(res.client);
                                 placed.push(Placed {
@@ -510,10 +515,10 @@ pub fn compare_selected(
                     ..ConvertOptions::default()
                 };
                 let frame_scene = DynamicScene::from_static(cloud.clone().into_owned());
-                let size = crate::budget::mesh_size(&frame_scene, &opts)?;
+                let size = crate::measure::budget::mesh_size(&frame_scene, &opts)?;
                 // The frame's OBJ stage holds the scene and the frame's copy of its composite.
-                let estimate = crate::budget::mesh_stage_bytes(&frame_scene, size, "obj")
-                    + crate::budget::scene_bytes(scene);
+                let estimate = crate::measure::budget::mesh_stage_bytes(&frame_scene, size, "obj")
+                    + crate::measure::budget::scene_bytes(scene);
                 if let Some(budget) = over_budget(estimate) {
                     let why = mesh_skip_note(size, estimate, &budget);
                     let s = 4 + (mesh_files.len() + pi) as u64;
@@ -548,15 +553,15 @@ pub fn compare_selected(
 
     // Stage 2: one BVH per part of the scene for every time and camera (times re-pose the
     // objects), dropped before the meshes are built.
-    let gaussian_estimate = crate::budget::gaussian_stage_bytes(scene);
+    let gaussian_estimate = crate::measure::budget::gaussian_stage_bytes(scene);
     let gaussian_fits = cfg.gaussian_trace
         && match over_budget(gaussian_estimate) {
             None => true,
             Some(budget) => {
                 let why = format!(
                     "skipped: tracing {} Gaussians needs about {}, over the memory budget of {budget} (--max-memory)",
-                    crate::budget::scene_gaussians(scene),
-                    crate::budget::gb(gaussian_estimate)
+                    crate::measure::budget::scene_gaussians(scene),
+                    crate::measure::budget::gb(gaussian_estimate)
                 );
                 skip(&mut placed, ("trace-gaussian", "", ""), 2, why);
                 false
@@ -604,9 +609,9 @@ pub fn compare_selected(
             profile: p,
             ..ConvertOptions::default()
         };
-        let size = crate::budget::mesh_size(scene, &opts)?;
-        let format = crate::budget::export_format(size, format);
-        let estimate = crate::budget::mesh_stage_bytes(scene, size, format);
+        let size = crate::measure::budget::mesh_size(scene, &opts)?;
+        let format = crate::measure::budget::export_format(size, format);
+        let estimate = crate::measure::budget::mesh_stage_bytes(scene, size, format);
         if let Some(budget) = over_budget(estimate) {
             let why = mesh_skip_note(size, estimate, &budget);
             skip(
@@ -643,12 +648,12 @@ pub fn compare_selected(
 }
 
 /// Why a mesh stage was left out: its size and estimated peak against the budget.
-fn mesh_skip_note(size: crate::budget::MeshSize, estimate: u64, budget: &str) -> String {
+fn mesh_skip_note(size: crate::measure::budget::MeshSize, estimate: u64, budget: &str) -> String {
     format!(
         "skipped: {:.1} M vertices and {:.1} M triangles need about {} traced, over the memory budget of {budget} (--max-memory)",
         size.vertices as f64 / 1e6,
         size.triangles as f64 / 1e6,
-        crate::budget::gb(estimate)
+        crate::measure::budget::gb(estimate)
     )
 }
 
@@ -676,12 +681,12 @@ pub fn write_reports(
     splatbridge_scene::image_io::write_atomic(&dir.join("report.json"), json.as_bytes())?;
     let (skipped, measured): (Vec<Record>, Vec<Record>) =
         records.iter().cloned().partition(|r| !r.note.is_empty());
-    use crate::report::summary;
+    use crate::measure::report::summary;
     summary::colour_bar(256, 16).save_png(&dir.join(summary::COLOUR_BAR))?;
     let mut md = format!(
         "# {title}\n\n{preamble}\n\n{}\n## All images\n\n{}",
         summary::markdown_summary(&measured, Some(summary::COLOUR_BAR)),
-        crate::report::markdown_table(&measured, true)
+        crate::measure::report::markdown_table(&measured, true)
     );
     if !skipped.is_empty() {
         md.push_str("\nSkipped:\n\n");

@@ -21,8 +21,10 @@ use splatbridge_hybrid::ges::{render_ges, Blend, GesOptions};
 use splatbridge_hybrid::RenderOptions;
 use splatbridge_scene::camera_spec::{CameraRequest, CameraSource, CameraSpec};
 use splatbridge_scene::metrics::psnr;
-use splatbridge_scene::surfels::{split_counted, SplitParams};
+use splatbridge_scene::surfels::{looks_like_ges, split_counted, SplitParams};
 use splatbridge_scene::{Camera, GaussianCloud};
+
+use crate::pipeline::SurfelSplit;
 
 /// The CLI's default blend: the one that keeps ≥ 28 dB on every shared scene (with the
 /// [`DISC_FOOTPRINT_SIGMAS`] disc; `docs/blend.md`). `--blend unsorted` is the fast knob.
@@ -437,8 +439,13 @@ impl AutoChoice {
 /// The `accuracy` sweep's rows for the guards (family `hybrid`): the default split without
 /// any guard, and each guard looser and stricter than its default with the others at theirs,
 /// so the plot shows what each guard trades (dB against ms).
-pub fn accuracy_rows() -> Vec<(&'static str, String, crate::accuracy::Setting, bool)> {
-    use crate::accuracy::Setting;
+pub fn accuracy_rows() -> Vec<(
+    &'static str,
+    String,
+    crate::measure::accuracy::Setting,
+    bool,
+)> {
+    use crate::measure::accuracy::Setting;
     let d = SplitParams::default();
     let mut v = vec![(
         "hybrid",
@@ -484,8 +491,13 @@ pub fn accuracy_rows() -> Vec<(&'static str, String, crate::accuracy::Setting, b
 /// The `accuracy` sweep's rows for the blend (family `blend`): the default split and no
 /// surfels, each with the unsorted and the sorted blend, so the plot shows what sorting costs
 /// and buys with and without the surfels' occlusion.
-pub fn blend_accuracy_rows() -> Vec<(&'static str, String, crate::accuracy::Setting, bool)> {
-    use crate::accuracy::Setting;
+pub fn blend_accuracy_rows() -> Vec<(
+    &'static str,
+    String,
+    crate::measure::accuracy::Setting,
+    bool,
+)> {
+    use crate::measure::accuracy::Setting;
     let mut v = Vec::new();
     for (name, split) in [
         ("guarded", SplitParams::default()),
@@ -507,4 +519,33 @@ pub fn blend_accuracy_rows() -> Vec<(&'static str, String, crate::accuracy::Sett
         }
     }
     v
+}
+
+/// How surfels are found for `cloud`: `split` as asked, or with `auto` the thresholds and
+/// blend chosen on the cloud ([`choose`] over the blends `blend` allows: the one named, or
+/// both). A GES PLY (named, or detected here so the options keep GES's footprint) keeps its
+/// own flags and is not measured.
+pub fn resolve_split(
+    cloud: &GaussianCloud,
+    mut split: SurfelSplit,
+    auto: bool,
+    min_psnr: f64,
+    blend: Option<Blend>,
+    ges: &GesOptions,
+) -> anyhow::Result<(SurfelSplit, Option<AutoChoice>)> {
+    split.ges_ply |= looks_like_ges(cloud);
+    if !auto || split.ges_ply {
+        return Ok((split, None));
+    }
+    let cfg = AutoConfig {
+        min_psnr,
+        blends: match blend {
+            Some(b) => vec![b],
+            None => AutoConfig::default().blends,
+        },
+        ..AutoConfig::default()
+    };
+    let choice = choose(cloud, ges, &cfg)?;
+    split.params = choice.params();
+    Ok((split, Some(choice)))
 }

@@ -11,11 +11,11 @@ use std::path::Path;
 use anyhow::Context;
 use splatbridge_convert::{ConvertOptions, Profile};
 
-use crate::accuracy::Sweep;
 use crate::distill::{views, DistillOptions, Distiller};
-use crate::parity;
-use crate::report::plot::{self, Point};
-use crate::report::Record;
+use crate::measure::accuracy::Sweep;
+use crate::measure::parity;
+use crate::measure::report::plot::{self, Point};
+use crate::measure::report::Record;
 
 /// What the distillation rows fit.
 #[derive(Clone, Debug)]

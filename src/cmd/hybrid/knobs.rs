@@ -1,34 +1,21 @@
-//! `splatbridge hybrid`: render with the GES-style hybrid (opaque surfels through a z-buffer,
-//! then the residual Gaussians, unsorted or with `--blend sorted` in native's order;
-//! `splatbridge_hybrid::ges`). Surfels come from a split
-//! of the trained cloud by opacity and flatness, or from a GES PLY's own flags.
-//!
-//! The frame comes from `splatbridge::pipeline::render_frame` (the composite plus declared
-//! weather particles; with `motion_blur`, one cloud per shutter sample, each split and
-//! rendered, then averaged; shadows and LiDAR listed as not simulated). This module parses the
-//! options and prints.
+//! The hybrid's knobs (shared by `hybrid`, `bench hybrid` and, through `split_args`,
+//! `compare` and `accuracy`): their parsers and the renderer options they name.
 
-use std::path::PathBuf;
-
-use anyhow::{bail, Context};
 use serde_json::json;
-use splatbridge::pipeline::{render_frame, FrameRequest, FrameStats, Renderer, SurfelSplit};
-use splatbridge::split_auto::{
-    blend_name, choose, params_json, AutoChoice, AutoConfig, DEFAULT_BLEND, DEFAULT_MIN_PSNR,
+use splatbridge::pipeline::split_auto::{
+    blend_name, params_json, resolve_split, AutoChoice, DEFAULT_BLEND, DEFAULT_MIN_PSNR,
     DISC_FOOTPRINT_SIGMAS,
 };
-use splatbridge_hybrid::ges::{Blend, GesOptions, GesStats};
-use splatbridge_scene::effects_run::effects_of;
-use splatbridge_scene::image_io::save_frame;
+use splatbridge::pipeline::SurfelSplit;
+use splatbridge_hybrid::ges::{Blend, GesOptions};
 use splatbridge_scene::surfels::{
-    looks_like_ges, SplitParams, DEFAULT_MAX_FLATNESS, DEFAULT_MAX_NEIGHBOUR_RATIO,
-    DEFAULT_MAX_SCENE_FRACTION, DEFAULT_MIN_NEIGHBOURS, DEFAULT_MIN_OPACITY, FOOTPRINT_SIGMAS,
-    GES_EPSILON_FACTOR,
+    SplitParams, DEFAULT_MAX_FLATNESS, DEFAULT_MAX_NEIGHBOUR_RATIO, DEFAULT_MAX_SCENE_FRACTION,
+    DEFAULT_MIN_NEIGHBOURS, DEFAULT_MIN_OPACITY, FOOTPRINT_SIGMAS, GES_EPSILON_FACTOR,
 };
-use splatbridge_scene::{Camera, GaussianCloud};
+use splatbridge_scene::GaussianCloud;
 
-use crate::cmd::common::{load, parse_rgb, CameraArgs};
-use crate::cmd::render::short;
+use crate::cmd::common::parse_rgb;
+use crate::cmd::common::short;
 
 /// `on` or `off`.
 pub fn parse_on_off(s: &str) -> Result<bool, String> {
@@ -258,23 +245,14 @@ impl HybridKnobs {
         &self,
         cloud: &GaussianCloud,
     ) -> anyhow::Result<(SurfelSplit, Option<AutoChoice>)> {
-        let mut s = self.surfel_split();
-        // Detected here (the split would detect it too) so the options keep GES's footprint.
-        s.ges_ply |= looks_like_ges(cloud);
-        if self.split != SplitMode::Auto || s.ges_ply {
-            return Ok((s, None));
-        }
-        let cfg = AutoConfig {
-            min_psnr: self.min_psnr,
-            blends: match self.blend {
-                Some(b) => vec![b.into()],
-                None => AutoConfig::default().blends,
-            },
-            ..AutoConfig::default()
-        };
-        let choice = choose(cloud, &self.options(), &cfg)?;
-        s.params = choice.params();
-        Ok((s, Some(choice)))
+        resolve_split(
+            cloud,
+            self.surfel_split(),
+            self.split == SplitMode::Auto,
+            self.min_psnr,
+            self.blend.map(Blend::from),
+            &self.options(),
+        )
     }
 
     /// The knobs as JSON (for `--json` reports).
@@ -309,159 +287,4 @@ impl HybridKnobs {
             self.sh_degree
         )
     }
-}
-
-#[derive(clap::Args)]
-pub struct Args {
-    /// A 3DGS PLY (or a GES PLY), or a splatbridge-scene/1 manifest (composite at --time).
-    pub scene: PathBuf,
-    #[command(flatten)]
-    pub camera: CameraArgs,
-    /// Scene time in seconds (default: the start of the scene's time range).
-    #[arg(long, value_parser = super::ranges::time, allow_hyphen_values = true)]
-    pub time: Option<f64>,
-    #[command(flatten)]
-    pub knobs: HybridKnobs,
-    /// Drop invalid Gaussians (NaN, zero quaternion) with a counted warning instead of failing.
-    #[arg(long)]
-    pub drop_invalid: bool,
-    /// Output image: .png (8-bit RGB) or .exr (float RGBA and Z depth).
-    #[arg(short, long, alias = "output")]
-    pub out: PathBuf,
-    /// Print one JSON object (knobs, stats, effect counters) instead of the summary.
-    #[arg(long)]
-    pub json: bool,
-}
-
-/// The stats of a hybrid render as JSON (times in milliseconds).
-pub fn stats_json(s: &GesStats, split_ms: f64) -> serde_json::Value {
-    let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
-    json!({
-        "surfels": s.surfels,
-        "surfels_drawn": s.surfels_drawn,
-        "surfel_pairs": s.surfel_pairs,
-        "gaussians": s.gaussians,
-        "projected": s.projected,
-        "tile_pairs": s.tile_pairs,
-        "culled_pairs": s.culled_pairs,
-        "blends": s.blends,
-        "sorted": s.sorted,
-        "milliseconds": {
-            "total": split_ms + ms(s.times.total()),
-            "split": split_ms,
-            "surfels": ms(s.times.surfels),
-            "projection": ms(s.times.projection),
-            "binning": ms(s.times.binning),
-            "blending": ms(s.times.blending),
-        },
-    })
-}
-
-/// Print what a hybrid render did.
-pub fn print_summary(cam: &Camera, stats: &GesStats, split_ms: f64) {
-    let t = &stats.times;
-    let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
-    println!(
-        "  camera '{}' {}×{}; {} surfels ({} drawn, {} surfel–tile pairs), {} Gaussians ({} projected)",
-        cam.name, cam.width, cam.height, stats.surfels, stats.surfels_drawn, stats.surfel_pairs, stats.gaussians, stats.projected
-    );
-    println!(
-        "  {} tile–Gaussian pairs kept, {} culled behind surfels, {} pixel–Gaussian blends",
-        stats.tile_pairs, stats.culled_pairs, stats.blends
-    );
-    println!(
-        "  {:.1} ms (split {:.1}; surfels {:.1}, projection {:.1}, binning {:.1}, blending {:.1})",
-        split_ms + ms(t.total()),
-        split_ms,
-        ms(t.surfels),
-        ms(t.projection),
-        ms(t.binning),
-        ms(t.blending)
-    );
-}
-
-/// The knobs as JSON with the blend and footprint the render used (chosen by `--split auto`
-/// or the input's kind when not given).
-fn used_knobs(knobs: &HybridKnobs, opts: &GesOptions) -> serde_json::Value {
-    let mut j = knobs.to_json();
-    j["blend"] = json!(blend_name(opts.blend));
-    j["footprint"] = json!(short(opts.footprint_sigmas));
-    j
-}
-
-pub fn run(args: Args) -> anyhow::Result<()> {
-    let ext = args
-        .out
-        .extension()
-        .map(|e| e.to_string_lossy().to_ascii_lowercase())
-        .unwrap_or_default();
-    if ext != "png" && ext != "exr" {
-        bail!("{}: output must end in .png or .exr", args.out.display());
-    }
-    let name = args.scene.display().to_string();
-    let scene = load(&args.scene, args.drop_invalid)?;
-    let effects = effects_of(&scene).with_context(|| name.clone())?;
-    let t = args.time.unwrap_or(scene.time.start);
-    // Orbit rigs frame the composite (without particles), as `render` does.
-    let cam = args
-        .camera
-        .resolve(&scene.composite_view(t), &scene.cameras)
-        .with_context(|| name.clone())?;
-    let (split, auto) = args
-        .knobs
-        .resolve_split(&scene.composite(t))
-        .with_context(|| name.clone())?;
-    let opts = args.knobs.options_for(auto.as_ref(), &split);
-    let mut renderer = Renderer::hybrid(opts, split)?;
-    let req = FrameRequest {
-        scene: Some(&scene),
-        effects: &effects,
-        camera: &cam,
-        time: t,
-        content: Default::default(),
-        lidar: None,
-    };
-    let r = render_frame(&mut renderer, &req).with_context(|| name.clone())?;
-    let FrameStats::Hybrid {
-        stats,
-        split_ms,
-        surfels_by: how,
-    } = &r.stats
-    else {
-        bail!("{name}: the hybrid returned another renderer's stats");
-    };
-    save_frame(&args.out, &r.frame)?;
-    if args.json {
-        let report = json!({
-            "command": "hybrid",
-            "scene": name,
-            "output": args.out.display().to_string(),
-            "time": t,
-            "time_samples": r.time_samples,
-            "surfels_by": how,
-            "split_auto": auto.as_ref().map(AutoChoice::to_json),
-            "camera": {"name": cam.name, "width": cam.width, "height": cam.height},
-            "knobs": used_knobs(&args.knobs, &opts),
-            "stats": stats_json(stats, *split_ms),
-            "effects": serde_json::to_value(&r.counters)?,
-        });
-        println!("{}", serde_json::to_string_pretty(&report)?);
-        return Ok(());
-    }
-    if let Some(a) = &auto {
-        print!("{}", a.summary());
-    }
-    println!("hybrid {name}: surfels by {how}; {}", args.knobs.describe());
-    if r.time_samples > 1 {
-        println!(
-            "{} (t = {t}, {} motion-blur samples blended; stats summed over them)",
-            args.out.display(),
-            r.time_samples
-        );
-    } else {
-        println!("{} (t = {t})", args.out.display());
-    }
-    print_summary(&cam, stats, *split_ms);
-    println!("{}", r.counters.summary());
-    Ok(())
 }

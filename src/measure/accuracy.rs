@@ -23,9 +23,9 @@ use splatbridge_scene::ply::ReadOptions;
 use splatbridge_scene::surfels::SplitParams;
 use splatbridge_scene::{Camera, Frame, GaussianCloud};
 
-use crate::parity::{self, CompareConfig};
-use crate::report::plot::{self, Point};
-use crate::report::{markdown_table, Record};
+use crate::measure::parity::{self, CompareConfig};
+use crate::measure::report::plot::{self, Point};
+use crate::measure::report::{markdown_table, Record};
 
 /// One knob setting to measure.
 pub enum Setting {
@@ -226,10 +226,10 @@ pub fn settings(only: &[String]) -> Vec<(&'static str, String, Setting, bool)> {
                 false,
             ));
         }
-        v.extend(crate::split_auto::accuracy_rows());
+        v.extend(crate::pipeline::split_auto::accuracy_rows());
     }
     if want("hybrid") || want("blend") {
-        v.extend(crate::split_auto::blend_accuracy_rows());
+        v.extend(crate::pipeline::split_auto::blend_accuracy_rows());
     }
     v
 }

@@ -162,7 +162,7 @@ pub fn export_format(size: MeshSize, format: &'static str) -> &'static str {
 /// optional binary suffix: `512M`, `16G`, `1.5G`, `2000000000`.
 pub fn parse_budget(s: &str) -> Result<Option<u64>, String> {
     match s.trim() {
-        "auto" => Ok(crate::memory::physical_bytes()),
+        "auto" => Ok(crate::measure::memory::physical_bytes()),
         "none" => Ok(None),
         t => {
             let (num, mult) = match t.chars().last() {

@@ -36,7 +36,7 @@ use splatbridge_scene::camera::Camera;
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::GaussianCloud;
 
-use crate::shard::{Fnv1a, Shard};
+use crate::batch::shard::{Fnv1a, Shard};
 
 /// The agreement that makes a parent good enough: 30 dB is about 3% RMS of full scale,
 /// below what the viewer check measures between two correct splat renderers of one file
@@ -165,7 +165,7 @@ pub fn write_tiles_from_ply(
 
 /// The shard of `count` that owns a leaf of a sharded tileset: FNV-1a 64 of its octree
 /// path (`splatbridge_convert::tiles::shard::leaf_keys`) modulo the count, the hash of
-/// [`crate::shard`], so every machine agrees.
+/// [`crate::batch::shard`], so every machine agrees.
 pub fn leaf_owner(key: &str, count: u32) -> u32 {
     let mut h = Fnv1a::new();
     h.write(key.as_bytes());
