@@ -86,6 +86,9 @@ fn check(name: &str, args: &[String], out: &Path, fragment: &str, names: &str) -
             "first line does not start 'error: ' naming '{names}'"
         ));
     }
+    if names_file_twice(first) {
+        why.push("the message names the file twice".into());
+    }
     if !o.stderr.contains(fragment) {
         why.push(format!("message lacks '{fragment}'"));
     }
@@ -105,6 +108,30 @@ fn check(name: &str, args: &[String], out: &Path, fragment: &str, names: &str) -
         let shown: String = o.stderr.chars().take(600).collect();
         format!("{name}: {}\n  stderr: {shown}", why.join("; "))
     }
+}
+
+/// Whether `error: A: B: …` repeats the file: B is A, or A's file name (`meta.json: meta.json:`).
+fn names_file_twice(first: &str) -> bool {
+    let Some(rest) = first.strip_prefix("error: ") else {
+        return false;
+    };
+    let parts: Vec<&str> = rest.splitn(3, ": ").collect();
+    let [a, b, ..] = parts[..] else {
+        return false;
+    };
+    a == b || Path::new(a).file_name().is_some_and(|n| n == b)
+}
+
+#[test]
+fn a_repeated_file_name_is_seen() {
+    assert!(names_file_twice(
+        "error: d/meta.json: meta.json: count is missing"
+    ));
+    assert!(names_file_twice("error: a.ply: a.ply: x"));
+    assert!(!names_file_twice(
+        "error: a.sog: meta.json: count is missing"
+    ));
+    assert!(!names_file_twice("error: d/meta.json: count is missing"));
 }
 
 fn fixtures() -> PathBuf {

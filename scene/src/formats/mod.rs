@@ -259,20 +259,29 @@ fn detect_bytes(path: &Path, buf: &[u8], len: u64) -> Result<SplatFormat> {
     }
     let text = trim_json_start(buf);
     if text.first() == Some(&b'{') {
-        // glTF first: every glTF has "asset", which a manifest (unknown keys rejected) never
-        // has, while a glTF's metadata may quote a manifest's format string.
-        if contains(text, b"\"asset\"") || contains(text, b"KHR_gaussian_splatting") {
+        // The extension's name makes a glTF whatever else the text holds.
+        if contains(text, b"KHR_gaussian_splatting") {
             let spz = contains(text, b"KHR_gaussian_splatting_compression_spz");
             return Ok(SplatFormat::Gltf { binary: false, spz });
         }
-        if contains(text, b"splatbridge-scene/") {
-            return Ok(SplatFormat::Manifest);
-        }
-        if contains(text, b"\"means\"") {
+        // SOG before the glTF "asset" test: splat-transform 0.16 and later write a
+        // glTF-style `"asset": {"generator": …}` into `meta.json` too.
+        if looks_like_sog_meta(text) {
             return Ok(SplatFormat::Sog {
                 version: Some(sog_meta_version(text)),
                 bundled: false,
             });
+        }
+        // glTF next: every glTF has "asset", which a manifest (unknown keys rejected) never
+        // has, while a glTF's metadata may quote a manifest's format string.
+        if contains(text, b"\"asset\"") {
+            return Ok(SplatFormat::Gltf {
+                binary: false,
+                spz: false,
+            });
+        }
+        if contains(text, b"splatbridge-scene/") {
+            return Ok(SplatFormat::Manifest);
         }
         let ext = path
             .extension()
@@ -332,6 +341,18 @@ fn trim_json_start(buf: &[u8]) -> &[u8] {
 
 fn contains(hay: &[u8], needle: &[u8]) -> bool {
     hay.windows(needle.len()).any(|w| w == needle)
+}
+
+/// A SOG `meta.json`: a `"means"` object with `"files"` (every version), and none of the
+/// arrays that hold a glTF's data. Only these two keys are looked for, since only they are
+/// sure to fall in the first [`DETECT_BYTES`] bytes: splat-transform writes `version`,
+/// `asset`, `count` and `means` first, then a 256-entry scale codebook (about 5 KB) before
+/// `quats` and `sh0`.
+fn looks_like_sog_meta(text: &[u8]) -> bool {
+    contains(text, b"\"means\"")
+        && contains(text, b"\"files\"")
+        && !contains(text, b"\"accessors\"")
+        && !contains(text, b"\"bufferViews\"")
 }
 
 /// SOG's `meta.json` carries `"version": 2` from version 2 on; version 1 has no such key.
