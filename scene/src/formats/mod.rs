@@ -161,6 +161,9 @@ pub struct LoadInfo {
     pub format: SplatFormat,
     /// Human-readable warnings, one line each.
     pub warnings: Vec<String>,
+    /// What the Gaussians are: 2DGS surfels (flat discs) or points given defaults are told
+    /// apart from 3D Gaussians, so later stages can treat them as such.
+    pub kind: crate::ply::GaussianKind,
 }
 
 impl LoadInfo {
@@ -168,6 +171,7 @@ impl LoadInfo {
         LoadInfo {
             format,
             warnings: Vec::new(),
+            kind: Default::default(),
         }
     }
 
@@ -395,7 +399,7 @@ pub fn load(path: &Path, opts: &ReadOptions) -> Result<(DynamicScene, LoadInfo)>
             scene
         }
         _ => {
-            let (cloud, warnings) = read_single(path, &mut info.format, opts)?;
+            let (cloud, warnings) = read_single(path, &mut info.format, &mut info.kind, opts)?;
             info.warnings = warnings;
             DynamicScene::from_static(cloud)
         }
@@ -431,7 +435,7 @@ pub fn load_cloud(path: &Path, opts: &ReadOptions) -> Result<(GaussianCloud, Loa
             cloud
         }
         _ => {
-            let (cloud, warnings) = read_single(path, &mut info.format, opts)?;
+            let (cloud, warnings) = read_single(path, &mut info.format, &mut info.kind, opts)?;
             info.warnings = warnings;
             cloud
         }
@@ -444,6 +448,7 @@ pub fn load_cloud(path: &Path, opts: &ReadOptions) -> Result<(GaussianCloud, Loa
 fn read_single(
     path: &Path,
     format: &mut SplatFormat,
+    kind: &mut crate::ply::GaussianKind,
     opts: &ReadOptions,
 ) -> Result<(GaussianCloud, Vec<String>)> {
     // `screened`: the decoder's own validity flag where it has one (false: no Gaussian can be
@@ -452,6 +457,7 @@ fn read_single(
     let (mut cloud, mut warnings) = match *format {
         SplatFormat::Ply => {
             let (cloud, report) = read_ply(path, opts)?;
+            *kind = report.kind;
             return Ok((cloud, report.warnings));
         }
         SplatFormat::CompressedPly => {
