@@ -10,8 +10,8 @@ use std::time::Instant;
 use anyhow::{bail, Context};
 use clap::ValueEnum;
 use splatbridge::pipeline::export::{
-    cloud_format, embedded_cameras, export_scene, is_gltf, load_export_input, write_cloud_export,
-    ExportKind, OutputFormat,
+    cloud_format, embedded_cameras, export_scene, is_gltf, load_export_input, ply_holds_gaussians,
+    write_cloud_export, ExportKind, OutputFormat,
 };
 use splatbridge_convert::options::ChunkOrder;
 use splatbridge_convert::splats_gltf::KhrCompression;
@@ -55,7 +55,7 @@ pub enum UpArg {
 /// Output formats for `--format` (overriding the extension of -o).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum FormatArg {
-    /// Mesh PLY (or the 3DGS PLY with --splats).
+    /// The 3DGS PLY, or a mesh PLY with --mesh or --profile.
     Ply,
     /// The standard 3DGS PLY (lossless splats).
     SplatPly,
@@ -108,9 +108,9 @@ pub enum ColorArg {
 
 #[derive(clap::Args)]
 #[command(after_long_help = "Formats follow the extension of -o, or --format:\n\
-  meshes: .glb, .gltf (+ .bin), .obj (+ .mtl), .ply;\n\
-  splats: .splat and .spz always; *.compressed.ply always (compressed PLY); .ply with --splats\n\
-  (3DGS PLY); .glb/.gltf with --splats (KHR_gaussian_splatting, dynamic objects as animated nodes).\n\
+  meshes: .glb, .gltf (+ .bin), .obj (+ .mtl), .ply with --mesh or --profile;\n\
+  splats: .splat and .spz always; *.compressed.ply always (compressed PLY); .ply unless --mesh or\n\
+  --profile (3DGS PLY); .glb/.gltf with --splats (KHR_gaussian_splatting, dynamic objects as animated nodes).\n\
 Single-cloud splat files (.ply, .compressed.ply, .splat, .spz) hold one cloud: a dynamic scene\n\
 is composited at --time (default: the scene's start). .splat keeps SH degree 0 only.\n\
 OBJ cannot carry per-vertex alpha: every OBJ triangle is opaque, so soft splat edges and\n\
@@ -174,6 +174,9 @@ pub struct Args {
     /// Write native splats (KHR_gaussian_splatting, .glb/.gltf) instead of a mesh.
     #[arg(long)]
     pub splats: bool,
+    /// A .ply output is a triangle mesh PLY instead of the 3DGS PLY (also implied by --profile).
+    #[arg(long, conflicts_with = "splats")]
+    pub mesh: bool,
     /// With --splats: `spz` stores each primitive's Gaussians as one SPZ stream
     /// (KHR_gaussian_splatting_compression_spz_2; about 10× smaller, SPZ v3's quantisation);
     /// `none` writes float accessors (lossless).
@@ -360,7 +363,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let cloud_out = cloud_format(
         &args.output,
         args.format.map(OutputFormat::from),
-        args.splats,
+        ply_holds_gaussians(args.splats, args.mesh || args.profile.is_some()),
         args.spz_version,
     )?;
     let pb = common::progress(3, "loading");
@@ -370,7 +373,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     pb.inc(1);
     if args.first.is_some() && cloud_out.is_none() {
-        bail!("--first applies to single-cloud splat outputs (.ply with --splats, .splat, .spz, .compressed.ply)");
+        bail!("--first applies to single-cloud splat outputs (.ply without --mesh, .splat, .spz, .compressed.ply)");
     }
     if let Some((w, h)) = args.footprint_for {
         if cloud_out.is_some() {

@@ -1,8 +1,8 @@
 //! Writing one cloud in a splat format, chosen by the output's name or explicitly.
 //!
 //! The rule (also `splatbridge convert --help`): `.splat` and `.spz` are always splats;
-//! `*.compressed.ply` is a compressed PLY; `.ply` is the 3DGS PLY only when splats are asked
-//! for (`--splats` or `--format splat-ply`), since `convert` writes mesh PLYs by default.
+//! `*.compressed.ply` is a compressed PLY; `.ply` is the 3DGS PLY, as every splat tool writes
+//! it, unless a mesh is asked for (`convert --mesh` or `--profile`: then `splats` is false).
 //! glTF splats (`KHR_gaussian_splatting`) are written by `splatbridge-convert`, which keeps a
 //! dynamic scene's objects as animated nodes; the formats here hold one cloud, so a dynamic
 //! scene is composited at one time first ([`crate::dynamic::DynamicScene::composite`]).
