@@ -138,8 +138,9 @@ pub struct Args {
     /// the scene's start).
     #[arg(long)]
     pub time: Option<f64>,
-    /// SPZ version written (3: smallest-three rotations; 2: for older readers).
-    #[arg(long, default_value_t = splatbridge_scene::formats::spz::WRITE_VERSION, value_parser = clap::value_parser!(u32).range(2..=3))]
+    /// SPZ version written (3, the default: read by every SPZ reader; 4: zstd streams,
+    /// splat-transform's default, for readers of version 4; 2: for older readers).
+    #[arg(long, default_value_t = splatbridge_scene::formats::spz::WRITE_VERSION, value_parser = clap::value_parser!(u32).range(2..=4))]
     pub spz_version: u32,
     /// Single-cloud splat outputs: keep only the first N Gaussians of the composite (small
     /// test files cut from a real scene).
