@@ -185,10 +185,13 @@ fn every_committed_malformed_case_fails_cleanly() {
     eprintln!("{n} corpus cases");
     assert!(n >= 100, "the corpus has {n} cases, fewer than 100");
     // At least 8 cases per splat format (the glTF splat prefix also counts its SPZ variant's
-    // cases, which have their own 8).
-    for prefix in ["spz_", "splat_", "cply_", "sog_", "khr_", "khr_spz_"] {
+    // cases, which have their own 8) and 6 for the PLY layouts beside 3DGS.
+    for prefix in [
+        "spz_", "splat_", "cply_", "sog_", "khr_", "khr_spz_", "ksplat_", "plyv_",
+    ] {
         let k = table.lines().filter(|l| l.starts_with(prefix)).count();
-        assert!(k >= 8, "{k} cases for {prefix}*, fewer than 8");
+        let least = if prefix == "plyv_" { 6 } else { 8 };
+        assert!(k >= least, "{k} cases for {prefix}*, fewer than {least}");
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
@@ -198,7 +201,13 @@ fn every_committed_malformed_case_fails_cleanly() {
 #[test]
 fn the_corpus_base_files_load() {
     let dir = fixtures().join("malformed_corpus/files");
-    for f in ["sog_ok.sog", "khr_ok.glb", "khr_spz_ok.glb"] {
+    for f in [
+        "sog_ok.sog",
+        "khr_ok.glb",
+        "khr_spz_ok.glb",
+        "ksplat_ok.ksplat",
+        "ksplat_ok_l1.ksplat",
+    ] {
         let o = run(&["info".to_string(), s(&dir.join(f))]);
         assert_eq!(o.code, Some(0), "{f}: {}", o.stderr);
     }

@@ -19,6 +19,7 @@ use splatbridge_convert::{
     ColorEncoding, ConvertOptions, ConvertReport, Profile, UpAxis, VolumetricMode,
 };
 use splatbridge_scene::dynamic::DynamicScene;
+use splatbridge_scene::formats::ksplat::KsplatOptions;
 use splatbridge_scene::formats::CloudFormat;
 
 use crate::cmd::common::{self, CameraArgs};
@@ -109,9 +110,9 @@ pub enum ColorArg {
 #[derive(clap::Args)]
 #[command(after_long_help = "Formats follow the extension of -o, or --format:\n\
   meshes: .glb, .gltf (+ .bin), .obj (+ .mtl), .ply with --mesh or --profile;\n\
-  splats: .splat and .spz always; *.compressed.ply always (compressed PLY); .ply unless --mesh or\n\
+  splats: .splat, .spz and .ksplat always; *.compressed.ply always (compressed PLY); .ply unless --mesh or\n\
   --profile (3DGS PLY); .glb/.gltf with --splats (KHR_gaussian_splatting, dynamic objects as animated nodes).\n\
-Single-cloud splat files (.ply, .compressed.ply, .splat, .spz) hold one cloud: a dynamic scene\n\
+Single-cloud splat files (.ply, .compressed.ply, .splat, .spz, .ksplat) hold one cloud: a dynamic scene\n\
 is composited at --time (default: the scene's start). .splat keeps SH degree 0 only.\n\
 OBJ cannot carry per-vertex alpha: every OBJ triangle is opaque, so soft splat edges and\n\
 translucent Gaussians are lost. OBJ and PLY have no node hierarchy: the up rotation and the\n\
@@ -120,7 +121,7 @@ glTF COLOR_0 is linear: display colours are sRGB-decoded unless --color-encoding
 pub struct Args {
     /// Input scene: a 3DGS PLY, a splatbridge-scene/1 manifest, or a KHR_gaussian_splatting glTF.
     pub scene: PathBuf,
-    /// Output file: .glb, .gltf, .obj, .ply, .compressed.ply, .splat or .spz.
+    /// Output file: .glb, .gltf, .obj, .ply, .compressed.ply, .splat, .spz or .ksplat.
     #[arg(
         short,
         long = "out",
@@ -142,6 +143,10 @@ pub struct Args {
     /// splat-transform's default, for readers of version 4; 2: for older readers).
     #[arg(long, default_value_t = splatbridge_scene::formats::spz::WRITE_VERSION, value_parser = clap::value_parser!(u32).range(2..=4))]
     pub spz_version: u32,
+    /// .ksplat compression level (0: float32; 1, the default: half floats, positions in
+    /// buckets; 2: as 1 with 8-bit SH).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(0..=2))]
+    pub ksplat_level: u8,
     /// Single-cloud splat outputs: keep only the first N Gaussians of the composite (small
     /// test files cut from a real scene).
     #[arg(long, value_name = "N")]
@@ -366,7 +371,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.format.map(OutputFormat::from),
         ply_holds_gaussians(args.splats, args.mesh || args.profile.is_some()),
         args.spz_version,
-    )?;
+    )?
+    .map(|f| match f {
+        CloudFormat::Ksplat(o) => CloudFormat::Ksplat(KsplatOptions {
+            level: args.ksplat_level,
+            ..o
+        }),
+        f => f,
+    });
     let pb = common::progress(3, "loading");
     let mut scene = load_export_input(&args.scene, args.drop_invalid, &common::print_warning)?;
     if !args.camera.is_empty() {

@@ -11,7 +11,8 @@
 //! | 3DGS PLY | [`crate::ply`] | graphdeco-inria `gaussian-splatting` |
 //! | compressed PLY | [`compressed_ply`] | PlayCanvas SuperSplat / splat-transform |
 //! | `.splat` | [`splat`] | antimatter15 `splat` viewer (32-byte records) |
-//! | SPZ v1–v3 | [`spz`] | nianticlabs/spz `load-spz.cc` |
+//! | SPZ v1–v4 | [`spz`] | nianticlabs/spz `load-spz.cc` |
+//! | `.ksplat` | [`ksplat`] | mkkellogg/GaussianSplats3D `SplatBuffer.js` |
 //! | SOG | `sog` | PlayCanvas SOG (`meta.json` + WebP) |
 //! | glTF/GLB | `gltf_khr` | Khronos `KHR_gaussian_splatting` |
 //!
@@ -21,6 +22,7 @@
 
 pub mod compressed_ply;
 pub mod gltf_khr;
+pub mod ksplat;
 mod prefetch;
 pub mod sog;
 pub mod splat;
@@ -58,6 +60,8 @@ pub enum SplatFormat {
     /// glTF (`binary` for GLB) with `KHR_gaussian_splatting`; `spz` when it uses the
     /// SPZ-compressed variant.
     Gltf { binary: bool, spz: bool },
+    /// GaussianSplats3D `.ksplat` at compression level 0, 1 or 2.
+    Ksplat { level: u8 },
     /// A `splatbridge-scene/1` manifest.
     Manifest,
 }
@@ -83,6 +87,7 @@ impl fmt::Display for SplatFormat {
                 };
                 write!(f, "{kind} ({ext})")
             }
+            SplatFormat::Ksplat { level } => write!(f, ".ksplat (GaussianSplats3D, level {level})"),
             SplatFormat::Manifest => write!(f, "splatbridge-scene/1 manifest"),
         }
     }
@@ -99,6 +104,7 @@ impl SplatFormat {
             SplatFormat::Sog { .. } => "sog",
             SplatFormat::Gltf { binary: true, .. } => "glb",
             SplatFormat::Gltf { binary: false, .. } => "gltf",
+            SplatFormat::Ksplat { .. } => "ksplat",
             SplatFormat::Manifest => "manifest",
         }
     }
@@ -108,6 +114,7 @@ impl SplatFormat {
         match *self {
             SplatFormat::Spz { version } => Some(version),
             SplatFormat::Sog { version, .. } => version,
+            SplatFormat::Ksplat { level } => Some(level as u32),
             _ => None,
         }
     }
@@ -150,6 +157,17 @@ impl SplatFormat {
                  smallest three, colour, opacity and higher SH 8-bit"
             }
             SplatFormat::Gltf { .. } => "lossless: float32 attributes",
+            SplatFormat::Ksplat { level: 0 } => {
+                "positions, linear scales, rotations and SH float32; colour and opacity 8-bit"
+            }
+            SplatFormat::Ksplat { level: 1 } => {
+                "positions 16-bit in 5-unit buckets, scales, rotations and SH float16, colour \
+                 and opacity 8-bit"
+            }
+            SplatFormat::Ksplat { .. } => {
+                "positions 16-bit in 5-unit buckets, scales and rotations float16, colour, \
+                 opacity and SH 8-bit (SH over the file's range)"
+            }
             SplatFormat::Manifest => "as stored by each referenced file",
         }
     }
@@ -257,6 +275,12 @@ fn detect_bytes(path: &Path, buf: &[u8], len: u64) -> Result<SplatFormat> {
             bundled: true,
         });
     }
+    let is_ext = |e: &str| path.extension().is_some_and(|x| x.eq_ignore_ascii_case(e));
+    // Before `.splat`, whose record test a ksplat header (small integers) can pass.
+    if ksplat::plausible(buf, len) || is_ext("ksplat") {
+        let level = buf.get(20).map_or(0, |&l| l.min(2));
+        return Ok(SplatFormat::Ksplat { level });
+    }
     if buf.starts_with(b"glTF") {
         let spz = contains(buf, b"KHR_gaussian_splatting_compression_spz");
         return Ok(SplatFormat::Gltf { binary: true, spz });
@@ -328,8 +352,8 @@ fn detect_bytes(path: &Path, buf: &[u8], len: u64) -> Result<SplatFormat> {
     Err(SceneError::format(
         path,
         format!(
-            "not a splat file this tool reads (3DGS or compressed PLY, .splat, SPZ, SOG, \
-             glTF/GLB, manifest); first bytes: {shown}"
+            "not a splat file this tool reads (3DGS or compressed PLY, .splat, .ksplat, SPZ, \
+             SOG, glTF/GLB, manifest); first bytes: {shown}"
         ),
     ))
 }
@@ -466,6 +490,7 @@ fn read_single(
             (cloud, Vec::new())
         }
         SplatFormat::Splat => (splat::read_splat(path)?, Vec::new()),
+        SplatFormat::Ksplat { .. } => (ksplat::read_ksplat(path)?, Vec::new()),
         SplatFormat::Spz { .. } => spz::read_spz(path)?,
         SplatFormat::Sog { .. } => {
             let (cloud, summary) = sog::read_sog_with_summary(path)?;
