@@ -16,7 +16,7 @@ use splatbridge_scene::formats::ksplat::{self, KsplatOptions};
 use splatbridge_scene::ply::ReadOptions;
 
 /// Every target of this module.
-pub const TARGETS: &[(&str, fn(&[u8]))] = &[
+pub const TARGETS: &[(&str, crate::entries::Entry)] = &[
     ("ksplat", ksplat_raw),
     ("ksplat_structured", ksplat_structured),
     ("ksplat_roundtrip", ksplat_roundtrip),
@@ -129,13 +129,16 @@ pub fn ksplat_structured(data: &[u8]) {
     ksplat_raw(&out);
 }
 
+/// One Gaussian: mean, log-scales, quaternion, opacity logit, DC colour.
+type GaussianIn = ([f32; 3], [f32; 3], [f32; 4], f32, [f32; 3]);
+
 #[derive(Arbitrary, Debug)]
 struct CloudIn {
     level: u8,
     degree: u8,
     block: f32,
     bucket: u16,
-    splats: Vec<([f32; 3], [f32; 3], [f32; 4], f32, [f32; 3])>,
+    splats: Vec<GaussianIn>,
     sh: Vec<f32>,
 }
 
