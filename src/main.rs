@@ -5,7 +5,8 @@
 /// by content), as help text; `concat!` puts it into each command's help.
 macro_rules! scene_formats {
     () => {
-        "a 3DGS PLY, a compressed PLY, .splat, .spz, SOG (a folder's meta.json or a .sog zip), \
+        "a 3DGS PLY (also 2DGS, Mip-Splatting and red-green-blue point PLYs), a compressed PLY, \
+         .splat, .spz, .ksplat, SOG (a folder's meta.json or a .sog zip), \
          glTF/GLB with KHR_gaussian_splatting, or a splatbridge-scene/1 manifest (JSON)"
     };
 }

@@ -6,13 +6,16 @@ mod cli_common;
 
 use cli_common::ok;
 
-/// What every scene-reading help must name: PLY (3DGS and compressed), .splat, .spz, SOG in
+/// What every scene-reading help must name: PLY (3DGS, its 2DGS variant and compressed), .splat,
+/// .spz, .ksplat, SOG in
 /// both of its forms, glTF/GLB splats and the manifest.
 const SCENE_FORMATS: &[&str] = &[
     "3DGS PLY",
     "compressed PLY",
     ".splat",
     ".spz",
+    ".ksplat",
+    "2DGS",
     "SOG",
     "meta.json",
     ".sog",

@@ -8,6 +8,9 @@
 #[path = "../fuzz/src/entries.rs"]
 mod entries;
 #[allow(dead_code)]
+#[path = "../fuzz/src/file_formats.rs"]
+mod file_formats;
+#[allow(dead_code)]
 #[path = "../fuzz/src/splat_formats.rs"]
 mod splat_formats;
 

@@ -86,6 +86,9 @@ fn check(name: &str, args: &[String], out: &Path, fragment: &str, names: &str) -
             "first line does not start 'error: ' naming '{names}'"
         ));
     }
+    if names_file_twice(first) {
+        why.push("the message names the file twice".into());
+    }
     if !o.stderr.contains(fragment) {
         why.push(format!("message lacks '{fragment}'"));
     }
@@ -105,6 +108,30 @@ fn check(name: &str, args: &[String], out: &Path, fragment: &str, names: &str) -
         let shown: String = o.stderr.chars().take(600).collect();
         format!("{name}: {}\n  stderr: {shown}", why.join("; "))
     }
+}
+
+/// Whether `error: A: B: …` repeats the file: B is A, or A's file name (`meta.json: meta.json:`).
+fn names_file_twice(first: &str) -> bool {
+    let Some(rest) = first.strip_prefix("error: ") else {
+        return false;
+    };
+    let parts: Vec<&str> = rest.splitn(3, ": ").collect();
+    let [a, b, ..] = parts[..] else {
+        return false;
+    };
+    a == b || Path::new(a).file_name().is_some_and(|n| n == b)
+}
+
+#[test]
+fn a_repeated_file_name_is_seen() {
+    assert!(names_file_twice(
+        "error: d/meta.json: meta.json: count is missing"
+    ));
+    assert!(names_file_twice("error: a.ply: a.ply: x"));
+    assert!(!names_file_twice(
+        "error: a.sog: meta.json: count is missing"
+    ));
+    assert!(!names_file_twice("error: d/meta.json: count is missing"));
 }
 
 fn fixtures() -> PathBuf {
@@ -158,10 +185,13 @@ fn every_committed_malformed_case_fails_cleanly() {
     eprintln!("{n} corpus cases");
     assert!(n >= 100, "the corpus has {n} cases, fewer than 100");
     // At least 8 cases per splat format (the glTF splat prefix also counts its SPZ variant's
-    // cases, which have their own 8).
-    for prefix in ["spz_", "splat_", "cply_", "sog_", "khr_", "khr_spz_"] {
+    // cases, which have their own 8) and 6 for the PLY layouts beside 3DGS.
+    for prefix in [
+        "spz_", "splat_", "cply_", "sog_", "khr_", "khr_spz_", "ksplat_", "plyv_",
+    ] {
         let k = table.lines().filter(|l| l.starts_with(prefix)).count();
-        assert!(k >= 8, "{k} cases for {prefix}*, fewer than 8");
+        let least = if prefix == "plyv_" { 6 } else { 8 };
+        assert!(k >= least, "{k} cases for {prefix}*, fewer than {least}");
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
@@ -171,7 +201,13 @@ fn every_committed_malformed_case_fails_cleanly() {
 #[test]
 fn the_corpus_base_files_load() {
     let dir = fixtures().join("malformed_corpus/files");
-    for f in ["sog_ok.sog", "khr_ok.glb", "khr_spz_ok.glb"] {
+    for f in [
+        "sog_ok.sog",
+        "khr_ok.glb",
+        "khr_spz_ok.glb",
+        "ksplat_ok.ksplat",
+        "ksplat_ok_l1.ksplat",
+    ] {
         let o = run(&["info".to_string(), s(&dir.join(f))]);
         assert_eq!(o.code, Some(0), "{f}: {}", o.stderr);
     }

@@ -32,9 +32,13 @@ pub const TARGETS: &[(&str, Entry)] = &[
     ("obj", obj),
 ];
 
-/// Every target of this module and of [`crate::splat_formats`] (the compressed splat formats).
+/// Every target of this module, of [`crate::splat_formats`] (the compressed splat formats) and
+/// of [`crate::file_formats`] (`.ksplat` and the PLY layouts).
 pub fn all_targets() -> impl Iterator<Item = &'static (&'static str, Entry)> {
-    TARGETS.iter().chain(crate::splat_formats::TARGETS.iter())
+    TARGETS
+        .iter()
+        .chain(crate::splat_formats::TARGETS.iter())
+        .chain(crate::file_formats::TARGETS.iter())
 }
 
 /// Run one target on one input; `false` when the target does not exist.

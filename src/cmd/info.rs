@@ -88,6 +88,10 @@ fn print_text(v: &Value) {
         "quantised   {}",
         v["format"]["quantisation"].as_str().unwrap_or("?")
     );
+    println!(
+        "content     {}",
+        v["format"]["content"].as_str().unwrap_or("?")
+    );
     println!("gaussians   {}", v["gaussians"]);
     println!("SH degree   {}", v["sh_degree"]);
     println!(

@@ -50,6 +50,7 @@ fn format_ending(f: &CloudFormat) -> &'static str {
         CloudFormat::CompressedPly => "compressed.ply",
         CloudFormat::Splat => "splat",
         CloudFormat::Spz(_) => "spz",
+        CloudFormat::Ksplat(_) => "ksplat",
     }
 }
 

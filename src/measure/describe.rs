@@ -110,6 +110,7 @@ pub fn describe(file: &Path, scene: &DynamicScene, info: &LoadInfo) -> Value {
             "description": info.format.to_string(),
             "version": info.format.version(),
             "quantisation": info.quantisation(),
+            "content": info.kind.name(),
         }),
     );
     if is_manifest || !scene.objects.is_empty() {

@@ -49,6 +49,12 @@ pub fn load_export_input(
     Ok(scene)
 }
 
+/// Whether a `.ply` output (or `--format ply`) holds Gaussians: yes, the 3DGS PLY every splat
+/// tool writes, unless a mesh option (`--mesh`, `--profile`) asks for a triangle mesh PLY.
+pub fn ply_holds_gaussians(splats: bool, mesh_asked: bool) -> bool {
+    splats || !mesh_asked
+}
+
 /// An output format named explicitly (instead of the one the output's extension implies).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum OutputFormat {

@@ -15,11 +15,13 @@ use splatbridge_distill::footprint::{widen_scene_for, Widened};
 use splatbridge_scene::camera_spec::{CameraRequest, CameraSource};
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::effects::EffectCounters;
+use splatbridge_scene::formats::ksplat::KsplatOptions;
 use splatbridge_scene::formats::CloudFormat;
 use splatbridge_scene::Camera;
 
 use super::export::{
-    cloud_format, embedded_cameras, export_scene, is_gltf, load_export_input, write_cloud_export,
+    cloud_format, embedded_cameras, export_scene, is_gltf, load_export_input, ply_holds_gaussians,
+    write_cloud_export,
     CloudExport, ExportKind, OutputFormat,
 };
 use super::export_shard::export_obj_frames_shard;
@@ -36,6 +38,11 @@ pub struct ExportRequest {
     pub splats: bool,
     pub khr_compression: KhrCompression,
     pub spz_version: u32,
+    /// `.ksplat` compression level (0, 1 or 2).
+    pub ksplat_level: u8,
+    /// A mesh was asked for (`--mesh` or `--profile`): a `.ply` output is then a triangle mesh
+    /// PLY instead of the 3DGS PLY.
+    pub mesh_asked: bool,
     /// Single-cloud outputs: the time the scene is composited at, and a cut to the first N.
     pub time: Option<f64>,
     pub first: Option<usize>,
@@ -101,13 +108,25 @@ impl ExportRequest {
     /// The output format, the loaded scene with its embedded cameras, and the footprint
     /// widening (`warn` gets the readers' warnings).
     pub fn load(&self, warn: &dyn Fn(&str)) -> anyhow::Result<ExportInput> {
-        let cloud = cloud_format(&self.output, self.format, self.splats, self.spz_version)?;
+        let cloud = cloud_format(
+            &self.output,
+            self.format,
+            ply_holds_gaussians(self.splats, self.mesh_asked),
+            self.spz_version,
+        )?
+        .map(|f| match f {
+            CloudFormat::Ksplat(o) => CloudFormat::Ksplat(KsplatOptions {
+                level: self.ksplat_level,
+                ..o
+            }),
+            f => f,
+        });
         let mut scene = load_export_input(&self.input, self.drop_invalid, warn)?;
         if !self.cameras.is_empty() {
             scene.cameras = embedded_cameras(&self.cameras, &scene)?;
         }
         if self.first.is_some() && cloud.is_none() {
-            bail!("--first applies to single-cloud splat outputs (.ply with --splats, .splat, .spz, .compressed.ply)");
+            bail!("--first applies to single-cloud splat outputs (.ply without --mesh, .splat, .spz, .ksplat, .compressed.ply)");
         }
         let widened = match self.footprint_for {
             Some(_) if cloud.is_some() => bail!("--footprint-for: widens Gaussians for a mesh export; a splat output keeps the Gaussians native splatting filters itself"),

@@ -180,10 +180,33 @@ pub fn read_gltf_splats(path: &Path) -> Result<DynamicScene> {
     // Objects in file order (the stack visits children last-first).
     scene.objects.reverse();
     scene.cameras.reverse();
+    if scene.gaussian_count() == 0 {
+        return Err(no_gaussians(path, v));
+    }
     if !ours {
         half_turn_z(&mut scene);
     }
     Ok(scene)
+}
+
+/// The error for a glTF without a single Gaussian, saying what it holds instead: an empty
+/// scene is never returned, so no command reports "0 Gaussians" or writes an empty output.
+fn no_gaussians(path: &Path, v: &Value) -> SceneError {
+    let primitives: usize = v["meshes"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .map(|m| m["primitives"].as_array().map_or(0, |p| p.len()))
+        .sum();
+    let what = if primitives > 0 {
+        format!(
+            "holds no Gaussians: its {primitives} mesh primitives are triangles or points \
+             without {EXT} (a mesh glTF is traced as a mesh, not read as splats)"
+        )
+    } else {
+        format!("holds neither Gaussians ({EXT}) nor meshes: there is nothing to read")
+    };
+    SceneError::format(path, what)
 }
 
 /// Sign of each SH coefficient (coefficient-major, after DC) under a half turn about z

@@ -11,7 +11,8 @@
 //! | 3DGS PLY | [`crate::ply`] | graphdeco-inria `gaussian-splatting` |
 //! | compressed PLY | [`compressed_ply`] | PlayCanvas SuperSplat / splat-transform |
 //! | `.splat` | [`splat`] | antimatter15 `splat` viewer (32-byte records) |
-//! | SPZ v1–v3 | [`spz`] | nianticlabs/spz `load-spz.cc` |
+//! | SPZ v1–v4 | [`spz`] | nianticlabs/spz `load-spz.cc` |
+//! | `.ksplat` | [`ksplat`] | mkkellogg/GaussianSplats3D `SplatBuffer.js` |
 //! | SOG | `sog` | PlayCanvas SOG (`meta.json` + WebP) |
 //! | glTF/GLB | `gltf_khr` | Khronos `KHR_gaussian_splatting` |
 //!
@@ -21,6 +22,7 @@
 
 pub mod compressed_ply;
 pub mod gltf_khr;
+pub mod ksplat;
 mod prefetch;
 pub mod sog;
 pub mod splat;
@@ -58,6 +60,8 @@ pub enum SplatFormat {
     /// glTF (`binary` for GLB) with `KHR_gaussian_splatting`; `spz` when it uses the
     /// SPZ-compressed variant.
     Gltf { binary: bool, spz: bool },
+    /// GaussianSplats3D `.ksplat` at compression level 0, 1 or 2.
+    Ksplat { level: u8 },
     /// A `splatbridge-scene/1` manifest.
     Manifest,
 }
@@ -83,6 +87,7 @@ impl fmt::Display for SplatFormat {
                 };
                 write!(f, "{kind} ({ext})")
             }
+            SplatFormat::Ksplat { level } => write!(f, ".ksplat (GaussianSplats3D, level {level})"),
             SplatFormat::Manifest => write!(f, "splatbridge-scene/1 manifest"),
         }
     }
@@ -99,6 +104,7 @@ impl SplatFormat {
             SplatFormat::Sog { .. } => "sog",
             SplatFormat::Gltf { binary: true, .. } => "glb",
             SplatFormat::Gltf { binary: false, .. } => "gltf",
+            SplatFormat::Ksplat { .. } => "ksplat",
             SplatFormat::Manifest => "manifest",
         }
     }
@@ -108,6 +114,7 @@ impl SplatFormat {
         match *self {
             SplatFormat::Spz { version } => Some(version),
             SplatFormat::Sog { version, .. } => version,
+            SplatFormat::Ksplat { level } => Some(level as u32),
             _ => None,
         }
     }
@@ -150,6 +157,17 @@ impl SplatFormat {
                  smallest three, colour, opacity and higher SH 8-bit"
             }
             SplatFormat::Gltf { .. } => "lossless: float32 attributes",
+            SplatFormat::Ksplat { level: 0 } => {
+                "positions, linear scales, rotations and SH float32; colour and opacity 8-bit"
+            }
+            SplatFormat::Ksplat { level: 1 } => {
+                "positions 16-bit in 5-unit buckets, scales, rotations and SH float16, colour \
+                 and opacity 8-bit"
+            }
+            SplatFormat::Ksplat { .. } => {
+                "positions 16-bit in 5-unit buckets, scales and rotations float16, colour, \
+                 opacity and SH 8-bit (SH over the file's range)"
+            }
             SplatFormat::Manifest => "as stored by each referenced file",
         }
     }
@@ -161,6 +179,9 @@ pub struct LoadInfo {
     pub format: SplatFormat,
     /// Human-readable warnings, one line each.
     pub warnings: Vec<String>,
+    /// What the Gaussians are: 2DGS surfels (flat discs) or points given defaults are told
+    /// apart from 3D Gaussians, so later stages can treat them as such.
+    pub kind: crate::ply::GaussianKind,
 }
 
 impl LoadInfo {
@@ -168,6 +189,7 @@ impl LoadInfo {
         LoadInfo {
             format,
             warnings: Vec::new(),
+            kind: Default::default(),
         }
     }
 
@@ -253,26 +275,41 @@ fn detect_bytes(path: &Path, buf: &[u8], len: u64) -> Result<SplatFormat> {
             bundled: true,
         });
     }
+    let is_ext = |e: &str| path.extension().is_some_and(|x| x.eq_ignore_ascii_case(e));
+    // Before `.splat`, whose record test a ksplat header (small integers) can pass.
+    if ksplat::plausible(buf, len) || is_ext("ksplat") {
+        let level = buf.get(20).map_or(0, |&l| l.min(2));
+        return Ok(SplatFormat::Ksplat { level });
+    }
     if buf.starts_with(b"glTF") {
         let spz = contains(buf, b"KHR_gaussian_splatting_compression_spz");
         return Ok(SplatFormat::Gltf { binary: true, spz });
     }
     let text = trim_json_start(buf);
     if text.first() == Some(&b'{') {
-        // glTF first: every glTF has "asset", which a manifest (unknown keys rejected) never
-        // has, while a glTF's metadata may quote a manifest's format string.
-        if contains(text, b"\"asset\"") || contains(text, b"KHR_gaussian_splatting") {
+        // The extension's name makes a glTF whatever else the text holds.
+        if contains(text, b"KHR_gaussian_splatting") {
             let spz = contains(text, b"KHR_gaussian_splatting_compression_spz");
             return Ok(SplatFormat::Gltf { binary: false, spz });
         }
-        if contains(text, b"splatbridge-scene/") {
-            return Ok(SplatFormat::Manifest);
-        }
-        if contains(text, b"\"means\"") {
+        // SOG before the glTF "asset" test: splat-transform 0.16 and later write a
+        // glTF-style `"asset": {"generator": …}` into `meta.json` too.
+        if looks_like_sog_meta(text) {
             return Ok(SplatFormat::Sog {
                 version: Some(sog_meta_version(text)),
                 bundled: false,
             });
+        }
+        // glTF next: every glTF has "asset", which a manifest (unknown keys rejected) never
+        // has, while a glTF's metadata may quote a manifest's format string.
+        if contains(text, b"\"asset\"") {
+            return Ok(SplatFormat::Gltf {
+                binary: false,
+                spz: false,
+            });
+        }
+        if contains(text, b"splatbridge-scene/") {
+            return Ok(SplatFormat::Manifest);
         }
         let ext = path
             .extension()
@@ -315,8 +352,8 @@ fn detect_bytes(path: &Path, buf: &[u8], len: u64) -> Result<SplatFormat> {
     Err(SceneError::format(
         path,
         format!(
-            "not a splat file this tool reads (3DGS or compressed PLY, .splat, SPZ, SOG, \
-             glTF/GLB, manifest); first bytes: {shown}"
+            "not a splat file this tool reads (3DGS or compressed PLY, .splat, .ksplat, SPZ, \
+             SOG, glTF/GLB, manifest); first bytes: {shown}"
         ),
     ))
 }
@@ -332,6 +369,18 @@ fn trim_json_start(buf: &[u8]) -> &[u8] {
 
 fn contains(hay: &[u8], needle: &[u8]) -> bool {
     hay.windows(needle.len()).any(|w| w == needle)
+}
+
+/// A SOG `meta.json`: a `"means"` object with `"files"` (every version), and none of the
+/// arrays that hold a glTF's data. Only these two keys are looked for, since only they are
+/// sure to fall in the first [`DETECT_BYTES`] bytes: splat-transform writes `version`,
+/// `asset`, `count` and `means` first, then a 256-entry scale codebook (about 5 KB) before
+/// `quats` and `sh0`.
+fn looks_like_sog_meta(text: &[u8]) -> bool {
+    contains(text, b"\"means\"")
+        && contains(text, b"\"files\"")
+        && !contains(text, b"\"accessors\"")
+        && !contains(text, b"\"bufferViews\"")
 }
 
 /// SOG's `meta.json` carries `"version": 2` from version 2 on; version 1 has no such key.
@@ -374,7 +423,7 @@ pub fn load(path: &Path, opts: &ReadOptions) -> Result<(DynamicScene, LoadInfo)>
             scene
         }
         _ => {
-            let (cloud, warnings) = read_single(path, &mut info.format, opts)?;
+            let (cloud, warnings) = read_single(path, &mut info.format, &mut info.kind, opts)?;
             info.warnings = warnings;
             DynamicScene::from_static(cloud)
         }
@@ -410,7 +459,7 @@ pub fn load_cloud(path: &Path, opts: &ReadOptions) -> Result<(GaussianCloud, Loa
             cloud
         }
         _ => {
-            let (cloud, warnings) = read_single(path, &mut info.format, opts)?;
+            let (cloud, warnings) = read_single(path, &mut info.format, &mut info.kind, opts)?;
             info.warnings = warnings;
             cloud
         }
@@ -423,6 +472,7 @@ pub fn load_cloud(path: &Path, opts: &ReadOptions) -> Result<(GaussianCloud, Loa
 fn read_single(
     path: &Path,
     format: &mut SplatFormat,
+    kind: &mut crate::ply::GaussianKind,
     opts: &ReadOptions,
 ) -> Result<(GaussianCloud, Vec<String>)> {
     // `screened`: the decoder's own validity flag where it has one (false: no Gaussian can be
@@ -431,6 +481,7 @@ fn read_single(
     let (mut cloud, mut warnings) = match *format {
         SplatFormat::Ply => {
             let (cloud, report) = read_ply(path, opts)?;
+            *kind = report.kind;
             return Ok((cloud, report.warnings));
         }
         SplatFormat::CompressedPly => {
@@ -439,6 +490,7 @@ fn read_single(
             (cloud, Vec::new())
         }
         SplatFormat::Splat => (splat::read_splat(path)?, Vec::new()),
+        SplatFormat::Ksplat { .. } => (ksplat::read_ksplat(path)?, Vec::new()),
         SplatFormat::Spz { .. } => spz::read_spz(path)?,
         SplatFormat::Sog { .. } => {
             let (cloud, summary) = sog::read_sog_with_summary(path)?;

@@ -64,7 +64,7 @@ pub fn read_sog_with_summary(path: &Path) -> Result<(GaussianCloud, SogSummary)>
         Container::Zip(_) => c.read(path, "meta.json", META_CAP)?,
         Container::Dir(_) => super::read_file_capped(path, META_CAP)?,
     };
-    let m = meta::parse(path, &meta_bytes)?;
+    let m = meta::parse(path, &meta_bytes, c.is_bundled())?;
     let mut names: Vec<&str> = vec![&m.means_files[0], &m.means_files[1], &m.quats_file];
     names.extend([m.scales_file.as_str(), m.sh0_file.as_str()]);
     if let Some(s) = &m.shn {

@@ -14,12 +14,10 @@
 //! | rotations | 3 (v1, v2) / 4 (v3+) | v1/v2: x, y, z of the unit quaternion with w ≥ 0, `q·127.5 + 127.5`; v3: "smallest three", 2 bits for the largest component's index and 10 bits (sign + 9-bit magnitude / √½) for each other |
 //! | SH | 3·((d+1)²−1) | coefficient-major RGB, `x·128 + 128`, rounded to 5 bits (degree 1) and 4 bits (higher) |
 //!
-//! Version 4 (nianticlabs/spz "SPZ 4", what splat-transform 3.x writes) drops the gzip layer:
-//! an uncompressed 32-byte header (the fields above, then u8 stream count, u32 offset of the
-//! table of contents, 12 reserved bytes), optional extension records, the table of contents
-//! (per stream: compressed and uncompressed size, u64 each) and the same six attribute planes
-//! as separate zstd streams (empty planes, such as SH at degree 0, are left out). It is read
-//! (the reference C `libzstd`), not written: version 3 is what every reader decodes. SPZ stores the RUB axis convention (x right, y up, z back; OpenGL, three.js),
+//! Version 4 (nianticlabs/spz "SPZ 4", splat-transform 3.x's default) drops the gzip layer
+//! for separate zstd streams per attribute plane: read and written by [`v4`].
+//!
+//! SPZ stores the RUB axis convention (x right, y up, z back; OpenGL, three.js),
 //! the 3DGS PLY RDF (x right, y down, z forward): reading and writing flip y and z — positions,
 //! the quaternion's y and z parts, and every SH coefficient odd in y·z ([`SH_FLIP`]) — so a
 //! scene read from SPZ lines up with the PLY it came from. SH degree 4 (allowed by v3) is cut
@@ -29,7 +27,7 @@
 //! checked against what the compressed size can hold (deflate expands at most 1032:1) before
 //! anything is allocated, and the stream is read through `Read::take` with that size.
 
-use std::io::{BufRead, BufReader, Read, Seek, SeekFrom, Write};
+use std::io::{BufReader, Read, Write};
 use std::path::Path;
 
 use flate2::read::GzDecoder;
@@ -42,6 +40,7 @@ use super::regular_file_len;
 use decode::{PlaneDecoder, PlaneError};
 
 mod decode;
+pub mod v4;
 
 /// Said when a degree-4 file is read (the cloud keeps degrees 0–3).
 const SH4_WARNING: &str = "SH degree 4 cut to degree 3 (the highest this tool renders)";
@@ -58,8 +57,13 @@ pub const HEADER_V4: usize = 32;
 /// Version 4's bound on uncompressed/compressed size (load-spz.cc `kMaxCompressionRatio`):
 /// a header claiming more data than this is refused before anything is allocated.
 const MAX_ZSTD_RATIO: u64 = 1024;
-/// The version [`encode_spz`] writes by default: the newest that both nianticlabs/spz and
-/// splat-transform decode.
+/// The version [`encode_spz`] writes by default: 3, because every SPZ reader reads it —
+/// readers of version 4 (nianticlabs/spz since "SPZ 4", splat-transform 3.x) read 1–3 as
+/// well, while viewers built on earlier readers refuse version 4. Version 4 (zstd streams)
+/// is one option away (`SpzOptions::version`, `convert --spz-version 4`) and buys little:
+/// on `fourth_st` (131 k Gaussians, SH 3) 3 205 859 bytes against version 3's 3 209 111
+/// (0.1 % smaller), decoded in 182 ms against 257 ms (`bench ply`, medians of 5, on a
+/// machine loaded 11× its 2 cores).
 pub const WRITE_VERSION: u32 = 3;
 /// Deflate's largest expansion ratio (zlib technical notes: 1032:1), used to reject headers
 /// that declare more data than the compressed stream could possibly hold.
@@ -100,12 +104,13 @@ impl SpzAxes {
 /// Options for [`encode_spz`].
 #[derive(Clone, Copy, Debug)]
 pub struct SpzOptions {
-    /// 2 or 3 (the default, [`WRITE_VERSION`]).
+    /// 2, 3 (the default, [`WRITE_VERSION`]) or 4 (zstd streams, [`v4`]).
     pub version: u32,
     /// Fixed-point fraction bits for positions; `None` picks 12 (1/4096 units, the reference
     /// encoder's choice) or fewer when the scene is too large for 24 bits at 12.
     pub fractional_bits: Option<u8>,
-    /// gzip level 0–9.
+    /// Compression level 0–9: gzip's (versions 2, 3) or zstd's (version 4; 0 is zstd's
+    /// default, 3).
     pub level: u32,
     /// Axis convention of the written stream.
     pub axes: SpzAxes,
@@ -251,7 +256,7 @@ pub fn decode_spz(bytes: &[u8], path: &Path) -> Result<GaussianCloud> {
 pub fn decode_spz_with(bytes: &[u8], path: &Path, axes: SpzAxes) -> Result<GaussianCloud> {
     if bytes.starts_with(&MAGIC.to_le_bytes()) {
         let len = bytes.len() as u64;
-        return decode_v4(std::io::Cursor::new(bytes), len, path, axes).map(|(c, _)| c);
+        return v4::decode_v4(std::io::Cursor::new(bytes), len, path, axes).map(|(c, _)| c);
     }
     decode_gzip(bytes, bytes.len() as u64, path, axes).map(|(c, _)| c)
 }
@@ -276,7 +281,7 @@ pub fn read_spz(path: &Path) -> Result<(GaussianCloud, Vec<String>)> {
         .read(&mut magic)
         .map_err(|e| SceneError::io(path, e))?;
     if n == 4 && magic == MAGIC.to_le_bytes() {
-        return decode_v4(file, len, path, SpzAxes::Rub);
+        return v4::decode_v4(file, len, path, SpzAxes::Rub);
     }
     let file = std::fs::File::open(path).map_err(|e| SceneError::io(path, e))?;
     decode_gzip(
@@ -285,182 +290,6 @@ pub fn read_spz(path: &Path) -> Result<(GaussianCloud, Vec<String>)> {
         path,
         SpzAxes::Rub,
     )
-}
-
-/// Decode a version-4 file (uncompressed header, zstd attribute streams) of `file_len`
-/// bytes from `src`: the header and table of contents are read, then each stream straight
-/// from its place into the cloud, so the compressed file is never held whole.
-fn decode_v4<R: Read + Seek + Send>(
-    mut src: R,
-    file_len: u64,
-    path: &Path,
-    axes: SpzAxes,
-) -> Result<(GaussianCloud, Vec<String>)> {
-    let bad = |what: String| SceneError::format(path, what);
-    let io_err = |e: std::io::Error| SceneError::io(path, e);
-    if file_len < HEADER_V4 as u64 {
-        return Err(bad(format!(
-            "SPZ file of {file_len} bytes ends inside the {HEADER_V4}-byte version-4 header"
-        )));
-    }
-    let mut bytes = [0u8; HEADER_V4];
-    src.seek(SeekFrom::Start(0))
-        .and_then(|_| src.read_exact(&mut bytes))
-        .map_err(io_err)?;
-    let version = u32::from_le_bytes([bytes[4], bytes[5], bytes[6], bytes[7]]);
-    if version != 4 {
-        return Err(bad(format!(
-            "uncompressed SPZ header says version {version}; only version 4 is stored without gzip"
-        )));
-    }
-    // The shared fields mean what they mean in version 3: parse them with its rules.
-    let mut legacy = [0u8; HEADER];
-    legacy.copy_from_slice(&bytes[..HEADER]);
-    legacy[4..8].copy_from_slice(&3u32.to_le_bytes());
-    legacy[15] = 0;
-    let mut h = SpzHeader::parse(&legacy, path)?;
-    h.version = 4;
-    let streams = bytes[15] as usize;
-    let toc = u32::from_le_bytes([bytes[16], bytes[17], bytes[18], bytes[19]]) as u64;
-    let n = h.count as u64;
-    let planes = [9 * n, n, 3 * n, 3 * n, 4 * n, h.sh_bytes() * n];
-    let expected: Vec<u64> = planes.iter().copied().filter(|&s| s > 0).collect();
-    if streams != expected.len() {
-        return Err(bad(format!(
-            "SPZ v4 header declares {streams} streams; {} Gaussians of SH degree {} need {}",
-            h.count,
-            h.sh_degree,
-            expected.len()
-        )));
-    }
-    let need = h.payload_len();
-    if need > file_len.saturating_mul(MAX_ZSTD_RATIO) {
-        return Err(bad(format!(
-            "SPZ header declares {} Gaussians ({need} bytes of data), more than a {file_len}-byte file can hold",
-            h.count
-        )));
-    }
-    let toc_end = toc.saturating_add(16 * streams as u64);
-    if toc < HEADER_V4 as u64 || toc_end > file_len {
-        return Err(bad(format!(
-            "SPZ v4 table of contents at byte {toc} ({streams} entries) is outside the {file_len}-byte file"
-        )));
-    }
-    let mut warnings = Vec::new();
-    if toc > HEADER_V4 as u64 {
-        warnings.push(format!(
-            "{} bytes of SPZ extension records skipped",
-            toc - HEADER_V4 as u64
-        ));
-    }
-    // At most 255 entries of 16 bytes.
-    let mut table = vec![0u8; 16 * streams];
-    src.seek(SeekFrom::Start(toc))
-        .and_then(|_| src.read_exact(&mut table))
-        .map_err(io_err)?;
-    let u64_at = |o: usize| {
-        let mut b = [0u8; 8];
-        b.copy_from_slice(&table[o..o + 8]);
-        u64::from_le_bytes(b)
-    };
-    let mut dec = PlaneDecoder::new(&h, axes.flip()).map_err(|_| {
-        bad(format!(
-            "cannot allocate the arrays of {} Gaussians",
-            h.count
-        ))
-    })?;
-    let mut at = toc_end;
-    let mut k = 0;
-    for p in 0..decode::PLANES {
-        let want = dec.stride(p) as u64 * n;
-        if want == 0 {
-            continue;
-        }
-        let (csize, usize_) = (u64_at(16 * k), u64_at(16 * k + 8));
-        if usize_ != want {
-            return Err(bad(format!(
-                "SPZ v4 stream {k} declares {usize_} bytes; {} Gaussians need {want}",
-                h.count
-            )));
-        }
-        let end = at
-            .checked_add(csize)
-            .filter(|&v| v <= file_len)
-            .ok_or_else(|| {
-                bad(format!(
-                    "SPZ v4 stream {k} ({csize} bytes at {at}) runs past the end of the {file_len}-byte file (truncated)"
-                ))
-            })?;
-        src.seek(SeekFrom::Start(at)).map_err(io_err)?;
-        let mut stream = BufReader::with_capacity(1 << 16, (&mut src).take(csize));
-        // Checked here rather than left to the decoder, whose error for a wrong magic is a
-        // bare "Unknown frame descriptor".
-        if !stream.fill_buf().map_err(io_err)?.starts_with(&ZSTD_MAGIC) {
-            return Err(bad(format!(
-                "SPZ v4 stream {k} is not zstd (no zstd frame magic)"
-            )));
-        }
-        let mut dec_z = zstd::stream::read::Decoder::with_buffer(stream)
-            .map_err(|e| bad(format!("SPZ v4 stream {k}: zstd decoder: {e}")))?;
-        // A frame may declare a window of up to 2 GiB, which the decoder would allocate
-        // before producing a byte (a cheap bomb). No window need exceed the plane itself.
-        dec_z
-            .window_log_max(window_log_for(want))
-            .map_err(|e| bad(format!("SPZ v4 stream {k}: zstd decoder: {e}")))?;
-        let before = dec.got;
-        let short = |got: u64| {
-            bad(format!(
-                "SPZ v4 stream {k} decompresses to {got} bytes; {} Gaussians need {want}",
-                h.count
-            ))
-        };
-        // Decompress on one core while the plane is dequantised on the other.
-        with_prefetch(dec_z, want, |z| -> Result<()> {
-            match dec.read_plane(p, z) {
-                Ok(()) => {}
-                Err(PlaneError::Short) => return Err(short(dec.got - before)),
-                Err(PlaneError::Io(e)) => {
-                    return Err(bad(format!("SPZ v4 stream {k} does not decompress: {e}")))
-                }
-            }
-            // One byte beyond the declared size is enough to tell a lying stream (a bomb).
-            let mut extra = [0u8; 1];
-            let more = z
-                .read(&mut extra)
-                .map_err(|e| bad(format!("SPZ v4 stream {k} does not decompress: {e}")))?;
-            if more > 0 {
-                return Err(bad(format!(
-                    "SPZ v4 stream {k} decompresses to more than {want} bytes; {} Gaussians need {want}",
-                    h.count
-                )));
-            }
-            Ok(())
-        })?;
-        at = end;
-        k += 1;
-    }
-    if at != file_len {
-        return Err(bad(format!(
-            "{} bytes after the last SPZ v4 stream",
-            file_len - at
-        )));
-    }
-    if h.sh_degree > 3 {
-        warnings.push(SH4_WARNING.into());
-    }
-    Ok((dec.finish(), warnings))
-}
-
-/// The zstd frame magic number (RFC 8878, section 3.1.1), little-endian.
-const ZSTD_MAGIC: [u8; 4] = [0x28, 0xb5, 0x2f, 0xfd];
-
-/// The largest zstd window (as log₂ bytes) accepted for a stream of `want` decompressed
-/// bytes. A window never has to exceed the content, but an encoder that streams without
-/// knowing the size declares its level's window (2²³ up to level 19), so that is the floor;
-/// 2²⁷ (libzstd's own default limit) is the ceiling, so no file can ask for more.
-fn window_log_for(want: u64) -> u32 {
-    let bits = 64 - want.max(1).saturating_sub(1).leading_zeros();
-    bits.clamp(23, 27)
 }
 
 fn decode_gzip<R: Read + Send>(
@@ -688,7 +517,7 @@ pub fn encode_spz_raw(cloud: &GaussianCloud, opts: &SpzOptions) -> Result<Vec<u8
     cloud.check_shape()?;
     if !(2..=3).contains(&opts.version) {
         return Err(SceneError::Invalid(format!(
-            "SPZ: can write versions 2 and 3, not {}",
+            "SPZ: the uncompressed stream of versions 2 and 3 is written, not version {} (version 4 is written by encode_spz)",
             opts.version
         )));
     }
@@ -759,8 +588,12 @@ pub fn encode_spz_raw(cloud: &GaussianCloud, opts: &SpzOptions) -> Result<Vec<u8
     Ok(out)
 }
 
-/// Encode a cloud as a gzip-compressed SPZ stream (an `.spz` file's bytes).
+/// Encode a cloud as an `.spz` file's bytes: a gzip-compressed stream (versions 2, 3) or
+/// version 4's zstd streams.
 pub fn encode_spz(cloud: &GaussianCloud, opts: &SpzOptions) -> Result<Vec<u8>> {
+    if opts.version == 4 {
+        return v4::encode_v4(cloud, opts);
+    }
     let raw = encode_spz_raw(cloud, opts)?;
     let mut enc = GzEncoder::new(
         Vec::with_capacity(raw.len() / 3),

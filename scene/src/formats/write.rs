@@ -1,15 +1,16 @@
 //! Writing one cloud in a splat format, chosen by the output's name or explicitly.
 //!
-//! The rule (also `splatbridge convert --help`): `.splat` and `.spz` are always splats;
-//! `*.compressed.ply` is a compressed PLY; `.ply` is the 3DGS PLY only when splats are asked
-//! for (`--splats` or `--format splat-ply`), since `convert` writes mesh PLYs by default.
+//! The rule (also `splatbridge convert --help`): `.splat`, `.spz` and `.ksplat` are always
+//! splats;
+//! `*.compressed.ply` is a compressed PLY; `.ply` is the 3DGS PLY, as every splat tool writes
+//! it, unless a mesh is asked for (`convert --mesh` or `--profile`: then `splats` is false).
 //! glTF splats (`KHR_gaussian_splatting`) are written by `splatbridge-convert`, which keeps a
 //! dynamic scene's objects as animated nodes; the formats here hold one cloud, so a dynamic
 //! scene is composited at one time first ([`crate::dynamic::DynamicScene::composite`]).
 
 use std::path::Path;
 
-use super::{compressed_ply, splat, spz};
+use super::{compressed_ply, ksplat, splat, spz};
 use crate::error::Result;
 use crate::ply::{write_ply, PlyFormat};
 use crate::GaussianCloud;
@@ -25,6 +26,8 @@ pub enum CloudFormat {
     Splat,
     /// Niantic SPZ with these options.
     Spz(spz::SpzOptions),
+    /// GaussianSplats3D `.ksplat` with these options.
+    Ksplat(ksplat::KsplatOptions),
 }
 
 impl CloudFormat {
@@ -35,6 +38,7 @@ impl CloudFormat {
             CloudFormat::CompressedPly => "compressed PLY",
             CloudFormat::Splat => ".splat",
             CloudFormat::Spz(_) => "SPZ",
+            CloudFormat::Ksplat(_) => ".ksplat",
         }
     }
 
@@ -50,6 +54,7 @@ impl CloudFormat {
         match ext.as_str() {
             "splat" => Some(CloudFormat::Splat),
             "spz" => Some(CloudFormat::Spz(spz::SpzOptions::default())),
+            "ksplat" => Some(CloudFormat::Ksplat(ksplat::KsplatOptions::default())),
             "ply" if splats => Some(CloudFormat::Ply),
             _ => None,
         }
@@ -63,6 +68,7 @@ pub fn write_cloud(path: &Path, cloud: &GaussianCloud, format: CloudFormat) -> R
         CloudFormat::CompressedPly => compressed_ply::write_compressed_ply(path, cloud)?,
         CloudFormat::Splat => splat::write_splat(path, cloud)?,
         CloudFormat::Spz(o) => spz::write_spz(path, cloud, &o)?,
+        CloudFormat::Ksplat(o) => ksplat::write_ksplat(path, cloud, &o)?,
     }
     Ok(std::fs::metadata(path).map(|m| m.len()).unwrap_or(0))
 }

@@ -26,7 +26,18 @@ pub(crate) fn read_ascii(
     for (slot, &(_, pi, _)) in layout.slots.iter().enumerate() {
         prop_slot[pi] = Some(slot);
     }
-    let n_rest = layout.slots.len() - SLOT_REST;
+    let var = layout.variant.as_deref();
+    // A non-standard layout reads its properties into `raw` and assembles the record.
+    let mut raw = vec![0f64; nprops];
+    if let Some(var) = var {
+        for &(pi, _, _) in &var.props {
+            prop_slot[pi] = Some(usize::MAX);
+        }
+    }
+    let n_rest = match var {
+        Some(var) => var.slots.len() - SLOT_REST,
+        None => layout.slots.len() - SLOT_REST,
+    };
     let mut cloud = GaussianCloud::with_capacity(layout.sh_degree, n);
     let mut v = [0f32; MAX_SLOTS];
     let mut line = Vec::new();
@@ -52,11 +63,15 @@ pub(crate) fn read_ascii(
             }
             if let Some(slot) = prop_slot[pi] {
                 let p = &header.properties[pi];
-                let value = match p.ty {
-                    ScalarType::F64 => tok.parse::<f64>().map(|x| x as f32).ok(),
+                let value = match (p.ty, slot) {
+                    (_, usize::MAX) => tok.parse::<f64>().ok().map(|x| {
+                        raw[pi] = x;
+                        0.0
+                    }),
+                    (ScalarType::F64, _) => tok.parse::<f64>().map(|x| x as f32).ok(),
                     _ => tok.parse::<f32>().ok(),
                 };
-                v[slot] = value.ok_or_else(|| {
+                let value = value.ok_or_else(|| {
                     let preview: String = tok.chars().take(24).collect();
                     err(format!(
                         "line {lineno} (vertex {i}): property '{}': '{}' is not a number",
@@ -64,12 +79,18 @@ pub(crate) fn read_ascii(
                         preview.escape_debug()
                     ))
                 })?;
+                if slot != usize::MAX {
+                    v[slot] = value;
+                }
             }
         }
         if count != nprops {
             return Err(err(format!(
                 "line {lineno} (vertex {i}): expected {nprops} values, found {count}"
             )));
+        }
+        if let Some(var) = var {
+            var.assemble(&raw, &mut v);
         }
         suspect |= push_slots(&mut cloud, &v, n_rest);
     }

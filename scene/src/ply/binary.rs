@@ -32,6 +32,9 @@ pub(crate) fn read_binary(
         (n.saturating_mul(stride) / CHUNKS_PER_FILE).clamp(MIN_CHUNK_BYTES, MAX_CHUNK_BYTES);
     let per_chunk = (chunk_bytes / stride).max(1).min(n.max(1));
     let mut buf = vec![0u8; per_chunk * stride];
+    if let Some(var) = &layout.variant {
+        return read_variant(r, path, header, var, layout.sh_degree, n, per_chunk, buf);
+    }
     let slots: Vec<(usize, ScalarType)> =
         layout.slots.iter().map(|&(off, _, ty)| (off, ty)).collect();
     let all_f32 = slots.iter().all(|&(_, ty)| ty == ScalarType::F32);
@@ -41,16 +44,7 @@ pub(crate) fn read_binary(
     while done < n {
         let m = per_chunk.min(n - done);
         let bytes = &mut buf[..m * stride];
-        r.read_exact(bytes).map_err(|e| {
-            if e.kind() == std::io::ErrorKind::UnexpectedEof {
-                SceneError::format(
-                    path,
-                    format!("vertex data ends inside vertices {done}..{} (the file shrank while being read?)", done + m),
-                )
-            } else {
-                SceneError::io(path, e)
-            }
-        })?;
+        read_chunk(r, bytes, path, done, m)?;
         suspect |= match (header.encoding, all_f32) {
             (Encoding::BinaryLe, true) => {
                 decode::<true, true>(bytes, stride, &slots, n_rest, &mut cloud)
@@ -114,4 +108,89 @@ fn decode<const LE: bool, const ALL_F32: bool>(
         suspect |= push_slots(cloud, &v, n_rest);
     }
     suspect
+}
+
+fn read_chunk(
+    r: &mut impl Read,
+    bytes: &mut [u8],
+    path: &Path,
+    done: usize,
+    m: usize,
+) -> Result<()> {
+    r.read_exact(bytes).map_err(|e| {
+        if e.kind() == std::io::ErrorKind::UnexpectedEof {
+            SceneError::format(
+                path,
+                format!(
+                    "vertex data ends inside vertices {done}..{} (the file shrank while being read?)",
+                    done + m
+                ),
+            )
+        } else {
+            SceneError::io(path, e)
+        }
+    })
+}
+
+/// One scalar of any PLY type, widened to f64.
+#[inline]
+fn load_any(rec: &[u8], off: usize, ty: ScalarType, le: bool) -> f64 {
+    macro_rules! get {
+        ($t:ty, $n:expr) => {{
+            let b: [u8; $n] = rec[off..off + $n].try_into().expect("sized");
+            if le {
+                <$t>::from_le_bytes(b) as f64
+            } else {
+                <$t>::from_be_bytes(b) as f64
+            }
+        }};
+    }
+    match ty {
+        ScalarType::I8 => rec[off] as i8 as f64,
+        ScalarType::U8 => rec[off] as f64,
+        ScalarType::I16 => get!(i16, 2),
+        ScalarType::U16 => get!(u16, 2),
+        ScalarType::I32 => get!(i32, 4),
+        ScalarType::U32 => get!(u32, 4),
+        ScalarType::F32 => get!(f32, 4),
+        ScalarType::F64 => get!(f64, 8),
+    }
+}
+
+/// The general path for non-standard layouts (see `super::variant`): every used property is
+/// widened to f64 and the record assembled from them. Not the trained-3DGS hot path, so it
+/// trades the fast path's specialisation for one loop that handles every layout.
+#[allow(clippy::too_many_arguments)]
+fn read_variant(
+    r: &mut impl Read,
+    path: &Path,
+    header: &Header,
+    var: &super::variant::Variant,
+    sh_degree: u8,
+    n: usize,
+    per_chunk: usize,
+    mut buf: Vec<u8>,
+) -> Result<(GaussianCloud, bool)> {
+    let stride = header.stride;
+    let le = header.encoding == Encoding::BinaryLe;
+    let mut cloud = GaussianCloud::with_capacity(sh_degree, n);
+    let n_rest = var.slots.len() - super::header::SLOT_REST;
+    let mut raw = vec![0f64; header.properties.len()];
+    let mut v = [0f32; MAX_SLOTS];
+    let mut done = 0;
+    let mut suspect = false;
+    while done < n {
+        let m = per_chunk.min(n - done);
+        let bytes = &mut buf[..m * stride];
+        read_chunk(r, bytes, path, done, m)?;
+        for rec in bytes.chunks_exact(stride) {
+            for &(pi, off, ty) in &var.props {
+                raw[pi] = load_any(rec, off, ty, le);
+            }
+            var.assemble(&raw, &mut v);
+            suspect |= push_slots(&mut cloud, &v, n_rest);
+        }
+        done += m;
+    }
+    Ok((cloud, suspect))
 }

@@ -60,7 +60,7 @@ impl ScalarType {
         }
     }
 
-    fn name(self) -> &'static str {
+    pub(crate) fn name(self) -> &'static str {
         match self {
             ScalarType::I8 => "char",
             ScalarType::U8 => "uchar",
@@ -319,6 +319,9 @@ pub(crate) struct Layout {
     /// Vertex properties not used (normals excluded: they are part of the standard layout and
     /// carry no information for splatting).
     pub ignored: Vec<String>,
+    /// A non-standard layout (colours, 2DGS, Mip-Splatting, points), read by the general
+    /// path; `slots` is then empty.
+    pub variant: Option<Box<super::variant::Variant>>,
 }
 
 /// Map the vertex properties to canonical slots by name, inferring the SH degree from the
@@ -362,6 +365,21 @@ pub(crate) fn layout(header: &Header, path: &Path) -> Result<Layout> {
             )));
         }
     }
+    let rest_pis: Vec<usize> = rest.iter().map(|&(_, pi)| pi).collect();
+    if let Some(v) = super::variant::variant(header, &fixed, &rest_pis, path)? {
+        let used = |name: &String| {
+            v.props
+                .iter()
+                .any(|&(pi, _, _)| &header.properties[pi].name == name)
+        };
+        ignored.retain(|n| !used(n));
+        return Ok(Layout {
+            sh_degree,
+            slots: Vec::new(),
+            ignored,
+            variant: Some(Box::new(v)),
+        });
+    }
     let mut slots = Vec::with_capacity(SLOT_REST + n_rest);
     for (slot, pi) in fixed.iter().enumerate() {
         let pi =
@@ -387,5 +405,6 @@ pub(crate) fn layout(header: &Header, path: &Path) -> Result<Layout> {
         sh_degree,
         slots,
         ignored,
+        variant: None,
     })
 }

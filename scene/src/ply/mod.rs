@@ -29,13 +29,20 @@
 //!   data, between 64 KiB and 4 MiB) straight into the cloud's arrays (sized exactly once), so
 //!   the peak memory is the cloud plus one chunk. Measured with `splatbridge bench ply`.
 //!
+//! - Other layouts are read too (module `variant`): `red green blue` colours instead of
+//!   `f_dc_*`, 2DGS surfels (`scale_0 scale_1` only), Mip-Splatting's `filter_3D` (folded
+//!   into scales and opacities) and points without Gaussian parameters (3DGS's initial
+//!   Gaussians: scales from the nearest neighbours). [`ReadReport::kind`] says which.
+//!
 //! # Writing
 //! [`write_ply`] writes the standard layout atomically; see the `write` module for details.
 
 mod ascii;
 mod binary;
 mod header;
+mod point_defaults;
 mod stream;
+mod variant;
 mod write;
 
 use std::io::BufReader;
@@ -47,6 +54,7 @@ use crate::error::{Result, SceneError};
 use crate::GaussianCloud;
 use header::{Encoding, SLOT_DC, SLOT_OPACITY, SLOT_REST, SLOT_ROT, SLOT_SCALE, SLOT_X};
 pub use stream::PlyStream;
+pub use variant::{GaussianKind, POINT_OPACITY, SURFEL_THICKNESS};
 
 /// Encoding of a written PLY.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -75,6 +83,8 @@ pub struct ReadReport {
     pub ignored_properties: Vec<String>,
     /// Human-readable warnings (one line each).
     pub warnings: Vec<String>,
+    /// What the vertices were: 3D Gaussians, 2DGS surfels or points (see the module docs).
+    pub kind: GaussianKind,
 }
 
 impl ReadReport {
@@ -142,6 +152,13 @@ pub fn read_ply(path: &Path, opts: &ReadOptions) -> Result<(GaussianCloud, ReadR
         _ => binary::read_binary(&mut r, path, &header, &layout, n)?,
     };
 
+    if let Some(var) = &layout.variant {
+        report.kind = var.kind;
+        report.warnings.extend(var.notes.iter().cloned());
+        if var.kind == GaussianKind::Points {
+            point_defaults::neighbour_scales(&mut cloud);
+        }
+    }
     if !layout.ignored.is_empty() {
         report.warnings.push(format!(
             "ignored {} vertex properties not used by 3DGS: {}",

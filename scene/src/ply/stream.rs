@@ -29,7 +29,8 @@ pub struct PlyStream {
 
 impl PlyStream {
     /// Open `path` at its first record. `Ok(None)` for an ASCII PLY, which has no fixed
-    /// record size (read it whole with [`super::read_ply`]).
+    /// record size, or for a layout other than the standard 3DGS one (colours, 2DGS, Mip-Splatting,
+    /// points; see `super::variant`): read those whole with [`super::read_ply`].
     pub fn open(path: &Path, drop_invalid: bool) -> Result<Option<PlyStream>> {
         let (file, file_len) = crate::input::open_regular(path)?;
         let mut r = BufReader::with_capacity(1 << 20, file);
@@ -38,6 +39,12 @@ impl PlyStream {
             return Ok(None);
         }
         let layout = header::layout(&header, path)?;
+        if layout.variant.is_some() {
+            // Non-standard layouts are read whole: points get their scales from their
+            // neighbours (the whole cloud), and consumers of this stream copy records as
+            // they are, which must be the standard layout.
+            return Ok(None);
+        }
         let data_len = file_len.saturating_sub(header.len);
         let stride = header.stride as u64;
         match header.vertex_count.checked_mul(stride) {

@@ -16,10 +16,10 @@ use crate::cmd::common;
 
 #[derive(clap::Args)]
 #[command(after_long_help = "Formats follow the extension of -o, or --format:\n\
-  meshes: .glb, .gltf (+ .bin), .obj (+ .mtl), .ply;\n\
-  splats: .splat and .spz always; *.compressed.ply always (compressed PLY); .ply with --splats\n\
-  (3DGS PLY); .glb/.gltf with --splats (KHR_gaussian_splatting, dynamic objects as animated nodes).\n\
-Single-cloud splat files (.ply, .compressed.ply, .splat, .spz) hold one cloud: a dynamic scene\n\
+  meshes: .glb, .gltf (+ .bin), .obj (+ .mtl), .ply with --mesh or --profile;\n\
+  splats: .splat, .spz and .ksplat always; *.compressed.ply always (compressed PLY); .ply unless --mesh or\n\
+  --profile (3DGS PLY); .glb/.gltf with --splats (KHR_gaussian_splatting, dynamic objects as animated nodes).\n\
+Single-cloud splat files (.ply, .compressed.ply, .splat, .spz, .ksplat) hold one cloud: a dynamic scene\n\
 is composited at --time (default: the scene's start). .splat keeps SH degree 0 only.\n\
 OBJ cannot carry per-vertex alpha: every OBJ triangle is opaque, so soft splat edges and\n\
 translucent Gaussians are lost. OBJ and PLY have no node hierarchy: the up rotation and the\n\
@@ -28,7 +28,7 @@ glTF COLOR_0 is linear: display colours are sRGB-decoded unless --color-encoding
 pub struct Args {
     #[arg(help = concat!("The scene: ", scene_formats!(), "."))]
     pub scene: PathBuf,
-    /// Output file: .glb, .gltf, .obj, .ply, .compressed.ply, .splat or .spz.
+    /// Output file: .glb, .gltf, .obj, .ply, .compressed.ply, .splat, .spz or .ksplat.
     #[arg(
         short,
         long = "out",
@@ -46,9 +46,14 @@ pub struct Args {
     /// the scene's start).
     #[arg(long)]
     pub time: Option<f64>,
-    /// SPZ version written (3: smallest-three rotations; 2: for older readers).
-    #[arg(long, default_value_t = splatbridge_scene::formats::spz::WRITE_VERSION, value_parser = clap::value_parser!(u32).range(2..=3))]
+    /// SPZ version written (3, the default: read by every SPZ reader; 4: zstd streams,
+    /// splat-transform's default, for readers of version 4; 2: for older readers).
+    #[arg(long, default_value_t = splatbridge_scene::formats::spz::WRITE_VERSION, value_parser = clap::value_parser!(u32).range(2..=4))]
     pub spz_version: u32,
+    /// .ksplat compression level (0: float32; 1, the default: half floats, positions in
+    /// buckets; 2: as 1 with 8-bit SH).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(0..=2))]
+    pub ksplat_level: u8,
     /// Single-cloud splat outputs: keep only the first N Gaussians of the composite (small
     /// test files cut from a real scene).
     #[arg(long, value_name = "N")]
@@ -82,6 +87,9 @@ pub struct Args {
     /// Write native splats (KHR_gaussian_splatting, .glb/.gltf) instead of a mesh.
     #[arg(long)]
     pub splats: bool,
+    /// A .ply output is a triangle mesh PLY instead of the 3DGS PLY (also implied by --profile).
+    #[arg(long, conflicts_with = "splats")]
+    pub mesh: bool,
     /// With --splats: `spz` stores each primitive's Gaussians as one SPZ stream
     /// (KHR_gaussian_splatting_compression_spz_2; about 10× smaller, SPZ v3's quantisation);
     /// `none` writes float accessors (lossless).

@@ -43,7 +43,7 @@ pub enum UpArg {
 /// Output formats for `--format` (overriding the extension of -o).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum FormatArg {
-    /// Mesh PLY (or the 3DGS PLY with --splats).
+    /// The 3DGS PLY, or a mesh PLY with --mesh or --profile.
     Ply,
     /// The standard 3DGS PLY (lossless splats).
     SplatPly,
@@ -191,6 +191,8 @@ impl Args {
                 KhrCompressionArg::Spz => KhrCompression::Spz,
             },
             spz_version: self.spz_version,
+            ksplat_level: self.ksplat_level,
+            mesh_asked: self.mesh || self.profile.is_some(),
             time: self.time,
             first: self.first,
             frames: self.frames,

@@ -55,8 +55,12 @@ pub(super) struct Meta {
 /// The WebP dimension ceiling (14-bit width and height), hence the most Gaussians a SOG holds.
 pub(super) const MAX_SIDE: u64 = 16383;
 
-pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<Meta> {
-    let bad = |what: String| SceneError::format(path, format!("meta.json: {what}"));
+/// Parse a `meta.json`. `bundled`: it came out of the `.sog` zip `path`, so messages name the
+/// entry after the zip (`scene.sog: meta.json: …`); an unbundled `meta.json` is `path` itself
+/// and is named once (`meta.json: …`).
+pub(super) fn parse(path: &Path, bytes: &[u8], bundled: bool) -> Result<Meta> {
+    let entry = if bundled { "meta.json: " } else { "" };
+    let bad = |what: String| SceneError::format(path, format!("{entry}{what}"));
     let v: Value = serde_json::from_slice(bytes).map_err(|e| {
         // JavaScript's JSON.stringify writes NaN and ±Infinity as `null`, but hand-made or
         // Python-written files carry the bare tokens; name them rather than a parse position.

@@ -1,0 +1,273 @@
+//! Fuzz entry points for the readers added for the files users bring: GaussianSplats3D's
+//! `.ksplat` (raw bytes; a structure-aware variant that writes plausible headers, section
+//! headers and bucket tables with counts that may lie; and a round trip through the writer at
+//! every level), and the PLY layouts beside the standard 3DGS one (`red green blue` colours,
+//! 2DGS `scale_0 scale_1`, Mip-Splatting's `filter_3D`, points without Gaussian parameters).
+//!
+//! Included by path from `tests/fuzz_regressions.rs`, so it depends only on crates that the
+//! root package also has.
+
+use std::io::Write;
+use std::path::Path;
+
+use arbitrary::{Arbitrary, Unstructured};
+use splatbridge_scene::formats;
+use splatbridge_scene::formats::ksplat::{self, KsplatOptions};
+use splatbridge_scene::ply::ReadOptions;
+
+/// Every target of this module.
+pub const TARGETS: &[(&str, crate::entries::Entry)] = &[
+    ("ksplat", ksplat_raw),
+    ("ksplat_structured", ksplat_structured),
+    ("ksplat_roundtrip", ksplat_roundtrip),
+    ("ply_variants", ply_variants),
+];
+
+fn with_file(data: &[u8], suffix: &str, f: impl FnOnce(&Path)) {
+    let Ok(mut file) = tempfile::Builder::new()
+        .prefix("splatbridge-fuzz-")
+        .suffix(suffix)
+        .tempfile()
+    else {
+        return;
+    };
+    if file.write_all(data).is_err() {
+        return;
+    }
+    f(file.path());
+}
+
+fn load_both(p: &Path) {
+    let _ = formats::detect(p);
+    for drop_invalid in [false, true] {
+        let _ = formats::load(p, &ReadOptions { drop_invalid });
+    }
+}
+
+pub fn ksplat_raw(data: &[u8]) {
+    let _ = ksplat::decode_ksplat(data, Path::new("fuzz.ksplat"));
+    with_file(data, ".ksplat", load_both);
+}
+
+#[derive(Arbitrary, Debug)]
+struct SectionIn {
+    count: u16,
+    total_extra: u8,
+    bucket_size: u16,
+    buckets: u8,
+    full: u8,
+    partial: u8,
+    block: f32,
+    bucket_bytes: u8,
+    range: u16,
+    degree: u8,
+    lengths: Vec<u16>,
+}
+
+#[derive(Arbitrary, Debug)]
+struct KsplatIn {
+    minor: u8,
+    level: u8,
+    declared_delta: i8,
+    sh_range: (f32, f32),
+    sections: Vec<SectionIn>,
+    body: Vec<u8>,
+    truncate: u16,
+}
+
+/// A file with a real header and section headers whose numbers may disagree with each other
+/// and with the data that follows.
+pub fn ksplat_structured(data: &[u8]) {
+    let Ok(k) = KsplatIn::arbitrary(&mut Unstructured::new(data)) else {
+        return;
+    };
+    let secs = &k.sections[..k.sections.len().min(4)];
+    let mut out = vec![0u8; ksplat::HEADER + ksplat::SECTION_HEADER * secs.len()];
+    out[1] = k.minor % 3;
+    let put = |o: &mut Vec<u8>, at: usize, v: u32| o[at..at + 4].copy_from_slice(&v.to_le_bytes());
+    put(&mut out, 4, secs.len() as u32);
+    put(&mut out, 8, secs.len() as u32);
+    let total: i64 = secs.iter().map(|s| s.count as i64).sum();
+    let declared = (total + k.declared_delta as i64).max(0) as u32;
+    put(&mut out, 12, declared);
+    put(&mut out, 16, declared);
+    out[20] = k.level % 4;
+    out[36..40].copy_from_slice(&k.sh_range.0.to_le_bytes());
+    out[40..44].copy_from_slice(&k.sh_range.1.to_le_bytes());
+    let mut body = Vec::new();
+    for (i, s) in secs.iter().enumerate() {
+        let h = ksplat::HEADER + i * ksplat::SECTION_HEADER;
+        put(&mut out, h, s.count as u32);
+        put(&mut out, h + 4, s.count as u32 + s.total_extra as u32);
+        put(&mut out, h + 8, s.bucket_size as u32);
+        put(&mut out, h + 12, s.buckets as u32);
+        out[h + 16..h + 20].copy_from_slice(&s.block.to_le_bytes());
+        out[h + 20] = s.bucket_bytes;
+        put(&mut out, h + 24, s.range as u32);
+        put(&mut out, h + 32, s.full as u32);
+        put(&mut out, h + 36, s.partial as u32);
+        out[h + 40] = s.degree % 5;
+        for l in s.lengths.iter().take(s.partial as usize) {
+            body.extend_from_slice(&(*l as u32).to_le_bytes());
+        }
+    }
+    out.extend_from_slice(&body);
+    // The data: the fuzzer's bytes repeated to about the size the headers imply.
+    let want: usize = secs
+        .iter()
+        .map(|s| {
+            (s.count as usize + s.total_extra as usize)
+                * ksplat::record_bytes(k.level % 3, s.degree % 4)
+                + 12 * s.buckets as usize
+        })
+        .sum();
+    if !k.body.is_empty() {
+        out.extend(k.body.iter().cycle().take(want.min(1 << 22)));
+    }
+    let keep = out.len().saturating_sub(k.truncate as usize % 64);
+    out.truncate(keep);
+    ksplat_raw(&out);
+}
+
+/// One Gaussian: mean, log-scales, quaternion, opacity logit, DC colour.
+type GaussianIn = ([f32; 3], [f32; 3], [f32; 4], f32, [f32; 3]);
+
+#[derive(Arbitrary, Debug)]
+struct CloudIn {
+    level: u8,
+    degree: u8,
+    block: f32,
+    bucket: u16,
+    splats: Vec<GaussianIn>,
+    sh: Vec<f32>,
+}
+
+/// Any finite cloud written at any level reads back with the same count and degree.
+pub fn ksplat_roundtrip(data: &[u8]) {
+    let Ok(c) = CloudIn::arbitrary(&mut Unstructured::new(data)) else {
+        return;
+    };
+    let degree = c.degree % 4;
+    let mut cloud = splatbridge_scene::GaussianCloud::new(degree);
+    let k = cloud.coeffs();
+    let mut sh = c.sh.iter().cycle();
+    for (m, s, q, o, dc) in c.splats.iter().take(2000) {
+        let mut coeffs = vec![glam::Vec3::from(*dc)];
+        for _ in 1..k {
+            let mut v = [0.0f32; 3];
+            for x in &mut v {
+                *x = sh.next().copied().unwrap_or(0.0);
+            }
+            coeffs.push(glam::Vec3::from(v));
+        }
+        cloud.push(
+            glam::Vec3::from(*m),
+            glam::Vec3::from(*s),
+            glam::Quat::from_array(*q),
+            *o,
+            &coeffs,
+        );
+    }
+    let opts = KsplatOptions {
+        level: c.level % 3,
+        block_size: c.block,
+        bucket_size: c.bucket as u32,
+    };
+    let Ok(bytes) = ksplat::encode_ksplat(&cloud, &opts) else {
+        return;
+    };
+    let back = ksplat::decode_ksplat(&bytes, Path::new("fuzz.ksplat"))
+        .expect("a file the writer wrote reads back");
+    assert_eq!(back.len(), cloud.len());
+    assert_eq!(back.sh_degree, degree);
+}
+
+const NAMES: &[&str] = &[
+    "x",
+    "y",
+    "z",
+    "scale_0",
+    "scale_1",
+    "scale_2",
+    "rot_0",
+    "rot_1",
+    "rot_2",
+    "rot_3",
+    "opacity",
+    "f_dc_0",
+    "f_dc_1",
+    "f_dc_2",
+    "red",
+    "green",
+    "blue",
+    "filter_3D",
+    "f_rest_0",
+    "nx",
+];
+const TYPES: &[&str] = &["float", "double", "uchar", "ushort", "int", "char"];
+
+#[derive(Arbitrary, Debug)]
+struct PlyIn {
+    ascii: bool,
+    /// Which of the known names to declare (bit per name) and each one's type.
+    present: u32,
+    types: Vec<u8>,
+    count: u8,
+    values: Vec<f32>,
+}
+
+/// PLYs drawn from every layout the reader knows, with any subset of the properties.
+pub fn ply_variants(data: &[u8]) {
+    let Ok(p) = PlyIn::arbitrary(&mut Unstructured::new(data)) else {
+        return;
+    };
+    let props: Vec<(&str, &str)> = NAMES
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| p.present >> i & 1 == 1)
+        .map(|(i, n)| {
+            let t = p.types.get(i).map_or(0, |t| *t as usize % TYPES.len());
+            (*n, TYPES[t])
+        })
+        .collect();
+    if props.is_empty() {
+        return;
+    }
+    let enc = if p.ascii {
+        "ascii"
+    } else {
+        "binary_little_endian"
+    };
+    let mut out = format!("ply\nformat {enc} 1.0\nelement vertex {}\n", p.count);
+    for (n, t) in &props {
+        out.push_str(&format!("property {t} {n}\n"));
+    }
+    out.push_str("end_header\n");
+    let mut bytes = out.into_bytes();
+    let mut vals = p.values.iter().cycle();
+    for _ in 0..p.count {
+        for (_, t) in &props {
+            let v = vals.next().copied().unwrap_or(0.5);
+            if p.ascii {
+                bytes.extend_from_slice(format!("{v} ").as_bytes());
+                continue;
+            }
+            match *t {
+                "double" => bytes.extend_from_slice(&(v as f64).to_le_bytes()),
+                "uchar" | "char" => bytes.push(v as u8),
+                "ushort" => bytes.extend_from_slice(&(v as u16).to_le_bytes()),
+                "int" => bytes.extend_from_slice(&(v as i32).to_le_bytes()),
+                _ => bytes.extend_from_slice(&v.to_le_bytes()),
+            }
+        }
+        if p.ascii {
+            bytes.push(b'\n');
+        }
+    }
+    with_file(&bytes, ".ply", |path| {
+        for drop_invalid in [false, true] {
+            let _ = splatbridge_scene::ply::read_ply(path, &ReadOptions { drop_invalid });
+        }
+        load_both(path);
+    });
+}
