@@ -7,6 +7,7 @@ pub mod accuracy;
 pub mod accuracy_distill;
 pub mod budget;
 pub mod clients;
+pub mod demo;
 pub mod describe;
 pub mod distill;
 pub mod footprint_export;
