@@ -108,6 +108,9 @@ fn demo_on_a_cut_writes_the_picture_and_leads_with_the_decision_table() {
         assert_eq!(o.psnr.len(), 2, "{k}: one PSNR per view");
         o.psnr.clone()
     };
+    for o in &run.capture.outputs {
+        eprintln!("{}: {:?} dB", o.key, o.psnr);
+    }
     assert!(psnr("native").iter().all(|p| *p == f64::INFINITY));
     let plausible = |k: &str, lo: f64, hi: f64| {
         for p in psnr(k) {
@@ -115,17 +118,26 @@ fn demo_on_a_cut_writes_the_picture_and_leads_with_the_decision_table() {
             assert!((lo..=hi).contains(&p), "{k}: {p} dB outside {lo}..{hi}");
         }
     };
-    // Provisional ranges, refined from the measured run below.
-    plausible("glb", 15.0, 40.0);
-    plausible("distilled", 20.0, 50.0);
-    plausible("hybrid", 30.0, 70.0);
-    plausible("trace-gaussian", 45.0, 100.0);
-    plausible("khr", 100.0, f64::INFINITY);
-    plausible("spz", 60.0, 130.0);
-    // The fit helps on views it never saw (the point of distilling).
+    // Ranges around what this cut gives at 96×72 (measured: default GLB 19.8–20.2 dB,
+    // distilled 31.9–33.0, hybrid 42.5–44.2, traced Gaussians 67.3–68.9, KHR 165.5–166.0,
+    // SPZ 91.2–93.7), about 3 dB wide on each side so the tracer's and the fit's numerics can
+    // move without the test passing a broken export (losing alpha alone costs 8 dB on
+    // `fourth_st`; README, OBJ).
+    plausible("glb", 17.0, 24.0);
+    plausible("distilled", 28.0, 37.0);
+    // The README's floor for the sorted hybrid on every shared capture is 37.9 dB.
+    plausible("hybrid", 38.0, 50.0);
+    // README: the traced Gaussians reach 65–67 dB on `fourth_st` at 240×180.
+    plausible("trace-gaussian", 60.0, 75.0);
+    // Float32 KHR splats round-trip within 2e-6 (README, formats): far above any mesh.
+    plausible("khr", 120.0, f64::INFINITY);
+    // SPZ v3's quantisation (README, formats), invisible at this size.
+    plausible("spz", 80.0, 110.0);
+    // The fit helps on views it never saw, the point of distilling: +12.5 dB measured here;
+    // half of it is the floor.
     let mean = |k: &str| run.capture.output(k).unwrap().mean_psnr();
     assert!(
-        mean("distilled") > mean("glb"),
+        mean("distilled") >= mean("glb") + 6.0,
         "{} vs {}",
         mean("distilled"),
         mean("glb")

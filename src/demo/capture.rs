@@ -396,7 +396,7 @@ pub fn run(
         let (f, ms) = frames_of(&glb_frames);
         outs.push(m.output(
             "glb",
-            "default GLB (texture), traced",
+            "default GLB, traced",
             Some(rel(dir, &glb)),
             Some((glb_mesh.bytes, glb_mesh.triangles)),
             &refs,
@@ -417,7 +417,7 @@ pub fn run(
         )?);
         outs.push(m.output(
             "hybrid",
-            "hybrid (surfels + Gaussians)",
+            "hybrid",
             None,
             None,
             &refs,
@@ -452,7 +452,7 @@ pub fn run(
         let (f, ms) = frames_of(&khr_frames);
         outs.push(m.output(
             "khr",
-            "KHR_gaussian_splatting GLB, splatted",
+            "KHR splat GLB, splatted",
             Some(rel(dir, &khr)),
             Some((khr_bytes, 0)),
             &refs,

@@ -17,9 +17,9 @@ pub struct Panel<'a> {
 
 /// White space between panels and around the picture, in pixels.
 pub const GAP: u32 = 4;
-/// Height of the caption strip under the images: two lines of 14 px text with spacing.
+/// Height of the caption strip under the images: two lines of 13 px text with spacing.
 pub const CAPTION: u32 = 40;
-const FONT_PX: f64 = 14.0;
+const FONT_PX: f64 = 13.0;
 
 /// The picture's size for `panels` (all images drawn at their own size, top-aligned).
 pub fn size(panels: &[Panel<'_>]) -> (u32, u32) {
