@@ -70,7 +70,7 @@ enum Command {
         after_help = "Example:\n  splatbridge bench render scene.ply --width 1920 --height 1080"
     )]
     Bench(cmd::bench::Args),
-    /// Run the whole pipeline on the built-in street scene and write a report.
+    /// The first run: the shipped real capture exported and rendered every way, measured against native splatting, with a picture and a report; the street scene for motion.
     #[command(after_help = "Example:\n  splatbridge demo -o demo/")]
     Demo(cmd::demo::Args),
 }

@@ -21,8 +21,7 @@ use splatbridge_scene::Camera;
 
 use super::export::{
     cloud_format, embedded_cameras, export_scene, is_gltf, load_export_input, ply_holds_gaussians,
-    write_cloud_export,
-    CloudExport, ExportKind, OutputFormat,
+    write_cloud_export, CloudExport, ExportKind, OutputFormat,
 };
 use super::export_shard::export_obj_frames_shard;
 use crate::batch::shard::Shard;

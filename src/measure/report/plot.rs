@@ -65,7 +65,7 @@ fn si(v: f64) -> String {
 
 static FONT: Once = Once::new();
 
-fn register_font() {
+pub(crate) fn register_font() {
     FONT.call_once(|| {
         // The Ubuntu font is a valid OpenType file; a failure here would only lose the labels.
         let _ = plotters::style::register_font(
