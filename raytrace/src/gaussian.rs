@@ -40,8 +40,10 @@ use crate::kbuffer::{self, Accum, Hit, KBuffer, Key, Payload};
 use crate::render::{render_frame_spp, PixelOut, RenderOptions, Stats};
 
 mod camera;
+mod proxy_order;
 use camera::LocalFootprint;
 pub use camera::Padded;
+use proxy_order::spatial_order;
 
 /// The rasterizer's near cull (default of `RenderOptions::near`): view-space depth of the
 /// mean must exceed this.
@@ -60,6 +62,11 @@ impl Payload for GaussianPayload {
     #[inline]
     fn rank(&self) -> u32 {
         self.index
+    }
+
+    #[inline]
+    fn opacity(&self) -> f32 {
+        self.alpha
     }
 }
 
@@ -215,6 +222,7 @@ impl Part {
                 m: rot * Mat3::from_diagonal(s),
             });
         }
+        spatial_order(&mut boxes, &mut t.index, &mut t.proxy);
         t.accel = build_boxes(backend, preset, &boxes)?;
         t.boxes = boxes;
         t.cloud = cloud;
@@ -686,9 +694,14 @@ impl GaussianTracer {
         let mut acc = Accum::default();
         let mut hits = 0u32;
         buf.candidates = 0;
+        // The transmittance compositing has reached, for the buffer's stop (`KBuffer::stop`).
+        let tr = std::cell::Cell::new(acc.tr);
         let (rounds, _) = kbuffer::walk(
             buf,
-            |after, buf| self.collect_fp(o, d, near, fp, opts.order, f32::INFINITY, after, buf),
+            |after, buf| {
+                buf.stop = Some((tr.get(), opts.min_transmittance));
+                self.collect_fp(o, d, near, fp, opts.order, f32::INFINITY, after, buf)
+            },
             |h| {
                 let a = h.payload.alpha;
                 // Native splatting's rule: a Gaussian that would take T below the threshold
@@ -702,9 +715,11 @@ impl GaussianTracer {
                     _ => self.hit_color(h, d),
                 };
                 acc.add(color, a, h.t);
+                tr.set(acc.tr);
                 ControlFlow::Continue(())
             },
         );
+        buf.stop = None;
         out.hits = hits;
         out.traversals = rounds;
         out.rgb = acc.rgb + opts.background * acc.tr;
@@ -752,5 +767,7 @@ impl GaussianTracer {
     }
 }
 
+#[cfg(test)]
+mod brute_tests;
 #[cfg(test)]
 mod cull_tests;

@@ -14,7 +14,7 @@ use rayon::prelude::*;
 
 use crate::error::Result;
 use crate::kbuffer::{self, Accum, KBuffer};
-use crate::mesh_tracer::{with_thread_buffer, MeshTracer, PreparedInstance, TrianglePayload};
+use crate::mesh_tracer::{with_thread_buffer, Instances, MeshTracer, TrianglePayload};
 use crate::render::camera_ray;
 use splatbridge_scene::Camera;
 
@@ -50,7 +50,7 @@ impl MeshTracer {
     /// stopping once the transmittance falls below `min_transmittance`.
     pub fn ordered_hits(
         &self,
-        insts: &[PreparedInstance],
+        insts: &Instances,
         o: DVec3,
         d: DVec3,
         min_transmittance: f32,
@@ -59,9 +59,15 @@ impl MeshTracer {
     ) {
         let mut acc = Accum::default();
         buf.shade_on_insert = true;
+        // The transmittance reached, for the buffer's stop (`KBuffer::stop`): the same rule as
+        // below, so nothing beyond the stopping hit is collected.
+        let tr = std::cell::Cell::new(acc.tr);
         kbuffer::walk(
             buf,
-            |after, buf| self.collect(insts, o, d, 0.0, f32::INFINITY, after, buf),
+            |after, buf| {
+                buf.stop = Some((tr.get(), min_transmittance));
+                self.collect(insts, o, d, 0.0, f32::INFINITY, after, buf)
+            },
             |h| {
                 let a = h.payload.rgba.w;
                 if a > 0.0 {
@@ -72,6 +78,7 @@ impl MeshTracer {
                         t: h.t,
                     });
                     acc.add(glam::Vec3::ZERO, a, h.t);
+                    tr.set(acc.tr);
                     if acc.tr < min_transmittance {
                         return ControlFlow::Break(());
                     }
@@ -80,6 +87,7 @@ impl MeshTracer {
             },
         );
         buf.shade_on_insert = false;
+        buf.stop = None;
     }
 
     /// The hit lists of every pixel of `cam` at time `time` (rays through pixel centres, as

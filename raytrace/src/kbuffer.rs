@@ -18,6 +18,13 @@ pub trait Payload: Copy {
     /// Among hits with equal keys, the one with the lower rank is kept (see the module
     /// documentation for the k-th key of a full buffer).
     fn rank(&self) -> u32;
+
+    /// The opacity compositing will give the hit, when known at insertion (for
+    /// [`KBuffer::stop`]); 0 never stops a ray.
+    #[inline]
+    fn opacity(&self) -> f32 {
+        0.0
+    }
 }
 
 /// A hit in the k-buffer.
@@ -50,6 +57,17 @@ pub struct KBuffer<P> {
     /// Shade hits as they are found and keep only those with α > 0 (mode mesh compositing;
     /// see `MeshTracer::trace`). Off for hit enumeration, which reports every crossing.
     pub shade_on_insert: bool,
+    /// Compositing's stop, when the buffer feeds a compositing walk: the transmittance `T`
+    /// before this round's hits and the threshold below which the ray stops. The first
+    /// buffered hit (in key order) with `T·Π(1 − α) < threshold` is where both tracers stop
+    /// (the Gaussian one without adding it, the mesh one after), so nothing keyed beyond it
+    /// can change the pixel: the cull distance stops there too, with the same float
+    /// operations the compositing does, so it stops at exactly the same hit. Without it, a
+    /// ray through an opaque surface traversed the whole scene behind it until k hits were
+    /// found. None for hit enumeration.
+    pub stop: Option<(f32, f32)>,
+    /// The key of that stopping hit among the buffered hits.
+    stop_key: Option<Key>,
 }
 
 impl<P: Payload> KBuffer<P> {
@@ -59,11 +77,32 @@ impl<P: Payload> KBuffer<P> {
             hits: Vec::with_capacity(k + 1),
             candidates: 0,
             shade_on_insert: false,
+            stop: None,
+            stop_key: None,
         }
     }
 
     pub fn clear(&mut self) {
         self.hits.clear();
+        self.stop_key = None;
+    }
+
+    /// Recompute [`KBuffer::stop`]'s hit after the buffer changed.
+    #[inline]
+    fn update_stop(&mut self) {
+        let Some((mut tr, threshold)) = self.stop else {
+            return;
+        };
+        self.stop_key = None;
+        for h in &self.hits {
+            let a = h.payload.opacity();
+            // `Accum::after`, then `Accum::add`: the same operations in the same order.
+            if tr * (1.0 - a) < threshold {
+                self.stop_key = Some(h.key());
+                return;
+            }
+            tr *= 1.0 - a;
+        }
     }
 
     pub fn is_full(&self) -> bool {
@@ -72,9 +111,22 @@ impl<P: Payload> KBuffer<P> {
 
     /// Whether a hit with this key would be dropped by [`KBuffer::insert`] (the buffer is full
     /// and the key is not below its last one).
+    /// Also dropped: a key beyond the stopping hit of [`KBuffer::stop`].
     #[inline]
     pub fn rejects(&self, key: Key) -> bool {
-        self.is_full() && key >= self.hits[self.k - 1].key()
+        (self.is_full() && key >= self.hits[self.k - 1].key())
+            || self.stop_key.is_some_and(|s| key > s)
+    }
+
+    /// Whether inserting a hit with this key and rank would change nothing: the buffer holds
+    /// the key already, with a rank no higher (the other winding of a double-sided export's
+    /// triangle, or another triangle of its fan, found first). The caller can skip the work of
+    /// building the hit.
+    #[inline]
+    pub fn holds(&self, key: Key, rank: u32) -> bool {
+        self.hits
+            .binary_search_by(|x| x.key().cmp(&key))
+            .is_ok_and(|i| self.hits[i].payload.rank() <= rank)
     }
 
     /// Insert; returns the cull distance to use afterwards (with a relative margin of 2⁻²⁰ so
@@ -96,17 +148,23 @@ impl<P: Payload> KBuffer<P> {
                 self.hits.truncate(self.k);
             }
         }
+        self.update_stop();
         self.cull(tmax)
     }
 
+    /// The distance beyond which no hit can enter: the k-th hit's of a full buffer, or the
+    /// stopping hit's ([`KBuffer::stop`]), whichever is nearer.
     #[inline]
     pub fn cull(&self, tmax: f32) -> f32 {
+        let margin = |t: f32| t + t * (1.0 / 1_048_576.0) + f32::MIN_POSITIVE;
+        let mut c = tmax;
         if self.is_full() {
-            let t = self.hits[self.k - 1].t;
-            (t + t * (1.0 / 1_048_576.0) + f32::MIN_POSITIVE).min(tmax)
-        } else {
-            tmax
+            c = c.min(margin(self.hits[self.k - 1].t));
         }
+        if let Some(k) = self.stop_key {
+            c = c.min(margin(f32::from_bits(k.0)));
+        }
+        c
     }
 }
 
@@ -344,6 +402,113 @@ mod tests {
                 assert_eq!(got.depth().to_bits(), want.depth().to_bits());
             }
         }
+    }
+
+    /// A payload that knows its opacity, for the compositing stop.
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    struct Opaque(u32, f32);
+
+    impl Payload for Opaque {
+        fn rank(&self) -> u32 {
+            self.0
+        }
+        fn opacity(&self) -> f32 {
+            self.1
+        }
+    }
+
+    /// The compositing stop (`KBuffer::stop`) set per round as the tracers set it: the same
+    /// composite, bit for bit, as blending every hit sorted (native's rule: the hit that would
+    /// take T below the threshold stops the ray unblended), and fewer hits inserted.
+    #[test]
+    fn stop_keeps_the_composite() {
+        let mut seed = 0x51ed_270b_a1c4_e3f5u64;
+        let mut stopped_early = 0;
+        for round in 0..300 {
+            let n = (rng(&mut seed) % 80) as usize;
+            let hits: Vec<Hit<Opaque>> = random_hits(&mut seed, n)
+                .into_iter()
+                .map(|h| {
+                    // Opacity follows the key, as a Gaussian's α does along one ray.
+                    let a = [0.0, 0.3, 0.6, 0.9, 0.99][((h.gaussian + h.group) % 5) as usize];
+                    Hit {
+                        t: h.t,
+                        gaussian: h.gaussian,
+                        instance: h.instance,
+                        group: h.group,
+                        payload: Opaque(h.payload.0, a),
+                    }
+                })
+                .collect();
+            let mut sorted = hits.clone();
+            sorted.sort_by_key(|h| (h.key(), h.payload.rank()));
+            sorted.dedup_by_key(|h| h.key());
+            let threshold = 1e-4;
+            let mut want = Accum::default();
+            for h in &sorted {
+                if want.after(h.payload.1) < threshold {
+                    break;
+                }
+                want.add(glam::Vec3::splat(h.t), h.payload.1, h.t);
+            }
+            for k in [1, 3, 16] {
+                for stop in [false, true] {
+                    let mut buf = KBuffer::new(k);
+                    let mut got = Accum::default();
+                    let tr = std::cell::Cell::new(1.0f32);
+                    let mut inserted = 0;
+                    walk(
+                        &mut buf,
+                        |after, buf| {
+                            buf.stop = stop.then_some((tr.get(), threshold));
+                            buf.clear();
+                            for h in &hits {
+                                if after.is_some_and(|a| h.key() <= a) || buf.rejects(h.key()) {
+                                    continue;
+                                }
+                                inserted += 1;
+                                buf.insert(*h, f32::INFINITY);
+                            }
+                        },
+                        |h| {
+                            if got.after(h.payload.1) < threshold {
+                                return ControlFlow::Break(());
+                            }
+                            got.add(glam::Vec3::splat(h.t), h.payload.1, h.t);
+                            tr.set(got.tr);
+                            ControlFlow::Continue(())
+                        },
+                    );
+                    let what = format!("round {round}, k {k}, stop {stop}");
+                    assert_eq!(got.rgb.to_array(), want.rgb.to_array(), "{what}");
+                    assert_eq!(got.tr.to_bits(), want.tr.to_bits(), "{what}");
+                    if stop && k == 16 && inserted < hits.len() {
+                        stopped_early += 1;
+                    }
+                }
+            }
+        }
+        assert!(
+            stopped_early > 50,
+            "the stop never cut a collection ({stopped_early})"
+        );
+    }
+
+    #[test]
+    fn holds_reports_keys_already_kept() {
+        let mut buf = KBuffer::<Tag>::new(4);
+        let hit = |t: f32, r: u32| Hit {
+            t,
+            gaussian: 0,
+            instance: 0,
+            group: 0,
+            payload: Tag(r),
+        };
+        buf.insert(hit(1.0, 5), 10.0);
+        assert!(buf.holds(hit(1.0, 0).key(), 5));
+        assert!(buf.holds(hit(1.0, 0).key(), 9));
+        assert!(!buf.holds(hit(1.0, 0).key(), 4), "a lower rank replaces it");
+        assert!(!buf.holds(hit(2.0, 0).key(), 9));
     }
 
     #[test]

@@ -21,6 +21,7 @@ pub mod geom;
 pub mod gltf_check;
 pub mod gltf_stream;
 pub mod hit_record;
+pub mod instances;
 pub mod kbuffer;
 pub mod lidar;
 pub mod model;

@@ -36,6 +36,7 @@ use glam::{DAffine3, DVec3, Vec3, Vec4};
 use crate::backend::{build_boxes, build_triangles, Accel, BackendKind, BuildPreset};
 use crate::error::Result;
 use crate::geom::{ray_box, transformed_box};
+pub use crate::instances::Instances;
 pub use crate::kbuffer::Key;
 use crate::kbuffer::{self, Accum, Hit, KBuffer, Payload};
 use crate::model::{linear_to_srgb, srgb_to_linear, TriScene};
@@ -58,6 +59,12 @@ impl Payload for TrianglePayload {
     #[inline]
     fn rank(&self) -> u32 {
         self.tri
+    }
+
+    /// The shaded α (0 until shaded: hit enumeration never stops).
+    #[inline]
+    fn opacity(&self) -> f32 {
+        self.rgba.w
     }
 }
 
@@ -395,8 +402,14 @@ impl MeshTracer {
         })
     }
 
-    /// Instances visible at `t`, with inverse transforms and world bounds.
-    pub fn prepare(&self, t: f64) -> Vec<PreparedInstance> {
+    /// Instances visible at `t`, with inverse transforms and world bounds, under a top-level
+    /// BVH (see [`Instances`]).
+    pub fn prepare(&self, t: f64) -> Instances {
+        Instances::new(self.prepare_list(t), self.backend)
+    }
+
+    /// The instances visible at `t` in node order, without the top-level structure.
+    pub fn prepare_list(&self, t: f64) -> Vec<PreparedInstance> {
         self.scene
             .instances(t)
             .into_iter()
@@ -418,7 +431,7 @@ impl MeshTracer {
     /// the world ray `o + t·d` (`d` unit length).
     pub fn collect(
         &self,
-        insts: &[PreparedInstance],
+        insts: &Instances,
         o: DVec3,
         d: DVec3,
         tmin: f32,
@@ -427,12 +440,32 @@ impl MeshTracer {
         buf: &mut KBuffer<TrianglePayload>,
     ) {
         buf.clear();
-        for (ii, inst) in insts.iter().enumerate() {
+        insts.visit(o, d, buf.cull(tmax), &mut |ii, inst, top_cull| {
+            self.collect_instance(ii, inst, o, d, tmin, tmax, after, buf);
+            *top_cull = top_cull.min(buf.cull(tmax));
+        });
+    }
+
+    /// [`MeshTracer::collect`]'s work in instance `ii`.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn collect_instance(
+        &self,
+        ii: usize,
+        inst: &PreparedInstance,
+        o: DVec3,
+        d: DVec3,
+        tmin: f32,
+        tmax: f32,
+        after: Option<Key>,
+        buf: &mut KBuffer<TrianglePayload>,
+    ) {
+        {
             let Some((b0, b1)) = ray_box(o, d, inst.lo, inst.hi) else {
-                continue;
+                return;
             };
             if b1 < tmin as f64 || b0 > buf.cull(tmax) as f64 {
-                continue;
+                return;
             }
             let blas = &self.blas[inst.mesh];
             let mesh = &self.scene.meshes[inst.mesh];
@@ -440,7 +473,7 @@ impl MeshTracer {
             let ld64 = inst.to_local.transform_vector3(d);
             let (lo, ld) = (lo64.as_vec3(), ld64.as_vec3());
             if !lo.is_finite() || !ld.is_finite() || ld == Vec3::ZERO {
-                continue;
+                return;
             }
             let wray = WRay::new(lo, ld);
             let cull0 = buf.cull(tmax);
@@ -471,7 +504,7 @@ impl MeshTracer {
                         return;
                     }
                     let key = (t.to_bits(), mesh.tri_gaussian[prim as usize], ii as u32, g);
-                    if after.is_some_and(|a| key <= a) || buf.rejects(key) {
+                    if after.is_some_and(|a| key <= a) || buf.rejects(key) || buf.holds(key, prim) {
                         return;
                     }
                     // Only hits that enter the buffer pay for the f64 barycentrics.
@@ -538,13 +571,7 @@ impl MeshTracer {
     }
 
     /// Every hit along a world ray in key order (no compositing), for tests and tools.
-    pub fn all_hits(
-        &self,
-        insts: &[PreparedInstance],
-        o: DVec3,
-        d: DVec3,
-        k: usize,
-    ) -> Vec<MeshHit> {
+    pub fn all_hits(&self, insts: &Instances, o: DVec3, d: DVec3, k: usize) -> Vec<MeshHit> {
         kbuffer::all_hits(k, |after, buf| {
             self.collect(insts, o, d, 0.0, f32::INFINITY, after, buf)
         })
@@ -554,7 +581,7 @@ impl MeshTracer {
     /// weighted mean ray parameter.
     pub fn trace(
         &self,
-        insts: &[PreparedInstance],
+        insts: &Instances,
         o: DVec3,
         d: DVec3,
         opts: &RenderOptions,
@@ -570,9 +597,14 @@ impl MeshTracer {
         };
         buf.shade_on_insert = true;
         let mut hits = 0u32;
+        // The transmittance compositing has reached, for the buffer's stop (`KBuffer::stop`).
+        let tr_now = std::cell::Cell::new(acc.tr);
         let (rounds, _) = kbuffer::walk(
             buf,
-            |after, buf| self.collect(insts, o, d, 0.0, f32::INFINITY, after, buf),
+            |after, buf| {
+                buf.stop = Some((tr_now.get(), opts.min_transmittance));
+                self.collect(insts, o, d, 0.0, f32::INFINITY, after, buf)
+            },
             |h| {
                 hits += 1;
                 let rgba = h.payload.rgba;
@@ -594,6 +626,7 @@ impl MeshTracer {
                     }
                     // Composited before the termination test: a viewer draws the triangle.
                     acc.add(rgb, a, h.t);
+                    tr_now.set(acc.tr);
                     if acc.tr < opts.min_transmittance {
                         return ControlFlow::Break(());
                     }
@@ -624,6 +657,7 @@ impl MeshTracer {
         out.depth = acc.depth();
         out.candidates = buf.candidates;
         buf.shade_on_insert = false;
+        buf.stop = None;
         out
     }
 

@@ -8,7 +8,7 @@ use glam::{DVec3, Vec3};
 
 use crate::gaussian::GaussianTracer;
 use crate::kbuffer::{walk, KBuffer};
-use crate::mesh_tracer::{MeshTracer, PreparedInstance};
+use crate::mesh_tracer::{Instances, MeshTracer};
 
 /// A closest opaque hit: world distance along the unit direction and the hit's colour.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -37,7 +37,7 @@ pub trait SecondaryRays {
 /// A mesh scene frozen at one time, for secondary queries.
 pub struct MeshAt<'a> {
     pub tracer: &'a MeshTracer,
-    pub insts: Vec<PreparedInstance>,
+    pub insts: Instances,
     pub k: usize,
 }
 

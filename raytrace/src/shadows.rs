@@ -124,7 +124,7 @@ pub fn gaussian_bounds(tracer: &GaussianTracer) -> (DVec3, DVec3) {
 
 /// World bounds of a mesh scene's instances at `time`.
 pub fn mesh_bounds(tracer: &MeshTracer, time: f64) -> (DVec3, DVec3) {
-    let insts = tracer.prepare(time);
+    let insts = tracer.prepare_list(time);
     if insts.is_empty() {
         return (DVec3::ZERO, DVec3::ZERO);
     }

@@ -1,7 +1,10 @@
 //! `splatbridge bench trace`: for every compiled-in backend (obvhs, and Embree with
 //! `--features embree`), BVH build time, primary-ray throughput with full compositing
 //! (median over repeats) and mean hits per ray, on one input and camera; and the largest
-//! pixel difference between the backends' images.
+//! pixel difference between the backends' images. Native splatting renders the same camera in
+//! the same run (median over the same repeats, after one warm-up render) and every traced time
+//! is printed as a multiple of it: the input itself when it is a scene, `--native SCENE` for an
+//! exported file (the scene it was exported from). The load average is printed beside it.
 
 use anyhow::Context;
 use splatbridge_raytrace::backend::EMBREE_AVAILABLE;
@@ -18,6 +21,32 @@ pub struct Args {
     /// Timed renders per backend (the median is reported).
     #[arg(long = "repeat", alias = "repeats", default_value_t = 3)]
     pub repeats: usize,
+    /// The scene native splatting renders for the ratio (default: the input, when it is a
+    /// scene rather than an exported file).
+    #[arg(long, value_name = "SCENE")]
+    pub native: Option<std::path::PathBuf>,
+}
+
+/// Median wall time of native splatting of `scene` through `cam` over `repeats` renders, after
+/// one warm-up render (as `bench render` times it).
+fn native_seconds(
+    scene: &std::path::Path,
+    cam: &splatbridge_scene::Camera,
+    repeats: usize,
+) -> anyhow::Result<f64> {
+    let s = crate::cmd::common::load(scene, false)?;
+    let cloud = s.composite(s.time.start);
+    let opts = splatbridge_hybrid::RenderOptions::default();
+    let mut r = splatbridge_hybrid::Renderer::new();
+    r.render(&cloud, cam, &opts)?;
+    let mut times = Vec::new();
+    for _ in 0..repeats.max(1) {
+        let t = std::time::Instant::now();
+        r.render(&cloud, cam, &opts)?;
+        times.push(t.elapsed().as_secs_f64());
+    }
+    times.sort_by(f64::total_cmp);
+    Ok(times[times.len() / 2])
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -32,6 +61,32 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.input.preset,
         rayon::current_num_threads()
     );
+    let native_scene = args.native.clone().or_else(|| {
+        let i = &args.input.input;
+        (!splatbridge::pipeline::source::is_mesh_file(i)).then(|| i.clone())
+    });
+    let native = match &native_scene {
+        Some(n) => Some(
+            native_seconds(n, &p.camera, args.repeats)
+                .with_context(|| format!("native render of {}", n.display()))?,
+        ),
+        None => None,
+    };
+    let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
+    match native {
+        Some(t) => println!(
+            "native splatting: {:.1} ms (median of {}); load average {}",
+            t * 1e3,
+            args.repeats.max(1),
+            load.split_whitespace()
+                .take(3)
+                .collect::<Vec<_>>()
+                .join(" ")
+        ),
+        None => {
+            println!("native splatting: not measured (give --native SCENE for an exported file)")
+        }
+    }
     let mut backends = vec![BackendKind::Obvhs];
     if EMBREE_AVAILABLE {
         backends.push(BackendKind::Embree);
@@ -42,8 +97,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let mut frames = Vec::new();
     println!(
-        "{:<8} {:>10} {:>12} {:>10} {:>10} {:>14} {:>14}",
-        "backend", "build s", "trace s", "Mrays/s", "hits/ray", "traversals/ray", "candidates/ray"
+        "{:<8} {:>10} {:>12} {:>10} {:>10} {:>14} {:>14} {:>10}",
+        "backend",
+        "build s",
+        "trace s",
+        "Mrays/s",
+        "hits/ray",
+        "traversals/ray",
+        "candidates/ray",
+        "× native"
     );
     for b in backends {
         let tracer = Renderer::tracer(&p, b, args.input.preset.into())
@@ -58,15 +120,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         times.sort_by(f64::total_cmp);
         let med = times[times.len() / 2];
         let (f, s) = last.expect("at least one repeat");
+        let ratio = native.map_or("—".to_string(), |n| format!("{:.1}", med / n));
         println!(
-            "{:<8} {:>10.3} {:>12.3} {:>10.3} {:>10.2} {:>14.2} {:>14.1}",
+            "{:<8} {:>10.3} {:>12.3} {:>10.3} {:>10.2} {:>14.2} {:>14.1} {:>10}",
             b.to_string(),
             tracer.build_seconds(),
             med,
             s.rays as f64 / med / 1e6,
             s.hits_per_ray(),
             s.traversals as f64 / s.rays.max(1) as f64,
-            s.candidates as f64 / s.rays.max(1) as f64
+            s.candidates as f64 / s.rays.max(1) as f64,
+            ratio
         );
         frames.push((b, f));
     }
