@@ -110,8 +110,9 @@ pub struct TraceInput {
     #[arg(
         help = "A GLB, glTF or OBJ mesh, traced as exported (a .glb or .gltf is read as a mesh, so \
                 the Gaussians of a glTF with KHR_gaussian_splatting are not traced: convert it to \
-                .ply first), or a scene: a 3DGS PLY, a compressed PLY, .splat, .spz, SOG (a \
-                folder's meta.json or a .sog zip), or a splatbridge-scene/1 manifest (JSON)."
+                .ply first), or a scene: a 3DGS PLY (also 2DGS, Mip-Splatting and red-green-blue \
+                point PLYs), a compressed PLY, .splat, .spz, .ksplat, SOG (a folder's \
+                meta.json or a .sog zip), or a splatbridge-scene/1 manifest (JSON)."
     )]
     pub input: PathBuf,
     #[command(flatten)]
