@@ -122,16 +122,16 @@ fn demo_on_a_cut_writes_the_picture_and_leads_with_the_decision_table() {
     // distilled 31.9–33.0, hybrid 42.5–44.2, traced Gaussians 67.3–68.9, KHR 165.5–166.0,
     // SPZ 91.2–93.7), about 3 dB wide on each side so the tracer's and the fit's numerics can
     // move without the test passing a broken export (losing alpha alone costs 8 dB on
-    // `fourth_st`; README, OBJ).
+    // `fourth_st`; docs/meshes.md).
     plausible("glb", 17.0, 24.0);
     plausible("distilled", 28.0, 37.0);
-    // The README's floor for the sorted hybrid on every shared capture is 37.9 dB.
+    // The floor in docs/README.md for the sorted hybrid on every shared capture is 37.9 dB.
     plausible("hybrid", 38.0, 50.0);
-    // README: the traced Gaussians reach 65–67 dB on `fourth_st` at 240×180.
+    // docs/parity.md: the traced Gaussians reach 65–67 dB on `fourth_st` at 240×180.
     plausible("trace-gaussian", 60.0, 75.0);
-    // Float32 KHR splats round-trip within 2e-6 (README, formats): far above any mesh.
+    // Float32 KHR splats round-trip within 2e-6 (docs/formats.md): far above any mesh.
     plausible("khr", 120.0, f64::INFINITY);
-    // SPZ v3's quantisation (README, formats), invisible at this size.
+    // SPZ v3's quantisation (docs/formats.md), invisible at this size.
     plausible("spz", 80.0, 110.0);
     // The fit helps on views it never saw, the point of distilling: +12.5 dB measured here;
     // half of it is the floor.

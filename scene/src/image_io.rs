@@ -150,7 +150,14 @@ fn encode_exr(path: &Path, frame: &Frame) -> Result<Vec<u8>> {
     let layer = Layer::new(
         (frame.width as usize, frame.height as usize),
         LayerAttributes::default(),
-        Encoding::FAST_LOSSLESS,
+        // Increasing line order: with `Unspecified` (FAST_LOSSLESS's) the parallel compressor
+        // writes blocks in the order its threads finish, so the same frame gave different
+        // bytes from run to run (same pixels); outputs must be byte-reproducible
+        // (`scripts/hash-outputs.sh`).
+        Encoding {
+            line_order: LineOrder::Increasing,
+            ..Encoding::FAST_LOSSLESS
+        },
         channels,
     );
     let mut bytes = std::io::Cursor::new(Vec::new());
@@ -180,6 +187,21 @@ pub fn load_png(path: &Path) -> Result<Frame> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn exr_bytes_are_the_same_every_time() {
+        // 512 lines of RLE blocks compressed on every core: with an unspecified line order
+        // the block order followed thread timing, and repeated encodes differed.
+        let (w, h) = (64u32, 512u32);
+        let mut frame = Frame::new(w, h);
+        for (i, v) in frame.rgb.iter_mut().enumerate() {
+            *v = ((i * 2_654_435_761) % 1000) as f32 / 1000.0;
+        }
+        let first = encode_exr(Path::new("t.exr"), &frame).unwrap();
+        for _ in 0..16 {
+            assert!(encode_exr(Path::new("t.exr"), &frame).unwrap() == first);
+        }
+    }
 
     #[test]
     fn quantisation_clamps_rounds_and_maps_nan_to_zero() {

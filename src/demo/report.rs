@@ -105,7 +105,7 @@ pub fn decision_table(run: &CaptureRun) -> String {
     let _ = writeln!(
         s,
         "| the same viewers, sizes not known in advance | default GLB: `convert {} -o OUT.glb` (texture profile, laid out for stock viewers) | {} | {} | \
-         one textured quad per Gaussian{}; Cycles within 0.1 dB and three.js within 0.4 dB of the tracer that measured it (README, Blender and viewer tables) |",
+         one textured quad per Gaussian{}; Cycles within 0.1 dB and three.js within 0.4 dB of the tracer that measured it (docs/blender.md, docs/viewers.md) |",
         run.input.display(),
         file_cell(o("glb")),
         cell("glb"),
@@ -122,7 +122,7 @@ pub fn decision_table(run: &CaptureRun) -> String {
     let _ = writeln!(
         s,
         "| glTF splat viewers (`KHR_gaussian_splatting`, e.g. Babylon.js 9) | `convert {} --splats -o OUT.glb` (`--khr-compression spz`: about 10× smaller) | {} | {} | \
-         float32 Gaussians, lossless; a viewer's own splatting differs from 3DGS (Babylon.js: 31.48 dB on this capture, README) |",
+         float32 Gaussians, lossless; a viewer's own splatting differs from 3DGS (Babylon.js: 31.48 dB on this capture, docs/viewers.md) |",
         run.input.display(),
         file_cell(o("khr")),
         cell("khr"),
@@ -135,7 +135,7 @@ pub fn decision_table(run: &CaptureRun) -> String {
     );
     s.push_str(
         "| tools without glTF (OBJ) | `convert CAPTURE -o OUT.obj` (rings profile) | not run by the demo (a rings mesh of 131k Gaussians is about 14 M triangles) | \
-         21.12 dB on `fourth_st`, 8.3 dB under the GLB of the same profile (README, OBJ) | OBJ has no alpha: every splat becomes opaque |\n",
+         21.12 dB on `fourth_st`, 8.3 dB under the GLB of the same profile (docs/meshes.md) | OBJ has no alpha: every splat becomes opaque |\n",
     );
     let _ = writeln!(
         s,
