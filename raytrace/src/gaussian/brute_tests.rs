@@ -7,11 +7,12 @@
 //! needles and discs at random orientations and a camera inside some of the boxes; and equal
 //! at 1, 2 and 3 threads.
 
-use glam::{DVec3, Quat, Vec3};
+use glam::{DVec3, Vec3};
 use splatbridge_scene::rng::Rng;
 use splatbridge_scene::{Camera, Frame, GaussianCloud};
 
 use super::camera::{Bucket, Padded};
+use super::cull_tests::random_rotation_and_sh;
 use super::GaussianTracer;
 use crate::backend::{Accel, BackendKind, BuildPreset, EMBREE_AVAILABLE};
 use crate::footprint::{Footprint, HitOrder};
@@ -36,18 +37,7 @@ fn needles(seed: u64, n: usize) -> GaussianCloud {
             _ => Vec3::new(1.0, r.range(0.3, 1.0), r.range(0.3, 1.0)),
         };
         let s = shape * size;
-        let q = Quat::from_xyzw(
-            r.range(-1.0, 1.0),
-            r.range(-1.0, 1.0),
-            r.range(-1.0, 1.0),
-            r.range(-1.0, 1.0),
-        );
-        let sh: Vec<Vec3> = (0..4)
-            .map(|k| {
-                Vec3::new(r.range(-1.0, 1.0), r.range(-1.0, 1.0), r.range(-1.0, 1.0))
-                    * if k == 0 { 1.5 } else { 0.3 }
-            })
-            .collect();
+        let (q, sh) = random_rotation_and_sh(&mut r);
         let o = r.range(0.05, 0.9);
         let log_s = Vec3::new(s.x.ln(), s.y.ln(), s.z.ln());
         let logit = splatbridge_scene::gaussians::logit(o);

@@ -12,6 +12,24 @@ use crate::backend::{BackendKind, BuildPreset};
 use crate::footprint::{Footprint, HitOrder};
 use crate::render::{RenderOptions, Stats};
 
+/// An unnormalised random rotation (the tracer normalises, as readers of real files must) and
+/// SH degree-1 coefficients with a strong DC term: shared by the tracer's random test scenes.
+pub(super) fn random_rotation_and_sh(r: &mut Rng) -> (Quat, Vec<Vec3>) {
+    let q = Quat::from_xyzw(
+        r.range(-1.0, 1.0),
+        r.range(-1.0, 1.0),
+        r.range(-1.0, 1.0),
+        r.range(-1.0, 1.0),
+    );
+    let sh = (0..4)
+        .map(|k| {
+            Vec3::new(r.range(-1.0, 1.0), r.range(-1.0, 1.0), r.range(-1.0, 1.0))
+                * if k == 0 { 1.5 } else { 0.3 }
+        })
+        .collect();
+    (q, sh)
+}
+
 /// A deep corridor of Gaussians (many per ray, so the k-buffer runs several rounds) whose
 /// sizes span three decades (so a part splits into several buckets), with a few large ones.
 fn corridor(seed: u64, n: usize) -> GaussianCloud {
@@ -26,18 +44,7 @@ fn corridor(seed: u64, n: usize) -> GaussianCloud {
             0.004 * 10f32.powf(r.range(0.0, 2.0))
         };
         let s = Vec3::new(size, size * r.range(0.2, 1.0), size * r.range(0.05, 1.0));
-        let q = Quat::from_xyzw(
-            r.range(-1.0, 1.0),
-            r.range(-1.0, 1.0),
-            r.range(-1.0, 1.0),
-            r.range(-1.0, 1.0),
-        );
-        let sh: Vec<Vec3> = (0..4)
-            .map(|k| {
-                Vec3::new(r.range(-1.0, 1.0), r.range(-1.0, 1.0), r.range(-1.0, 1.0))
-                    * if k == 0 { 1.5 } else { 0.3 }
-            })
-            .collect();
+        let (q, sh) = random_rotation_and_sh(&mut r);
         let o = r.range(0.05, 0.6);
         c.push(
             m,
