@@ -53,7 +53,7 @@ pub fn run(target: &str, data: &[u8]) -> bool {
 }
 
 /// Write the input to a temporary file with the given extension (path-based readers).
-fn with_file(data: &[u8], ext: &str, f: impl FnOnce(&Path)) {
+pub(crate) fn with_file(data: &[u8], ext: &str, f: impl FnOnce(&Path)) {
     let Ok(mut file) = tempfile::Builder::new()
         .prefix("splatbridge-fuzz-")
         .suffix(ext)

@@ -7,13 +7,14 @@
 //! Included by path from `tests/fuzz_regressions.rs`, so it depends only on crates that the
 //! root package also has.
 
-use std::io::Write;
 use std::path::Path;
 
 use arbitrary::{Arbitrary, Unstructured};
-use splatbridge_scene::formats;
 use splatbridge_scene::formats::ksplat::{self, KsplatOptions};
 use splatbridge_scene::ply::ReadOptions;
+
+use crate::entries::with_file;
+use crate::splat_formats::load_both;
 
 /// Every target of this module.
 pub const TARGETS: &[(&str, crate::entries::Entry)] = &[
@@ -22,27 +23,6 @@ pub const TARGETS: &[(&str, crate::entries::Entry)] = &[
     ("ksplat_roundtrip", ksplat_roundtrip),
     ("ply_variants", ply_variants),
 ];
-
-fn with_file(data: &[u8], suffix: &str, f: impl FnOnce(&Path)) {
-    let Ok(mut file) = tempfile::Builder::new()
-        .prefix("splatbridge-fuzz-")
-        .suffix(suffix)
-        .tempfile()
-    else {
-        return;
-    };
-    if file.write_all(data).is_err() {
-        return;
-    }
-    f(file.path());
-}
-
-fn load_both(p: &Path) {
-    let _ = formats::detect(p);
-    for drop_invalid in [false, true] {
-        let _ = formats::load(p, &ReadOptions { drop_invalid });
-    }
-}
 
 pub fn ksplat_raw(data: &[u8]) {
     let _ = ksplat::decode_ksplat(data, Path::new("fuzz.ksplat"));

@@ -19,23 +19,10 @@ use serde_json::{json, Value};
 use splatbridge_scene::formats;
 use splatbridge_scene::ply::ReadOptions;
 
-/// Write `data` to a temporary file with the given suffix and call `f` on its path.
-fn with_file(data: &[u8], suffix: &str, f: impl FnOnce(&Path)) {
-    let Ok(mut file) = tempfile::Builder::new()
-        .prefix("splatbridge-fuzz-")
-        .suffix(suffix)
-        .tempfile()
-    else {
-        return;
-    };
-    if file.write_all(data).is_err() {
-        return;
-    }
-    f(file.path());
-}
+use crate::entries::with_file;
 
 /// Read a file as the CLI does: detection, the format's reader, the invalid-Gaussian policy.
-fn load_both(p: &Path) {
+pub(crate) fn load_both(p: &Path) {
     let _ = formats::detect(p);
     for drop_invalid in [false, true] {
         let _ = formats::load(p, &ReadOptions { drop_invalid });
