@@ -12,7 +12,7 @@ use splatbridge_raytrace::kbuffer::KBuffer;
 use splatbridge_raytrace::mesh_tracer::Instances;
 use splatbridge_raytrace::model::{Channel, ChannelPath, Interpolation, Node, TriScene};
 use splatbridge_raytrace::{BackendKind, BuildPreset, MeshTracer, RenderOptions};
-use splatbridge_scene::{Camera, Frame};
+use splatbridge_scene::Camera;
 
 fn look(eye: DVec3, target: DVec3, w: u32, h: u32) -> Camera {
     Camera::look_at(eye, target, DVec3::NEG_Y, 50.0, w, h).unwrap()
@@ -83,15 +83,6 @@ fn chunked_scene() -> TriScene {
         materials: blend_materials(),
         ..TriScene::default()
     }
-}
-
-fn bits(f: &Frame) -> Vec<u32> {
-    f.rgb
-        .iter()
-        .chain(&f.alpha)
-        .chain(&f.depth)
-        .map(|v| v.to_bits())
-        .collect()
 }
 
 /// Every pixel through `insts`, one ray at a time.

@@ -12,7 +12,7 @@
 
 mod formats_common;
 
-use formats_common::{fixtures, max_err};
+use formats_common::{assert_same_decode, fixtures, max_err};
 use splatbridge_scene::formats::spz::flip_yz;
 use splatbridge_scene::formats::{detect, load_cloud, SplatFormat};
 use splatbridge_scene::ply::ReadOptions;
@@ -37,15 +37,7 @@ fn spz_v4_from_splat_transform_decodes_like_the_reference() {
     flip_yz(&mut reference);
     let e = max_err(&ours, &reference);
     println!("cut300.spz, ours vs splat-transform: {e:?}");
-    // Both decode the same bytes with the same formulas in f32: differences are rounding.
-    assert!(e.pos <= 1e-6, "{e:?}");
-    assert!(e.log_scale <= 1e-5, "{e:?}");
-    assert!(e.rot_angle <= 1e-3, "{e:?}");
-    assert!(e.colour <= 1e-5, "{e:?}");
-    assert!(e.sh_rest <= 1e-5, "{e:?}");
-    // The reference clamps alpha to [1/255, 254/255] before the logit where we keep ±inf:
-    // at most 1/255 apart after the sigmoid.
-    assert!(e.opacity <= 1.0 / 255.0 + 1e-6, "{e:?}");
+    assert_same_decode(&e);
 }
 
 #[test]

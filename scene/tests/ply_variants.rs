@@ -17,6 +17,7 @@ use splatbridge_scene::GaussianCloud;
 const C0: f64 = 0.282_094_791_773_878_14;
 
 /// One property: name, PLY type, a value per vertex.
+#[derive(Clone)]
 struct Prop {
     name: &'static str,
     ty: &'static str,
@@ -76,6 +77,15 @@ fn write(dir: &Path, name: &str, props: &[Prop], ascii: bool) -> PathBuf {
     let p = dir.join(name);
     std::fs::write(&p, ply_bytes(props, ascii)).unwrap();
     p
+}
+
+/// `red green blue` of two points, of the given property types.
+fn rgb2(r: &'static str, g: &'static str, b: &'static str) -> Vec<Prop> {
+    vec![
+        prop("red", r, &[1.0, 2.0]),
+        prop("green", g, &[1.0, 2.0]),
+        prop("blue", b, &[1.0, 2.0]),
+    ]
 }
 
 fn xyz(n: usize) -> Vec<Prop> {
@@ -223,27 +233,11 @@ fn colourless_or_badly_typed_files_name_the_problem() {
             "'f_dc_0' is missing (and there is no 'red green blue'",
         ),
         (
-            {
-                let mut p = xyz(2);
-                p.extend([
-                    prop("red", "int", &[1.0, 2.0]),
-                    prop("green", "int", &[1.0, 2.0]),
-                    prop("blue", "int", &[1.0, 2.0]),
-                ]);
-                p
-            },
+            [xyz(2), rgb2("int", "int", "int")].concat(),
             "colour property 'red' has type int",
         ),
         (
-            {
-                let mut p = xyz(2);
-                p.extend([
-                    prop("red", "uchar", &[1.0, 2.0]),
-                    prop("green", "float", &[1.0, 2.0]),
-                    prop("blue", "uchar", &[1.0, 2.0]),
-                ]);
-                p
-            },
+            [xyz(2), rgb2("uchar", "float", "uchar")].concat(),
             "different types",
         ),
         (
@@ -255,11 +249,7 @@ fn colourless_or_badly_typed_files_name_the_problem() {
                         .into_iter()
                         .filter(|p| !p.name.starts_with("rot")),
                 );
-                p.extend([
-                    prop("red", "uchar", &[1.0, 2.0]),
-                    prop("green", "uchar", &[1.0, 2.0]),
-                    prop("blue", "uchar", &[1.0, 2.0]),
-                ]);
+                p.extend(rgb2("uchar", "uchar", "uchar"));
                 p
             },
             "'rot_0' is missing",
@@ -268,11 +258,7 @@ fn colourless_or_badly_typed_files_name_the_problem() {
             {
                 let mut p = xyz(2);
                 p.push(prop("scale_0", "float", &[0.0, 0.0]));
-                p.extend([
-                    prop("red", "uchar", &[1.0, 2.0]),
-                    prop("green", "uchar", &[1.0, 2.0]),
-                    prop("blue", "uchar", &[1.0, 2.0]),
-                ]);
+                p.extend(rgb2("uchar", "uchar", "uchar"));
                 p
             },
             "'scale_1' is missing",

@@ -17,6 +17,7 @@ use splatbridge_convert::{ConvertOptions, ConvertReport, FrameClouds};
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::effects::EffectCounters;
 use splatbridge_scene::effects_run::{effects_of, not_simulated, weather_frames};
+use splatbridge_scene::formats::ksplat::KsplatOptions;
 use splatbridge_scene::formats::spz::SpzOptions;
 use splatbridge_scene::formats::{write_cloud, CloudFormat};
 
@@ -58,7 +59,7 @@ pub fn ply_holds_gaussians(splats: bool, mesh_asked: bool) -> bool {
 /// An output format named explicitly (instead of the one the output's extension implies).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum OutputFormat {
-    /// Mesh PLY, or the 3DGS PLY with splats.
+    /// The 3DGS PLY, or a mesh PLY when a mesh is asked for.
     Ply,
     SplatPly,
     CompressedPly,
@@ -70,13 +71,15 @@ pub enum OutputFormat {
 }
 
 /// The single-cloud splat format an output asks for, if any (`splats`: a `.ply` means the
-/// 3DGS PLY); an error when `format` names a mesh/glTF format that disagrees with the output's
+/// 3DGS PLY; see [`ply_holds_gaussians`]), with the SPZ version and `.ksplat` level asked
+/// for; an error when `format` names a mesh/glTF format that disagrees with the output's
 /// extension.
 pub fn cloud_format(
     output: &Path,
     format: Option<OutputFormat>,
     splats: bool,
     spz_version: u32,
+    ksplat_level: u8,
 ) -> anyhow::Result<Option<CloudFormat>> {
     let spz = CloudFormat::Spz(SpzOptions {
         version: spz_version,
@@ -109,6 +112,10 @@ pub fn cloud_format(
         }
         None => match CloudFormat::for_path(output, splats) {
             Some(CloudFormat::Spz(_)) => Some(spz),
+            Some(CloudFormat::Ksplat(o)) => Some(CloudFormat::Ksplat(KsplatOptions {
+                level: ksplat_level,
+                ..o
+            })),
             other => other,
         },
     })

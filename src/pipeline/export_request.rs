@@ -15,7 +15,6 @@ use splatbridge_distill::footprint::{widen_scene_for, Widened};
 use splatbridge_scene::camera_spec::{CameraRequest, CameraSource};
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::effects::EffectCounters;
-use splatbridge_scene::formats::ksplat::KsplatOptions;
 use splatbridge_scene::formats::CloudFormat;
 use splatbridge_scene::Camera;
 
@@ -112,14 +111,8 @@ impl ExportRequest {
             self.format,
             ply_holds_gaussians(self.splats, self.mesh_asked),
             self.spz_version,
-        )?
-        .map(|f| match f {
-            CloudFormat::Ksplat(o) => CloudFormat::Ksplat(KsplatOptions {
-                level: self.ksplat_level,
-                ..o
-            }),
-            f => f,
-        });
+            self.ksplat_level,
+        )?;
         let mut scene = load_export_input(&self.input, self.drop_invalid, warn)?;
         if !self.cameras.is_empty() {
             scene.cameras = embedded_cameras(&self.cameras, &scene)?;

@@ -12,7 +12,7 @@ use splatbridge_scene::rng::Rng;
 use splatbridge_scene::{Camera, Frame, GaussianCloud};
 
 use super::camera::{Bucket, Padded};
-use super::cull_tests::random_rotation_and_sh;
+use super::cull_tests::{bits, random_rotation_and_sh};
 use super::GaussianTracer;
 use crate::backend::{Accel, BackendKind, BuildPreset, EMBREE_AVAILABLE};
 use crate::footprint::{Footprint, HitOrder};
@@ -75,15 +75,6 @@ impl Accel for Everything {
             }
         }
     }
-}
-
-fn bits(f: &Frame) -> Vec<u32> {
-    f.rgb
-        .iter()
-        .chain(&f.alpha)
-        .chain(&f.depth)
-        .map(|v| v.to_bits())
-        .collect()
 }
 
 fn backends() -> Vec<BackendKind> {

@@ -90,7 +90,8 @@ fn render(
     tracer.render_padded(cam, opts, padded.as_ref()).unwrap()
 }
 
-fn bits(f: &Frame) -> Vec<u32> {
+/// Every channel of a frame as bits, for bit-for-bit comparisons.
+pub(super) fn bits(f: &Frame) -> Vec<u32> {
     f.rgb
         .iter()
         .chain(&f.alpha)

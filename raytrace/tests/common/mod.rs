@@ -14,7 +14,7 @@ use splatbridge_raytrace::model::{Material, Mesh, TriScene};
 use splatbridge_raytrace::{
     AlphaMode, BackendKind, BuildPreset, Compositing, MeshTracer, RenderOptions,
 };
-use splatbridge_scene::Camera;
+use splatbridge_scene::{Camera, Frame};
 
 /// Small deterministic generator (SplitMix64).
 pub struct Rng(pub u64);
@@ -337,6 +337,16 @@ impl Reference {
         }
         (c + opts.background.as_dvec3() * tr, 1.0 - tr)
     }
+}
+
+/// Every channel of a frame as bits, for bit-for-bit comparisons.
+pub fn bits(f: &Frame) -> Vec<u32> {
+    f.rgb
+        .iter()
+        .chain(&f.alpha)
+        .chain(&f.depth)
+        .map(|v| v.to_bits())
+        .collect()
 }
 
 pub fn backends() -> Vec<BackendKind> {

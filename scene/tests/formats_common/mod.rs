@@ -102,6 +102,18 @@ pub fn max_err(a: &GaussianCloud, b: &GaussianCloud) -> MaxErr {
 }
 
 /// Write bytes to a fresh file in `dir` and return its path.
+/// Two decodes of the same SPZ bytes (ours and splat-transform's reader) differ only by f32
+/// rounding of the same formulas; splat-transform clamps alpha to [1/255, 254/255] before the
+/// logit where we keep ±inf, so opacities may be 1/255 apart after the sigmoid.
+pub fn assert_same_decode(e: &MaxErr) {
+    assert!(e.pos <= 1e-6, "{e:?}");
+    assert!(e.log_scale <= 1e-5, "{e:?}");
+    assert!(e.rot_angle <= 1e-3, "{e:?}");
+    assert!(e.colour <= 1e-5, "{e:?}");
+    assert!(e.sh_rest <= 1e-5, "{e:?}");
+    assert!(e.opacity <= 1.0 / 255.0 + 1e-6, "{e:?}");
+}
+
 pub fn put(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
     let p = dir.join(name);
     std::fs::write(&p, bytes).unwrap();
