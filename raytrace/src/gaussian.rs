@@ -26,13 +26,14 @@
 //! (`o − anchor`, `d`): a static scene renders bit-identically either way.
 
 use std::ops::ControlFlow;
+use std::sync::OnceLock;
 use std::time::Instant;
 
 use glam::{DAffine3, DVec3, Mat3, Vec3};
 use splatbridge_scene::dynamic::{DynamicScene, Track};
 use splatbridge_scene::{sh, Camera, Frame, GaussianCloud};
 
-use crate::backend::{build_boxes, fits_bvh, Accel, BackendKind, BuildPreset, EmptyAccel};
+use crate::backend::{build_boxes, fits_bvh, Accel, BackendKind, BuildPreset};
 use crate::error::Result;
 use crate::footprint::{Footprint, HitOrder, RayFootprint, ShDirection};
 use crate::geom::{ray_box, transformed_box};
@@ -41,6 +42,7 @@ use crate::render::{render_frame_spp, PixelOut, RenderOptions, Stats};
 
 mod camera;
 mod proxy_order;
+mod tiles;
 use camera::LocalFootprint;
 pub use camera::Padded;
 use proxy_order::spatial_order;
@@ -105,7 +107,12 @@ struct Part {
     proxy: Vec<Proxy>,
     /// Each proxy's box (anchor-relative), to pad per camera when the footprint is on.
     boxes: Vec<(Vec3, Vec3)>,
-    accel: Box<dyn Accel>,
+    /// The BVH over `boxes`, built on first use with obvhs: the tile path of primary rays
+    /// never traverses it, and at 10 M Gaussians it was most of the tracer's set-up. Built at
+    /// once with Embree, so that a backend that cannot build fails when the tracer is made.
+    accel: OnceLock<Box<dyn Accel>>,
+    backend: BackendKind,
+    preset: BuildPreset,
     /// Bounds of the proxy boxes in the part's frame (absolute, not anchor-relative).
     lo: DVec3,
     hi: DVec3,
@@ -174,7 +181,9 @@ impl Part {
             index: Vec::new(),
             proxy: Vec::new(),
             boxes: Vec::new(),
-            accel: Box::new(EmptyAccel),
+            accel: OnceLock::new(),
+            backend,
+            preset,
             lo: DVec3::splat(f64::INFINITY),
             hi: DVec3::splat(f64::NEG_INFINITY),
         };
@@ -223,10 +232,24 @@ impl Part {
             });
         }
         spatial_order(&mut boxes, &mut t.index, &mut t.proxy);
-        t.accel = build_boxes(backend, preset, &boxes)?;
+        if backend != BackendKind::Obvhs {
+            let _ = t.accel.set(build_boxes(backend, preset, &boxes)?);
+        }
         t.boxes = boxes;
         t.cloud = cloud;
         Ok(t)
+    }
+
+    /// The part's BVH (see [`Part::accel`]'s field).
+    fn accel(&self) -> &dyn Accel {
+        self.accel
+            .get_or_init(|| {
+                // obvhs fails only on boxes beyond what an f32 BVH holds, and `Part::build`
+                // kept none of those (`fits_bvh`); other backends were built eagerly.
+                build_boxes(self.backend, self.preset, &self.boxes)
+                    .unwrap_or_else(|e| unreachable!("proxy boxes were checked: {e}"))
+            })
+            .as_ref()
     }
 
     /// The part's placement at `t` (None for a part fixed in the world).
@@ -601,7 +624,7 @@ impl GaussianTracer {
                     run(b.accel.as_ref(), b.ids.as_deref(), b.reach);
                 }
             } else {
-                run(part.accel.as_ref(), None, f32::INFINITY);
+                run(part.accel(), None, f32::INFINITY);
             }
         }
     }
@@ -735,6 +758,9 @@ impl GaussianTracer {
     pub fn render(&self, cam: &Camera, opts: &RenderOptions) -> Result<(Frame, Stats)> {
         opts.validate()?;
         let variance = opts.sample_footprint.variance_px2(opts.spp);
+        if self.tiles_apply(opts) {
+            return self.render_tiles(cam, opts);
+        }
         let padded = self.for_camera(cam, opts.footprint, variance)?;
         let (frame, mut stats) = self.render_padded(cam, opts, padded.as_ref())?;
         stats.seconds += padded.map_or(0.0, |p| p.build_seconds);
@@ -765,9 +791,51 @@ impl GaussianTracer {
             })
         })
     }
+
+    /// [`GaussianTracer::render`] tile by tile ([`tiles`]): the camera's grown boxes (no
+    /// BVH) and tile lists are built first and counted in the render's seconds.
+    fn render_tiles(&self, cam: &Camera, opts: &RenderOptions) -> Result<(Frame, Stats)> {
+        let start = Instant::now();
+        let forward = cam.world_to_cam.row(2);
+        let variance = opts.sample_footprint.variance_px2(opts.spp);
+        let padded = self.grown_boxes(cam, opts.footprint, variance)?;
+        let boxes = match &padded {
+            Some(p) => p.boxes[0].as_slice(),
+            None => self.parts[0].boxes.as_slice(),
+        };
+        let lists = tiles::TileLists::build(self, cam, boxes, opts.near);
+        let prepare = start.elapsed().as_secs_f64();
+        let (frame, mut stats) = crate::render::render_frame_tiles(
+            cam,
+            opts.spp,
+            tiles::TILE,
+            |tx, ty| (lists.cells(tx, ty), Vec::new()),
+            |(cells, pending), o, d, uv| {
+                // The sample's pixel (a sample of pixel i lies in [i, i + 1)).
+                let list = cells.of(uv.0 as u32, uv.1 as u32);
+                let fp = padded
+                    .as_ref()
+                    .map(|p| (RayFootprint::pinhole(cam, d, variance), p));
+                match fp {
+                    // A footprint the camera cannot give this ray: the per-ray path's fallback.
+                    Some((None, _)) => with_thread_buffer(opts.k, |b| {
+                        self.trace_fp(o, d, Some(forward), None, opts, b)
+                    }),
+                    Some((Some(f), p)) => {
+                        self.trace_tile(list, o, d, uv, forward, Some((&f, p)), opts, pending)
+                    }
+                    None => self.trace_tile(list, o, d, uv, forward, None, opts, pending),
+                }
+            },
+        )?;
+        stats.seconds += prepare;
+        Ok((frame, stats))
+    }
 }
 
 #[cfg(test)]
 mod brute_tests;
 #[cfg(test)]
 mod cull_tests;
+#[cfg(test)]
+mod tile_tests;

@@ -164,60 +164,153 @@ where
         )));
     }
     let start = std::time::Instant::now();
-    let (w, h) = (cam.width as usize, cam.height as usize);
-    let forward = cam.world_to_cam.row(2);
+    let w = cam.width as usize;
     let offsets = sample_offsets(spp);
-    let sample = |u: f64, v: f64| {
+    let rows: Vec<Vec<PixelOut>> = (0..cam.height as usize)
+        .into_par_iter()
+        .map(|j| {
+            (0..w)
+                .map(|i| pixel(cam, spp, &offsets, i, j, &trace))
+                .collect()
+        })
+        .collect();
+    Ok(to_frame(cam, spp, rows.into_iter().flatten(), start))
+}
+
+/// As [`render_frame_spp`], parallel over square tiles of `tile` pixels instead of rows:
+/// `prepare(tx, ty)` runs once per tile (column `tx`, row `ty`, row-major tile index
+/// `ty·⌈w/tile⌉ + tx`) and its result traces each of the tile's samples. Every pixel's samples
+/// are traced exactly as [`render_frame_spp`] traces them, so a tracer whose `trace` gives the
+/// same pixel gives the same image, at any thread count.
+pub fn render_frame_tiles<C, P, F>(
+    cam: &Camera,
+    spp: u32,
+    tile: u32,
+    prepare: P,
+    trace: F,
+) -> Result<(Frame, Stats)>
+where
+    P: Fn(u32, u32) -> C + Sync,
+    F: Fn(&mut C, DVec3, DVec3, (f64, f64)) -> PixelOut + Sync,
+{
+    cam.validate()?;
+    if spp == 0 || spp > MAX_SPP {
+        return Err(TraceError::Invalid(format!(
+            "spp = {spp} is outside 1..={MAX_SPP}"
+        )));
+    }
+    let start = std::time::Instant::now();
+    let (w, h) = (cam.width as usize, cam.height as usize);
+    let t = tile.max(1) as usize;
+    let (tw, th) = (w.div_ceil(t), h.div_ceil(t));
+    let offsets = sample_offsets(spp);
+    let tiles: Vec<Vec<PixelOut>> = (0..tw * th)
+        .into_par_iter()
+        .map(|k| {
+            let (tx, ty) = (k % tw, k / tw);
+            let mut ctx = prepare(tx as u32, ty as u32);
+            let mut out = Vec::with_capacity(t * t);
+            for j in ty * t..((ty + 1) * t).min(h) {
+                for i in tx * t..((tx + 1) * t).min(w) {
+                    let f = |o: DVec3, d: DVec3, uv: (f64, f64)| trace(&mut ctx, o, d, uv);
+                    out.push(pixel_at(cam, spp, &offsets, i, j, f));
+                }
+            }
+            out
+        })
+        .collect();
+    // Row-major pixels from the tiles' row-major pixels.
+    let mut pixels = vec![PixelOut::default(); w * h];
+    for (k, px) in tiles.into_iter().enumerate() {
+        let (tx, ty) = (k % tw, k / tw);
+        let x0 = tx * t;
+        let tw_px = (x0 + t).min(w) - x0;
+        for (n, p) in px.into_iter().enumerate() {
+            let (i, j) = (x0 + n % tw_px, ty * t + n / tw_px);
+            pixels[j * w + i] = p;
+        }
+    }
+    Ok(to_frame(cam, spp, pixels.into_iter(), start))
+}
+
+/// One pixel of a frame through `trace(origin, direction)` (see [`render_frame_spp`]).
+fn pixel<F>(
+    cam: &Camera,
+    spp: u32,
+    offsets: &[(f64, f64)],
+    i: usize,
+    j: usize,
+    trace: &F,
+) -> PixelOut
+where
+    F: Fn(DVec3, DVec3) -> PixelOut,
+{
+    pixel_at(cam, spp, offsets, i, j, |o, d, _| trace(o, d))
+}
+
+/// One pixel through `trace(origin, direction, (u, v))`, `(u, v)` the sample's continuous
+/// image coordinate: its `spp` samples traced in a fixed order and box-filtered.
+fn pixel_at<F>(
+    cam: &Camera,
+    spp: u32,
+    offsets: &[(f64, f64)],
+    i: usize,
+    j: usize,
+    mut trace: F,
+) -> PixelOut
+where
+    F: FnMut(DVec3, DVec3, (f64, f64)) -> PixelOut,
+{
+    let forward = cam.world_to_cam.row(2);
+    let mut sample = |u: f64, v: f64| {
         let (o, d) = camera_ray(cam, u, v);
-        let mut p = trace(o, d);
+        let mut p = trace(o, d, (u, v));
         // Ray parameter t along a unit direction → view-space depth t·(d·forward).
         p.depth *= d.dot(forward) as f32;
         p
     };
-    let rows: Vec<Vec<PixelOut>> = (0..h)
-        .into_par_iter()
-        .map(|j| {
-            let row: Vec<PixelOut> = (0..w)
-                .map(|i| {
-                    if spp == 1 {
-                        return sample(i as f64 + 0.5, j as f64 + 0.5);
-                    }
-                    let mut acc = PixelOut::default();
-                    for &(du, dv) in &offsets {
-                        let p = sample(i as f64 + du, j as f64 + dv);
-                        acc.rgb += p.rgb;
-                        acc.alpha += p.alpha;
-                        acc.depth += p.depth;
-                        acc.hits = acc.hits.saturating_add(p.hits);
-                        acc.traversals = acc.traversals.saturating_add(p.traversals);
-                        acc.candidates = acc.candidates.wrapping_add(p.candidates);
-                    }
-                    let inv = 1.0 / spp as f32;
-                    acc.rgb *= inv;
-                    acc.alpha *= inv;
-                    acc.depth *= inv;
-                    acc
-                })
-                .collect();
-            row
-        })
-        .collect();
+    if spp == 1 {
+        return sample(i as f64 + 0.5, j as f64 + 0.5);
+    }
+    let mut acc = PixelOut::default();
+    for &(du, dv) in offsets {
+        let p = sample(i as f64 + du, j as f64 + dv);
+        acc.rgb += p.rgb;
+        acc.alpha += p.alpha;
+        acc.depth += p.depth;
+        acc.hits = acc.hits.saturating_add(p.hits);
+        acc.traversals = acc.traversals.saturating_add(p.traversals);
+        acc.candidates = acc.candidates.wrapping_add(p.candidates);
+    }
+    let inv = 1.0 / spp as f32;
+    acc.rgb *= inv;
+    acc.alpha *= inv;
+    acc.depth *= inv;
+    acc
+}
+
+/// The frame and statistics of a render's pixels, row-major.
+fn to_frame(
+    cam: &Camera,
+    spp: u32,
+    pixels: impl Iterator<Item = PixelOut>,
+    start: std::time::Instant,
+) -> (Frame, Stats) {
+    let w = cam.width as usize;
+    let h = cam.height as usize;
     let mut frame = Frame::new(cam.width, cam.height);
     let mut stats = Stats::default();
-    for (j, row) in rows.into_iter().enumerate() {
-        for (i, p) in row.into_iter().enumerate() {
-            let k = j * w + i;
-            frame.rgb[3 * k] = p.rgb.x;
-            frame.rgb[3 * k + 1] = p.rgb.y;
-            frame.rgb[3 * k + 2] = p.rgb.z;
-            frame.alpha[k] = p.alpha;
-            frame.depth[k] = p.depth;
-            stats.hits += p.hits as u64;
-            stats.traversals += p.traversals as u64;
-            stats.candidates += p.candidates as u64;
-        }
+    for (k, p) in pixels.enumerate() {
+        frame.rgb[3 * k] = p.rgb.x;
+        frame.rgb[3 * k + 1] = p.rgb.y;
+        frame.rgb[3 * k + 2] = p.rgb.z;
+        frame.alpha[k] = p.alpha;
+        frame.depth[k] = p.depth;
+        stats.hits += p.hits as u64;
+        stats.traversals += p.traversals as u64;
+        stats.candidates += p.candidates as u64;
     }
     stats.rays = (w * h) as u64 * spp as u64;
     stats.seconds = start.elapsed().as_secs_f64();
-    Ok((frame, stats))
+    (frame, stats)
 }

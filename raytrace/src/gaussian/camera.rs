@@ -183,13 +183,8 @@ impl Part {
         bx: (Vec3, Vec3),
     ) -> Option<(f32, f32)> {
         let x = &self.proxy[p];
-        let inv = x.inv;
-        let og = inv * (o - x.mean);
-        let dg = inv * d;
-        let dd = dg.length_squared();
-        if !(dd > 0.0 && dd.is_finite()) {
-            return None;
-        }
+        // The widened test first: most candidates fail it, and every condition of the
+        // response is independent of the others, so their order does not change the result.
         let rel = x.mean - o;
         let z = rel.dot(fp.forward);
         let z2 = z * z;
@@ -209,6 +204,13 @@ impl Part {
         let (x0, x1) = (rel.dot(fp.e1), rel.dot(fp.e2));
         let q = (c2 * x0 * x0 - 2.0 * c1 * x0 * x1 + c0 * x1 * x1) / det;
         if !(q <= x.r2) {
+            return None;
+        }
+        let inv = x.inv;
+        let og = inv * (o - x.mean);
+        let dg = inv * d;
+        let dd = dg.length_squared();
+        if !(dd > 0.0 && dd.is_finite()) {
             return None;
         }
         let alpha = self.alpha(p, q)?;
@@ -292,8 +294,13 @@ impl GaussianTracer {
     /// low-pass of `variance_px2` pixels² ([`pad_for`]), so that no Gaussian the widening
     /// brings onto a ray is missed. Built per camera (and pose), like native's projection.
     pub fn padded(&self, cam: &Camera, variance_px2: f64) -> Result<Padded> {
+        self.padded_with(cam, variance_px2, true)
+    }
+
+    /// [`GaussianTracer::padded`], with its BVHs (`bvh`) or only its boxes.
+    fn padded_with(&self, cam: &Camera, variance_px2: f64, bvh: bool) -> Result<Padded> {
         let forward = cam.world_to_cam.row(2);
-        self.grown(Footprint::On, |part, pi, p, (blo, bhi)| {
+        self.grown(Footprint::On, bvh, |part, pi, p, (blo, bhi)| {
             let w = self.world_mean(pi, part, p);
             let z = (w - cam.centre).dot(forward);
             let pad = pad_for(cam, variance_px2, z, part.proxy[p].r2.sqrt() as f64);
@@ -306,12 +313,17 @@ impl GaussianTracer {
     /// and BVHs over the flat back-projected boxes of their screen footprints (mode
     /// `projected`).
     pub fn projected(&self, cam: &Camera, variance_px2: f64) -> Result<Padded> {
+        self.projected_with(cam, variance_px2, true)
+    }
+
+    /// [`GaussianTracer::projected`], with its BVH (`bvh`) or only its boxes and splats.
+    fn projected_with(&self, cam: &Camera, variance_px2: f64, bvh: bool) -> Result<Padded> {
         let w = cam.world_to_cam;
         let grid = [
             (cam.width as f64 / TILE).ceil(),
             (cam.height as f64 / TILE).ceil(),
         ];
-        self.grown(Footprint::Projected, |part, pi, p, own| {
+        self.grown(Footprint::Projected, bvh, |part, pi, p, own| {
             let world = self.world_mean(pi, part, p);
             let t = w * (world - cam.centre);
             // The part's rotation carries the Gaussian's axes into the world.
@@ -350,8 +362,24 @@ impl GaussianTracer {
         }
     }
 
-    /// Build per-part BVHs over `grow(part, part index, proxy, own box)` boxes.
-    fn grown<F>(&self, mode: Footprint, grow: F) -> Result<Padded>
+    /// As [`GaussianTracer::for_camera`] without the BVHs: the grown boxes (and splats) the
+    /// tile path bins (`tiles`).
+    pub(super) fn grown_boxes(
+        &self,
+        cam: &Camera,
+        footprint: Footprint,
+        variance_px2: f64,
+    ) -> Result<Option<Padded>> {
+        match footprint {
+            Footprint::Off => Ok(None),
+            Footprint::On => self.padded_with(cam, variance_px2, false).map(Some),
+            Footprint::Projected => self.projected_with(cam, variance_px2, false).map(Some),
+        }
+    }
+
+    /// Per-part `grow(part, part index, proxy, own box)` boxes, and the BVHs over them when
+    /// `bvh` is set (none otherwise: `accels` is left empty).
+    fn grown<F>(&self, mode: Footprint, bvh: bool, grow: F) -> Result<Padded>
     where
         F: Fn(&Part, usize, usize, (Vec3, Vec3)) -> ((Vec3, Vec3), Splat2d),
     {
@@ -386,6 +414,7 @@ impl GaussianTracer {
                 }
             }
             out.accels.push(match mode {
+                _ if !bvh => Vec::new(),
                 // Projected hits are keyed where their flat proxy is entered: one BVH.
                 Footprint::Projected if !boxes.is_empty() => vec![Bucket {
                     accel: build_boxes(self.backend, self.preset, &boxes)?,

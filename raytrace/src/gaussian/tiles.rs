@@ -1,0 +1,398 @@
+//! Primary rays of a pinhole camera traced tile by tile: the Gaussians a 16×16-pixel tile can
+//! see are gathered once, in the order of their hits' keys, and each of the tile's rays runs
+//! the per-ray test, hit and compositing code of [`GaussianTracer::trace_fp`] on that list.
+//!
+//! The binning is native splatting's (Kerbl et al. 2023, `duplicateWithKeys` and the per-tile
+//! ranges of a global depth sort), with the tracer's own proxies and responses: a proxy goes
+//! into every tile its box's screen rectangle touches, and the tile's list is ordered by the
+//! key every one of its hits will have. That key is the mean's view depth along the ray,
+//! `z / (d·f)` with `z = (μ − o)·f` the same f32 number for every ray of the camera and
+//! `d·f > 0` per ray; a correctly rounded division by a positive number is monotone, so a
+//! list sorted by `(z, Gaussian index)` yields each ray's hits in non-decreasing `t`. Hits
+//! whose `t` rounds equal are put in Gaussian-index order before they are composited, which is
+//! the k-buffer's key order exactly. A ray therefore composites the same hits with the same
+//! float operations in the same order as through the BVH and the k-buffer, and stops at the
+//! same hit: images are bit-identical (`tile_tests`), with no traversal, no k-buffer round
+//! and no per-camera BVH.
+//!
+//! Which renders take this path: one part fixed in the world (a plain cloud, no moving
+//! objects or particles), primary rays keyed at the mean's depth (`--order mean-depth`, the
+//! footprint's default, or `--footprint projected`), `near ≥ 0` (keys then are non-negative,
+//! where their bits order like them). Everything else keeps the per-ray BVH path.
+
+use glam::{DVec3, Vec3};
+use rayon::prelude::*;
+use splatbridge_scene::Camera;
+
+use super::camera::{self, LocalFootprint, Padded};
+use super::{GaussianHit, GaussianPayload, GaussianTracer};
+use crate::footprint::{Footprint, HitOrder, RayFootprint, ShDirection};
+use crate::kbuffer::{Accum, Hit};
+use crate::render::{PixelOut, RenderOptions};
+
+/// Tile edge in pixels (native's `BLOCK_X = BLOCK_Y`).
+pub(super) const TILE: u32 = 16;
+
+/// Widening of a proxy's screen rectangle, in pixels, beyond its corners' projection: the f32
+/// rounding of the ray's direction moves its pixel by about 1e-4 px at focal lengths of
+/// 1e3 px, and the response's by less (its proxies are padded by a relative 1e-5); 0.05 px
+/// plus a relative 1e-5 of the coordinate is a wide margin over both, and costs a candidate
+/// only on the rectangle's rim.
+const RECT_MARGIN: f64 = 0.05;
+
+/// Edge in pixels of the cells a tile's list is split into before its rays are traced.
+pub(super) const CELL: u32 = 4;
+
+/// A tile's list split by cell (see [`TileLists::cells`]).
+pub(super) struct Cells {
+    x0: u32,
+    y0: u32,
+    lists: Vec<Vec<Entry>>,
+}
+
+impl Cells {
+    /// The list of the cell holding pixel `(i, j)` (a pixel of the tile).
+    pub(super) fn of(&self, i: u32, j: u32) -> &[Entry] {
+        let n = TILE / CELL;
+        let (cx, cy) = ((i - self.x0) / CELL, (j - self.y0) / CELL);
+        &self.lists[(cy * n + cx) as usize]
+    }
+}
+
+/// One proxy in a tile's list.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Entry {
+    /// `[u0, v0, u1, v1]`: the continuous image coordinates whose rays can enter the proxy's
+    /// box (infinite for a box around the camera plane).
+    rect: [f32; 4],
+    /// The proxy's index in its part.
+    p: u32,
+}
+
+/// Every tile's proxies, in key order.
+pub(super) struct TileLists {
+    /// Tiles across.
+    tw: usize,
+    /// `starts[k]..starts[k + 1]` is tile `k`'s range of `entries`.
+    starts: Vec<usize>,
+    entries: Vec<Entry>,
+}
+
+/// A total order on f32 as u32 (negative values below positive ones).
+#[inline]
+fn order_bits(z: f32) -> u32 {
+    let b = z.to_bits();
+    if b >> 31 == 1 {
+        !b
+    } else {
+        b | 0x8000_0000
+    }
+}
+
+/// The screen rectangle of a box (anchor-relative corners `lo`, `hi` of a part fixed in the
+/// world at `anchor`), widened by [`RECT_MARGIN`]; None when a corner is not in front of the
+/// camera (the box's rays then span more than a projection bounds).
+fn screen_rect(cam: &Camera, anchor: DVec3, (lo, hi): (Vec3, Vec3)) -> Option<[f64; 4]> {
+    let (lo, hi) = (lo.as_dvec3() + anchor, hi.as_dvec3() + anchor);
+    let mut r = [
+        f64::INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::NEG_INFINITY,
+    ];
+    for c in 0..8 {
+        let x = DVec3::new(
+            if c & 1 == 0 { lo.x } else { hi.x },
+            if c & 2 == 0 { lo.y } else { hi.y },
+            if c & 4 == 0 { lo.z } else { hi.z },
+        );
+        let q = cam.world_to_cam * (x - cam.centre);
+        if !(q.z > 0.0) {
+            return None;
+        }
+        let (u, v) = (cam.fx * q.x / q.z + cam.cx, cam.fy * q.y / q.z + cam.cy);
+        r = [r[0].min(u), r[1].min(v), r[2].max(u), r[3].max(v)];
+    }
+    let m = |x: f64| RECT_MARGIN + 1e-5 * x.abs();
+    let r = [
+        r[0] - m(r[0]),
+        r[1] - m(r[1]),
+        r[2] + m(r[2]),
+        r[3] + m(r[3]),
+    ];
+    r.iter().all(|x| x.is_finite()).then_some(r)
+}
+
+impl TileLists {
+    /// Bin part 0's proxies with boxes `boxes` for `cam`: every proxy whose mean is beyond the
+    /// near cull (the per-ray test, on the same f32 numbers) into the tiles its rectangle
+    /// touches, each tile's list in `(z, Gaussian index)` order.
+    pub(super) fn build(
+        tracer: &GaussianTracer,
+        cam: &Camera,
+        boxes: &[(Vec3, Vec3)],
+        near: f32,
+    ) -> TileLists {
+        let part = &tracer.parts[0];
+        let ro = tracer.local_point(0, cam.centre);
+        let fwd = tracer.local_dir(0, cam.world_to_cam.row(2));
+        let (w, h) = (cam.width as f64, cam.height as f64);
+        let t = TILE as f64;
+        let tw = cam.width.div_ceil(TILE) as usize;
+        let th = cam.height.div_ceil(TILE) as usize;
+        // (key, entry, tile rectangle) of each proxy the camera can see.
+        let mut items: Vec<(u64, Entry, [u32; 4])> = (0..part.proxy.len())
+            .into_par_iter()
+            .filter_map(|p| {
+                let z = (part.proxy[p].mean - ro).dot(fwd);
+                if z <= near {
+                    return None;
+                }
+                let key = ((order_bits(z) as u64) << 32) | (part.id_offset + part.index[p]) as u64;
+                let (rect, tiles) = match screen_rect(cam, part.anchor, boxes[p]) {
+                    Some(r) => {
+                        if r[2] < 0.0 || r[3] < 0.0 || r[0] > w || r[1] > h {
+                            return None;
+                        }
+                        let tile = |x: f64, n: usize| (x / t).floor().clamp(0.0, (n - 1) as f64);
+                        let tiles = [
+                            tile(r[0], tw) as u32,
+                            tile(r[1], th) as u32,
+                            tile(r[2], tw) as u32,
+                            tile(r[3], th) as u32,
+                        ];
+                        // Rounded outward to f32.
+                        let down = |x: f64| {
+                            let f = x as f32;
+                            if f as f64 > x {
+                                f.next_down()
+                            } else {
+                                f
+                            }
+                        };
+                        let up = |x: f64| {
+                            let f = x as f32;
+                            if (f as f64) < x {
+                                f.next_up()
+                            } else {
+                                f
+                            }
+                        };
+                        ([down(r[0]), down(r[1]), up(r[2]), up(r[3])], tiles)
+                    }
+                    None => (
+                        [
+                            f32::NEG_INFINITY,
+                            f32::NEG_INFINITY,
+                            f32::INFINITY,
+                            f32::INFINITY,
+                        ],
+                        [0, 0, tw as u32 - 1, th as u32 - 1],
+                    ),
+                };
+                Some((key, Entry { rect, p: p as u32 }, tiles))
+            })
+            .collect();
+        // Keys are unique (the Gaussian index is in them), so the order is total.
+        items.par_sort_unstable_by_key(|x| x.0);
+        let mut count = vec![0usize; tw * th + 1];
+        for (_, _, r) in &items {
+            for ty in r[1]..=r[3] {
+                for tx in r[0]..=r[2] {
+                    count[ty as usize * tw + tx as usize + 1] += 1;
+                }
+            }
+        }
+        for k in 1..count.len() {
+            count[k] += count[k - 1];
+        }
+        let starts = count.clone();
+        let mut next = count;
+        let mut entries = vec![
+            Entry {
+                rect: [0.0; 4],
+                p: 0
+            };
+            *starts.last().unwrap_or(&0)
+        ];
+        // In key order into each tile: every tile's list comes out sorted.
+        for (_, e, r) in &items {
+            for ty in r[1]..=r[3] {
+                for tx in r[0]..=r[2] {
+                    let k = ty as usize * tw + tx as usize;
+                    entries[next[k]] = *e;
+                    next[k] += 1;
+                }
+            }
+        }
+        TileLists {
+            tw,
+            starts,
+            entries,
+        }
+    }
+
+    /// Tile `(tx, ty)`'s list.
+    pub(super) fn tile(&self, tx: u32, ty: u32) -> &[Entry] {
+        let k = ty as usize * self.tw + tx as usize;
+        &self.entries[self.starts[k]..self.starts[k + 1]]
+    }
+
+    /// Tile `(tx, ty)`'s list split into its [`CELL`]×[`CELL`]-pixel cells, each in the
+    /// tile's order: a ray then scans only the proxies whose rectangles reach its cell.
+    pub(super) fn cells(&self, tx: u32, ty: u32) -> Cells {
+        let list = self.tile(tx, ty);
+        let (x0, y0) = ((tx * TILE) as f64, (ty * TILE) as f64);
+        let n = (TILE / CELL) as usize;
+        let range = |lo: f32, hi: f32, origin: f64| {
+            // Cell c spans [origin + c·CELL, origin + (c + 1)·CELL] in image coordinates; in
+            // f64 the offset of an f32 coordinate is exact, so no rectangle loses its cell.
+            let c = |x: f32| {
+                ((x as f64 - origin) / CELL as f64)
+                    .floor()
+                    .clamp(0.0, (n - 1) as f64)
+            };
+            (c(lo) as usize, c(hi) as usize)
+        };
+        let mut lists: Vec<Vec<Entry>> = vec![Vec::new(); n * n];
+        for e in list {
+            let (cx0, cx1) = range(e.rect[0], e.rect[2], x0);
+            let (cy0, cy1) = range(e.rect[1], e.rect[3], y0);
+            for cy in cy0..=cy1 {
+                for cx in cx0..=cx1 {
+                    lists[cy * n + cx].push(*e);
+                }
+            }
+        }
+        Cells {
+            x0: tx * TILE,
+            y0: ty * TILE,
+            lists,
+        }
+    }
+}
+
+impl GaussianTracer {
+    /// Whether [`GaussianTracer::render`] takes the tile path (see the module documentation).
+    pub(super) fn tiles_apply(&self, opts: &RenderOptions) -> bool {
+        self.parts.len() == 1
+            && self.placed[0].is_none()
+            && opts.near >= 0.0
+            && (opts.footprint == Footprint::Projected || opts.order == HitOrder::MeanDepth)
+    }
+
+    /// One primary ray through the tile list `list`: what [`GaussianTracer::trace_fp`] returns
+    /// for it (its statistics aside: one traversal, and the candidates its rectangle test
+    /// passed). `uv` is the ray's continuous image coordinate, `fp` its footprint (None with
+    /// the footprint off), `padded` the camera's grown boxes, `pending` scratch space.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn trace_tile(
+        &self,
+        list: &[Entry],
+        o: DVec3,
+        d: DVec3,
+        uv: (f64, f64),
+        forward: DVec3,
+        fp: Option<(&RayFootprint, &Padded)>,
+        opts: &RenderOptions,
+        pending: &mut Vec<GaussianHit>,
+    ) -> PixelOut {
+        let part = &self.parts[0];
+        let (ro, rd) = (self.local_point(0, o), self.local_dir(0, d));
+        let fwd = self.local_dir(0, forward);
+        let forward_cos = rd.dot(fwd);
+        let local = fp.map(|(f, _)| LocalFootprint {
+            forward: self.local_dir(0, f.forward),
+            e1: self.local_dir(0, f.e1),
+            e2: self.local_dir(0, f.e2),
+            cov: f.cov.map(|v| v as f32),
+            det: (f.cov[0] * f.cov[2] - f.cov[1] * f.cov[1]) as f32,
+            pixel: (f.pixel.0 as f32, f.pixel.1 as f32),
+        });
+        let mode = fp.map_or(Footprint::Off, |(_, p)| p.mode);
+        let (u, v) = (uv.0 as f32, uv.1 as f32);
+        let mut acc = Accum::default();
+        let mut hits = 0u32;
+        let mut candidates = 0u32;
+        // Composite `pending` (hits of one key distance) in Gaussian order; true: the ray
+        // stopped (native's rule: the hit that would take T below the threshold is not added).
+        let flush = |pending: &mut Vec<GaussianHit>, acc: &mut Accum, hits: &mut u32| {
+            if pending.len() > 1 {
+                pending.sort_unstable_by_key(|h| h.gaussian);
+            }
+            for h in pending.iter() {
+                let a = h.payload.alpha;
+                if acc.after(a) < opts.min_transmittance {
+                    return true;
+                }
+                *hits += 1;
+                let color = match opts.sh_direction {
+                    ShDirection::Mean => self.hit_color_toward_mean(h, o),
+                    ShDirection::Ray => self.hit_color(h, d),
+                };
+                acc.add(color, a, h.t);
+            }
+            pending.clear();
+            false
+        };
+        pending.clear();
+        let mut stopped = false;
+        for e in list {
+            if !(u >= e.rect[0] && u <= e.rect[2] && v >= e.rect[1] && v <= e.rect[3]) {
+                continue;
+            }
+            candidates += 1;
+            let p = e.p as usize;
+            let r = match (&local, fp) {
+                (Some(f), Some((_, pad))) if mode == Footprint::Projected => {
+                    part.response_projected(p, ro, rd, f, &pad.splats[0][p])
+                }
+                (Some(f), Some((_, pad))) => part.response_fp(p, ro, rd, f, pad.boxes[0][p]),
+                _ => part.response(p, ro, rd),
+            };
+            let Some((mut t, alpha)) = r else {
+                continue;
+            };
+            if mode != Footprint::Projected {
+                if let Some(k) = camera::mean_depth_key(
+                    HitOrder::MeanDepth,
+                    part.proxy[p].mean,
+                    ro,
+                    fwd,
+                    forward_cos,
+                ) {
+                    t = k;
+                }
+            }
+            if pending
+                .first()
+                .is_some_and(|h| h.t.to_bits() != t.to_bits())
+                && flush(pending, &mut acc, &mut hits)
+            {
+                stopped = true;
+                break;
+            }
+            pending.push(Hit {
+                t,
+                gaussian: part.id_offset + part.index[p],
+                instance: 0,
+                group: 0,
+                payload: GaussianPayload {
+                    index: part.index[p],
+                    alpha,
+                },
+            });
+        }
+        if !stopped {
+            flush(pending, &mut acc, &mut hits);
+        }
+        PixelOut {
+            rgb: acc.rgb + opts.background * acc.tr,
+            alpha: 1.0 - acc.tr,
+            depth: acc.depth(),
+            hits,
+            traversals: 1,
+            candidates,
+        }
+    }
+}
