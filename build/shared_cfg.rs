@@ -75,6 +75,7 @@ fn emit_shared_cfgs(workspace: &str) {
             "puppeteer-core",
             "cesium",
             "3d-tiles-renderer",
+            "@sparkjsdev/spark",
         ];
         let installed = |p: &&str| modules.join(p).join("package.json").is_file();
         if chromium.is_file() && packages.iter().all(installed) {

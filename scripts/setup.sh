@@ -2,9 +2,10 @@
 # Install what the tests need on a fresh Debian machine: libclang (bindgen for Embree),
 # Blender and numpy (the Blender import check), Xvfb (EEVEE renders need an OpenGL context:
 # scripts/blender-render.sh runs Blender under xvfb-run), Node.js (the Khronos glTF-Validator),
-# Debian's chromium and the npm packages of scripts/package.json (three.js, Babylon.js,
-# puppeteer-core: the browser viewer check, scripts/web-render.mjs), and Embree 4 from the PyPI
-# wheel `embreex` (scripts/get-embree.sh). Idempotent: what is there already is left alone.
+# Debian's chromium and the npm packages of scripts/package.json (three.js, Babylon.js, Spark,
+# puppeteer-core: the browser viewer checks, scripts/web-render.mjs and scripts/splat-render.mjs),
+# and Embree 4 from the PyPI wheel `embreex` (scripts/get-embree.sh). Idempotent: what is
+# there already is left alone.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -43,7 +44,8 @@ fi
 # The viewer check's npm packages (pinned in scripts/package.json) go to a cache folder, not
 # the repository; reinstalled when the pinned versions change.
 web=${SPLATBRIDGE_WEB_DIR:-$HOME/.cache/splatbridge-web}
-if ! cmp -s scripts/package.json "$web/package.json" || [ ! -f "$web/node_modules/three/package.json" ]; then
+if ! cmp -s scripts/package.json "$web/package.json" || [ ! -f "$web/node_modules/three/package.json" ] \
+  || [ ! -f "$web/node_modules/@sparkjsdev/spark/package.json" ]; then
   mkdir -p "$web"
   cp scripts/package.json "$web/package.json"
   (cd "$web" && npm install --silent --no-audit --no-fund >/dev/null)

@@ -51,9 +51,10 @@ pub struct Args {
     /// Drop invalid Gaussians instead of failing.
     #[arg(long)]
     pub drop_invalid: bool,
-    /// Viewer clients to render the exports in, comma-separated: three, babylon (headless
-    /// chromium), eevee, cycles (Blender); through `scripts/client-render.sh`, at the first
-    /// time. A client that is not installed is reported as skipped with the reason.
+    /// Viewer clients to render the exports in, comma-separated: three, babylon, three-splats,
+    /// three-splats-linear, spark, spark-native (headless chromium), eevee, cycles (Blender);
+    /// through `scripts/client-render.sh`, at the first time. A client that is not installed
+    /// is reported as skipped with the reason.
     #[arg(long, value_name = "LIST")]
     pub clients: Option<String>,
     /// The client dispatcher script (default: the repository's scripts/client-render.sh).

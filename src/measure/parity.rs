@@ -474,8 +474,8 @@ pub fn compare_selected(
                 )?;
                 for (sub, res) in results.into_iter().enumerate() {
                     let r = Record {
-                        profile: res.kind.into(),
-                        format: "glb".into(),
+                        profile: res.kind.name().into(),
+                        format: res.kind.format().into(),
                         bytes: res.bytes,
                         ..named(res.client.name(), res.ms)
                     };
@@ -485,7 +485,7 @@ pub fn compare_selected(
                             reference_frame,
                             (ti, ci),
                             (3, sub as u64),
-                            format!("client_{}_{}_{tag}", res.client.name(), res.kind),
+                            format!("client_{}_{}_{tag}", res.client.name(), res.kind.name()),
                             &img,
                             r,
                         )?,
