@@ -361,8 +361,9 @@ fn the_footprint_widened_fit_beats_the_plain_one_on_small_gaussians() {
         width: 40,
         height: 30,
         held_back: 4,
-        held_size: None,
+        validation: 0,
         times: 1,
+        ..ViewRequest::default()
     };
     let (mut results, mut vertices) = (Vec::new(), Vec::new());
     for footprint in [false, true] {

@@ -55,6 +55,21 @@ pub fn footprint_variance(p: DVec3, cameras: &[Camera]) -> Option<f64> {
         .min_by(f64::total_cmp)
 }
 
+/// As [`footprint_variance`], over the cameras whose image holds `p` (a tenth of the image's
+/// size of margin, for the Gaussian's own extent): each view sizes the footprint only of what
+/// it sees, so a close-up does not thin Gaussians it never shows.
+pub fn footprint_variance_seen(p: DVec3, cameras: &[Camera]) -> Option<f64> {
+    cameras
+        .iter()
+        .filter(|c| crate::views::sees(c, p, 0.1))
+        .map(|c| {
+            let z = c.to_camera(p).z;
+            let f = c.fx.min(c.fy);
+            LOW_PASS_PX2 * (z / f) * (z / f)
+        })
+        .min_by(f64::total_cmp)
+}
+
 /// Widen every Gaussian of `cloud` (its means mapped to the world by `to_world`) by the
 /// low-pass footprint of `cameras`.
 pub fn widen_cloud(
@@ -75,11 +90,22 @@ pub fn widen_cloud_keeping(
     to_world: impl Fn(Vec3) -> Vec3,
     flat: impl Fn(&GaussianCloud, usize) -> bool,
 ) -> Widened {
+    widen_cloud_by(cloud, to_world, flat, |p| footprint_variance(p, cameras))
+}
+
+/// Widen every Gaussian of `cloud` by the variance `variance` gives at its world position
+/// (None: left as it is); `flat` as in [`widen_cloud_keeping`].
+pub fn widen_cloud_by(
+    cloud: &mut GaussianCloud,
+    to_world: impl Fn(Vec3) -> Vec3,
+    flat: impl Fn(&GaussianCloud, usize) -> bool,
+    variance: impl Fn(DVec3) -> Option<f64>,
+) -> Widened {
     let mut out = Widened::default();
     for i in 0..cloud.len() {
         let keep_smallest = flat(cloud, i);
         let p = to_world(cloud.means[i]).as_dvec3();
-        let Some(s2) = footprint_variance(p, cameras) else {
+        let Some(s2) = variance(p) else {
             out.unseen += 1;
             continue;
         };
@@ -132,11 +158,29 @@ pub fn widen_scene_with(
     cameras: &[Camera],
     flat: impl Fn(&GaussianCloud, usize) -> bool + Copy,
 ) -> Widened {
-    let mut total = widen_cloud_keeping(&mut scene.static_gaussians, cameras, |p| p, flat);
+    widen_scene_by(scene, flat, |p| footprint_variance(p, cameras))
+}
+
+/// As [`widen_scene_with`], each Gaussian by the views that see it
+/// ([`footprint_variance_seen`]).
+pub fn widen_scene_seen(
+    scene: &mut DynamicScene,
+    cameras: &[Camera],
+    flat: impl Fn(&GaussianCloud, usize) -> bool + Copy,
+) -> Widened {
+    widen_scene_by(scene, flat, |p| footprint_variance_seen(p, cameras))
+}
+
+fn widen_scene_by(
+    scene: &mut DynamicScene,
+    flat: impl Fn(&GaussianCloud, usize) -> bool + Copy,
+    variance: impl Fn(DVec3) -> Option<f64> + Copy,
+) -> Widened {
+    let mut total = widen_cloud_by(&mut scene.static_gaussians, |p| p, flat, variance);
     let t0 = scene.time.start;
     for o in &mut scene.objects {
         let pose = o.track.sample(t0);
-        let w = widen_cloud_keeping(&mut o.gaussians, cameras, |p| pose.transform_point(p), flat);
+        let w = widen_cloud_by(&mut o.gaussians, |p| pose.transform_point(p), flat, variance);
         total.widened += w.widened;
         total.unseen += w.unseen;
         total.max_sigma = total.max_sigma.max(w.max_sigma);

@@ -35,7 +35,9 @@
 
 pub mod composite;
 pub mod footprint;
+pub mod guard;
 pub mod loss;
+mod mesh;
 pub mod optim;
 pub mod options;
 pub mod order;
@@ -51,12 +53,13 @@ use glam::Vec3;
 use rayon::prelude::*;
 use splatbridge_convert::vertex_colours::VertexColours;
 use splatbridge_convert::ConvertOptions;
-use splatbridge_raytrace::model::TriScene;
+
 use splatbridge_raytrace::{BackendKind, BuildPreset, MeshTracer, RenderOptions};
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::{Camera, Frame};
 
 use composite::{Rec, Shading, ViewHits};
+use mesh::{check_white, hit_alpha_factor, quantise, vertex_gaussians};
 pub use loss::Loss;
 use optim::{adam, batch_views, mean_pixels};
 pub use options::DistillOptions;
@@ -64,7 +67,8 @@ use order::Centres;
 pub use order::HitOrder;
 use targets::native_options;
 pub use targets::{
-    mean_psnr, mean_psnr_at, native_targets, native_targets_at, native_targets_sh, widen_for_fit,
+    mean_psnr, mean_psnr_at, native_targets, native_targets_at, native_targets_sh, render_native,
+    widen_for_fit,
 };
 pub use tied::ParamMode;
 pub use tied::Tied;
@@ -120,9 +124,15 @@ pub struct DistillReport {
     pub hit_bytes: u64,
     pub loss_first: f64,
     pub loss_last: f64,
+    /// Validation views ([`guard`]): never fitted, they pick the iteration kept.
+    pub validation_views: usize,
+    /// Mean validation PSNR at the start and of the kept iteration, and that iteration.
+    pub validation_start: f64,
+    pub validation_kept: f64,
+    pub kept_iteration: usize,
 }
 
-struct View {
+pub(crate) struct View {
     camera: Camera,
     time: f64,
     target: Vec<f32>,
@@ -152,6 +162,8 @@ pub struct Distiller {
     centres: Option<Centres>,
     /// Fitted positions ([`DistillOptions::positions`]).
     positions: Option<positions::Positions>,
+    /// Validation views and the best iteration they have seen ([`guard`]).
+    guard: guard::Guard,
 }
 
 impl Distiller {
@@ -269,6 +281,7 @@ impl Distiller {
             eps: opts.eps_pixels / mean_pixels(cameras),
             centres,
             positions: fitted_positions,
+            guard: guard::Guard::default(),
         };
         let mut stored = 0u64;
         let times = opts.view_times(cameras.len());
@@ -283,7 +296,7 @@ impl Distiller {
                 if times[i] != t {
                     continue;
                 }
-                let (frame, _) = renderer.render(&cloud, cam, &native)?;
+                let frame = targets::render_native(&mut renderer, &cloud, cam, &native)?;
                 // Moving vertices change the hits in every step: none are kept.
                 let hits = if opts.positions {
                     ViewHits::default()
@@ -321,7 +334,20 @@ impl Distiller {
         cameras: &[Camera],
         opts: &DistillOptions,
     ) -> Result<(Self, Option<DynamicScene>)> {
-        let widened = widen_for_fit(scene, cameras, opts, convert);
+        Self::for_windows(scene, convert, cameras, cameras, opts)
+    }
+
+    /// As [`Distiller::for_export`], fitting `windows` (each a window of `frames[i]`, or the
+    /// view itself) with the footprint sized by the whole views `frames`.
+    pub fn for_windows(
+        scene: &DynamicScene,
+        convert: &ConvertOptions,
+        windows: &[Camera],
+        frames: &[Camera],
+        opts: &DistillOptions,
+    ) -> Result<(Self, Option<DynamicScene>)> {
+        let cameras = windows;
+        let widened = widen_for_fit(scene, frames, opts, convert);
         let d = Self::with_mesh_scene(
             scene,
             widened.as_ref().unwrap_or(scene),
@@ -578,14 +604,21 @@ impl Distiller {
                 .is_some_and(|s| self.start.elapsed().as_secs_f64() >= s)
     }
 
-    /// Step until [`Distiller::done`], calling `on_step` after each.
+    /// Step until [`Distiller::done`], calling `on_step` after each; with validation views,
+    /// keep the best iteration they accept ([`guard`]).
     pub fn run(&mut self, mut on_step: impl FnMut(&Progress)) -> Result<()> {
+        self.validate()?;
         while !self.done() {
             self.step()?;
             if let Some(p) = self.history.last() {
                 on_step(p);
             }
+            if self.history.len() % guard::EVERY == 0 {
+                self.validate()?;
+            }
         }
+        self.validate()?;
+        self.keep_best();
         Ok(())
     }
 
@@ -689,104 +722,3 @@ impl Distiller {
     }
 }
 
-/// The Gaussians of one mesh: each id's index in `centres`, and the centres themselves (the
-/// mean of the vertices carrying the id; `ids` gives each vertex's, from
-/// [`vertex_gaussians`]). Every profile's template is point-symmetric about the Gaussian's
-/// mean, so that mean is the Gaussian's centre.
-fn gaussian_centres(
-    m: &splatbridge_raytrace::model::Mesh,
-    ids: &[u32],
-) -> (std::collections::HashMap<u32, usize>, Vec<glam::DVec3>) {
-    let mut index = std::collections::HashMap::new();
-    let mut sums: Vec<(glam::DVec3, u32)> = Vec::new();
-    for (p, &g) in m.positions.iter().zip(ids) {
-        let k = *index.entry(g).or_insert_with(|| {
-            sums.push((glam::DVec3::ZERO, 0));
-            sums.len() - 1
-        });
-        sums[k].0 += p.as_dvec3();
-        sums[k].1 += 1;
-    }
-    let centres = sums.iter().map(|(s, n)| *s / (*n).max(1) as f64).collect();
-    (index, centres)
-}
-
-/// Per mesh, the Gaussian id of every vertex (`u32::MAX` for a vertex before any triangle).
-fn vertex_gaussians(scene: &TriScene) -> Vec<Vec<u32>> {
-    let mut per_vertex = Vec::with_capacity(scene.meshes.len());
-    for m in &scene.meshes {
-        let mut g = vec![u32::MAX; m.positions.len()];
-        for (t, tri) in m.tris.iter().enumerate() {
-            for &v in tri {
-                g[v as usize] = m.tri_gaussian[t];
-            }
-        }
-        // A vertex no triangle uses belongs to the Gaussian emitted around it.
-        let mut last = u32::MAX;
-        for x in g.iter_mut() {
-            if *x == u32::MAX {
-                *x = last;
-            } else {
-                last = *x;
-            }
-        }
-        per_vertex.push(g);
-    }
-    per_vertex
-}
-
-/// One vertex RGBA as the file stores it: normalized u16.
-fn quantise(p: [f32; 4]) -> [f32; 4] {
-    p.map(|x| (x.clamp(0.0, 1.0) * 65535.0).round() / 65535.0)
-}
-
-/// The material and texture alpha of a hit: what `Mesh::shade` multiplies the interpolated
-/// vertex alpha by.
-fn hit_alpha_factor(scene: &TriScene, mesh: usize, tri: usize, bary: [f32; 3]) -> f32 {
-    let m = &scene.meshes[mesh];
-    let Some(mat) = scene.materials.get(m.tri_material.get(tri) as usize) else {
-        return 1.0;
-    };
-    let mut a = mat.base_color.w;
-    if let (Some(tex), Some(uvs)) = (mat.texture.and_then(|t| scene.textures.get(t)), &m.uvs) {
-        let [i0, i1, i2] = m.tris[tri].map(|i| i as usize);
-        let uv = uvs[i0] * bary[0] + uvs[i1] * bary[1] + uvs[i2] * bary[2];
-        a *= tex.sample(uv).w;
-    }
-    a
-}
-
-/// The fit assumes the materials and textures leave colour alone (white, as splatbridge
-/// writes them) and blend: the vertex colour is the hit's colour.
-fn check_white(scene: &TriScene) -> Result<()> {
-    let white = |v: Vec3| (v - Vec3::ONE).abs().max_element() < 1e-6;
-    let mut used = vec![false; scene.materials.len()];
-    for m in &scene.meshes {
-        for t in m.tri_material.iter() {
-            if let Some(u) = used.get_mut(t as usize) {
-                *u = true;
-            }
-        }
-    }
-    for (m, _) in scene.materials.iter().zip(&used).filter(|(_, &u)| u) {
-        if !white(m.base_color.truncate()) {
-            return Err(DistillError::Invalid(
-                "distillation needs white materials (the vertex colour is the hit's colour)".into(),
-            ));
-        }
-        if !matches!(m.alpha_mode, splatbridge_raytrace::AlphaMode::Blend) {
-            return Err(DistillError::Invalid(
-                "distillation needs blended materials".into(),
-            ));
-        }
-        if let Some(t) = m.texture.and_then(|t| scene.textures.get(t)) {
-            if t.texels.iter().any(|c| !white(c.truncate())) {
-                return Err(DistillError::Invalid(
-                    "distillation needs white textures (the falloff texture carries alpha only)"
-                        .into(),
-                ));
-            }
-        }
-    }
-    Ok(())
-}

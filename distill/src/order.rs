@@ -59,7 +59,7 @@ impl Centres {
         let per_vertex = super::vertex_gaussians(scene);
         let mut out = Centres::default();
         for (m, ids) in scene.meshes.iter().zip(&per_vertex) {
-            let (index, centres) = super::gaussian_centres(m, ids);
+            let (index, centres) = super::mesh::gaussian_centres(m, ids);
             let tri_group = m
                 .tri_gaussian
                 .iter()

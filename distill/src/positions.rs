@@ -46,7 +46,7 @@ impl Positions {
         let mut start = Vec::new();
         let mut size = Vec::new();
         for (m, ids) in scene.meshes.iter().zip(&per_vertex) {
-            let (index, centres) = super::gaussian_centres(m, ids);
+            let (index, centres) = super::mesh::gaussian_centres(m, ids);
             // Per Gaussian: the summed distance of its vertices from its centre, and their count.
             let mut spread = vec![(0.0f64, 0u32); centres.len()];
             for (p, g) in m.positions.iter().zip(ids) {

@@ -10,9 +10,7 @@ use splatbridge_scene::camera_spec::{
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::Camera;
 
-use super::{
-    mean_psnr_at, native_targets_sh, views, DistillOptions, DistillReport, Distiller, Result,
-};
+use super::{native_targets_sh, views, DistillOptions, DistillReport, Distiller, Result};
 
 /// `n` times evenly over the scene's time range, start and end included (the start alone
 /// for a static scene or `n` ≤ 1).
@@ -29,15 +27,27 @@ pub fn fitting_times(scene: &DynamicScene, n: usize) -> Vec<f64> {
 /// Which views to fit and at what size.
 #[derive(Clone, Debug)]
 pub struct ViewRequest {
-    /// A camera list: `orbit:N`, `scene`, `PATH.json`, single specs, comma-separated.
+    /// `auto` (the scene's own cameras, else `cameras` below, else `sphere:48`),
+    /// `sphere:N` (N views over the view sphere, [`views::sphere`]), or a camera list:
+    /// `orbit:N`, `scene`, `PATH.json`, single specs, comma-separated.
     pub spec: String,
+    /// The fitting window: views larger than this are fitted through windows of this size
+    /// ([`views::window_of`]).
     pub width: u32,
     pub height: u32,
-    /// Held-back views to measure before and after (fitting by `orbit:N` only).
+    /// The sizes the export is made for (`--distill-for`, or the `--camera` views'); empty:
+    /// [`views::DEFAULT_SIZES`], 320×240 to 1080p. Camera lists are resized to the first.
+    pub sizes: Vec<(u32, u32)>,
+    /// Cameras found beside the input (a 3DGS `cameras.json`), used by `auto` when the scene
+    /// has none of its own.
+    pub cameras: Vec<Camera>,
+    /// Held-back views to measure before and after: one per class of
+    /// [`views::HELD_BACK_CLASSES`] in turn (between the cameras for a single `orbit:N`).
     pub held_back: usize,
-    /// Held-back image size when it is not the fitting size (so fits at different sizes
-    /// are measured on the same images).
+    /// Held-back image size; default 320×240 (the orbit's fitting size for `orbit:N`).
     pub held_size: Option<(u32, u32)>,
+    /// Validation views ([`super::guard`]), from the fitting distribution, never fitted.
+    pub validation: usize,
     /// Scene times a dynamic scene is fitted at (evenly over its time range, start and end
     /// included), given to the views in turn; static scenes use their start.
     pub times: usize,
@@ -46,42 +56,131 @@ pub struct ViewRequest {
 impl Default for ViewRequest {
     fn default() -> Self {
         ViewRequest {
-            spec: format!("orbit:{}", super::DEFAULT_VIEWS),
-            width: 240,
-            height: 180,
-            held_back: 4,
+            spec: "auto".into(),
+            width: views::WINDOW.0,
+            height: views::WINDOW.1,
+            sizes: Vec::new(),
+            cameras: Vec::new(),
+            held_back: views::HELD_BACK_CLASSES.len(),
             held_size: None,
+            validation: 8,
             times: 4,
         }
     }
 }
 
-/// The fitting cameras and, for a single `orbit:N`, the held-back cameras between them.
-pub fn resolve_views(
-    scene: &DynamicScene,
-    time: f64,
-    req: &ViewRequest,
-) -> Result<(Vec<Camera>, Vec<Camera>)> {
-    let items = parse_camera_list(&req.spec)?;
+/// The views of a distillation.
+#[derive(Clone, Debug, Default)]
+pub struct ResolvedViews {
+    /// What is fitted and the whole views they are windows of.
+    pub fit: views::Windows,
+    /// Validation windows ([`super::guard`]).
+    pub validation: Vec<Camera>,
+    /// Held-back views, with their class.
+    pub held: Vec<views::HeldBack>,
+    /// What `auto` chose, for the report.
+    pub spec: String,
+}
+
+/// The fitting, validation and held-back views of `req`.
+pub fn resolve_views(scene: &DynamicScene, time: f64, req: &ViewRequest) -> Result<ResolvedViews> {
     let cloud = scene.composite(time);
-    let mut request = CameraRequest::new(CameraSpec::Scene(0));
-    request.width = Some(req.width);
-    request.height = Some(req.height);
-    let cams = request.resolve_list(
-        &items,
-        CameraSource {
-            cloud: &cloud,
-            own: &scene.cameras,
-        },
-    )?;
-    let held = match items[..] {
-        [CameraListItem::Orbit(n)] if req.held_back > 0 => {
-            let (w, h) = req.held_size.unwrap_or((req.width, req.height));
-            views::held_back(&cloud, n, req.held_back, w, h)?
+    let window = (req.width, req.height);
+    let sizes: Vec<(u32, u32)> = if req.sizes.is_empty() {
+        views::DEFAULT_SIZES.to_vec()
+    } else {
+        req.sizes.clone()
+    };
+    let spec = match req.spec.trim() {
+        "auto" if !scene.cameras.is_empty() => "scene".to_string(),
+        "auto" if !req.cameras.is_empty() => "cameras.json".to_string(),
+        "auto" => format!("sphere:{}", super::DEFAULT_VIEWS),
+        s => s.to_string(),
+    };
+    let fit = if let Some(n) = spec.strip_prefix("sphere:") {
+        let n: usize = n
+            .parse()
+            .ok()
+            .filter(|&n| (1..=4096).contains(&n))
+            .ok_or_else(|| {
+                super::DistillError::Invalid(format!("'{spec}' is not sphere:N with N in 1..=4096"))
+            })?;
+        views::sphere(&cloud, n, &sizes, window)?
+    } else {
+        let cams = if spec == "cameras.json" {
+            req.cameras.clone()
+        } else {
+            let items = parse_camera_list(&spec)?;
+            // Lists are fitted at the target size, else (named lists) at the window's, as
+            // whole views; the scene's own cameras picked by `auto` keep their sizes.
+            let mut request = CameraRequest::new(CameraSpec::Scene(0));
+            let size = match req.sizes.first() {
+                Some(&s) => Some(s),
+                None if req.spec.trim() == "auto" => None,
+                None => Some(window),
+            };
+            if let Some((w, h)) = size {
+                request.width = Some(w);
+                request.height = Some(h);
+            }
+            request.resolve_list(
+                &items,
+                CameraSource {
+                    cloud: &cloud,
+                    own: &scene.cameras,
+                },
+            )?
+        };
+        let cams: Vec<Camera> = match req.sizes.first() {
+            Some(&(w, h)) if spec == "cameras.json" => {
+                cams.iter().map(|c| c.resized(w, h)).collect()
+            }
+            _ => cams,
+        };
+        // About the default count of windows in all, at most four per view.
+        let per = (super::DEFAULT_VIEWS / cams.len().max(1)).clamp(1, 4);
+        views::windows_of(&cams, per, window)
+    };
+    let n = fit.windows.len();
+    let validation = views::sphere_range(&cloud, n..n + req.validation, &sizes, window)?;
+    let held = match parse_camera_list(&spec).ok().as_deref() {
+        Some([CameraListItem::Orbit(k)]) if req.held_back > 0 => {
+            let (w, h) = req.held_size.unwrap_or(window);
+            views::held_back(&cloud, *k, req.held_back, w, h)?
+                .into_iter()
+                .map(|camera| views::HeldBack {
+                    class: "between the orbit's cameras".into(),
+                    camera,
+                })
+                .collect()
+        }
+        _ if req.held_back > 0 => {
+            let avoid: Vec<Camera> = fit
+                .frames
+                .iter()
+                .chain(&validation.frames)
+                .cloned()
+                .collect();
+            let size = req.held_size.unwrap_or((320, 240));
+            let per = req.held_back.div_ceil(views::HELD_BACK_CLASSES.len());
+            let all = views::held_back_classes(&cloud, &[size], per, &avoid)?;
+            // One of each class before the second of any.
+            let classes = views::HELD_BACK_CLASSES.len();
+            let mut order: Vec<usize> = (0..all.len()).collect();
+            order.sort_by_key(|&i| (i % per, i / per % classes));
+            let mut taken: Vec<views::HeldBack> =
+                order.into_iter().map(|i| all[i].clone()).collect();
+            taken.truncate(req.held_back);
+            taken
         }
         _ => Vec::new(),
     };
-    Ok((cams, held))
+    Ok(ResolvedViews {
+        fit,
+        validation: validation.windows,
+        held,
+        spec,
+    })
 }
 
 /// What a distillation for an export did.
@@ -90,8 +189,26 @@ pub struct Outcome {
     pub report: DistillReport,
     /// Mean PSNR against native on the held-back views before and after fitting.
     pub held_back: Option<(f64, f64)>,
+    /// The held-back views' change in PSNR (dB): worst and median.
+    pub held_back_change: Option<(f64, f64)>,
     pub held_back_views: usize,
     pub description: String,
+}
+
+/// The worst (smallest) and the median of `x`.
+pub fn worst_and_median(x: &[f64]) -> Option<(f64, f64)> {
+    let mut v: Vec<f64> = x.iter().copied().filter(|a| !a.is_nan()).collect();
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_by(f64::total_cmp);
+    let m = v.len() / 2;
+    let median = if v.len() % 2 == 0 {
+        0.5 * (v[m - 1] + v[m])
+    } else {
+        v[m]
+    };
+    Some((v[0], median))
 }
 
 /// Fit `convert`'s mesh of `scene` and set its vertex colours (and the metadata's
@@ -104,26 +221,25 @@ pub fn distill_export(
     opts: &DistillOptions,
     on_step: impl FnMut(&super::Progress),
 ) -> Result<Outcome> {
-    let (cams, held) = resolve_views(scene, opts.time, req)?;
+    let views = resolve_views(scene, opts.time, req)?;
     let mut opts = opts.clone();
     if opts.times.is_empty() {
         opts.times = fitting_times(scene, req.times);
     }
-    let (mut d, widened) = Distiller::for_export(scene, convert, &cams, &opts)?;
+    let (fit, frames) = (&views.fit.windows, &views.fit.frames);
+    let (mut d, widened) = Distiller::for_windows(scene, convert, fit, frames, &opts)?;
+    let val_times = opts.view_times(views.validation.len());
+    d.add_validation(scene, &views.validation, &val_times)?;
     // Held-back views take the fitting times in turn too, so a dynamic scene is measured
     // over the poses it was fitted for.
+    let held: Vec<Camera> = views.held.iter().map(|h| h.camera.clone()).collect();
     let held_times = opts.view_times(held.len());
     let held_targets = native_targets_sh(scene, &held, &held_times, opts.target_sh_degree)?;
-    let before = if held.is_empty() {
-        None
-    } else {
-        Some(mean_psnr_at(&mut d, &held, &held_times, &held_targets)?)
-    };
+    let before = psnr_each(&mut d, &held, &held_times, &held_targets)?;
     d.run(on_step)?;
-    let after = match before {
-        Some(_) => Some(mean_psnr_at(&mut d, &held, &held_times, &held_targets)?),
-        None => None,
-    };
+    let after = psnr_each(&mut d, &held, &held_times, &held_targets)?;
+    let mean = |x: &[f64]| x.iter().sum::<f64>() / x.len().max(1) as f64;
+    let change: Vec<f64> = after.iter().zip(&before).map(|(a, b)| a - b).collect();
     let colours = d.vertex_colours()?;
     if let Some(w) = widened {
         *scene = w;
@@ -140,13 +256,14 @@ pub fn distill_export(
     .collect::<Vec<_>>()
     .join(",");
     let description = format!(
-        "{} views '{}' at {}×{}{}{}, {} iterations of Adam on {}{} in {:.1} s",
+        "{} views '{}' through {}×{} windows ({}){}{}, {} iterations of Adam on {}{} in {:.1} s{}",
         report.views,
-        req.spec,
+        views.spec,
         report.width,
         report.height,
+        sizes_text(frames),
         if opts.footprint {
-            ", Gaussians widened by the low-pass of those views"
+            ", Gaussians widened by the low-pass of the views that see them"
         } else {
             ""
         },
@@ -158,14 +275,52 @@ pub fn distill_export(
         report.iterations,
         report.loss,
         what_else,
-        report.seconds
+        report.seconds,
+        if report.validation_views > 0 {
+            format!(
+                ", iteration {} kept by {} validation views",
+                report.kept_iteration, report.validation_views
+            )
+        } else {
+            String::new()
+        }
     );
     convert.vertex_colours = Some(Arc::new(colours));
     convert.distilled = Some(description.clone());
     Ok(Outcome {
         report,
-        held_back: before.zip(after),
+        held_back: (!held.is_empty()).then(|| (mean(&before), mean(&after))),
+        held_back_change: worst_and_median(&change),
         held_back_views: held.len(),
         description,
     })
+}
+
+/// PSNR of the fitted mesh against `targets` from each of `cameras`.
+fn psnr_each(
+    d: &mut Distiller,
+    cameras: &[Camera],
+    times: &[f64],
+    targets: &[splatbridge_scene::Frame],
+) -> Result<Vec<f64>> {
+    let mut out = Vec::with_capacity(cameras.len());
+    for ((c, &time), t) in cameras.iter().zip(times).zip(targets) {
+        let img = d.render_at(c, time)?;
+        out.push(splatbridge_scene::metrics::psnr(&img, t)?);
+    }
+    Ok(out)
+}
+
+/// The whole views' sizes, distinct, in order ("320×240, 1920×1080").
+fn sizes_text(frames: &[Camera]) -> String {
+    let mut seen: Vec<(u32, u32)> = Vec::new();
+    for c in frames {
+        if !seen.contains(&(c.width, c.height)) {
+            seen.push((c.width, c.height));
+        }
+    }
+    seen.iter()
+        .map(|(w, h)| format!("{w}×{h}"))
+        .collect::<Vec<_>>()
+        .join(", ")
 }

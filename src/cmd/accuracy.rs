@@ -40,9 +40,10 @@ pub struct Args {
     /// footprint-default (only when named: `trace`'s default, footprint on with mean-depth
     /// order, alone),
     /// mesh-spp (the default profile's mesh traced at 1 and 4 samples per pixel), distill (only
-    /// when named: each profile's mesh distilled at these cameras' size on 48 views between the
-    /// orbit's, in batches of 16, measured on these cameras against distillation time; writes
-    /// distill.md).
+    /// when named: each profile's mesh distilled at its defaults, 48 views over the view
+    /// sphere, measured on held-back views of other elevations, distances and sizes
+    /// (--distill-sizes) against the undistilled MeshSplats default and the profile's plain
+    /// export; writes distill.md with worst and median per class).
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
     /// Converter profiles the distill sweep fits (with `--only distill`), comma-separated.
@@ -52,6 +53,22 @@ pub struct Args {
         default_value = "meshsplats,rings,texture"
     )]
     pub distill_profiles: Vec<String>,
+    /// Held-back image sizes of the distill rows, comma-separated.
+    #[arg(long, value_delimiter = ',', value_parser = super::convert::parse_wxh, default_value = "320x240,640x480")]
+    pub distill_sizes: Vec<(u32, u32)>,
+    /// Sizes the distilled exports are made for (default: 320×240 to 1920×1080).
+    #[arg(long, value_delimiter = ',', value_parser = super::convert::parse_wxh)]
+    pub distill_for: Vec<(u32, u32)>,
+    /// Held-back views per class and size in the distill rows.
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    pub distill_per_class: usize,
+    /// Make the distilled meshes from the Gaussians widened for the fitting views (on), or
+    /// as they are (off).
+    #[arg(long, value_enum, default_value = "on")]
+    pub distill_footprint: super::distill_args::OnOff,
+    /// Iterations of the distill rows' fits.
+    #[arg(long, value_name = "K", default_value_t = splatbridge::distill::DistillOptions::default().iterations)]
+    pub distill_iterations: usize,
     #[arg(long)]
     pub drop_invalid: bool,
     /// Re-draw the plots and table from OUT/accuracy.json without measuring again.
@@ -166,13 +183,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     pb.finish_and_clear();
     let curve = if args.only.iter().any(|o| o == "distill") {
+        let it = args.distill_iterations;
         let cfg = splatbridge::measure::accuracy_distill::DistillSweep {
             profiles: distill_profiles,
+            fit_sizes: args.distill_for.clone(),
+            sizes: args.distill_sizes.clone(),
+            per_class: args.distill_per_class.max(1),
+            checkpoints: vec![0, it / 3, it],
+            options: splatbridge::distill::DistillOptions {
+                iterations: it,
+                footprint: args.distill_footprint == super::distill_args::OnOff::On,
+                ..Default::default()
+            },
             ..Default::default()
         };
-        let pts = splatbridge::measure::accuracy_distill::distill_rows(&sweep, &cfg)?;
-        records.extend(pts.iter().map(|p| p.record.clone()));
-        Some(pts)
+        let rows = splatbridge::measure::accuracy_distill::distill_rows(&sweep, &cfg)?;
+        records.extend(rows.curve.iter().map(|p| p.record.clone()));
+        Some(rows)
     } else {
         None
     };

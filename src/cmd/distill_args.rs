@@ -31,7 +31,10 @@ pub struct DistillArgs {
     /// (glTF mesh outputs).
     #[arg(long)]
     pub distill: bool,
-    /// Fitting views: orbit:N, scene, PATH.json or single specs, comma-separated.
+    /// Fitting views: auto (the scene's own cameras, or a cameras.json beside the input,
+    /// else sphere:48), sphere:N (N views over the view sphere: elevations −15…70°, 0.5–1.2×
+    /// the orbit's distance, the --distill-for sizes), or a camera list: orbit:N, scene,
+    /// PATH.json or single specs, comma-separated.
     #[arg(
         long,
         value_name = "LIST",
@@ -45,17 +48,27 @@ pub struct DistillArgs {
     /// Stop fitting after this many seconds (set-up included).
     #[arg(long, value_name = "S", requires = "distill")]
     pub distill_time: Option<f64>,
-    /// Fitting image width and height.
-    #[arg(long, value_name = "W", default_value_t = 240, requires = "distill")]
+    /// The fitting window's width and height: larger views are fitted through windows of
+    /// this size (their pixels exactly, at the cost of a small image).
+    #[arg(long, value_name = "W", default_value_t = ViewRequest::default().width, requires = "distill")]
     pub distill_width: u32,
-    #[arg(long, value_name = "H", default_value_t = 180, requires = "distill")]
+    #[arg(long, value_name = "H", default_value_t = ViewRequest::default().height, requires = "distill")]
     pub distill_height: u32,
+    /// The image size the export is made for (repeatable, comma-separated); default the
+    /// sizes of --camera views, else 320×240, 640×480, 1280×720 and 1920×1080.
+    #[arg(long, value_name = "WxH", value_delimiter = ',', value_parser = super::convert::parse_wxh, requires = "distill")]
+    pub distill_for: Vec<(u32, u32)>,
+    /// Validation views (never fitted) that pick the iteration kept: none may end below
+    /// where it started.
+    #[arg(long, value_name = "N", default_value_t = ViewRequest::default().validation, requires = "distill")]
+    pub distill_validation: usize,
     #[arg(long, value_enum, default_value = "l1-ssim", requires = "distill")]
     pub distill_loss: LossArg,
-    /// Held-back views (between the orbit's fitting views) measured before and after.
-    #[arg(long, value_name = "M", default_value_t = 4, requires = "distill")]
+    /// Held-back views measured before and after: one per class (elevation, distance) in
+    /// turn, apart from every fitting view (between the cameras for --views orbit:N).
+    #[arg(long, value_name = "M", default_value_t = ViewRequest::default().held_back, requires = "distill")]
     pub held_back: usize,
-    /// Held-back image size (default: the fitting size).
+    /// Held-back image size (default 320×240; the window size for --views orbit:N).
     #[arg(long, value_name = "WxH", value_parser = super::convert::parse_wxh, requires = "distill")]
     pub held_back_size: Option<(u32, u32)>,
     /// Scene times a dynamic scene is fitted at (evenly over its time range), given to the
@@ -113,8 +126,16 @@ pub enum OnOff {
 }
 
 impl DistillArgs {
-    /// Fit when asked, setting the options' vertex colours; prints what it did.
-    pub fn apply(&self, scene: &mut DynamicScene, opts: &mut ConvertOptions) -> anyhow::Result<()> {
+    /// Fit when asked, setting the options' vertex colours; prints what it did. `input` is
+    /// the scene's path (a `cameras.json` beside it is a fitting-view source) and `sizes` the
+    /// sizes of the `--camera` views given to convert.
+    pub fn apply(
+        &self,
+        scene: &mut DynamicScene,
+        opts: &mut ConvertOptions,
+        input: &std::path::Path,
+        sizes: &[(u32, u32)],
+    ) -> anyhow::Result<()> {
         if !self.distill {
             return Ok(());
         }
@@ -145,12 +166,26 @@ impl DistillArgs {
             lr_position: self.distill_position_step,
             ..DistillOptions::default()
         };
+        let beside = input.with_file_name("cameras.json");
+        let cameras = if self.views == "auto" && scene.cameras.is_empty() && beside.is_file() {
+            splatbridge_scene::camera::load_cameras_json(&beside)
+                .with_context(|| format!("--views auto: {}", beside.display()))?
+        } else {
+            Vec::new()
+        };
         let req = ViewRequest {
             spec: self.views.clone(),
             width: self.distill_width,
             height: self.distill_height,
+            sizes: if self.distill_for.is_empty() {
+                sizes.to_vec()
+            } else {
+                self.distill_for.clone()
+            },
+            cameras,
             held_back: self.held_back,
             held_size: self.held_back_size,
+            validation: self.distill_validation,
             times: self.distill_times,
         };
         let pb = super::common::progress(self.iterations as u64, "distilling");
@@ -170,9 +205,19 @@ impl DistillArgs {
             r.loss_first,
             r.loss_last
         );
-        if let Some((a, b)) = out.held_back {
+        if r.validation_views > 0 {
             eprintln!(
-                "  held-back PSNR against native ({} views): {a:.2} dB → {b:.2} dB",
+                "  validation PSNR ({} views): {:.2} dB → {:.2} dB (iteration {} of {} kept)",
+                r.validation_views,
+                r.validation_start,
+                r.validation_kept,
+                r.kept_iteration,
+                r.iterations
+            );
+        }
+        if let (Some((a, b)), Some((worst, median))) = (out.held_back, out.held_back_change) {
+            eprintln!(
+                "  held-back PSNR against native ({} views): {a:.2} dB → {b:.2} dB (change: worst {worst:+.2}, median {median:+.2} dB)",
                 out.held_back_views
             );
         }

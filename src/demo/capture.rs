@@ -192,7 +192,7 @@ pub fn run(
     let t = scene.time.start;
     // The fitting views are the distillation's own (`distill_export` resolves the same spec);
     // the measured views are the held-back ones between them.
-    let (_fitting, cams) = crate::distill::run::resolve_views(
+    let cams: Vec<Camera> = crate::distill::run::resolve_views(
         &scene,
         t,
         &ViewRequest {
@@ -200,10 +200,15 @@ pub fn run(
             width: cfg.width,
             height: cfg.height,
             held_back: cfg.views,
-            held_size: None,
+            validation: 0,
             times: 1,
+            ..ViewRequest::default()
         },
-    )?;
+    )?
+    .held
+    .into_iter()
+    .map(|h| h.camera)
+    .collect();
     let mut m = Measure::new(&images, &cams);
 
     // The reference, and the two renderers of the Gaussians that need no export.
@@ -285,8 +290,10 @@ pub fn run(
                 height: cfg.height,
                 // Measured here on the demo's own views instead.
                 held_back: 0,
-                held_size: None,
+                // The demo's figures are of the orbit fit as its report states it.
+                validation: 0,
                 times: 1,
+                ..ViewRequest::default()
             };
             let opts = DistillOptions {
                 iterations: cfg.iterations,

@@ -1,33 +1,44 @@
-//! Distillation rows of the accuracy sweep (`accuracy --only distill`): PSNR on the sweep's
-//! cameras, which the fit never sees, against distillation time and iterations.
+//! Distillation rows of the accuracy sweep (`accuracy --only distill`): held-back views drawn
+//! apart from the fitting ones, by class (elevation, distance) and image size, against
+//! distillation time and iterations.
 //!
-//! Fitting views, at the size of the sweep's cameras: `n` cameras half-way between those of the standard `n`-camera orbit (the odd
-//! cameras of the 2n rig, [`crate::distill::views::held_back`]); any that coincides with a
-//! sweep camera is dropped, so every measured view is held back. Each profile is fitted once
-//! and measured at the checkpoints; iteration 0 is the undistilled export.
+//! Fitting views: the distillation's default, `sphere:N` over the view sphere at the fit's
+//! sizes through its window, plus its validation views ([`crate::distill::guard`]). Held-back
+//! views: [`views::held_back_classes`] at the measured sizes, each at least
+//! [`views::MIN_APART_DEG`] from every fitting and validation view. Every view is measured
+//! against three meshes: the undistilled MeshSplats default (the plain export), the plain
+//! export of the profile fitted, and the fit at each checkpoint (iteration 0 is the fit's
+//! start, the mesh widened for the fitting views). The distribution over views, worst and
+//! median, is reported per class, not only the mean.
 
 use std::path::Path;
 
 use anyhow::Context;
 use splatbridge_convert::{ConvertOptions, Profile};
+use splatbridge_scene::{Camera, Frame};
 
-use crate::distill::{views, DistillOptions, Distiller};
+use crate::distill::run::worst_and_median;
+use crate::distill::{native_targets, views, DistillOptions, Distiller};
 use crate::measure::accuracy::Sweep;
-use crate::measure::parity;
 use crate::measure::report::plot::{self, Point};
 use crate::measure::report::Record;
 
-/// What the distillation rows fit.
+/// What the distillation rows fit and measure.
 #[derive(Clone, Debug)]
 pub struct DistillSweep {
     pub profiles: Vec<Profile>,
-    /// Fitting views (half-way around the orbit).
+    /// Fitting views over the view sphere.
     pub views: usize,
-    /// Fitting image size; None: the size of the sweep's cameras (a fit is made for the size
-    /// it is seen at: fitted at 240×180 and measured at 320×240, the footprint-widened
-    /// `texture` profile of `pc_short` fell from 41.24 to 40.63 dB; docs/distill.md).
-    pub size: Option<(u32, u32)>,
-    /// Iterations at which the held-back views are measured (ascending).
+    /// Sizes the export is made for (`--distill-for`); empty: the default range to 1080p.
+    pub fit_sizes: Vec<(u32, u32)>,
+    /// Held-back image sizes.
+    pub sizes: Vec<(u32, u32)>,
+    /// Held-back views per class and size.
+    pub per_class: usize,
+    /// Validation views.
+    pub validation: usize,
+    /// Iterations at which the held-back views are measured (ascending; the last is where
+    /// the fit ends and keeps its best validated iteration).
     pub checkpoints: Vec<usize>,
     pub options: DistillOptions,
 }
@@ -37,104 +48,196 @@ impl Default for DistillSweep {
         DistillSweep {
             profiles: vec![Profile::MeshSplats, Profile::Rings, Profile::Texture],
             views: crate::distill::DEFAULT_VIEWS,
-            size: None,
-            checkpoints: vec![0, 5, 10, 20, 40, 60],
+            fit_sizes: Vec::new(),
+            sizes: vec![(320, 240), (640, 480)],
+            per_class: 1,
+            validation: crate::distill::run::ViewRequest::default().validation,
+            checkpoints: vec![0, 20, 60],
             options: DistillOptions::default(),
         }
     }
 }
 
-/// One measured checkpoint: the record and the distillation seconds it took (set-up
-/// included), for the curve.
+/// One measured checkpoint: the record (mean over the held-back views) and the distillation
+/// seconds it took (set-up included), for the curve.
 pub struct CurvePoint {
     pub record: Record,
     pub seconds: f64,
     pub iterations: usize,
     pub profile: String,
-    /// The undistilled MeshSplats profile made from the Gaussians as they are: the MeshSplats
-    /// default, marked in the plot (not when the fit's mesh is widened for the footprint).
+    /// The undistilled MeshSplats default, marked in the plot.
     pub baseline: bool,
 }
 
-/// Fit each profile and measure the sweep's cameras at every checkpoint.
-pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<Vec<CurvePoint>> {
+/// One held-back view of one profile's fit: PSNR of the MeshSplats default, of the plain
+/// export of the profile, and of the fit at its end.
+#[derive(Clone, Debug)]
+pub struct ViewResult {
+    pub profile: String,
+    pub class: String,
+    pub camera: String,
+    pub default_psnr: f64,
+    pub plain_psnr: f64,
+    pub distilled_psnr: f64,
+}
+
+/// What the distillation rows measured.
+pub struct DistillRows {
+    pub curve: Vec<CurvePoint>,
+    pub views: Vec<ViewResult>,
+    /// Per profile: set-up seconds (targets, hit recording), fitting seconds, kept iteration.
+    pub timing: Vec<(String, f64, f64, usize)>,
+    pub fit_description: String,
+}
+
+/// PSNR of the plain (undistilled, unwidened) export of `profile` at each camera.
+fn plain_psnr(s: &Sweep<'_>, profile: Profile, cams: &[Camera], refs: &[Frame]) -> anyhow::Result<Vec<f64>> {
+    let convert = ConvertOptions {
+        profile,
+        ..ConvertOptions::default()
+    };
+    let opts = DistillOptions {
+        footprint: false,
+        ..DistillOptions::default()
+    };
+    // One tiny view: the distiller is used here only as the tracer of the plain mesh.
+    let tiny = views::window_of(&cams[0], (8, 6), 0.5, 0.5);
+    let mut d = Distiller::new(s.scene, &convert, std::slice::from_ref(&tiny), &opts)?;
+    psnr_at(&mut d, cams, refs)
+}
+
+fn psnr_at(d: &mut Distiller, cams: &[Camera], refs: &[Frame]) -> anyhow::Result<Vec<f64>> {
+    cams.iter()
+        .zip(refs)
+        .map(|(c, r)| Ok(splatbridge_scene::metrics::psnr(&d.render(c)?, r)?))
+        .collect()
+}
+
+/// Fit each profile on the sphere's views and measure the held-back classes.
+pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<DistillRows> {
     let scene = s.scene;
-    let (width, height) = cfg.size.unwrap_or_else(|| {
-        s.cameras
-            .first()
-            .map_or((240, 180), |c| (c.width, c.height))
-    });
-    let fit: Vec<_> = views::held_back(s.cloud(), cfg.views, cfg.views, width, height)?
-        .into_iter()
-        .filter(|f| {
-            s.cameras
-                .iter()
-                .all(|c| (c.centre - f.centre).length() > 1e-6 * (1.0 + c.centre.length()))
-        })
-        .collect();
+    let cloud = s.cloud();
+    let sizes: Vec<(u32, u32)> = if cfg.fit_sizes.is_empty() {
+        views::DEFAULT_SIZES.to_vec()
+    } else {
+        cfg.fit_sizes.clone()
+    };
+    let fit = views::sphere(cloud, cfg.views, &sizes, views::WINDOW)?;
+    let n = fit.windows.len();
+    let val = views::sphere_range(cloud, n..n + cfg.validation, &sizes, views::WINDOW)?;
+    let avoid: Vec<Camera> = fit.frames.iter().chain(&val.frames).cloned().collect();
+    let held = views::held_back_classes(cloud, &cfg.sizes, cfg.per_class, &avoid)?;
+    let cams: Vec<Camera> = held.iter().map(|h| h.camera.clone()).collect();
+    let refs = native_targets(scene, s.time, &cams)?;
+    let default_psnr = plain_psnr(s, Profile::MeshSplats, &cams, &refs)?;
     let last = cfg.checkpoints.iter().copied().max().unwrap_or(0);
-    let mut out = Vec::new();
+    let mut out = DistillRows {
+        curve: Vec::new(),
+        views: Vec::new(),
+        timing: Vec::new(),
+        fit_description: format!(
+            "sphere:{} through {}×{} windows of views at {}, {} validation views; {} held-back views ({} per class and size)",
+            cfg.views,
+            views::WINDOW.0,
+            views::WINDOW.1,
+            sizes
+                .iter()
+                .map(|(w, h)| format!("{w}×{h}"))
+                .collect::<Vec<_>>()
+                .join(", "),
+            cfg.validation,
+            cams.len(),
+            cfg.per_class
+        ),
+    };
+    let mean = |x: &[f64]| x.iter().sum::<f64>() / x.len().max(1) as f64;
+    out.curve.push(CurvePoint {
+        record: record("meshsplats", "undistilled default", mean(&default_psnr), 0),
+        seconds: 1e-3,
+        iterations: 0,
+        profile: "meshsplats".into(),
+        baseline: true,
+    });
     for &profile in &cfg.profiles {
         let name = profile_name(profile);
+        let plain = if profile == Profile::MeshSplats {
+            default_psnr.clone()
+        } else {
+            plain_psnr(s, profile, &cams, &refs)?
+        };
         let convert = ConvertOptions {
             profile,
             ..ConvertOptions::default()
         };
         let opts = DistillOptions {
             iterations: last,
+            time: s.time,
             ..cfg.options.clone()
         };
-        let (mut d, widened) = Distiller::for_export(scene, &convert, &fit, &opts)
+        let (mut d, _) = Distiller::for_windows(scene, &convert, &fit.windows, &fit.frames, &opts)
             .with_context(|| format!("distilling profile {name}"))?;
+        d.add_validation(scene, &val.windows, &vec![s.time; val.windows.len()])?;
         let triangles = d.triangles();
+        let mut fit_seconds = 0.0;
+        d.validate()?;
         loop {
             let it = d.history.len();
+            if it >= last {
+                d.validate()?;
+                d.keep_best();
+            }
             if cfg.checkpoints.contains(&it) {
                 let seconds = d.elapsed();
-                let mut psnr = 0.0;
-                let mut ms = 0.0;
-                let mut first: Option<Record> = None;
-                for (cam, reference) in s.cameras.iter().zip(s.references) {
-                    let t0 = std::time::Instant::now();
-                    let img = d.render(cam)?;
-                    let t_ms = t0.elapsed().as_secs_f64() * 1e3;
-                    let r = parity::measure(
-                        reference,
-                        &img,
-                        Record {
-                            renderer: "trace-mesh".into(),
-                            profile: name.into(),
-                            knob: "distill".into(),
-                            value: format!("{name} it={it} ({seconds:.1} s)"),
-                            camera: format!("mean of {}", s.cameras.len()),
-                            time: s.time,
-                            milliseconds: t_ms,
-                            triangles,
-                            ..Record::default()
-                        },
-                    )?;
-                    psnr += r.psnr / s.cameras.len() as f64;
-                    ms += t_ms / s.cameras.len() as f64;
-                    first.get_or_insert(r);
-                }
-                let mut record = first.context("no camera")?;
-                record.psnr = psnr;
-                record.milliseconds = ms;
-                out.push(CurvePoint {
-                    baseline: profile == Profile::MeshSplats && it == 0 && widened.is_none(),
-                    record,
+                let psnr = psnr_at(&mut d, &cams, &refs)?;
+                let mut r = record(name, &format!("{name} it={it} ({seconds:.1} s)"), mean(&psnr), triangles);
+                r.ssim = 0.0;
+                out.curve.push(CurvePoint {
+                    record: r,
                     seconds,
                     iterations: it,
                     profile: name.into(),
+                    baseline: false,
                 });
+                if it >= last {
+                    for ((h, &p), (&dp, &pp)) in held.iter().zip(&psnr).zip(default_psnr.iter().zip(&plain)) {
+                        out.views.push(ViewResult {
+                            profile: name.into(),
+                            class: h.class.clone(),
+                            camera: h.camera.name.clone(),
+                            default_psnr: dp,
+                            plain_psnr: pp,
+                            distilled_psnr: p,
+                        });
+                    }
+                }
             }
             if it >= last {
                 break;
             }
+            let t0 = std::time::Instant::now();
             d.step()?;
+            fit_seconds += t0.elapsed().as_secs_f64();
+            if d.history.len() % crate::distill::guard::EVERY == 0 {
+                d.validate()?;
+            }
         }
+        let r = d.report();
+        out.timing.push((name.into(), r.setup_seconds, fit_seconds, r.kept_iteration));
     }
     Ok(out)
+}
+
+fn record(profile: &str, value: &str, psnr: f64, triangles: u64) -> Record {
+    Record {
+        renderer: "trace-mesh".into(),
+        profile: profile.into(),
+        knob: "distill".into(),
+        value: value.into(),
+        camera: "held-back views".into(),
+        psnr,
+        triangles,
+        ..Record::default()
+    }
 }
 
 fn profile_name(p: Profile) -> &'static str {
@@ -145,9 +248,12 @@ fn profile_name(p: Profile) -> &'static str {
     }
 }
 
-/// `distill.md` and the plot of held-back PSNR against distillation seconds, in `out`.
-pub fn write_curve(out: &Path, what: &str, points: &[CurvePoint]) -> anyhow::Result<()> {
-    let pts: Vec<Point> = points
+/// `distill.md` (per class: worst and median change against the MeshSplats default and
+/// against the profile's plain export) and the plot of held-back PSNR against distillation
+/// seconds, in `out`.
+pub fn write_curve(out: &Path, what: &str, rows: &DistillRows) -> anyhow::Result<()> {
+    let pts: Vec<Point> = rows
+        .curve
         .iter()
         .map(|p| Point {
             label: format!("it={}", p.iterations),
@@ -164,14 +270,63 @@ pub fn write_curve(out: &Path, what: &str, points: &[CurvePoint]) -> anyhow::Res
         &out.join("psnr_vs_distill_time"),
     )?;
     let mut md = format!(
-        "# Distillation: held-back PSNR against time\n\n{what}. Views measured are never fitted. \
-         Iteration 0 is the undistilled export.\n\n![PSNR against distillation time](psnr_vs_distill_time.png)\n\n\
-         | profile | iterations | seconds | PSNR dB | SSIM | triangles |\n|---|---|---|---|---|---|\n"
+        "# Distillation on held-back views\n\n{what}. Fitting: {}. No held-back view is within \
+         {}° of a fitting or validation view.\n\n![PSNR against distillation time](psnr_vs_distill_time.png)\n\n\
+         ## Per class\n\nPSNR against native in dB; changes are of the distilled export, worst / median over the class's views.\n\n\
+         | profile | class | views | MeshSplats default (median) | plain export (median) | distilled (median) | vs default worst / median | vs plain worst / median |\n|---|---|---|---|---|---|---|---|\n",
+        rows.fit_description,
+        views::MIN_APART_DEG
     );
-    for p in points {
+    let mut classes: Vec<(String, String)> = Vec::new();
+    for v in &rows.views {
+        let k = (v.profile.clone(), v.class.clone());
+        if !classes.contains(&k) {
+            classes.push(k);
+        }
+    }
+    let all = "all views".to_string();
+    let mut profiles: Vec<String> = Vec::new();
+    for (p, _) in &classes {
+        if !profiles.contains(p) {
+            profiles.push(p.clone());
+        }
+    }
+    let keys = classes
+        .iter()
+        .cloned()
+        .chain(profiles.iter().map(|p| (p.clone(), all.clone())));
+    for (p, c) in keys {
+        let vs: Vec<&ViewResult> = rows
+            .views
+            .iter()
+            .filter(|v| v.profile == p && (c == all || v.class == c))
+            .collect();
+        let med = |f: &dyn Fn(&ViewResult) -> f64| {
+            worst_and_median(&vs.iter().map(|v| f(v)).collect::<Vec<_>>()).map_or(f64::NAN, |x| x.1)
+        };
+        let wm = |f: &dyn Fn(&ViewResult) -> f64| {
+            worst_and_median(&vs.iter().map(|v| f(v)).collect::<Vec<_>>())
+                .unwrap_or((f64::NAN, f64::NAN))
+        };
+        let (dw, dm) = wm(&|v| v.distilled_psnr - v.default_psnr);
+        let (pw, pm) = wm(&|v| v.distilled_psnr - v.plain_psnr);
         md += &format!(
-            "| {} | {} | {:.1} | {:.2} | {:.4} | {} |\n",
-            p.profile, p.iterations, p.seconds, p.record.psnr, p.record.ssim, p.record.triangles
+            "| {p} | {c} | {} | {:.2} | {:.2} | {:.2} | {dw:+.2} / {dm:+.2} | {pw:+.2} / {pm:+.2} |\n",
+            vs.len(),
+            med(&|v| v.default_psnr),
+            med(&|v| v.plain_psnr),
+            med(&|v| v.distilled_psnr),
+        );
+    }
+    md += "\n## Time\n\n| profile | set-up s (targets, hit recording) | fitting s (steps) | iteration kept |\n|---|---|---|---|\n";
+    for (p, setup, fit, kept) in &rows.timing {
+        md += &format!("| {p} | {setup:.1} | {fit:.1} | {kept} |\n");
+    }
+    md += "\n## Every view\n\n| profile | view | default | plain | distilled |\n|---|---|---|---|---|\n";
+    for v in &rows.views {
+        md += &format!(
+            "| {} | {} | {:.2} | {:.2} | {:.2} |\n",
+            v.profile, v.camera, v.default_psnr, v.plain_psnr, v.distilled_psnr
         );
     }
     let path = out.join("distill.md");

@@ -81,8 +81,10 @@ pub fn small_request() -> ViewRequest {
         width: 40,
         height: 30,
         held_back: 1,
-        held_size: None,
+        // `refit` runs the fit again without validation views, to the last iteration.
+        validation: 0,
         times: 1,
+        ..ViewRequest::default()
     }
 }
 
@@ -95,7 +97,7 @@ pub fn refit(
     req: &ViewRequest,
     d_opts: &DistillOptions,
 ) -> (Distiller, Vec<Camera>) {
-    let (fit_cams, _) = resolve_views(scene, 0.0, req).unwrap();
+    let fit_cams = resolve_views(scene, 0.0, req).unwrap().fit.windows;
     let mut plain = convert.clone();
     plain.vertex_colours = None;
     let mut d = Distiller::with_mesh_scene(original, scene, &plain, &fit_cams, d_opts).unwrap();

@@ -197,7 +197,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return print::print_cloud(&args, &c, objects, t0.elapsed().as_secs_f64());
     }
     let mut opts = req.mesh_options(&scene)?;
-    args.distill.apply(&mut scene, &mut opts)?;
+    // The --camera views' sizes name the sizes a distilled export is made for.
+    let sizes: Vec<(u32, u32)> = if args.camera.is_empty() {
+        Vec::new()
+    } else {
+        let mut s: Vec<(u32, u32)> = Vec::new();
+        for c in &scene.cameras {
+            if !s.contains(&(c.width, c.height)) {
+                s.push((c.width, c.height));
+            }
+        }
+        s
+    };
+    args.distill.apply(&mut scene, &mut opts, &args.scene, &sizes)?;
     pb.set_message("converting");
     pb.inc(1);
     let (mut report, effects) = req.export(&scene, &opts)?;

@@ -1,0 +1,138 @@
+//! The fit's safeguard: validation views that are never fitted pick the iteration kept.
+//!
+//! A fit to some views can make others worse (an export fitted on one orbit lost up to 5 dB
+//! off it). Validation views are drawn from the fitting distribution but never fitted; every
+//! [`EVERY`] steps, and at the end, each is composited from its recorded hits with the
+//! current colours (quantised as the file stores them) and its PSNR against native is taken.
+//! An iteration is admissible when no validation view is below its PSNR at the start (the
+//! mesh as converted); the admissible iteration with the best mean is kept, the start itself
+//! when none is. Fitted positions change the hits every step, so they are not validated.
+
+use splatbridge_scene::dynamic::DynamicScene;
+use splatbridge_scene::Camera;
+
+use super::{composite, mesh::quantise, targets, Distiller, Result, View};
+
+/// Steps between validations.
+pub const EVERY: usize = 10;
+
+/// A view may fall this far below its start before the iteration is refused, in dB: the
+/// PSNR of a 240×180 window moves by about 1e-4 dB from colour quantisation alone, so
+/// anything above that is a real loss.
+pub const TOLERANCE_DB: f64 = 1e-3;
+
+/// Validation views and what they have seen.
+#[derive(Default)]
+pub struct Guard {
+    views: Vec<View>,
+    /// PSNR of each view at the start.
+    start: Vec<f64>,
+    /// The best admissible iteration: (iteration, mean PSNR, vertex RGBA, tied parameters).
+    best: Option<(usize, f64, Vec<[f32; 4]>, Option<Vec<[f32; 4]>>)>,
+    /// The iteration last validated.
+    last: Option<usize>,
+    /// Every validation: iteration, mean PSNR, worst change from the start (dB).
+    pub log: Vec<(usize, f64, f64)>,
+}
+
+impl Distiller {
+    /// Add validation views (targets rendered from `scene`, view i at `times[i]`), before the
+    /// fit runs. No-op when positions are fitted.
+    pub fn add_validation(
+        &mut self,
+        scene: &DynamicScene,
+        cameras: &[Camera],
+        times: &[f64],
+    ) -> Result<()> {
+        if self.opts.positions || cameras.is_empty() {
+            return Ok(());
+        }
+        let native = targets::native_options(self.opts.target_sh_degree);
+        let mut r = splatbridge_hybrid::native::Renderer::new();
+        for (cam, &t) in cameras.iter().zip(times) {
+            let cloud = scene.composite(t);
+            let target = targets::render_native(&mut r, &cloud, cam, &native)?.rgb;
+            let hits = self.record(cam, t)?;
+            self.guard.views.push(View {
+                camera: cam.clone(),
+                time: t,
+                target,
+                hits: Some(hits),
+            });
+        }
+        self.report.validation_views = self.guard.views.len();
+        Ok(())
+    }
+
+    /// PSNR of every validation view with the current colours.
+    pub fn validation_psnr(&self) -> Vec<f64> {
+        let q: Vec<[f32; 4]> = self.params.iter().map(|&p| quantise(p)).collect();
+        self.guard
+            .views
+            .iter()
+            .filter_map(|v| {
+                let hits = v.hits.as_ref()?;
+                let img = composite::render(hits, &q, &self.shading);
+                let n = img.len().max(1) as f64;
+                let mse: f64 = img
+                    .iter()
+                    .zip(&v.target)
+                    .map(|(&a, &b)| {
+                        let d = (a.clamp(0.0, 1.0) - b.clamp(0.0, 1.0)) as f64;
+                        d * d
+                    })
+                    .sum::<f64>()
+                    / n;
+                Some(-10.0 * mse.max(1e-20).log10())
+            })
+            .collect()
+    }
+
+    /// Measure the validation views now; remember this iteration when it is admissible and
+    /// the best so far.
+    pub fn validate(&mut self) -> Result<()> {
+        let it = self.history.len();
+        if self.guard.views.is_empty() || self.guard.last == Some(it) {
+            return Ok(());
+        }
+        self.guard.last = Some(it);
+        let now = self.validation_psnr();
+        if self.guard.start.is_empty() {
+            self.guard.start = now.clone();
+        }
+        let mean = now.iter().sum::<f64>() / now.len().max(1) as f64;
+        let worst = now
+            .iter()
+            .zip(&self.guard.start)
+            .map(|(a, b)| a - b)
+            .fold(f64::INFINITY, f64::min);
+        self.guard.log.push((it, mean, worst));
+        if it == 0 {
+            self.report.validation_start = mean;
+        }
+        let better = self.guard.best.as_ref().is_none_or(|b| mean > b.1);
+        if worst >= -TOLERANCE_DB && better {
+            let theta = self.tied.as_ref().map(|t| t.theta.clone());
+            self.guard.best = Some((it, mean, self.params.clone(), theta));
+        }
+        Ok(())
+    }
+
+    /// Go back to the best admissible iteration (no-op without validation views).
+    pub fn keep_best(&mut self) {
+        let Some((it, mean, params, theta)) = self.guard.best.take() else {
+            return;
+        };
+        self.params = params;
+        if let (Some(t), Some(theta)) = (self.tied.as_mut(), theta) {
+            t.theta = theta;
+        }
+        self.report.kept_iteration = it;
+        self.report.validation_kept = mean;
+    }
+
+    /// Every validation so far: iteration, mean PSNR, worst change from the start.
+    pub fn validation_log(&self) -> &[(usize, f64, f64)] {
+        &self.guard.log
+    }
+}
