@@ -329,6 +329,18 @@ fn falloff_image(d: &mut DocBuilder, layout: VertexLayout, materials: Materials)
 }
 
 /// Frame times and per-frame scale outputs in the small data (`None` without frames).
+/// A frame's key time in f32 at or before its f64 time (the nearest f32 can lie after it, as
+/// 0.3 s does), so a STEP key has switched to the frame at the frame's own time whether a
+/// viewer samples in f32 or f64.
+fn f32_at_or_before(t: f64) -> f32 {
+    let f = t as f32;
+    if f64::from(f) > t {
+        f.next_down()
+    } else {
+        f
+    }
+}
+
 fn frame_visibility(
     d: &mut DocBuilder,
     frames: Option<&FrameClouds>,
@@ -336,7 +348,7 @@ fn frame_visibility(
     let Some(fr) = frames.filter(|f| !f.times.is_empty()) else {
         return Ok(None);
     };
-    let times: Vec<f32> = fr.times.iter().map(|&t| t as f32).collect();
+    let times: Vec<f32> = fr.times.iter().map(|&t| f32_at_or_before(t)).collect();
     if times.windows(2).any(|w| !(w[1] > w[0])) {
         return Err(io::Error::new(
             io::ErrorKind::InvalidInput,

@@ -45,6 +45,7 @@ pub mod classify;
 pub mod gltf_doc;
 pub mod gltf_writer;
 pub mod mesh;
+pub mod motion;
 pub mod obj;
 pub mod options;
 pub mod order;
@@ -93,6 +94,44 @@ pub struct FrameClouds {
     /// Strictly increasing frame times in seconds.
     pub times: Vec<f64>,
     pub clouds: Vec<GaussianCloud>,
+}
+
+/// The per-frame content to mesh: the scene's own ([`DynamicScene::frames`], what a motion
+/// decomposition kept per frame) and the caller's (weather particles), joined frame by frame
+/// when both exist (their times must then be the same).
+pub fn merged_frames<'a>(
+    scene: &DynamicScene,
+    frames: Option<&'a FrameClouds>,
+) -> Result<Option<std::borrow::Cow<'a, FrameClouds>>> {
+    use std::borrow::Cow;
+    if scene.frames.is_empty() {
+        return Ok(frames.map(Cow::Borrowed));
+    }
+    let mut own = FrameClouds {
+        times: scene.frames.iter().map(|f| f.t).collect(),
+        clouds: scene.frames.iter().map(|f| f.gaussians.clone()).collect(),
+    };
+    if let Some(fr) = frames {
+        if fr.times != own.times {
+            return Err(ConvertError::Invalid(format!(
+                "the scene's per-frame content has {} frames from t = {}, the other per-frame \
+                 content (weather) {} from t = {}: they must share their times",
+                own.times.len(),
+                own.times[0],
+                fr.times.len(),
+                fr.times.first().copied().unwrap_or(f64::NAN)
+            )));
+        }
+        for (c, w) in own.clouds.iter_mut().zip(&fr.clouds) {
+            if c.sh_degree < w.sh_degree {
+                let mut up = GaussianCloud::new(w.sh_degree);
+                up.extend_from(c, None);
+                *c = up;
+            }
+            c.extend_from(w, None);
+        }
+    }
+    Ok(Some(Cow::Owned(own)))
 }
 
 /// Which part of the scene a mesh stands for.
@@ -384,6 +423,8 @@ pub fn write_glb<W: Write>(
     opts: &ConvertOptions,
 ) -> Result<ConvertReport> {
     let mut report = ConvertReport::new("glb", opts);
+    let merged = merged_frames(scene, frames)?;
+    let frames = merged.as_deref();
     let bytes = with_mesh_entries(
         scene,
         frames,
@@ -461,6 +502,8 @@ pub fn convert_to_file(
 ) -> Result<ConvertReport> {
     let t0 = std::time::Instant::now();
     let format = Format::from_path(path)?;
+    let merged = merged_frames(scene, frames)?;
+    let frames = merged.as_deref();
     let mut report = match format {
         Format::Glb | Format::Gltf => {
             gltf_writer::write_file(path, format == Format::Glb, scene, frames, opts)?

@@ -275,6 +275,8 @@ pub fn split_scene(
         time: scene.time,
         static_gaussians: next(&scene.static_gaussians, "static", &mut parts),
         objects: Vec::with_capacity(scene.objects.len()),
+        // Per-frame content is meshed from the FrameClouds the caller passes.
+        frames: Vec::new(),
         cameras: scene.cameras.clone(),
         effects: scene.effects.clone(),
     };

@@ -290,6 +290,7 @@ fn a_moving_object_darkens_what_lies_behind_it_towards_the_sun() {
                 PoseKey::new(1.0, Vec3::new(1.5, -2.0, 0.0), Quat::IDENTITY),
             ]),
         }],
+        frames: Vec::new(),
         cameras: Vec::new(),
         effects: serde_json::Map::new(),
     };

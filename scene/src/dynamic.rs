@@ -328,12 +328,23 @@ pub struct SceneObject {
     pub track: Track,
 }
 
-/// Static Gaussians ∪ objects, the scene's cameras and declared effects.
+/// Content of one frame that moves without a rigid track (what a decomposition of a 4D
+/// capture could not explain by rigid motion), in world coordinates. It is shown from its time
+/// until the next frame's (the first frame also before its time, the last after).
+#[derive(Clone, Debug)]
+pub struct FrameContent {
+    pub t: f64,
+    pub gaussians: GaussianCloud,
+}
+
+/// Static Gaussians ∪ objects ∪ per-frame content, the scene's cameras and declared effects.
 #[derive(Clone, Debug)]
 pub struct DynamicScene {
     pub time: TimeRange,
     pub static_gaussians: GaussianCloud,
     pub objects: Vec<SceneObject>,
+    /// Per-frame content, times strictly increasing (empty for most scenes).
+    pub frames: Vec<FrameContent>,
     pub cameras: Vec<Camera>,
     /// The manifest's `effects` object (validated names; empty when none declared).
     pub effects: serde_json::Map<String, serde_json::Value>,
@@ -350,6 +361,7 @@ impl DynamicScene {
             },
             static_gaussians: cloud,
             objects: Vec::new(),
+            frames: Vec::new(),
             cameras: Vec::new(),
             effects: serde_json::Map::new(),
         }
@@ -363,7 +375,7 @@ impl DynamicScene {
             .collect()
     }
 
-    /// Total number of Gaussians (static plus every object's).
+    /// Total number of Gaussians (static plus every object's), without per-frame content.
     pub fn gaussian_count(&self) -> usize {
         self.static_gaussians.len()
             + self
@@ -373,17 +385,34 @@ impl DynamicScene {
                 .sum::<usize>()
     }
 
-    /// The SH degree of a composite: the highest of the static cloud's and the objects'.
+    /// The per-frame content shown at `t` (see [`FrameContent`]); `None` when there is none.
+    pub fn frame_at(&self, t: f64) -> Option<&FrameContent> {
+        let first = self.frames.first()?;
+        if t.is_nan() {
+            return Some(first);
+        }
+        let i = self.frames.partition_point(|f| f.t <= t);
+        Some(&self.frames[i.saturating_sub(1)])
+    }
+
+    /// Number of Gaussians of the composite at `t` (with that time's per-frame content).
+    pub fn gaussian_count_at(&self, t: f64) -> usize {
+        self.gaussian_count() + self.frame_at(t).map_or(0, |f| f.gaussians.len())
+    }
+
+    /// The SH degree of a composite: the highest of the static cloud's, the objects' and the
+    /// per-frame content's.
     pub fn sh_degree(&self) -> u8 {
         self.objects
             .iter()
             .map(|o| o.gaussians.sh_degree)
+            .chain(self.frames.iter().map(|f| f.gaussians.sh_degree))
             .fold(self.static_gaussians.sh_degree, u8::max)
     }
 
-    /// True when some object moves (its track is not constant).
+    /// True when some object moves (its track is not constant) or there is per-frame content.
     pub fn is_dynamic(&self) -> bool {
-        self.objects.iter().any(|o| !o.track.is_constant())
+        self.objects.iter().any(|o| !o.track.is_constant()) || self.frames.len() > 1
     }
 
     /// Every object's pose at time `t`, in object order.
@@ -415,6 +444,25 @@ impl DynamicScene {
                 .check_shape()
                 .map_err(|e| SceneError::Invalid(format!("{at}: {e}")))?;
         }
+        for (k, f) in self.frames.iter().enumerate() {
+            if !f.t.is_finite() {
+                return Err(SceneError::Invalid(format!(
+                    "frames[{k}].t = {} is not finite",
+                    f.t
+                )));
+            }
+            if k > 0 && f.t <= self.frames[k - 1].t {
+                return Err(SceneError::Invalid(format!(
+                    "frames[{k}].t = {} is not after frames[{}].t = {} (times must increase strictly)",
+                    f.t,
+                    k - 1,
+                    self.frames[k - 1].t
+                )));
+            }
+            f.gaussians
+                .check_shape()
+                .map_err(|e| SceneError::Invalid(format!("frames[{k}]: {e}")))?;
+        }
         Ok(())
     }
 
@@ -422,9 +470,10 @@ impl DynamicScene {
     /// bit-exact); each object's Gaussians get its pose at `t`: means `R·m + T`, rotations
     /// `q_pose · normalize(q_local)` (stored unit), log-scales and opacity logits unchanged, SH
     /// bands 1–3 rotated by `R`. The SH degree is [`DynamicScene::sh_degree`] (lower-degree clouds
-    /// are zero-filled). Object ids: 0 for static Gaussians, k+1 for object k.
+    /// are zero-filled). Object ids: 0 for static Gaussians, k+1 for object k, and the number of
+    /// objects plus one for the per-frame content shown at `t` (last, as stored).
     pub fn composite(&self, t: f64) -> GaussianCloud {
-        let mut out = GaussianCloud::with_capacity(self.sh_degree(), self.gaussian_count());
+        let mut out = GaussianCloud::with_capacity(self.sh_degree(), self.gaussian_count_at(t));
         self.composite_into(t, &mut out);
         out
     }
@@ -433,7 +482,7 @@ impl DynamicScene {
     /// a camera, statistics): a scene without objects lends its static cloud (which carries no
     /// object ids) instead of copying it, a multi-gigabyte copy at 10 M Gaussians.
     pub fn composite_view(&self, t: f64) -> std::borrow::Cow<'_, GaussianCloud> {
-        if self.objects.is_empty() {
+        if self.objects.is_empty() && self.frames.is_empty() {
             std::borrow::Cow::Borrowed(&self.static_gaussians)
         } else {
             std::borrow::Cow::Owned(self.composite(t))
@@ -444,7 +493,7 @@ impl DynamicScene {
     /// static cloud instead of copying it (the same values and ids), so loading a file and
     /// writing it elsewhere holds one cloud, not two.
     pub fn into_composite(self, t: f64) -> GaussianCloud {
-        if !self.objects.is_empty() {
+        if !self.objects.is_empty() || !self.frames.is_empty() {
             return self.composite(t);
         }
         let mut out = self.static_gaussians;
@@ -455,7 +504,7 @@ impl DynamicScene {
     /// [`DynamicScene::composite`] into an existing cloud, reusing its allocations (per-frame
     /// loops over large scenes avoid re-faulting hundreds of megabytes each frame).
     pub fn composite_into(&self, t: f64, out: &mut GaussianCloud) {
-        let n = self.gaussian_count();
+        let n = self.gaussian_count_at(t);
         out.means.clear();
         out.log_scales.clear();
         out.rotations.clear();
@@ -468,6 +517,9 @@ impl DynamicScene {
         append(out, &self.static_gaussians, None, 0);
         for (k, o) in self.objects.iter().enumerate() {
             append(out, &o.gaussians, Some(o.track.sample(t)), k as u32 + 1);
+        }
+        if let Some(f) = self.frame_at(t) {
+            append(out, &f.gaussians, None, self.objects.len() as u32 + 1);
         }
     }
 }

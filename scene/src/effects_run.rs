@@ -216,6 +216,7 @@ pub fn build_blur_frames(
                 time: scene.time,
                 static_gaussians: GaussianCloud::new(degree),
                 objects: vec![o.clone()],
+                frames: Vec::new(),
                 cameras: Vec::new(),
                 effects: serde_json::Map::new(),
             })

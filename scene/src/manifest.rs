@@ -11,7 +11,9 @@
 //! ```
 //! Paths are relative to the manifest's directory. Rotations are w, x, y, z like the PLY (any
 //! non-zero length; normalised on load). `static`, `objects`, `cameras` and `effects` are
-//! optional. An object gives either an explicit `track` or a generated `trajectory` rule
+//! optional, as is `frames`: per-frame content (`[{"t": 0.0, "gaussians": "frames/0000.ply"}]`,
+//! times strictly increasing, each shown until the next one's time). An object gives either
+//! an explicit `track` or a generated `trajectory` rule
 //! ([`crate::trajectory::TrajectoryRule`], sampled at the scene's frame rate). Training-free
 //! edits: an object with `"remove": true` is left out (its file is not needed), and
 //! `"retime": {"offset": s, "scale": k}` replays its motion k times as fast, s seconds later
@@ -52,6 +54,10 @@ pub struct Manifest {
     pub static_gaussians: Option<String>,
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub objects: Vec<ObjectJson>,
+    /// Per-frame content (what moves without a rigid track), each shown from its time until
+    /// the next one's ([`crate::dynamic::FrameContent`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub frames: Vec<FrameJson>,
     /// A 3DGS `cameras.json`, relative to the manifest.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cameras: Option<String>,
@@ -84,6 +90,14 @@ pub struct ObjectJson {
     /// Replay the object's motion faster/slower and later/earlier ([`Retime`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub retime: Option<Retime>,
+}
+
+/// One frame of per-frame content: its time and its Gaussians (a 3DGS PLY, world frame).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrameJson {
+    pub t: f64,
+    pub gaussians: String,
 }
 
 fn is_false(b: &bool) -> bool {
@@ -204,6 +218,23 @@ fn validate_manifest(path: &Path, m: &Manifest) -> Result<()> {
     check_times(path, "time", [time.start, time.end])?;
     check_effect_names(path, &m.effects)?;
     crate::effects::Effects::from_json(&m.effects).map_err(|e| bad(path, e))?;
+    check_times(path, "frames", m.frames.iter().map(|f| f.t))?;
+    for (k, f) in m.frames.iter().enumerate() {
+        if f.gaussians.trim().is_empty() {
+            return Err(bad(path, format!("frames[{k}].gaussians is empty")));
+        }
+        if k > 0 && f.t <= m.frames[k - 1].t {
+            return Err(bad(
+                path,
+                format!(
+                    "frames[{k}].t = {} is not after frames[{}].t = {} (times must increase strictly)",
+                    f.t,
+                    k - 1,
+                    m.frames[k - 1].t
+                ),
+            ));
+        }
+    }
     for (k, o) in m.objects.iter().enumerate() {
         let at = format!("objects[{k}] ('{}')", crate::input::clip(&o.name));
         if o.name.trim().is_empty() {
@@ -307,6 +338,9 @@ pub fn load_manifest(path: &Path, opts: &ReadOptions) -> Result<(DynamicScene, V
             &o.gaussians,
         ));
     }
+    for (k, f) in m.frames.iter().enumerate() {
+        refs.push((format!("frames[{k}].gaussians"), &f.gaussians));
+    }
     if let Some(c) = &m.cameras {
         refs.push(("cameras".into(), c));
     }
@@ -360,6 +394,13 @@ pub fn load_manifest(path: &Path, opts: &ReadOptions) -> Result<(DynamicScene, V
             track,
         });
     }
+    let mut frames = Vec::with_capacity(m.frames.len());
+    for (k, f) in m.frames.iter().enumerate() {
+        frames.push(crate::dynamic::FrameContent {
+            t: f.t,
+            gaussians: read(&format!("frames[{k}].gaussians"), &f.gaussians)?,
+        });
+    }
     let cameras = match &m.cameras {
         Some(c) => {
             load_cameras_json(&resolve(c)).map_err(|e| bad(path, format!("cameras: {e}")))?
@@ -370,6 +411,7 @@ pub fn load_manifest(path: &Path, opts: &ReadOptions) -> Result<(DynamicScene, V
         time,
         static_gaussians,
         objects,
+        frames,
         cameras,
         effects: m.effects,
     };
@@ -411,6 +453,7 @@ pub fn manifest_for(
     scene: &DynamicScene,
     static_file: Option<&str>,
     object_files: &[String],
+    frame_files: &[String],
     cameras_file: Option<&str>,
 ) -> Manifest {
     Manifest {
@@ -444,13 +487,23 @@ pub fn manifest_for(
                 retime: None,
             })
             .collect(),
+        frames: scene
+            .frames
+            .iter()
+            .zip(frame_files)
+            .map(|(f, name)| FrameJson {
+                t: f.t,
+                gaussians: name.clone(),
+            })
+            .collect(),
         cameras: cameras_file.map(str::to_string),
         effects: scene.effects.clone(),
     }
 }
 
 /// Write `scene` into `dir` (created if needed): `static.ply` (when there are static
-/// Gaussians), one `NAME.ply` per object (binary little-endian), `cameras.json` (when the
+/// Gaussians), one `NAME.ply` per object (binary little-endian), `frames/NNNN.ply` per frame
+/// of per-frame content, `cameras.json` (when the
 /// scene has cameras) and the manifest `scene.json`, each atomically. Tracks are written as
 /// explicit keys. The scene (effects included) is validated first; nothing is written when it
 /// is invalid.
@@ -494,6 +547,18 @@ pub fn save_manifest(dir: &Path, scene: &DynamicScene) -> Result<SavedScene> {
         files.push(p);
         object_files.push(name);
     }
+    let mut frame_files = Vec::new();
+    for (k, f) in scene.frames.iter().enumerate() {
+        let name = format!("frames/{k:04}.ply");
+        let p = dir.join(&name);
+        if k == 0 {
+            std::fs::create_dir_all(dir.join("frames"))
+                .map_err(|e| SceneError::io(&dir.join("frames"), e))?;
+        }
+        stage_ply(&mut set, &p, &f.gaussians, PlyFormat::BinaryLittleEndian)?;
+        files.push(p);
+        frame_files.push(name);
+    }
     let cameras_file = if scene.cameras.is_empty() {
         None
     } else {
@@ -502,7 +567,7 @@ pub fn save_manifest(dir: &Path, scene: &DynamicScene) -> Result<SavedScene> {
         files.push(p);
         Some("cameras.json")
     };
-    let m = manifest_for(scene, static_file, &object_files, cameras_file);
+    let m = manifest_for(scene, static_file, &object_files, &frame_files, cameras_file);
     let manifest = dir.join("scene.json");
     let mut text =
         serde_json::to_string_pretty(&m).map_err(|e| SceneError::Invalid(e.to_string()))?;

@@ -247,6 +247,7 @@ fn one_object_scene() -> DynamicScene {
             gaussians: obj,
             track,
         }],
+        frames: Vec::new(),
         cameras: vec![],
         effects: Default::default(),
     }

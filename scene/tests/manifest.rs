@@ -71,6 +71,7 @@ fn small_scene() -> DynamicScene {
                 )),
             },
         ],
+        frames: Vec::new(),
         cameras: vec![cam],
         effects,
     }

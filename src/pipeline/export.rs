@@ -208,6 +208,10 @@ pub fn export_scene(
 ) -> anyhow::Result<(ConvertReport, EffectCounters)> {
     let (weather, effects) = content(scene, input, matches!(kind, ExportKind::Mesh { .. }))?;
     let report = match kind {
+        ExportKind::Splats(_) if !scene.frames.is_empty() => bail!(
+            "{}: --splats writes the static part and objects only; this scene has per-frame content (write a mesh glTF)",
+            input.display()
+        ),
         ExportKind::Splats(compression) => {
             if !is_gltf(output) {
                 bail!(

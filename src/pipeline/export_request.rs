@@ -205,7 +205,7 @@ impl ExportRequest {
             opts.bake_view_name = Some(format!("{spec} ({})", cam.name));
             opts.bake_view = Some(cam);
         }
-        if self.frames && !is_obj(&self.output) {
+        if self.frames && !is_obj(&self.output) && !(gltf_mesh && !scene.frames.is_empty()) {
             bail!("{out}: --frames writes one OBJ per frame; use an .obj output");
         }
         if self.shard.is_some() && !self.frames {

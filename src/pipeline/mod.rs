@@ -15,6 +15,8 @@
 //!   sharded frame export; [`export_request`] what `convert` asks, checked and resolved.
 //! - [`still`]: a scene rendered by native splatting or the hybrid, one frame or a sequence
 //!   (`render`, `hybrid`); [`trace_job`]: `trace`'s frame or sequence.
+//! - [`motion`]: frame sequences (4D captures) to scenes: what moves found (static, rigid
+//!   objects with tracks, per-frame content), or every frame kept whole.
 //! - [`tiles`]: 3D Tiles with geometric errors measured by rendering (`convert --tiles`).
 //! - [`split_auto`]: `--split auto`, the hybrid renderer's surfel split chosen by measuring.
 //!
@@ -24,6 +26,7 @@ pub mod export;
 pub mod export_request;
 pub mod export_shard;
 pub mod frame;
+pub mod motion;
 pub mod renderer;
 pub mod sequence;
 pub mod source;

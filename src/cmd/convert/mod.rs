@@ -4,6 +4,7 @@
 //! `splatbridge-convert` and `splatbridge_scene::formats`); this module defines the command
 //! line ([`options`]: its value enums and the request they make) and prints ([`print`]).
 
+mod motion;
 mod options;
 mod print;
 
@@ -76,9 +77,26 @@ pub struct Args {
     /// The input's up axis; a root node rotates it onto glTF's +Y (vertices untouched).
     #[arg(long, value_enum, default_value = "-y", allow_hyphen_values = true)]
     pub up: UpArg,
-    /// OBJ only: write one OBJ per frame of a dynamic scene (OUT_0000.obj, …).
+    /// OBJ: write one OBJ per frame of a dynamic scene (OUT_0000.obj, …). glTF of a frame
+    /// sequence: one glTF whose per-frame nodes are switched by stepped scale keys.
     #[arg(long)]
     pub frames: bool,
+    /// Find what moves in a frame sequence (a folder of numbered frames): `auto` splits it
+    /// into a static background, rigid objects with one pose per frame and per-frame content
+    /// for the rest; `none` keeps everything that moves per frame. With -o DIR (no glTF
+    /// extension) writes the manifest DIR/scene.json; with a .glb/.gltf exports it directly.
+    #[arg(long, value_enum, value_name = "MODE")]
+    pub objects: Option<motion::ObjectsArg>,
+    /// Frame rate of a frame sequence: frame i is at i/fps seconds.
+    #[arg(long, default_value_t = 30.0)]
+    pub fps: f64,
+    /// With --objects: largest RMS distance (world units) of a Gaussian from its group's
+    /// rigid motion (default: 10× the noise estimated from the trajectories).
+    #[arg(long, value_name = "D", requires = "objects")]
+    pub motion_tolerance: Option<f64>,
+    /// With --objects: fewest Gaussians of a rigid group.
+    #[arg(long, value_name = "N", default_value_t = 32, requires = "objects")]
+    pub min_group: usize,
     /// With --frames: write only shard I of N (0 ≤ I < N) of the frames and a partial
     /// report.json for `splatbridge merge` (see docs/scale.md). With --tiles: write only the
     /// leaves shard I owns, for --from-shards (see docs/tiles.md).
@@ -177,6 +195,9 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     if args.tiles.tiles.is_some() {
         return super::tiles::run(&args);
+    }
+    if args.objects.is_some() || args.scene.is_dir() {
+        return motion::run(&args);
     }
     let req = args.request()?;
     let t0 = Instant::now();
