@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context};
 use splatbridge_convert::options::ChunkOrder;
 use splatbridge_convert::splats_gltf::KhrCompression;
-use splatbridge_convert::{ConvertOptions, ConvertReport};
+use splatbridge_convert::{ConvertOptions, ConvertReport, Profile};
 use splatbridge_distill::footprint::{widen_scene_for, Widened};
 use splatbridge_scene::camera_spec::{CameraRequest, CameraSource};
 use splatbridge_scene::dynamic::DynamicScene;
@@ -82,6 +82,16 @@ pub struct ExportInput {
     pub cloud: Option<CloudFormat>,
     /// What `--footprint-for` widened.
     pub widened: Option<Widened>,
+}
+
+/// The meshing profile when none is asked for: texture for glTF, which carries textures;
+/// rings for OBJ and PLY, which carry none.
+pub fn default_profile(output: &Path) -> Profile {
+    if is_gltf(output) {
+        Profile::Texture
+    } else {
+        Profile::Rings
+    }
 }
 
 /// A camera spec (`orbit:N:I`, `scene:I`, `PATH.json:I`) with the command line's defaults

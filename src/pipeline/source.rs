@@ -128,14 +128,30 @@ impl TraceSource {
             );
         }
         let scene = load_scene_warn(&self.input, self.drop_invalid, warn)?;
+        self.prepare_scene(scene, None, all_weather_frames)
+    }
+
+    /// As [`TraceSource::prepare`] for a scene already in memory (`self.input` names it in
+    /// errors): `camera`, when given, is used as it is instead of resolving `self.camera`.
+    pub fn prepare_scene(
+        &self,
+        scene: DynamicScene,
+        camera: Option<Camera>,
+        all_weather_frames: bool,
+    ) -> anyhow::Result<Prepared> {
+        let name = self.input.display().to_string();
+        self.options.validate().with_context(|| name.clone())?;
         let effects = effects_of(&scene).with_context(|| name.clone())?;
-        let camera = self
-            .camera
-            .resolve(CameraSource {
-                cloud: &scene.composite_view(self.time),
-                own: &scene.cameras,
-            })
-            .with_context(|| name.clone())?;
+        let camera = match camera {
+            Some(c) => c,
+            None => self
+                .camera
+                .resolve(CameraSource {
+                    cloud: &scene.composite_view(self.time),
+                    own: &scene.cameras,
+                })
+                .with_context(|| name.clone())?,
+        };
         let mut counters = EffectCounters::default();
         let loaded = match self.mode {
             TraceMode::Gaussian => {

@@ -2,7 +2,7 @@
 
 use anyhow::bail;
 use clap::ValueEnum;
-use splatbridge::pipeline::export::{is_gltf, OutputFormat};
+use splatbridge::pipeline::export::OutputFormat;
 use splatbridge::pipeline::export_request::{ExportRequest, MeshRequest};
 use splatbridge_convert::options::ChunkOrder;
 use splatbridge_convert::splats_gltf::KhrCompression;
@@ -155,12 +155,7 @@ impl Args {
                 "--surfel-split auto: an export has no renderer to measure it with; use guarded or thresholds"
             ),
         };
-        // glTF carries the texture profile; OBJ and PLY carry no texture.
-        let default_profile = if is_gltf(&self.output) {
-            Profile::Texture
-        } else {
-            Profile::Rings
-        };
+        let default_profile = splatbridge::pipeline::export_request::default_profile(&self.output);
         let options = ConvertOptions {
             segments: self.segments,
             rings: self.rings,

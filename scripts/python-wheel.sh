@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# Build the splatbridge Python wheel (python/, PyO3 + maturin, abi3) into target/wheels and
+# print its path. The Python environment is target/py-venv (made here when missing, with
+# maturin, numpy and pytest from PyPI).
+#
+# Usage: scripts/python-wheel.sh
+# SPLATBRIDGE_WHEEL_ARGS: more `maturin build` options (default `--release`); the test
+# command passes `--profile test --features embree --auditwheel skip --strip`, the profile and
+# features `cargo test` has already built, so the wheel adds only the bindings crate instead
+# of a second full build.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+read -r -a extra <<< "${SPLATBRIDGE_WHEEL_ARGS:---release}"
+venv=${SPLATBRIDGE_PY_VENV:-target/py-venv}
+if [ ! -x "$venv/bin/python" ]; then
+  python3 -m venv "$venv"
+fi
+if ! "$venv/bin/python" -c "import maturin, numpy, pytest" 2>/dev/null; then
+  "$venv/bin/pip" install -q "maturin>=1.9,<2" numpy pytest
+fi
+rm -rf target/wheels/splatbridge-*.whl
+"$venv/bin/maturin" build -q --manifest-path python/Cargo.toml "${extra[@]}" \
+  --interpreter "$venv/bin/python" --out target/wheels >&2
+ls target/wheels/splatbridge-*.whl
