@@ -5,7 +5,9 @@
 //!
 //! Native renderer modules: [`project`] (per-Gaussian projection), [`bin`] (depth order and
 //! tile lists), [`raster`] (per-tile blending) on the SIMD [`kernel`], and [`native`] (the
-//! renderer API: options, statistics, reusable buffers). Measured figures: `hybrid/README.md`.
+//! renderer API: options, statistics, reusable buffers). [`surfel2d`] renders 2DGS surfels as
+//! 2D Gaussian Splatting's own rasterizer does (ray–splat intersection, its low-pass filter).
+//! Measured figures: `hybrid/README.md`.
 
 pub mod bin;
 pub mod ges;
@@ -13,5 +15,6 @@ pub mod kernel;
 pub mod native;
 pub mod project;
 pub mod raster;
+pub mod surfel2d;
 
 pub use native::{render, Extent, PhaseTimes, RenderError, RenderOptions, RenderStats, Renderer};

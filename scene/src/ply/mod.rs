@@ -42,6 +42,7 @@ mod binary;
 mod header;
 mod point_defaults;
 mod stream;
+mod surfels2d;
 mod variant;
 mod write;
 
@@ -54,6 +55,7 @@ use crate::error::{Result, SceneError};
 use crate::GaussianCloud;
 use header::{Encoding, SLOT_DC, SLOT_OPACITY, SLOT_REST, SLOT_ROT, SLOT_SCALE, SLOT_X};
 pub use stream::PlyStream;
+pub use surfels2d::{flatten_to_surfels, write_ply_2dgs};
 pub use variant::{GaussianKind, POINT_OPACITY, SURFEL_THICKNESS};
 
 /// Encoding of a written PLY.
