@@ -9,8 +9,11 @@
 //!   colours a second time: with a linear output it is several dB closer (docs/viewers.md).
 //! - Spark with native 3DGS settings is closer than at its defaults.
 //!
-//! Needs chromium and the npm packages of scripts/package.json (`cfg(web_clients)`,
-//! `scripts/setup.sh`); ignored with the reason otherwise.
+//! - `compare --clients` lists a splat renderer whose npm packages are missing as skipped,
+//!   with the reason, and still writes its report (runs everywhere).
+//!
+//! The renders need chromium and the npm packages of scripts/package.json
+//! (`cfg(web_clients)`, `scripts/setup.sh`); ignored with the reason otherwise.
 
 mod cli_common;
 
@@ -73,6 +76,48 @@ fn exports(input: &str, dir: &Path, w: &str, h: &str) {
         "-o",
         &d("native.png"),
     ]);
+}
+
+#[test]
+fn compare_skips_splat_renderers_that_are_not_installed() {
+    let dir = tempfile::tempdir().unwrap();
+    let empty = dir.path().join("web");
+    std::fs::create_dir(&empty).unwrap();
+    let out = dir.path().join("cmp");
+    let ply = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/street/static.ply");
+    let mut cmd = cli_common::bin();
+    cmd.env("SPLATBRIDGE_WEB_DIR", &empty).args([
+        "compare",
+        ply.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--cameras",
+        "orbit:4:0",
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--profiles",
+        "meshsplats",
+        "--no-obj",
+        "--clients",
+        "three-splats,spark-native",
+    ]);
+    cli_common::succeeded(&mut cmd);
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    for client in ["three-splats", "spark-native"] {
+        let line = md
+            .lines()
+            .find(|l| l.starts_with(&format!("- {client} (")))
+            .unwrap_or_else(|| panic!("{client} not listed as skipped:\n{md}"));
+        assert!(
+            line.contains("skipped: splat-render: npm package three not found"),
+            "{line}"
+        );
+    }
+    // The exports the clients would have opened are there: the .spz and its cameras' GLB.
+    assert!(out.join("client_spz.spz").is_file());
+    assert!(out.join("client_splats.glb").is_file());
 }
 
 #[test]
