@@ -13,6 +13,12 @@ use splatbridge_scene::Camera;
 
 use super::{composite, mesh::quantise, targets, Distiller, Result, View};
 
+/// Validation PSNRs are capped here, in dB: above it a view is as good as identical on an
+/// 8-bit display (one quantisation step's RMS is 59 dB), and a window of empty background
+/// (hundreds of dB) would otherwise outweigh every other view in the mean and refuse every
+/// step for a change no one can see.
+pub const CAP_DB: f64 = 60.0;
+
 /// Steps between validations.
 pub const EVERY: usize = 10;
 
@@ -83,7 +89,7 @@ impl Distiller {
                     })
                     .sum::<f64>()
                     / n;
-                Some(-10.0 * mse.max(1e-20).log10())
+                Some((-10.0 * mse.max(1e-20).log10()).min(CAP_DB))
             })
             .collect()
     }
