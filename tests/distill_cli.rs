@@ -213,8 +213,8 @@ fn distilled_export_imports_into_blender() {
 }
 
 /// `accuracy --only distill` fits only the profiles named, measures every checkpoint on the
-/// sweep's cameras and writes the curve; an unknown profile exits 2 before anything is
-/// written.
+/// held-back classes and writes the curve and the per-class table; an unknown profile exits
+/// 2 before anything is written.
 #[test]
 fn accuracy_distill_sweep_fits_the_named_profiles() {
     let dir = temp_dir("distill-cli", "accuracy");
@@ -233,6 +233,12 @@ fn accuracy_distill_sweep_fits_the_named_profiles() {
         "32",
         "--height",
         "24",
+        "--distill-for",
+        "48x36",
+        "--distill-sizes",
+        "40x30",
+        "--distill-iterations",
+        "12",
         "-o",
         path(&out),
     ]);
@@ -245,14 +251,16 @@ fn accuracy_distill_sweep_fits_the_named_profiles() {
         let after = line.split("PSNR").nth(1).expect("a PSNR column");
         after.split_whitespace().next().unwrap().parse().unwrap()
     };
-    for it in [0, 5, 10, 20, 40, 60] {
+    // Checkpoints at 0, a third and all of the iterations.
+    for it in [0, 4, 12] {
         assert!(psnr(it).is_finite());
     }
-    // The fit is deterministic; measured 23.64 → 24.43 dB on these held-back cameras.
-    assert!(psnr(60) > psnr(0), "{stdout}");
+    // The fit keeps the best iteration its validation views accept: never below the start
+    // on them, so on the held-back views a fall would be a real loss.
+    assert!(psnr(12) >= psnr(0) - 0.05, "{stdout}");
     assert!(!stdout.contains("rings it=") && !stdout.contains("texture it="));
     let md = std::fs::read_to_string(out.join("distill.md")).unwrap();
-    assert!(md.contains("| meshsplats | 60 |"), "{md}");
+    assert!(md.contains("| meshsplats | all views | 6 |"), "{md}");
     assert!(out.join("psnr_vs_distill_time.png").exists());
 
     let bad = dir.join("bad");

@@ -19,7 +19,11 @@ fn real_cut() -> DynamicScene {
     let (mut cloud, _) = load_cloud(&path, &ReadOptions::default()).unwrap();
     let (lo, hi) = cloud.robust_bounds(0.02).unwrap();
     let c = 0.5 * (lo + hi);
-    let d2: Vec<f32> = cloud.means.iter().map(|m| (*m - c).length_squared()).collect();
+    let d2: Vec<f32> = cloud
+        .means
+        .iter()
+        .map(|m| (*m - c).length_squared())
+        .collect();
     let mut sorted = d2.clone();
     sorted.sort_by(f32::total_cmp);
     let cut = sorted[4000.min(sorted.len() - 1)];
@@ -82,9 +86,11 @@ fn held_back_views_off_the_fitting_set_improve_and_none_degrades() {
         .zip(before.iter().zip(&after))
         .map(|(h, (b, a))| format!("{}: {b:.2} → {a:.2}", h.camera.name))
         .collect();
-    // Measured: worst WORST dB, median MEDIAN dB. No view may end below the plain export
-    // (0.05 dB: the PSNR noise of colour quantisation at these sizes is below 0.01 dB), and
-    // the median gain must be a clear one.
+    // No view may end below the plain export: 0.05 dB is above the PSNR noise of the
+    // file's u16 colour quantisation (below 0.01 dB at these sizes) and far below any real
+    // loss (the orbit fit lost 1.5–5.1 dB off its ring). The median must be a clear gain:
+    // 1 dB is under half the smallest median measured with the same defaults at full size
+    // (`pc_short`, twelve held-back views: +3.95 dB median, +1.25 dB worst; docs/distill.md).
     assert!(worst > -0.05, "worst {worst:.2} dB\n{}", table.join("\n"));
     assert!(median > 1.0, "median {median:.2} dB\n{}", table.join("\n"));
 }

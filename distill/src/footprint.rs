@@ -180,7 +180,12 @@ fn widen_scene_by(
     let t0 = scene.time.start;
     for o in &mut scene.objects {
         let pose = o.track.sample(t0);
-        let w = widen_cloud_by(&mut o.gaussians, |p| pose.transform_point(p), flat, variance);
+        let w = widen_cloud_by(
+            &mut o.gaussians,
+            |p| pose.transform_point(p),
+            flat,
+            variance,
+        );
         total.widened += w.widened;
         total.unseen += w.unseen;
         total.max_sigma = total.max_sigma.max(w.max_sigma);

@@ -13,6 +13,12 @@ use splatbridge_scene::Camera;
 
 use super::{composite, mesh::quantise, targets, Distiller, Result, View};
 
+/// Validation PSNRs are capped here, in dB: above it a view is as good as identical on an
+/// 8-bit display (one quantisation step's RMS is 59 dB), and a window of empty background
+/// (hundreds of dB) would otherwise outweigh every other view in the mean and refuse every
+/// step for a change no one can see.
+pub const CAP_DB: f64 = 60.0;
+
 /// Steps between validations.
 pub const EVERY: usize = 10;
 
@@ -21,14 +27,23 @@ pub const EVERY: usize = 10;
 /// anything above that is a real loss.
 pub const TOLERANCE_DB: f64 = 1e-3;
 
+/// The parameters of an admissible iteration.
+struct Snapshot {
+    iteration: usize,
+    mean: f64,
+    params: Vec<[f32; 4]>,
+    /// The per-Gaussian parameters, when the fit moves those.
+    theta: Option<Vec<[f32; 4]>>,
+}
+
 /// Validation views and what they have seen.
 #[derive(Default)]
 pub struct Guard {
     views: Vec<View>,
     /// PSNR of each view at the start.
     start: Vec<f64>,
-    /// The best admissible iteration: (iteration, mean PSNR, vertex RGBA, tied parameters).
-    best: Option<(usize, f64, Vec<[f32; 4]>, Option<Vec<[f32; 4]>>)>,
+    /// The best admissible iteration.
+    best: Option<Snapshot>,
     /// The iteration last validated.
     last: Option<usize>,
     /// Every validation: iteration, mean PSNR, worst change from the start (dB).
@@ -83,7 +98,7 @@ impl Distiller {
                     })
                     .sum::<f64>()
                     / n;
-                Some(-10.0 * mse.max(1e-20).log10())
+                Some((-10.0 * mse.max(1e-20).log10()).min(CAP_DB))
             })
             .collect()
     }
@@ -110,25 +125,29 @@ impl Distiller {
         if it == 0 {
             self.report.validation_start = mean;
         }
-        let better = self.guard.best.as_ref().is_none_or(|b| mean > b.1);
+        let better = self.guard.best.as_ref().is_none_or(|b| mean > b.mean);
         if worst >= -TOLERANCE_DB && better {
-            let theta = self.tied.as_ref().map(|t| t.theta.clone());
-            self.guard.best = Some((it, mean, self.params.clone(), theta));
+            self.guard.best = Some(Snapshot {
+                iteration: it,
+                mean,
+                params: self.params.clone(),
+                theta: self.tied.as_ref().map(|t| t.theta.clone()),
+            });
         }
         Ok(())
     }
 
     /// Go back to the best admissible iteration (no-op without validation views).
     pub fn keep_best(&mut self) {
-        let Some((it, mean, params, theta)) = self.guard.best.take() else {
+        let Some(best) = self.guard.best.take() else {
             return;
         };
-        self.params = params;
-        if let (Some(t), Some(theta)) = (self.tied.as_mut(), theta) {
+        self.params = best.params;
+        if let (Some(t), Some(theta)) = (self.tied.as_mut(), best.theta) {
             t.theta = theta;
         }
-        self.report.kept_iteration = it;
-        self.report.validation_kept = mean;
+        self.report.kept_iteration = best.iteration;
+        self.report.validation_kept = best.mean;
     }
 
     /// Every validation so far: iteration, mean PSNR, worst change from the start.

@@ -49,7 +49,6 @@ pub mod views;
 
 use std::time::Instant;
 
-use glam::Vec3;
 use rayon::prelude::*;
 use splatbridge_convert::vertex_colours::VertexColours;
 use splatbridge_convert::ConvertOptions;
@@ -59,8 +58,8 @@ use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::{Camera, Frame};
 
 use composite::{Rec, Shading, ViewHits};
-use mesh::{check_white, hit_alpha_factor, quantise, vertex_gaussians};
 pub use loss::Loss;
+use mesh::{check_white, hit_alpha_factor, quantise, vertex_gaussians};
 use optim::{adam, batch_views, mean_pixels};
 pub use options::DistillOptions;
 use order::Centres;
@@ -721,4 +720,3 @@ impl Distiller {
         self.start.elapsed().as_secs_f64()
     }
 }
-

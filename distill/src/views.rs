@@ -76,7 +76,13 @@ impl Frame {
 
     /// A camera looking at the centre from `direction` at `factor` times the orbit's
     /// distance, the rig's field of view, `width`×`height`.
-    pub fn camera(&self, direction: DVec3, factor: f64, width: u32, height: u32) -> SResult<Camera> {
+    pub fn camera(
+        &self,
+        direction: DVec3,
+        factor: f64,
+        width: u32,
+        height: u32,
+    ) -> SResult<Camera> {
         Camera::look_at(
             self.centre + direction * self.distance * factor,
             self.centre,
@@ -204,8 +210,7 @@ pub fn frame_of(cam: &Camera) -> (Camera, u32, u32) {
     let half = |c: f64, n: u32| c.max(n as f64 - c).max(0.5).ceil();
     let (hx, hy) = (half(cam.cx, cam.width), half(cam.cy, cam.height));
     let (x0, y0) = ((hx - cam.cx).round(), (hy - cam.cy).round());
-    if x0 == 0.0 && y0 == 0.0 && (2.0 * hx) as u32 == cam.width && (2.0 * hy) as u32 == cam.height
-    {
+    if x0 == 0.0 && y0 == 0.0 && (2.0 * hx) as u32 == cam.width && (2.0 * hy) as u32 == cam.height {
         return (cam.clone(), 0, 0);
     }
     let full = Camera {
@@ -227,7 +232,8 @@ pub fn sees(cam: &Camera, p: DVec3, margin: f64) -> bool {
     }
     let (x, y) = (cam.fx * q.x / q.z + cam.cx, cam.fy * q.y / q.z + cam.cy);
     let (w, h) = (cam.width as f64, cam.height as f64);
-    (-margin * w..=(1.0 + margin) * w).contains(&x) && (-margin * h..=(1.0 + margin) * h).contains(&y)
+    (-margin * w..=(1.0 + margin) * w).contains(&x)
+        && (-margin * h..=(1.0 + margin) * h).contains(&y)
 }
 
 /// Windows of given cameras (`--views` lists, the scene's own cameras): each camera larger
@@ -283,10 +289,17 @@ pub fn held_back_classes(
             let mut chosen = None;
             for step in 0..360 {
                 // Try 0, +1, −1, +2, −2, … degrees around the planned azimuth.
-                let d = if step % 2 == 0 { step / 2 } else { -(step as i64 + 1) / 2 };
+                let d = if step % 2 == 0 {
+                    step / 2
+                } else {
+                    -(step as i64 + 1) / 2
+                };
                 let az = base + d as f64;
                 let probe = f.camera(f.direction(el, az), factor, 8, 6)?;
-                if avoid.iter().all(|a| f.angle_deg(&probe, a) >= MIN_APART_DEG) {
+                if avoid
+                    .iter()
+                    .all(|a| f.angle_deg(&probe, a) >= MIN_APART_DEG)
+                {
                     chosen = Some(az);
                     break;
                 }
@@ -321,9 +334,9 @@ pub fn orbit(
         height,
         ..OrbitRig::default()
     };
-    let (lo, hi) = cloud.robust_bounds(rig.percentile).ok_or_else(|| {
-        SceneError::Invalid("cannot place an orbit around an empty scene".into())
-    })?;
+    let (lo, hi) = cloud
+        .robust_bounds(rig.percentile)
+        .ok_or_else(|| SceneError::Invalid("cannot place an orbit around an empty scene".into()))?;
     pick.map(|i| rig.camera_around(lo.as_dvec3(), hi.as_dvec3(), n, i))
         .collect()
 }
@@ -387,8 +400,14 @@ mod tests {
         // Its own centred frame holds it, pixel for pixel, and is no larger than the view.
         let (back, bx, by) = frame_of(&w);
         assert!(back.width <= 1920 && back.height <= 1080);
-        assert_eq!((back.cx, back.cy), (0.5 * back.width as f64, 0.5 * back.height as f64));
-        let (a, b) = (w.ray_dir(3.5, 7.5), back.ray_dir(3.5 + bx as f64, 7.5 + by as f64));
+        assert_eq!(
+            (back.cx, back.cy),
+            (0.5 * back.width as f64, 0.5 * back.height as f64)
+        );
+        let (a, b) = (
+            w.ray_dir(3.5, 7.5),
+            back.ray_dir(3.5 + bx as f64, 7.5 + by as f64),
+        );
         assert!((a - b).length() < 1e-12, "{a} {b}");
         let (same, 0, 0) = frame_of(&full) else {
             panic!("a centred camera is its own frame")

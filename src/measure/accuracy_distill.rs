@@ -91,7 +91,12 @@ pub struct DistillRows {
 }
 
 /// PSNR of the plain (undistilled, unwidened) export of `profile` at each camera.
-fn plain_psnr(s: &Sweep<'_>, profile: Profile, cams: &[Camera], refs: &[Frame]) -> anyhow::Result<Vec<f64>> {
+fn plain_psnr(
+    s: &Sweep<'_>,
+    profile: Profile,
+    cams: &[Camera],
+    refs: &[Frame],
+) -> anyhow::Result<Vec<f64>> {
     let convert = ConvertOptions {
         profile,
         ..ConvertOptions::default()
@@ -189,7 +194,12 @@ pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<Distill
             if cfg.checkpoints.contains(&it) {
                 let seconds = d.elapsed();
                 let psnr = psnr_at(&mut d, &cams, &refs)?;
-                let mut r = record(name, &format!("{name} it={it} ({seconds:.1} s)"), mean(&psnr), triangles);
+                let mut r = record(
+                    name,
+                    &format!("{name} it={it} ({seconds:.1} s)"),
+                    mean(&psnr),
+                    triangles,
+                );
                 r.ssim = 0.0;
                 out.curve.push(CurvePoint {
                     record: r,
@@ -199,7 +209,9 @@ pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<Distill
                     baseline: false,
                 });
                 if it >= last {
-                    for ((h, &p), (&dp, &pp)) in held.iter().zip(&psnr).zip(default_psnr.iter().zip(&plain)) {
+                    for ((h, &p), (&dp, &pp)) in
+                        held.iter().zip(&psnr).zip(default_psnr.iter().zip(&plain))
+                    {
                         out.views.push(ViewResult {
                             profile: name.into(),
                             class: h.class.clone(),
@@ -222,7 +234,8 @@ pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<Distill
             }
         }
         let r = d.report();
-        out.timing.push((name.into(), r.setup_seconds, fit_seconds, r.kept_iteration));
+        out.timing
+            .push((name.into(), r.setup_seconds, fit_seconds, r.kept_iteration));
     }
     Ok(out)
 }

@@ -230,7 +230,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         s
     };
-    args.distill.apply(&mut scene, &mut opts, &args.scene, &sizes)?;
+    args.distill
+        .apply(&mut scene, &mut opts, &args.scene, &sizes)?;
     pb.set_message("converting");
     pb.inc(1);
     let (mut report, effects) = req.export(&scene, &opts)?;
