@@ -10,10 +10,10 @@ use cli_common::{ok, run};
 use splatbridge_scene::fixtures::moving::{moving_cutouts, MovingParams};
 use splatbridge_scene::ply::{write_ply, PlyFormat};
 
-/// Twelve frames of a 6 000-Gaussian synthetic capture with two moving balls and a deforming
+/// Twelve frames of a 20 000-Gaussian synthetic capture with two moving balls and a deforming
 /// one, written as `frame_0000.ply`, … (in a shuffled creation order: names decide the order).
 fn sequence(dir: &Path) -> usize {
-    let base = splatbridge_scene::fixtures::large(6_000, 5);
+    let base = splatbridge_scene::fixtures::large(20_000, 5);
     let params = MovingParams {
         objects: 2,
         frames: 12,
