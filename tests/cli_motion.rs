@@ -10,10 +10,10 @@ use cli_common::{ok, run};
 use splatbridge_scene::fixtures::moving::{moving_cutouts, MovingParams};
 use splatbridge_scene::ply::{write_ply, PlyFormat};
 
-/// Twelve frames of a 6 000-Gaussian synthetic capture with two moving balls and a deforming
+/// Twelve frames of a 20 000-Gaussian synthetic capture with two moving balls and a deforming
 /// one, written as `frame_0000.ply`, … (in a shuffled creation order: names decide the order).
 fn sequence(dir: &Path) -> usize {
-    let base = splatbridge_scene::fixtures::large(6_000, 5);
+    let base = splatbridge_scene::fixtures::large(20_000, 5);
     let params = MovingParams {
         objects: 2,
         frames: 12,
@@ -49,7 +49,10 @@ fn objects_auto_writes_a_manifest_other_commands_read() {
         out.to_str().unwrap(),
     ]);
     let text = String::from_utf8_lossy(&r.stdout);
-    assert!(text.contains("object_0") && text.contains("object_1"), "{text}");
+    assert!(
+        text.contains("object_0") && text.contains("object_1"),
+        "{text}"
+    );
     let m: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("scene.json")).unwrap()).unwrap();
     assert_eq!(m["objects"].as_array().unwrap().len(), 2, "{m}");
@@ -104,22 +107,63 @@ fn bad_sequences_exit_2() {
     let empty = tmp.path().join("empty");
     std::fs::create_dir(&empty).unwrap();
     let out = tmp.path().join("o");
-    let r = run(&["convert", empty.to_str().unwrap(), "--objects", "auto", "-o", out.to_str().unwrap()]);
+    let r = run(&[
+        "convert",
+        empty.to_str().unwrap(),
+        "--objects",
+        "auto",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert_eq!(r.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&r.stderr).contains("no frame files"));
     // Frames of different counts.
     let mixed = tmp.path().join("mixed");
     std::fs::create_dir(&mixed).unwrap();
-    write_ply(&mixed.join("a_0.ply"), &splatbridge_scene::fixtures::large(50, 1), PlyFormat::BinaryLittleEndian).unwrap();
-    write_ply(&mixed.join("a_1.ply"), &splatbridge_scene::fixtures::large(40, 1), PlyFormat::BinaryLittleEndian).unwrap();
-    let r = run(&["convert", mixed.to_str().unwrap(), "--objects", "auto", "-o", out.to_str().unwrap()]);
+    write_ply(
+        &mixed.join("a_0.ply"),
+        &splatbridge_scene::fixtures::large(50, 1),
+        PlyFormat::BinaryLittleEndian,
+    )
+    .unwrap();
+    write_ply(
+        &mixed.join("a_1.ply"),
+        &splatbridge_scene::fixtures::large(40, 1),
+        PlyFormat::BinaryLittleEndian,
+    )
+    .unwrap();
+    let r = run(&[
+        "convert",
+        mixed.to_str().unwrap(),
+        "--objects",
+        "auto",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert_eq!(r.status.code(), Some(2));
     let err = String::from_utf8_lossy(&r.stderr);
-    assert!(err.contains("a_1.ply") && err.contains("40 Gaussians"), "{err}");
+    assert!(
+        err.contains("a_1.ply") && err.contains("40 Gaussians"),
+        "{err}"
+    );
     assert!(!out.exists(), "nothing written on error");
     // Options.
-    let r = run(&["convert", mixed.to_str().unwrap(), "--objects", "auto", "--fps", "0", "-o", out.to_str().unwrap()]);
+    let r = run(&[
+        "convert",
+        mixed.to_str().unwrap(),
+        "--objects",
+        "auto",
+        "--fps",
+        "0",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert_eq!(r.status.code(), Some(2));
-    let r = run(&["convert", mixed.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    let r = run(&[
+        "convert",
+        mixed.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert_eq!(r.status.code(), Some(2));
 }

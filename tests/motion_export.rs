@@ -81,15 +81,27 @@ fn check(base: &GaussianCloud, params: &MovingParams) {
     );
     // The goals as stated.
     assert!(worst <= 0.5, "PSNR gap {worst} dB");
-    assert!(a_size * 5 <= p_size, "{a_size} B is more than a fifth of {p_size} B");
+    assert!(
+        a_size * 5 <= p_size,
+        "{a_size} B is more than a fifth of {p_size} B"
+    );
 }
 
 /// fourth_st cut to every fifth Gaussian (26k) so twenty frames of meshes stay small.
 #[test]
-#[cfg_attr(not(real_data), ignore = "needs the shared real scenes (../shared/data/real)")]
+#[cfg_attr(
+    not(real_data),
+    ignore = "needs the shared real scenes (../shared/data/real)"
+)]
 fn animated_nodes_trace_like_per_frame_nodes_at_a_fifth_of_the_size() {
     let (mut base, _) =
         splatbridge_scene::ply::read_ply(&real("fourth_st.ply"), &ReadOptions::default()).unwrap();
     base.retain_indices(|i| i % 5 == 0);
-    check(&base, &MovingParams { objects: 3, ..MovingParams::default() });
+    check(
+        &base,
+        &MovingParams {
+            objects: 3,
+            ..MovingParams::default()
+        },
+    );
 }

@@ -567,7 +567,13 @@ pub fn save_manifest(dir: &Path, scene: &DynamicScene) -> Result<SavedScene> {
         files.push(p);
         Some("cameras.json")
     };
-    let m = manifest_for(scene, static_file, &object_files, &frame_files, cameras_file);
+    let m = manifest_for(
+        scene,
+        static_file,
+        &object_files,
+        &frame_files,
+        cameras_file,
+    );
     let manifest = dir.join("scene.json");
     let mut text =
         serde_json::to_string_pretty(&m).map_err(|e| SceneError::Invalid(e.to_string()))?;

@@ -50,7 +50,10 @@ pub fn frame_files(dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
         let n = digits.parse::<u64>().unwrap_or(u64::MAX);
         files.push((n, stem, p));
         if files.len() > MAX_FOLDER_FRAMES {
-            bail!("{}: more than {MAX_FOLDER_FRAMES} frame files", dir.display());
+            bail!(
+                "{}: more than {MAX_FOLDER_FRAMES} frame files",
+                dir.display()
+            );
         }
     }
     if files.is_empty() {
@@ -91,7 +94,11 @@ pub fn read_frame_folder(dir: &Path, fps: f64) -> anyhow::Result<(Vec<GaussianCl
 }
 
 /// Every frame whole, as per-frame content (no static part, no objects).
-pub fn frames_scene(frames: Vec<GaussianCloud>, times: &[f64], fps: f64) -> anyhow::Result<DynamicScene> {
+pub fn frames_scene(
+    frames: Vec<GaussianCloud>,
+    times: &[f64],
+    fps: f64,
+) -> anyhow::Result<DynamicScene> {
     let Some((&start, &end)) = times.first().zip(times.last()) else {
         bail!("no frames");
     };
@@ -173,5 +180,8 @@ pub fn decompose_scene(
     let t0 = std::time::Instant::now();
     let d = decompose(frames, times, opts)?;
     let scene = d.to_scene(frames, times, fps)?;
-    Ok((scene, MotionReport::of(&d, frames.len(), t0.elapsed().as_secs_f64())))
+    Ok((
+        scene,
+        MotionReport::of(&d, frames.len(), t0.elapsed().as_secs_f64()),
+    ))
 }

@@ -25,7 +25,14 @@ impl Trajectories {
 
     /// Squared RMS over `frames` of `|M_f(ref) − p_f(i)|`, stopping early (returning
     /// infinity) once it must exceed `limit2`.
-    pub fn msd(&self, motions: &[Rigid], frames: &[usize], reference: DVec3, i: usize, limit2: f64) -> f64 {
+    pub fn msd(
+        &self,
+        motions: &[Rigid],
+        frames: &[usize],
+        reference: DVec3,
+        i: usize,
+        limit2: f64,
+    ) -> f64 {
         let budget = limit2 * frames.len() as f64;
         let mut sum = 0.0;
         for &f in frames {
@@ -150,7 +157,13 @@ pub fn find_groups(tr: &Trajectories, moving: &[u32], s: &Search) -> (Vec<Found>
 }
 
 /// The members of `pool` within the tolerance of `motions` over `frames`.
-fn support_of(tr: &Trajectories, pool: &[u32], motions: &[Rigid], frames: &[usize], tol2: f64) -> Vec<u32> {
+fn support_of(
+    tr: &Trajectories,
+    pool: &[u32],
+    motions: &[Rigid],
+    frames: &[usize],
+    tol2: f64,
+) -> Vec<u32> {
     pool.par_iter()
         .copied()
         .filter(|&i| tr.msd(motions, frames, tr.pos[0][i as usize], i as usize, tol2) <= tol2)
@@ -178,7 +191,12 @@ fn hypothesis(tr: &Trajectories, pool: &[u32], seed: usize, h_seed: u64) -> Vec<
     }
     let refs: Vec<DVec3> = sample.iter().map(|&i| p0[i as usize]).collect();
     (0..tr.frames())
-        .map(|f| fit(sample.iter().zip(&refs).map(|(&i, &r)| (r, tr.pos[f][i as usize]))))
+        .map(|f| {
+            fit(sample
+                .iter()
+                .zip(&refs)
+                .map(|(&i, &r)| (r, tr.pos[f][i as usize])))
+        })
         .collect()
 }
 

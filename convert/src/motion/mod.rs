@@ -174,7 +174,9 @@ fn estimate_noise(tr: &Trajectories) -> f64 {
         .step_by(step)
         .map(|i| {
             let s: f64 = (1..nf - 1)
-                .map(|f| (tr.pos[f + 1][i] - 2.0 * tr.pos[f][i] + tr.pos[f - 1][i]).length_squared())
+                .map(|f| {
+                    (tr.pos[f + 1][i] - 2.0 * tr.pos[f][i] + tr.pos[f - 1][i]).length_squared()
+                })
                 .sum();
             (s / (nf - 2) as f64).sqrt()
         })
@@ -290,7 +292,12 @@ fn refine(tr: &Trajectories, members: Vec<u32>, motions: Vec<Rigid>) -> Group {
         let inv: Vec<Rigid> = motions.iter().map(Rigid::inverse).collect();
         refs = members
             .par_iter()
-            .map(|&i| (0..nf).map(|f| inv[f].apply(tr.pos[f][i as usize])).sum::<DVec3>() / nf as f64)
+            .map(|&i| {
+                (0..nf)
+                    .map(|f| inv[f].apply(tr.pos[f][i as usize]))
+                    .sum::<DVec3>()
+                    / nf as f64
+            })
             .collect();
         motions = tr.fit_motions(&members, &refs);
     }
@@ -341,7 +348,12 @@ impl Decomposition {
     /// objects `object_K` (frame 0's values carried into the local frame) with a key per
     /// frame, and per-frame content (each frame's own values of the Gaussians no group took).
     /// `fps` is the scene's frame rate (the manifest's `time.fps`).
-    pub fn to_scene(&self, frames: &[GaussianCloud], times: &[f64], fps: f64) -> Result<DynamicScene> {
+    pub fn to_scene(
+        &self,
+        frames: &[GaussianCloud],
+        times: &[f64],
+        fps: f64,
+    ) -> Result<DynamicScene> {
         check(frames, times)?;
         let first = &frames[0];
         let nf = frames.len();
@@ -367,10 +379,7 @@ impl Decomposition {
             let kc = cloud.coeffs();
             if cloud.sh_degree > 0 && !shr.identity {
                 let degree = cloud.sh_degree;
-                cloud
-                    .sh
-                    .chunks_mut(kc)
-                    .for_each(|c| shr.apply(degree, c));
+                cloud.sh.chunks_mut(kc).for_each(|c| shr.apply(degree, c));
             }
             let keys = continuous(&g.poses)
                 .into_iter()
@@ -438,7 +447,12 @@ pub fn pose_of(r: &Rigid) -> Pose {
 
 /// Degrees between two rotations.
 pub fn angle_deg(a: Quat, b: Quat) -> f64 {
-    let d = a.as_dquat().normalize().dot(b.as_dquat().normalize()).abs().min(1.0);
+    let d = a
+        .as_dquat()
+        .normalize()
+        .dot(b.as_dquat().normalize())
+        .abs()
+        .min(1.0);
     (2.0 * d.acos()).to_degrees()
 }
 

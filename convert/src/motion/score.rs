@@ -71,7 +71,13 @@ mod tests {
             // Half the cases: b is a with a few labels changed, so values near 1 are tested.
             let b: Vec<u32> = if case % 2 == 0 {
                 a.iter()
-                    .map(|&x| if rng.f32() < 0.05 { rng.below(kb) as u32 } else { x + 7 })
+                    .map(|&x| {
+                        if rng.f32() < 0.05 {
+                            rng.below(kb) as u32
+                        } else {
+                            x + 7
+                        }
+                    })
                     .collect()
             } else {
                 (0..n).map(|_| rng.below(kb) as u32).collect()

@@ -7,7 +7,9 @@ use std::time::Instant;
 use anyhow::bail;
 use clap::ValueEnum;
 use splatbridge::pipeline::export::is_gltf;
-use splatbridge::pipeline::motion::{decompose_scene, frames_scene, read_frame_folder, MotionReport};
+use splatbridge::pipeline::motion::{
+    decompose_scene, frames_scene, read_frame_folder, MotionReport,
+};
 use splatbridge_convert::motion::DecomposeOptions;
 
 use super::Args;
