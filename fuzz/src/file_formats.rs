@@ -2,7 +2,9 @@
 //! `.ksplat` (raw bytes; a structure-aware variant that writes plausible headers, section
 //! headers and bucket tables with counts that may lie; and a round trip through the writer at
 //! every level), and the PLY layouts beside the standard 3DGS one (`red green blue` colours,
-//! 2DGS `scale_0 scale_1`, Mip-Splatting's `filter_3D`, points without Gaussian parameters).
+//! 2DGS `scale_0 scale_1`, Mip-Splatting's `filter_3D`, points without Gaussian parameters),
+//! and 2DGS surfels end to end: any values through the 2DGS writer, the reader and the 2DGS
+//! renderer (finite pixels, alpha in [0, 1], the two scales and the rotation kept bit for bit).
 //!
 //! Included by path from `tests/fuzz_regressions.rs`, so it depends only on crates that the
 //! root package also has.
@@ -22,6 +24,7 @@ pub const TARGETS: &[(&str, crate::entries::Entry)] = &[
     ("ksplat_structured", ksplat_structured),
     ("ksplat_roundtrip", ksplat_roundtrip),
     ("ply_variants", ply_variants),
+    ("surfels_2d", surfels_2d),
 ];
 
 pub fn ksplat_raw(data: &[u8]) {
@@ -250,4 +253,77 @@ pub fn ply_variants(data: &[u8]) {
         }
         load_both(path);
     });
+}
+
+#[derive(Arbitrary, Debug)]
+struct SurfelIn {
+    /// Per surfel: x y z, f_dc 0..2, opacity logit, scale_0 scale_1, rot 0..3.
+    values: Vec<[f32; 12]>,
+    /// Camera: eye offset and field of view.
+    eye: [f32; 3],
+    fov: u8,
+}
+
+/// 2DGS surfels with any values: written as a 2DGS PLY, read back (Surfels2D, scales and
+/// rotations bit-exact when valid), and rendered by the 2DGS renderer at 13×9 (finite
+/// pixels, alpha in [0, 1]) or refused with an error.
+pub fn surfels_2d(data: &[u8]) {
+    use glam::{DVec3, Quat, Vec3};
+    use splatbridge_scene::ply::{read_ply, write_ply_2dgs, GaussianKind};
+    use splatbridge_scene::{Camera, GaussianCloud};
+
+    let Ok(p) = SurfelIn::arbitrary(&mut Unstructured::new(data)) else {
+        return;
+    };
+    let mut cloud = GaussianCloud::new(0);
+    for v in p.values.iter().take(64) {
+        cloud.push(
+            Vec3::new(v[0], v[1], v[2]),
+            Vec3::new(v[7], v[8], v[7].min(v[8]) - 6.9),
+            Quat::from_xyzw(v[10], v[11], v[9], 1.0),
+            v[6],
+            &[Vec3::new(v[3], v[4], v[5])],
+        );
+    }
+    let Ok(dir) = tempfile::tempdir() else {
+        return;
+    };
+    let path = dir.path().join("surfels.ply");
+    if write_ply_2dgs(&path, &cloud).is_err() {
+        return;
+    }
+    let Ok((read, report)) = read_ply(&path, &ReadOptions { drop_invalid: true }) else {
+        return;
+    };
+    assert_eq!(
+        report.kind,
+        GaussianKind::Surfels2D,
+        "a 2DGS PLY read as something else"
+    );
+    if report.dropped_total() == 0 {
+        for i in 0..read.len() {
+            let (a, b) = (read.log_scales[i], cloud.log_scales[i]);
+            assert_eq!(
+                (a.x.to_bits(), a.y.to_bits()),
+                (b.x.to_bits(), b.y.to_bits())
+            );
+            assert_eq!(read.rotations[i], cloud.rotations[i]);
+        }
+    }
+    let e = p.eye.map(|v| if v.is_finite() { v as f64 } else { 0.0 });
+    let Ok(cam) = Camera::look_at(
+        DVec3::new(e[0], e[1], e[2] - 5.0),
+        DVec3::new(e[0], e[1], e[2]),
+        DVec3::NEG_Y,
+        10.0 + (p.fov % 150) as f64,
+        13,
+        9,
+    ) else {
+        return;
+    };
+    let opts = splatbridge_hybrid::RenderOptions::default();
+    if let Ok((frame, _)) = splatbridge_hybrid::surfel2d::render_surfels(&read, &cam, &opts) {
+        assert!(frame.is_finite(), "non-finite 2DGS pixels");
+        assert!(frame.alpha.iter().all(|a| (0.0..=1.0).contains(a)));
+    }
 }

@@ -69,6 +69,11 @@ pub struct Args {
     /// report.json for `splatbridge merge` (see docs/scale.md).
     #[arg(long, value_name = "I/N")]
     pub shard: Option<Shard>,
+    /// The reference renderer: auto (2D Gaussian Splatting's rasterizer for 2DGS surfels, with
+    /// their 3DGS splatting measured beside it; 3DGS splatting for everything else), 3dgs, or
+    /// 2dgs (2DGS files only).
+    #[arg(long, value_enum, default_value_t = super::render::ModelArg::Auto)]
+    pub model: super::render::ModelArg,
     #[command(flatten)]
     pub hybrid_split: super::split_args::SplitArgs,
     /// Output folder.
@@ -80,7 +85,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // Options first: a bad one is reported before a large scene is loaded.
     let max_memory = splatbridge::measure::budget::parse_budget(&args.max_memory)
         .map_err(|e| anyhow::anyhow!("--max-memory: {e}"))?;
-    let mut scene = common::load(&args.scene, args.drop_invalid)?;
+    let (mut scene, kind) = splatbridge::pipeline::load_scene_kind(
+        &args.scene,
+        args.drop_invalid,
+        &common::print_warning,
+    )?;
+    let surfels_2d =
+        super::render::model_is_2dgs(args.model, kind, &args.scene.display().to_string())?;
     let times = if args.times.is_empty() {
         default_times(&scene)
     } else {
@@ -112,18 +123,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .clone()
             .unwrap_or_else(splatbridge::measure::clients::default_script),
         max_memory,
+        surfels_2d,
         ..CompareConfig::default()
     };
     let pb = common::progress(0, "compare");
     let progress = |m: &str| pb.set_message(m.to_string());
     let preamble = format!(
-        "Scene `{}`: {} cameras × {} times, {}×{} pixels. Reference: native splatting with reference settings. \
+        "Scene `{}`: {} cameras × {} times, {}×{} pixels. Reference: {} with reference settings. \
          PSNR/SSIM against the reference; milliseconds are render times on this machine (BVH builds and exports excluded).",
         args.scene.display(),
         cams.len(),
         times.len(),
         args.width,
-        args.height
+        args.height,
+        if surfels_2d {
+            "2DGS surfels by 2D Gaussian Splatting's rasterizer (native-2dgs)"
+        } else {
+            "native splatting"
+        }
     );
     let options = options_text(&args, &times);
     let compared = run_compare(
@@ -149,7 +166,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 /// shards of differently configured runs do not merge). `--shard` and `--out` are not in it.
 fn options_text(args: &Args, times: &[f64]) -> String {
     format!(
-        "compare\ncameras={}\ntimes={:?}\nprofiles={:?}\nsize={}x{}\nbackend={}\nk={}\nno_obj={}\ndrop_invalid={}\nclients={:?}\nhybrid={}\nmax_memory={}",
+        "compare\ncameras={}\ntimes={:?}\nprofiles={:?}\nsize={}x{}\nbackend={}\nk={}\nno_obj={}\ndrop_invalid={}\nclients={:?}\nhybrid={}\nmax_memory={}\nmodel={:?}",
         args.cameras,
         times.iter().map(|t| t.to_bits()).collect::<Vec<_>>(),
         args.profiles,
@@ -161,7 +178,8 @@ fn options_text(args: &Args, times: &[f64]) -> String {
         args.drop_invalid,
         args.clients,
         args.hybrid_split.text(),
-        args.max_memory
+        args.max_memory,
+        args.model
     )
 }
 

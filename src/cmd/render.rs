@@ -1,5 +1,8 @@
 //! `splatbridge render`: render a scene with the native 3DGS splatting renderer (the reference
-//! forward pass; knobs and their reference defaults in `splatbridge_hybrid::native`).
+//! forward pass; knobs and their reference defaults in `splatbridge_hybrid::native`), or 2DGS
+//! surfels with 2D Gaussian Splatting's own rasterizer (`splatbridge_hybrid::surfel2d`):
+//! `--model auto` (the default) picks it for files read as 2DGS surfels, `--model 3dgs` forces
+//! 3DGS splatting of their thin discs.
 //!
 //! Frames come from `splatbridge::pipeline::still` (`render_frame`: the composite plus declared weather
 //! particles, one cloud per motion-blur sample, averaged; shadows and LiDAR are ray-traced
@@ -13,6 +16,7 @@ use splatbridge::pipeline::sequence::SequenceFrame;
 use splatbridge::pipeline::still::{check_image_output, Still};
 use splatbridge::pipeline::{FrameStats, RenderedFrame, Renderer};
 use splatbridge_hybrid::{Extent, RenderOptions, RenderStats};
+use splatbridge_scene::ply::GaussianKind;
 use splatbridge_scene::Camera;
 
 use crate::cmd::common::{parse_rgb, print_warning, short, CameraArgs};
@@ -35,6 +39,37 @@ impl From<ExtentArg> for Extent {
     }
 }
 
+/// Which splatting model draws the scene.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ModelArg {
+    /// 2DGS surfels (files with `scale_0 scale_1` only) by the 2DGS renderer, everything
+    /// else by 3DGS splatting.
+    Auto,
+    /// 3DGS splatting (2DGS surfels drawn as discs 1000× thinner than wide).
+    #[value(name = "3dgs")]
+    Gaussians3D,
+    /// 2D Gaussian Splatting's rasterizer: ray–splat intersection, its low-pass filter. Only
+    /// for 2DGS surfels.
+    #[value(name = "2dgs")]
+    Surfels2D,
+}
+
+/// Whether `model` draws content of `kind` with the 2DGS renderer (`name` names the input in
+/// errors: `--model 2dgs` on anything but 2DGS surfels is one).
+pub fn model_is_2dgs(model: ModelArg, kind: GaussianKind, name: &str) -> anyhow::Result<bool> {
+    let is_2dgs = kind == GaussianKind::Surfels2D;
+    match model {
+        ModelArg::Auto => Ok(is_2dgs),
+        ModelArg::Gaussians3D => Ok(false),
+        ModelArg::Surfels2D if is_2dgs => Ok(true),
+        ModelArg::Surfels2D => bail!(
+            "{name}: --model 2dgs draws 2DGS surfels (a PLY with scale_0 scale_1 only), \
+             and this file holds {}",
+            kind.name()
+        ),
+    }
+}
+
 /// The renderer knobs shared by `render` and `bench render`.
 #[derive(clap::Args, Clone, Debug)]
 pub struct RenderKnobs {
@@ -54,6 +89,10 @@ pub struct RenderKnobs {
     /// Highest SH degree evaluated (0–3; the scene's own degree if lower).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(0..=3))]
     pub sh_degree: u8,
+    /// Splatting model: auto (2DGS surfels by the 2DGS renderer, the rest by 3DGS), 3dgs
+    /// (force 3DGS splatting) or 2dgs (2D Gaussian Splatting's rasterizer; 2DGS files only).
+    #[arg(long, value_enum, default_value_t = ModelArg::Auto)]
+    pub model: ModelArg,
 }
 
 impl RenderKnobs {
@@ -65,6 +104,20 @@ impl RenderKnobs {
             near: self.near,
             background: self.background.to_array(),
             exhaustive: false,
+        }
+    }
+
+    /// Whether the 2DGS renderer draws content of `kind` (`name` names the input in errors).
+    pub fn surfels_2d(&self, kind: GaussianKind, name: &str) -> anyhow::Result<bool> {
+        model_is_2dgs(self.model, kind, name)
+    }
+
+    /// The renderer for content of `kind` (see [`RenderKnobs::surfels_2d`]).
+    pub fn renderer(&self, kind: GaussianKind, name: &str) -> anyhow::Result<Renderer> {
+        if self.surfels_2d(kind, name)? {
+            Renderer::surfels_2d(self.options())
+        } else {
+            Renderer::native(self.options())
         }
     }
 
@@ -204,10 +257,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.time,
         args.frames,
     )?;
-    let mut renderer = Renderer::native(args.knobs.options())?;
     let (name, cam, near) = (&still.name, &still.camera, args.knobs.near);
+    let surfels = args.knobs.surfels_2d(still.kind, name)?;
+    let mut renderer = args.knobs.renderer(still.kind, name)?;
+    let model = if surfels { "2dgs" } else { "3dgs" };
     if !args.json {
-        println!("render {name}: {}", args.knobs.describe());
+        println!("render {name} ({model}): {}", args.knobs.describe());
     }
     let mut frames_json = Vec::with_capacity(still.times.len());
     let mut print_frame = |out: &Path, t: f64, r: &RenderedFrame| -> anyhow::Result<()> {
@@ -265,6 +320,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "command": "render",
             "scene": name,
             "camera": {"name": cam.name, "width": cam.width, "height": cam.height},
+            "model": model,
             "knobs": args.knobs.to_json(),
             "frames": frames_json,
             "effects": serde_json::to_value(&counters)?,

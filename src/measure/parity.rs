@@ -45,6 +45,8 @@ pub struct CompareConfig {
     /// Skip a Gaussian-trace or mesh stage whose estimated peak (`budget.rs`) is over this many
     /// bytes, with a note in the report (`None`: run every stage).
     pub max_memory: Option<u64>,
+    /// The reference is 2D Gaussian Splatting's rasterizer (2DGS surfels) instead of 3DGS's.
+    pub surfels_2d: bool,
 }
 
 impl Default for CompareConfig {
@@ -63,6 +65,7 @@ impl Default for CompareConfig {
             clients: Vec::new(),
             client_script: crate::measure::clients::default_script(),
             max_memory: None,
+            surfels_2d: false,
         }
     }
 }
@@ -80,6 +83,25 @@ pub fn render_native(
     opts: &NativeOptions,
 ) -> anyhow::Result<Rendered> {
     let mut r = Renderer::native(*opts)?;
+    let t0 = Instant::now();
+    let (frame, _) = r.render_cloud(cloud, cam)?;
+    Ok(Rendered {
+        frame,
+        ms: t0.elapsed().as_secs_f64() * 1e3,
+    })
+}
+
+/// The reference of a comparison: native splatting, or the 2DGS renderer with `surfels_2d`.
+pub fn render_reference(
+    cloud: &GaussianCloud,
+    cam: &Camera,
+    opts: &NativeOptions,
+    surfels_2d: bool,
+) -> anyhow::Result<Rendered> {
+    if !surfels_2d {
+        return render_native(cloud, cam, opts);
+    }
+    let mut r = Renderer::surfels_2d(*opts)?;
     let t0 = Instant::now();
     let (frame, _) = r.render_cloud(cloud, cam)?;
     Ok(Rendered {
@@ -432,7 +454,7 @@ pub fn compare_selected(
             let cam = &cams[ci];
             let tag = tag(ti, ci);
             progress(&format!("native {tag}"));
-            let reference = render_native(&cloud, cam, &cfg.native)?;
+            let reference = render_reference(&cloud, cam, &cfg.native, cfg.surfels_2d)?;
             let reference_frame = &reference.frame;
             emit(
                 &mut placed,
@@ -441,8 +463,29 @@ pub fn compare_selected(
                 (0, 0),
                 format!("native_{tag}"),
                 reference_frame,
-                named("native", reference.ms),
+                named(
+                    if cfg.surfels_2d {
+                        "native-2dgs"
+                    } else {
+                        "native"
+                    },
+                    reference.ms,
+                ),
             )?;
+            if cfg.surfels_2d {
+                // The same surfels through 3DGS splatting (discs 1000× thinner than wide).
+                progress(&format!("3dgs {tag}"));
+                let g = render_native(&cloud, cam, &cfg.native)?;
+                emit(
+                    &mut placed,
+                    reference_frame,
+                    (ti, ci),
+                    (1, 1),
+                    format!("native3dgs_{tag}"),
+                    &g.frame,
+                    named("native-3dgs", g.ms),
+                )?;
+            }
             if cfg.hybrid {
                 progress(&format!("hybrid {tag}"));
                 let h = render_hybrid(&cloud, cam, cfg.split, &cfg.ges)?;

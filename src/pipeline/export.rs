@@ -21,7 +21,7 @@ use splatbridge_scene::formats::ksplat::KsplatOptions;
 use splatbridge_scene::formats::spz::SpzOptions;
 use splatbridge_scene::formats::{write_cloud, CloudFormat};
 
-use super::source::load_scene_warn;
+use super::source::load_scene_kind;
 
 /// Whether a path names a glTF file (`.glb` or `.gltf`, any case).
 pub fn is_gltf(p: &Path) -> bool {
@@ -40,14 +40,23 @@ pub fn load_export_input(
     drop_invalid: bool,
     warn: &dyn Fn(&str),
 ) -> anyhow::Result<DynamicScene> {
+    Ok(load_export_input_kind(path, drop_invalid, warn)?.0)
+}
+
+/// [`load_export_input`], also saying what the Gaussians are (2DGS surfels, points, …).
+pub fn load_export_input_kind(
+    path: &Path,
+    drop_invalid: bool,
+    warn: &dyn Fn(&str),
+) -> anyhow::Result<(DynamicScene, splatbridge_scene::ply::GaussianKind)> {
     // One loader for every input, so a glTF's splats get the invalid-Gaussian policy of
     // every other format (NaN or infinite values refused, or dropped with --drop-invalid).
-    let scene = load_scene_warn(path, drop_invalid, warn)?;
+    let (scene, kind) = load_scene_kind(path, drop_invalid, warn)?;
     if is_gltf(path) {
         // A mesh-only glTF is not a scene to convert (it would write an empty file).
         splatbridge_scene::input::require_gaussians(path, &scene)?;
     }
-    Ok(scene)
+    Ok((scene, kind))
 }
 
 /// Whether a `.ply` output (or `--format ply`) holds Gaussians: yes, the 3DGS PLY every splat
@@ -65,6 +74,7 @@ pub enum OutputFormat {
     CompressedPly,
     Splat,
     Spz,
+    Ksplat,
     Glb,
     Gltf,
     Obj,
@@ -85,6 +95,10 @@ pub fn cloud_format(
         version: spz_version,
         ..SpzOptions::default()
     });
+    let ksplat = CloudFormat::Ksplat(KsplatOptions {
+        level: ksplat_level,
+        ..KsplatOptions::default()
+    });
     let ext = output
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase())
@@ -95,6 +109,7 @@ pub fn cloud_format(
         Some(OutputFormat::CompressedPly) => Some(CloudFormat::CompressedPly),
         Some(OutputFormat::Splat) => Some(CloudFormat::Splat),
         Some(OutputFormat::Spz) => Some(spz),
+        Some(OutputFormat::Ksplat) => Some(ksplat),
         Some(f) => {
             let want = match f {
                 OutputFormat::Ply => "ply",
@@ -112,10 +127,7 @@ pub fn cloud_format(
         }
         None => match CloudFormat::for_path(output, splats) {
             Some(CloudFormat::Spz(_)) => Some(spz),
-            Some(CloudFormat::Ksplat(o)) => Some(CloudFormat::Ksplat(KsplatOptions {
-                level: ksplat_level,
-                ..o
-            })),
+            Some(CloudFormat::Ksplat(_)) => Some(ksplat),
             other => other,
         },
     })
@@ -140,6 +152,7 @@ pub fn write_cloud_export(
     format: CloudFormat,
     time: Option<f64>,
     first: Option<usize>,
+    kind: splatbridge_scene::ply::GaussianKind,
 ) -> anyhow::Result<CloudExport> {
     let t = time.unwrap_or(scene.time.start);
     if !t.is_finite() {
@@ -150,9 +163,22 @@ pub fn write_cloud_export(
     if let Some(n) = first {
         cloud.retain_indices(|i| i < n);
     }
-    let bytes = write_cloud(output, &cloud, format)?;
+    // 2DGS surfels stay 2DGS surfels in a PLY: two scales, no third (the thin axis they were
+    // given on read is not written).
+    let surfels_ply = kind == splatbridge_scene::ply::GaussianKind::Surfels2D
+        && matches!(format, CloudFormat::Ply);
+    let bytes = if surfels_ply {
+        splatbridge_scene::ply::write_ply_2dgs(output, &cloud)?;
+        std::fs::metadata(output)?.len()
+    } else {
+        write_cloud(output, &cloud, format)?
+    };
     Ok(CloudExport {
-        format: format.name(),
+        format: if surfels_ply {
+            "2DGS PLY"
+        } else {
+            format.name()
+        },
         gaussians: cloud.len(),
         sh_degree: cloud.sh_degree,
         time: t,

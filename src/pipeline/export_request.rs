@@ -8,7 +8,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
-use splatbridge_convert::options::ChunkOrder;
+use splatbridge_convert::options::{ChunkOrder, VolumetricMode};
 use splatbridge_convert::splats_gltf::KhrCompression;
 use splatbridge_convert::{ConvertOptions, ConvertReport, Profile};
 use splatbridge_distill::footprint::{widen_scene_for, Widened};
@@ -16,11 +16,12 @@ use splatbridge_scene::camera_spec::{CameraRequest, CameraSource};
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::effects::EffectCounters;
 use splatbridge_scene::formats::CloudFormat;
+use splatbridge_scene::ply::GaussianKind;
 use splatbridge_scene::Camera;
 
 use super::export::{
-    cloud_format, embedded_cameras, export_scene, is_gltf, load_export_input, ply_holds_gaussians,
-    write_cloud_export, CloudExport, ExportKind, OutputFormat,
+    cloud_format, embedded_cameras, export_scene, is_gltf, load_export_input_kind,
+    ply_holds_gaussians, write_cloud_export, CloudExport, ExportKind, OutputFormat,
 };
 use super::export_shard::export_obj_frames_shard;
 use crate::batch::shard::Shard;
@@ -82,6 +83,8 @@ pub struct ExportInput {
     pub cloud: Option<CloudFormat>,
     /// What `--footprint-for` widened.
     pub widened: Option<Widened>,
+    /// What the input's Gaussians are: 2DGS surfels become one fan each in their own plane.
+    pub kind: GaussianKind,
 }
 
 /// The meshing profile when none is asked for: texture for glTF, which carries textures;
@@ -123,7 +126,7 @@ impl ExportRequest {
             self.spz_version,
             self.ksplat_level,
         )?;
-        let mut scene = load_export_input(&self.input, self.drop_invalid, warn)?;
+        let (mut scene, kind) = load_export_input_kind(&self.input, self.drop_invalid, warn)?;
         if !self.cameras.is_empty() {
             scene.cameras = embedded_cameras(&self.cameras, &scene)?;
         }
@@ -142,6 +145,7 @@ impl ExportRequest {
             scene,
             cloud,
             widened,
+            kind,
         })
     }
 
@@ -150,6 +154,7 @@ impl ExportRequest {
         &self,
         scene: DynamicScene,
         format: CloudFormat,
+        kind: GaussianKind,
     ) -> anyhow::Result<CloudExport> {
         let m = &self.mesh;
         for (set, name) in [
@@ -166,15 +171,23 @@ impl ExportRequest {
                 );
             }
         }
-        write_cloud_export(scene, &self.output, format, self.time, self.first)
+        write_cloud_export(scene, &self.output, format, self.time, self.first, kind)
     }
 
     /// The converter options for a mesh or glTF splat export of `scene`, with every
     /// combination the output cannot hold refused.
-    pub fn mesh_options(&self, scene: &DynamicScene) -> anyhow::Result<ConvertOptions> {
+    pub fn mesh_options(
+        &self,
+        scene: &DynamicScene,
+        kind: GaussianKind,
+    ) -> anyhow::Result<ConvertOptions> {
         let m = &self.mesh;
         let out = self.output.display();
         let mut opts = m.options.clone();
+        if kind == GaussianKind::Surfels2D {
+            // A 2DGS surfel is a disc: one fan in its own plane, never three.
+            opts.volumetric = VolumetricMode::Flat;
+        }
         if m.surfels && (self.splats || !is_gltf(&self.output)) {
             let what = if self.splats {
                 "--splats"

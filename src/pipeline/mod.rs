@@ -37,4 +37,4 @@ pub mod trace_job;
 
 pub use frame::{render_frame, FrameRequest, LidarRequest, RenderedFrame};
 pub use renderer::{FrameStats, Renderer, SurfelSplit};
-pub use source::{load_scene_warn, Loaded, Prepared, TraceMode, TraceSource};
+pub use source::{load_scene_kind, load_scene_warn, Loaded, Prepared, TraceMode, TraceSource};

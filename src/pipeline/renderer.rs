@@ -1,10 +1,11 @@
-//! The four ways a frame is drawn, behind one type: native splatting (the reference forward
-//! pass, `splatbridge_hybrid::native`), the GES hybrid (`splatbridge_hybrid::ges`: a surfel
+//! The ways a frame is drawn, behind one type: native splatting (the reference forward
+//! pass, `splatbridge_hybrid::native`), 2DGS surfels as 2D Gaussian Splatting draws them
+//! (`splatbridge_hybrid::surfel2d`), the GES hybrid (`splatbridge_hybrid::ges`: a surfel
 //! split of the frame's cloud, then opaque surfels and unsorted Gaussians), the mesh tracer
 //! (`splatbridge_raytrace::MeshTracer`, an exported or in-memory converted file) and the
 //! Gaussian tracer (`splatbridge_raytrace::GaussianTracer`, 3DGRT-style).
 //!
-//! Native and hybrid draw a cloud: each frame's content (composite, particles, shutter
+//! Native, 2DGS and hybrid draw a cloud: each frame's content (composite, particles, shutter
 //! samples) is built for them by [`super::frame::render_frame`]. The tracers hold a BVH built
 //! once and are posed at each time sample (instancing, no rebuild).
 
@@ -99,6 +100,12 @@ pub enum Renderer {
         renderer: splatbridge_hybrid::Renderer,
         options: NativeOptions,
     },
+    /// 2DGS surfels drawn as 2D Gaussian Splatting's rasterizer does
+    /// (`splatbridge_hybrid::surfel2d`); the stats are native splatting's.
+    Surfels2D {
+        renderer: splatbridge_hybrid::surfel2d::SurfelRenderer,
+        options: NativeOptions,
+    },
     /// The GES hybrid.
     Hybrid {
         options: GesOptions,
@@ -136,6 +143,15 @@ impl Renderer {
         options.validate()?;
         Ok(Renderer::Native {
             renderer: splatbridge_hybrid::Renderer::new(),
+            options,
+        })
+    }
+
+    /// The 2DGS surfel renderer with `options` (checked; the extent knob is not used).
+    pub fn surfels_2d(options: NativeOptions) -> anyhow::Result<Renderer> {
+        options.validate()?;
+        Ok(Renderer::Surfels2D {
+            renderer: splatbridge_hybrid::surfel2d::SurfelRenderer::new(),
             options,
         })
     }
@@ -207,7 +223,10 @@ impl Renderer {
     /// Whether this renderer draws a cloud built per frame (native, hybrid) rather than a
     /// prebuilt BVH (the tracers).
     pub fn draws_clouds(&self) -> bool {
-        matches!(self, Renderer::Native { .. } | Renderer::Hybrid { .. })
+        matches!(
+            self,
+            Renderer::Native { .. } | Renderer::Surfels2D { .. } | Renderer::Hybrid { .. }
+        )
     }
 
     /// Seconds spent building BVHs (0 for native and hybrid).
@@ -243,6 +262,10 @@ impl Renderer {
     ) -> anyhow::Result<(Frame, FrameStats)> {
         match self {
             Renderer::Native { renderer, options } => {
+                let (f, st) = renderer.render(cloud, cam, options)?;
+                Ok((f, FrameStats::Native(st)))
+            }
+            Renderer::Surfels2D { renderer, options } => {
                 let (f, st) = renderer.render(cloud, cam, options)?;
                 Ok((f, FrameStats::Native(st)))
             }
@@ -310,7 +333,9 @@ impl FrameStats {
     /// Empty stats of the kind `r` produces.
     pub fn zero_for(r: &Renderer) -> FrameStats {
         match r {
-            Renderer::Native { .. } => FrameStats::Native(RenderStats::default()),
+            Renderer::Native { .. } | Renderer::Surfels2D { .. } => {
+                FrameStats::Native(RenderStats::default())
+            }
             Renderer::Hybrid { .. } => FrameStats::Hybrid {
                 stats: GesStats::default(),
                 split_ms: 0.0,

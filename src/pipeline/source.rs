@@ -39,6 +39,20 @@ pub fn load_scene_warn(
     Ok(scene)
 }
 
+/// [`load_scene_warn`], also saying what the file's Gaussians are (3D Gaussians, 2DGS
+/// surfels, points).
+pub fn load_scene_kind(
+    path: &Path,
+    drop_invalid: bool,
+    warn: &dyn Fn(&str),
+) -> anyhow::Result<(DynamicScene, splatbridge_scene::ply::GaussianKind)> {
+    let (scene, info) = splatbridge_scene::formats::load(path, &ReadOptions { drop_invalid })?;
+    for w in info.warnings {
+        warn(&format!("{}: {w}", path.display()));
+    }
+    Ok((scene, info.kind))
+}
+
 /// How a traced input is drawn.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum TraceMode {

@@ -14,9 +14,10 @@ use splatbridge_scene::image_io::save_frame;
 use splatbridge_scene::Camera;
 
 use super::sequence::{render_sequence, SequenceFrame, SequenceRequest, SequenceRun};
-use super::source::load_scene_warn;
+use super::source::load_scene_kind;
 use super::{render_frame, FrameRequest, RenderedFrame, Renderer};
 use crate::batch::shard::Shard;
+use splatbridge_scene::ply::GaussianKind;
 
 /// Refuse an output image that is neither `.png` nor `.exr` (any case).
 pub fn check_image_output(out: &Path) -> anyhow::Result<()> {
@@ -39,6 +40,9 @@ pub struct Still {
     pub camera: Camera,
     /// `time` (default: the scene's start), or every frame time with `frames`.
     pub times: Vec<f64>,
+    /// What the file's Gaussians are (2DGS surfels are drawn by the 2DGS renderer unless
+    /// asked otherwise); 3D Gaussians for manifests.
+    pub kind: GaussianKind,
 }
 
 impl Still {
@@ -53,7 +57,7 @@ impl Still {
         frames: bool,
     ) -> anyhow::Result<Still> {
         let name = path.display().to_string();
-        let scene = load_scene_warn(path, drop_invalid, warn)?;
+        let (scene, kind) = load_scene_kind(path, drop_invalid, warn)?;
         let effects = effects_of(&scene).with_context(|| name.clone())?;
         let times = if frames {
             scene.frame_times()
@@ -75,6 +79,7 @@ impl Still {
             effects,
             camera,
             times,
+            kind,
         })
     }
 

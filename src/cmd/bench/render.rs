@@ -1,4 +1,5 @@
-//! `splatbridge bench render`: the native renderer's median frame time over repeated renders
+//! `splatbridge bench render`: the native renderer's (or, for 2DGS surfels, the 2DGS
+//! renderer's, see `--model`) median frame time over repeated renders
 //! of one scene and camera, Gaussians per second, tile–Gaussian pairs, pixel–Gaussian blends
 //! and the median time of each phase (projection, sorting, binning, blending).
 //!
@@ -14,7 +15,11 @@ use anyhow::{bail, Context};
 use splatbridge_hybrid::{RenderStats, Renderer};
 use splatbridge_scene::{fixtures, GaussianCloud};
 
-use crate::cmd::common::{load, CameraArgs};
+use splatbridge::pipeline::load_scene_kind;
+use splatbridge_hybrid::surfel2d::SurfelRenderer;
+use splatbridge_scene::ply::GaussianKind;
+
+use crate::cmd::common::{print_warning, CameraArgs};
 use crate::cmd::render::RenderKnobs;
 
 #[derive(clap::Args)]
@@ -64,19 +69,21 @@ fn median(mut v: Vec<Duration>) -> Duration {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let (name, cloud, own): (String, GaussianCloud, _) = match (&args.scene, args.large) {
+    let (name, cloud, own, kind): (String, GaussianCloud, _, _) = match (&args.scene, args.large) {
         (Some(p), None) => {
-            let s = load(p, false)?;
+            let (s, kind) = load_scene_kind(p, false, &print_warning)?;
             (
                 p.display().to_string(),
                 s.composite(s.time.start),
                 s.cameras.clone(),
+                kind,
             )
         }
         (None, Some(n)) => (
             format!("large fixture ({n} Gaussians, seed 1)"),
             fixtures::large(n, 1),
             Vec::new(),
+            GaussianKind::Gaussians3D,
         ),
         _ => bail!("give a SCENE file or --large N"),
     };
@@ -86,6 +93,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .with_context(|| name.clone())?;
     let opts = args.knobs.options();
     opts.validate()?;
+    let surfels = args.knobs.surfels_2d(kind, &name)?;
     let threads = args.threads.unwrap_or_else(rayon::current_num_threads);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
@@ -96,12 +104,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         // One renderer across runs: its buffers are warm after the untimed render, as in an
         // animation; the frame itself is allocated fresh every time.
         let mut renderer = Renderer::new();
-        renderer.render(&cloud, &cam, &opts)?;
+        let mut surfel_renderer = SurfelRenderer::new();
+        let mut draw = || -> anyhow::Result<RenderStats> {
+            Ok(if surfels {
+                surfel_renderer.render(&cloud, &cam, &opts)?.1
+            } else {
+                renderer.render(&cloud, &cam, &opts)?.1
+            })
+        };
+        draw()?;
         let mut runs = Vec::with_capacity(repeat);
         cpu0 = process_cpu_seconds();
         for _ in 0..repeat {
             let t = Instant::now();
-            let (_, stats) = renderer.render(&cloud, &cam, &opts)?;
+            let stats = draw()?;
             runs.push((t.elapsed(), stats));
         }
         Ok(runs)
@@ -131,11 +147,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "blends": s.blends, "culled_near": s.culled_near, "culled_near_in_view": s.culled_near_in_view,
             "phase_ms": {"projection": ms(proj), "sorting": ms(sort), "binning": ms(bin), "blending": ms(blend)},
             "knobs": args.knobs.describe(),
+            "model": if surfels { "2dgs" } else { "3dgs" },
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
         return Ok(());
     }
-    println!("bench render: {name}");
+    println!(
+        "bench render: {name} ({})",
+        if surfels { "2dgs" } else { "3dgs" }
+    );
     println!(
         "  camera '{}' {}×{}, {threads} threads, {repeat} timed renders; {}",
         cam.name,

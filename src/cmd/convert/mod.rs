@@ -214,10 +214,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(format) = input.cloud {
         pb.finish_and_clear();
         let objects = scene.objects.len();
-        let c = req.write_cloud(scene, format)?;
+        let c = req.write_cloud(scene, format, input.kind)?;
         return print::print_cloud(&args, &c, objects, t0.elapsed().as_secs_f64());
     }
-    let mut opts = req.mesh_options(&scene)?;
+    let mut opts = req.mesh_options(&scene, input.kind)?;
     // The --camera views' sizes name the sizes a distilled export is made for.
     let sizes: Vec<(u32, u32)> = if args.camera.is_empty() {
         Vec::new()

@@ -53,6 +53,8 @@ pub enum FormatArg {
     Splat,
     /// Niantic SPZ (--spz-version).
     Spz,
+    /// GaussianSplats3D .ksplat (--ksplat-level).
+    Ksplat,
     /// Binary glTF (mesh, or KHR_gaussian_splatting with --splats).
     Glb,
     /// glTF JSON + .bin (mesh, or KHR_gaussian_splatting with --splats).
@@ -102,6 +104,7 @@ impl From<FormatArg> for OutputFormat {
             FormatArg::CompressedPly => OutputFormat::CompressedPly,
             FormatArg::Splat => OutputFormat::Splat,
             FormatArg::Spz => OutputFormat::Spz,
+            FormatArg::Ksplat => OutputFormat::Ksplat,
             FormatArg::Glb => OutputFormat::Glb,
             FormatArg::Gltf => OutputFormat::Gltf,
             FormatArg::Obj => OutputFormat::Obj,

@@ -76,6 +76,8 @@ pub fn summarize(records: &[Record]) -> Vec<SummaryRow> {
 pub fn renderer_meaning(name: &str) -> Option<&'static str> {
     Some(match name {
         "native" => "native 3D Gaussian splatting (the reference 3DGS forward pass): every other image is measured against it",
+        "native-2dgs" => "2DGS surfels drawn as 2D Gaussian Splatting's own rasterizer does (ray–splat intersection, its low-pass filter): the reference for 2DGS scenes, every other image is measured against it",
+        "native-3dgs" => "the same 2DGS surfels through 3DGS splatting (discs 1000× thinner than wide), against the 2DGS reference",
         "hybrid" => "the GES hybrid: flat opaque Gaussians drawn as opaque surfels with a z-buffer, the rest blended in front of them (sorted by default, or GES's unsorted weighted blend)",
         "trace-mesh" => "our BVH ray tracer on the exported mesh file (GLB or OBJ) as a viewer loads it, compositing every hit in order",
         "trace-gaussian" => "our ray tracer on the Gaussians themselves (3DGRT-style), no mesh in between",

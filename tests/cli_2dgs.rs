@@ -1,0 +1,258 @@
+//! 2DGS surfel files through the CLI: `render` picks 2D Gaussian Splatting's rasterizer for
+//! them (`--model auto`) and draws the same image as the library; `--model 3dgs` forces 3DGS
+//! splatting; `--model 2dgs` on 3D Gaussians is an exit-2 error; `convert` keeps them 2DGS in a
+//! PLY and makes one fan per surfel in its own plane; `--format ksplat` writes a `.ksplat`.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use glam::{Mat3, Quat, Vec3};
+use splatbridge_scene::ply::{flatten_to_surfels, write_ply_2dgs, ReadOptions};
+use splatbridge_scene::rng::Rng;
+use splatbridge_scene::GaussianCloud;
+
+fn run(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_splatbridge"))
+        .args(args)
+        .output()
+        .expect("run splatbridge")
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// 300 surfels in a unit box (3D Gaussians flattened), SH degree 1.
+fn surfel_file(dir: &Path) -> (PathBuf, GaussianCloud) {
+    let mut rng = Rng::new(3);
+    let mut c = GaussianCloud::new(1);
+    for _ in 0..300 {
+        let sh: Vec<Vec3> = (0..4)
+            .map(|k| {
+                Vec3::new(rng.normal(), rng.normal(), rng.normal()) * if k == 0 { 1.0 } else { 0.2 }
+            })
+            .collect();
+        c.push(
+            Vec3::new(
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+            ),
+            Vec3::new(
+                rng.range(-4.0, -2.0),
+                rng.range(-4.0, -2.0),
+                rng.range(-6.0, -4.0),
+            ),
+            Quat::from_xyzw(rng.normal(), rng.normal(), rng.normal(), rng.normal()),
+            rng.range(-1.0, 4.0),
+            &sh,
+        );
+    }
+    let c = flatten_to_surfels(&c);
+    let p = dir.join("surfels.ply");
+    write_ply_2dgs(&p, &c).unwrap();
+    (p, c)
+}
+
+fn stdout(o: &Output) -> String {
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+#[test]
+fn render_picks_the_2dgs_rasterizer_for_2dgs_files() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (p, cloud) = surfel_file(tmp.path());
+    let png = tmp.path().join("auto.png");
+    let out = stdout(&run(&[
+        "render",
+        s(&p),
+        "--camera",
+        "orbit:4:1",
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "-o",
+        s(&png),
+    ]));
+    assert!(out.contains("(2dgs)"), "{out}");
+    // The CLI's image is the library's 2DGS image (EXR keeps the floats).
+    let cam = splatbridge_scene::camera::OrbitRig {
+        width: 64,
+        height: 48,
+        ..Default::default()
+    }
+    .camera(&cloud, 4, 1)
+    .unwrap();
+    let (want, _) =
+        splatbridge_hybrid::surfel2d::render_surfels(&cloud, &cam, &Default::default()).unwrap();
+    let lib = tmp.path().join("lib.png");
+    splatbridge_scene::image_io::save_frame(&lib, &want).unwrap();
+    let load = |p: &Path| splatbridge_scene::image_io::load_png(p).unwrap();
+    assert!(
+        load(&png).rgb == load(&lib).rgb,
+        "the CLI's 2DGS image is not the library's"
+    );
+    // --model 3dgs forces 3DGS splatting: a different image.
+    let png3 = tmp.path().join("g3.png");
+    let out = stdout(&run(&[
+        "render",
+        s(&p),
+        "--camera",
+        "orbit:4:1",
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--model",
+        "3dgs",
+        "-o",
+        s(&png3),
+    ]));
+    assert!(out.contains("(3dgs)"), "{out}");
+    assert!(
+        load(&png3).rgb != load(&lib).rgb,
+        "--model 3dgs drew the 2DGS image"
+    );
+}
+
+#[test]
+fn model_2dgs_on_3d_gaussians_is_an_error() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (p, cloud) = surfel_file(tmp.path());
+    let g = tmp.path().join("g.ply");
+    splatbridge_scene::ply::write_ply(&g, &cloud, Default::default()).unwrap();
+    let o = run(&[
+        "render",
+        s(&g),
+        "--camera",
+        "orbit:4:0",
+        "--width",
+        "32",
+        "--height",
+        "24",
+        "--model",
+        "2dgs",
+        "-o",
+        s(&tmp.path().join("x.png")),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("--model 2dgs") && err.contains("3D Gaussians"),
+        "{err}"
+    );
+    assert!(!tmp.path().join("x.png").exists());
+    let _ = p;
+}
+
+#[test]
+fn convert_keeps_2dgs_surfels_and_fans_lie_in_their_plane() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (p, cloud) = surfel_file(tmp.path());
+    // A PLY of 2DGS input stays a 2DGS PLY, bit for bit.
+    let out = tmp.path().join("again.ply");
+    stdout(&run(&["convert", s(&p), "-o", s(&out)]));
+    assert_eq!(std::fs::read(&p).unwrap(), std::fs::read(&out).unwrap());
+    // --format ksplat writes a .ksplat whatever the name.
+    let k = tmp.path().join("k.bin");
+    stdout(&run(&["convert", s(&p), "--format", "ksplat", "-o", s(&k)]));
+    let (kc, info) = splatbridge_scene::formats::load_cloud(&k, &ReadOptions::default()).unwrap();
+    assert!(
+        format!("{:?}", info.format).contains("Ksplat"),
+        "{:?}",
+        info.format
+    );
+    assert_eq!(kc.len(), cloud.len());
+    // One fan per surfel, every vertex in its surfel's plane, even where --flat-ratio 0 would
+    // make a 3D Gaussian three fans.
+    let mesh = tmp.path().join("fans.ply");
+    stdout(&run(&[
+        "convert",
+        s(&p),
+        "--mesh",
+        "--profile",
+        "rings",
+        "--flat-ratio",
+        "0",
+        "--segments",
+        "8",
+        "--rings",
+        "2",
+        "-o",
+        s(&mesh),
+    ]));
+    let text = std::fs::read(&mesh).unwrap();
+    let (verts, faces) = read_mesh_ply(&text);
+    let per = verts.len() / cloud.len();
+    assert_eq!(
+        verts.len(),
+        per * cloud.len(),
+        "the same vertex count per surfel"
+    );
+    assert_eq!(faces, (faces / cloud.len()) * cloud.len());
+    let mut checked = 0;
+    for i in 0..cloud.len() {
+        let n = Mat3::from_quat(cloud.unit_rotation(i)).z_axis;
+        let centre = cloud.means[i];
+        let s = cloud.scale(i);
+        for v in &verts[i * per..(i + 1) * per] {
+            let d = *v - centre;
+            // f32 positions of a fan a few σ wide: 1e-5 relative to its size.
+            assert!(
+                d.dot(n).abs() <= 1e-5 * s.x.max(s.y) * 10.0 + 1e-6,
+                "surfel {i}: off its plane by {}",
+                d.dot(n)
+            );
+            checked += 1;
+        }
+    }
+    assert!(checked >= cloud.len() * 9);
+}
+
+/// Vertex positions (x y z, the first three float properties) and face count of a binary
+/// little-endian mesh PLY as `convert --mesh` writes it.
+fn read_mesh_ply(bytes: &[u8]) -> (Vec<Vec3>, usize) {
+    let end = bytes
+        .windows(11)
+        .position(|w| w == b"end_header\n")
+        .unwrap()
+        + 11;
+    let head = String::from_utf8_lossy(&bytes[..end]).into_owned();
+    let mut nv = 0;
+    let mut nf = 0;
+    let mut stride = 0;
+    let mut in_vertex = false;
+    for line in head.lines() {
+        let w: Vec<&str> = line.split_whitespace().collect();
+        match w.as_slice() {
+            ["element", "vertex", n] => {
+                nv = n.parse().unwrap();
+                in_vertex = true;
+            }
+            ["element", "face", n] => {
+                nf = n.parse().unwrap();
+                in_vertex = false;
+            }
+            ["property", t, _] if in_vertex => {
+                stride += match *t {
+                    "float" | "float32" | "uint" | "int" | "uint32" => 4,
+                    "uchar" | "uint8" => 1,
+                    "ushort" => 2,
+                    "double" => 8,
+                    other => panic!("type {other}"),
+                }
+            }
+            _ => {}
+        }
+    }
+    let f = |o: usize| f32::from_le_bytes(bytes[o..o + 4].try_into().unwrap());
+    let verts = (0..nv)
+        .map(|i| {
+            let o = end + i * stride;
+            Vec3::new(f(o), f(o + 4), f(o + 8))
+        })
+        .collect();
+    (verts, nf)
+}
