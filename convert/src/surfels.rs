@@ -277,6 +277,7 @@ pub fn split_scene(
         objects: Vec::with_capacity(scene.objects.len()),
         cameras: scene.cameras.clone(),
         effects: scene.effects.clone(),
+        four_d: None,
     };
     for o in &scene.objects {
         residual

@@ -337,6 +337,9 @@ pub struct DynamicScene {
     pub cameras: Vec<Camera>,
     /// The manifest's `effects` object (validated names; empty when none declared).
     pub effects: serde_json::Map<String, serde_json::Value>,
+    /// A 4D model whose Gaussians at time t replace the static cloud in
+    /// [`DynamicScene::composite`] (`static_gaussians` then holds the model at its start).
+    pub four_d: Option<std::sync::Arc<crate::fourd::FourD>>,
 }
 
 impl DynamicScene {
@@ -352,6 +355,7 @@ impl DynamicScene {
             objects: Vec::new(),
             cameras: Vec::new(),
             effects: serde_json::Map::new(),
+            four_d: None,
         }
     }
 
@@ -365,7 +369,9 @@ impl DynamicScene {
 
     /// Total number of Gaussians (static plus every object's).
     pub fn gaussian_count(&self) -> usize {
-        self.static_gaussians.len()
+        self.four_d
+            .as_ref()
+            .map_or(self.static_gaussians.len(), |m| m.max_count())
             + self
                 .objects
                 .iter()
@@ -383,7 +389,7 @@ impl DynamicScene {
 
     /// True when some object moves (its track is not constant).
     pub fn is_dynamic(&self) -> bool {
-        self.objects.iter().any(|o| !o.track.is_constant())
+        self.four_d.is_some() || self.objects.iter().any(|o| !o.track.is_constant())
     }
 
     /// Every object's pose at time `t`, in object order.
@@ -433,7 +439,7 @@ impl DynamicScene {
     /// a camera, statistics): a scene without objects lends its static cloud (which carries no
     /// object ids) instead of copying it, a multi-gigabyte copy at 10 M Gaussians.
     pub fn composite_view(&self, t: f64) -> std::borrow::Cow<'_, GaussianCloud> {
-        if self.objects.is_empty() {
+        if self.objects.is_empty() && self.four_d.is_none() {
             std::borrow::Cow::Borrowed(&self.static_gaussians)
         } else {
             std::borrow::Cow::Owned(self.composite(t))
@@ -444,7 +450,7 @@ impl DynamicScene {
     /// static cloud instead of copying it (the same values and ids), so loading a file and
     /// writing it elsewhere holds one cloud, not two.
     pub fn into_composite(self, t: f64) -> GaussianCloud {
-        if !self.objects.is_empty() {
+        if !self.objects.is_empty() || self.four_d.is_some() {
             return self.composite(t);
         }
         let mut out = self.static_gaussians;
@@ -455,6 +461,14 @@ impl DynamicScene {
     /// [`DynamicScene::composite`] into an existing cloud, reusing its allocations (per-frame
     /// loops over large scenes avoid re-faulting hundreds of megabytes each frame).
     pub fn composite_into(&self, t: f64, out: &mut GaussianCloud) {
+        if let Some(m) = &self.four_d {
+            // A frame file that changed after the sequence was opened cannot be read: the
+            // frame is then empty (nothing drawn) rather than stale.
+            *out = m.sample(t).unwrap_or_default();
+            let n = out.len();
+            out.object_ids = Some(vec![0; n]);
+            return;
+        }
         let n = self.gaussian_count();
         out.means.clear();
         out.log_scales.clear();

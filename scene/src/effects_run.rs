@@ -218,6 +218,7 @@ pub fn build_blur_frames(
                 objects: vec![o.clone()],
                 cameras: Vec::new(),
                 effects: serde_json::Map::new(),
+                four_d: None,
             })
         })
         .collect();

@@ -249,6 +249,7 @@ fn one_object_scene() -> DynamicScene {
         }],
         cameras: vec![],
         effects: Default::default(),
+        four_d: None,
     }
 }
 

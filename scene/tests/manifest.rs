@@ -73,6 +73,7 @@ fn small_scene() -> DynamicScene {
         ],
         cameras: vec![cam],
         effects,
+        four_d: None,
     }
 }
 
