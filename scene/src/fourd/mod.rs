@@ -245,7 +245,7 @@ impl Displacement {
 /// The frame shown at `t`: `floor(t·fps)` with a nanosecond of slack (so `i/fps` computed in
 /// f64 lands on frame i), clamped to `[0, n−1]`; a NaN time is frame 0.
 pub fn frame_index(t: f64, fps: f64, n: usize) -> usize {
-    if n == 0 || !(t > 0.0) || !(fps > 0.0) {
+    if n == 0 || t.is_nan() || t <= 0.0 || fps.is_nan() || fps <= 0.0 {
         return 0;
     }
     let f = (t * fps + 1e-6).floor();

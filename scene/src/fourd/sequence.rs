@@ -125,7 +125,8 @@ impl Sequence {
         let files: Vec<PathBuf> = names.iter().map(|n| dir.join(n)).collect();
         let counts = files
             .iter()
-            .map(|f| frame_count(f))
+            .map(PathBuf::as_path)
+            .map(frame_count)
             .collect::<Result<Vec<_>>>()?;
         Ok(Sequence {
             files,

@@ -114,7 +114,7 @@ pub fn spacetime_header(head: &[u8]) -> Option<bool> {
     if !(has("trbf_center") && has("trbf_scale")) {
         return None;
     }
-    Some(has("f_dc_8") || !has("omega_0") && has("f_dc_3"))
+    Some(has("f_dc_8") || (!has("omega_0") && has("f_dc_3")))
 }
 
 fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
@@ -122,7 +122,7 @@ fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
 }
 
 /// Properties of the lite layout, in the order the values are gathered.
-const NAMES: [&str; 33] = [
+const NAMES: [&str; USED] = [
     "x",
     "y",
     "z",
@@ -152,10 +152,6 @@ const NAMES: [&str; 33] = [
     "omega_1",
     "omega_2",
     "omega_3",
-    "",
-    "",
-    "",
-    "",
 ];
 const USED: usize = 29;
 
@@ -187,7 +183,7 @@ pub fn read_spacetime_ply(path: &Path) -> Result<SpacetimeModel> {
         }
     };
     let mut slots = Vec::with_capacity(USED);
-    for name in &NAMES[..USED] {
+    for name in &NAMES {
         let p = prop(name).ok_or_else(|| {
             err(format!(
                 "SpacetimeGaussians lite PLY has no vertex property '{name}'"
