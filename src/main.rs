@@ -7,7 +7,9 @@ macro_rules! scene_formats {
     () => {
         "a 3DGS PLY (also 2DGS, Mip-Splatting and red-green-blue point PLYs), a compressed PLY, \
          .splat, .spz, .ksplat, SOG (a folder's meta.json or a .sog zip), \
-         glTF/GLB with KHR_gaussian_splatting, or a splatbridge-scene/1 manifest (JSON)"
+         glTF/GLB with KHR_gaussian_splatting, a splatbridge-scene/1 manifest (JSON), or a 4D \
+         model (SpacetimeGaussians lite PLY, .splatv, Dynamic3DGaussians params.npz, or a folder \
+         or pattern of numbered frame PLYs)"
     };
 }
 
@@ -24,6 +26,16 @@ use clap::{Parser, Subcommand};
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Frame rate of 4D inputs: frame i of a params.npz or a numbered frame sequence is at
+    /// i/fps seconds; continuous models (SpacetimeGaussians, .splatv) are sampled at this rate
+    /// over their [0, 1] time range.
+    #[arg(long, global = true, value_name = "FPS", default_value_t = 30.0, value_parser = parse_fps)]
+    fps: f64,
+}
+
+fn parse_fps(s: &str) -> Result<f64, String> {
+    let v: f64 = s.parse().map_err(|e| format!("{e}"))?;
+    splatbridge_scene::fourd::check_fps(v)
 }
 
 #[derive(Subcommand)]
@@ -109,6 +121,8 @@ fn stdout_failure(err: &str) -> i32 {
 fn main() {
     install_stdout_hook();
     let cli = Cli::parse();
+    // Checked by the parser already; a failure here cannot happen.
+    let _ = splatbridge_scene::fourd::set_frame_rate(cli.fps);
     let result = match cli.command {
         Command::Info(a) => cmd::info::run(a),
         Command::Fixture(a) => cmd::fixture::run(a),

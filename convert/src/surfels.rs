@@ -279,6 +279,7 @@ pub fn split_scene(
         frames: Vec::new(),
         cameras: scene.cameras.clone(),
         effects: scene.effects.clone(),
+        four_d: None,
     };
     for o in &scene.objects {
         residual

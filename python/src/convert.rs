@@ -214,7 +214,11 @@ fn convert<'py>(
                     path.display()
                 );
             }
-            let c = req.write_cloud(owned.unwrap_or_else(|| sc.clone()), format)?;
+            let c = req.write_cloud(
+                owned.unwrap_or_else(|| sc.clone()),
+                format,
+                splatbridge_scene::ply::GaussianKind::default(),
+            )?;
             return Ok(serde_json::json!({
                 "format": c.format,
                 "gaussians": c.gaussians,
@@ -224,7 +228,10 @@ fn convert<'py>(
             })
             .to_string());
         }
-        let mut opts = req.mesh_options(owned.as_ref().unwrap_or(sc))?;
+        let mut opts = req.mesh_options(
+            owned.as_ref().unwrap_or(sc),
+            splatbridge_scene::ply::GaussianKind::default(),
+        )?;
         if let Some(d) = &fit {
             let s = owned.get_or_insert_with(|| sc.clone());
             distill_export(s, &mut opts, &d.views, &d.options, |_| cancel.check())

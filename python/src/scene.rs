@@ -343,11 +343,19 @@ fn save(
     run(py, |_| {
         let version = spz_version.unwrap_or(splatbridge_scene::formats::spz::WRITE_VERSION);
         if let Some(format) = cloud_format(&path, None, true, version, 1)? {
-            return Ok(write_cloud_export(sc.clone(), &path, format, time, None)?.bytes);
+            return Ok(write_cloud_export(
+                sc.clone(),
+                &path,
+                format,
+                time,
+                None,
+                splatbridge_scene::ply::GaussianKind::default(),
+            )?
+            .bytes);
         }
         if splatbridge::pipeline::export::is_gltf(&path) {
             let req = crate::convert::request(sc, name, &path, true, None, None, None)?;
-            let opts = req.mesh_options(sc)?;
+            let opts = req.mesh_options(sc, splatbridge_scene::ply::GaussianKind::default())?;
             req.export(sc, &opts)?;
             return Ok(std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0));
         }

@@ -293,6 +293,7 @@ fn a_moving_object_darkens_what_lies_behind_it_towards_the_sun() {
         frames: Vec::new(),
         cameras: Vec::new(),
         effects: serde_json::Map::new(),
+        four_d: None,
     };
     let shadows = Shadows {
         sun_direction: [1.0, -1.0, 0.0],

@@ -348,6 +348,9 @@ pub struct DynamicScene {
     pub cameras: Vec<Camera>,
     /// The manifest's `effects` object (validated names; empty when none declared).
     pub effects: serde_json::Map<String, serde_json::Value>,
+    /// A 4D model whose Gaussians at time t replace the static cloud in
+    /// [`DynamicScene::composite`] (`static_gaussians` then holds the model at its start).
+    pub four_d: Option<std::sync::Arc<crate::fourd::FourD>>,
 }
 
 impl DynamicScene {
@@ -364,6 +367,7 @@ impl DynamicScene {
             frames: Vec::new(),
             cameras: Vec::new(),
             effects: serde_json::Map::new(),
+            four_d: None,
         }
     }
 
@@ -377,7 +381,9 @@ impl DynamicScene {
 
     /// Total number of Gaussians (static plus every object's), without per-frame content.
     pub fn gaussian_count(&self) -> usize {
-        self.static_gaussians.len()
+        self.four_d
+            .as_ref()
+            .map_or(self.static_gaussians.len(), |m| m.max_count())
             + self
                 .objects
                 .iter()
@@ -412,7 +418,9 @@ impl DynamicScene {
 
     /// True when some object moves (its track is not constant) or there is per-frame content.
     pub fn is_dynamic(&self) -> bool {
-        self.objects.iter().any(|o| !o.track.is_constant()) || self.frames.len() > 1
+        self.four_d.is_some()
+            || self.objects.iter().any(|o| !o.track.is_constant())
+            || self.frames.len() > 1
     }
 
     /// Every object's pose at time `t`, in object order.
@@ -482,7 +490,7 @@ impl DynamicScene {
     /// a camera, statistics): a scene without objects lends its static cloud (which carries no
     /// object ids) instead of copying it, a multi-gigabyte copy at 10 M Gaussians.
     pub fn composite_view(&self, t: f64) -> std::borrow::Cow<'_, GaussianCloud> {
-        if self.objects.is_empty() && self.frames.is_empty() {
+        if self.objects.is_empty() && self.frames.is_empty() && self.four_d.is_none() {
             std::borrow::Cow::Borrowed(&self.static_gaussians)
         } else {
             std::borrow::Cow::Owned(self.composite(t))
@@ -493,7 +501,7 @@ impl DynamicScene {
     /// static cloud instead of copying it (the same values and ids), so loading a file and
     /// writing it elsewhere holds one cloud, not two.
     pub fn into_composite(self, t: f64) -> GaussianCloud {
-        if !self.objects.is_empty() || !self.frames.is_empty() {
+        if !self.objects.is_empty() || !self.frames.is_empty() || self.four_d.is_some() {
             return self.composite(t);
         }
         let mut out = self.static_gaussians;
@@ -504,6 +512,14 @@ impl DynamicScene {
     /// [`DynamicScene::composite`] into an existing cloud, reusing its allocations (per-frame
     /// loops over large scenes avoid re-faulting hundreds of megabytes each frame).
     pub fn composite_into(&self, t: f64, out: &mut GaussianCloud) {
+        if let Some(m) = &self.four_d {
+            // A frame file that changed after the sequence was opened cannot be read: the
+            // frame is then empty (nothing drawn) rather than stale.
+            *out = m.sample(t).unwrap_or_default();
+            let n = out.len();
+            out.object_ids = Some(vec![0; n]);
+            return;
+        }
         let n = self.gaussian_count_at(t);
         out.means.clear();
         out.log_scales.clear();

@@ -219,6 +219,7 @@ pub fn build_blur_frames(
                 frames: Vec::new(),
                 cameras: Vec::new(),
                 effects: serde_json::Map::new(),
+                four_d: None,
             })
         })
         .collect();

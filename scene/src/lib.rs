@@ -15,6 +15,7 @@ pub mod effects_run;
 pub mod error;
 pub mod fixtures;
 pub mod formats;
+pub mod fourd;
 pub mod frame;
 pub mod gaussians;
 pub mod image_io;

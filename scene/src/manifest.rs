@@ -414,6 +414,7 @@ pub fn load_manifest(path: &Path, opts: &ReadOptions) -> Result<(DynamicScene, V
         frames,
         cameras,
         effects: m.effects,
+        four_d: None,
     };
     scene.validate().map_err(|e| bad(path, e.to_string()))?;
     Ok((scene, warnings))

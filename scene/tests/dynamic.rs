@@ -250,6 +250,7 @@ fn one_object_scene() -> DynamicScene {
         frames: Vec::new(),
         cameras: vec![],
         effects: Default::default(),
+        four_d: None,
     }
 }
 

@@ -74,6 +74,7 @@ fn small_scene() -> DynamicScene {
         frames: Vec::new(),
         cameras: vec![cam],
         effects,
+        four_d: None,
     }
 }
 

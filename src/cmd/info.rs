@@ -119,6 +119,36 @@ fn print_text(v: &Value) {
         u["tiny_log_scales"],
         u["invalid"]
     );
+    if let Some(f) = v.get("four_d") {
+        let t = &f["time"];
+        println!(
+            "4D          {}: {} s to {} s, {} frames at {} fps; at most {} Gaussians{}",
+            f["form"].as_str().unwrap_or("?"),
+            t["start"],
+            t["end"],
+            t["frames"],
+            t["fps"],
+            f["max_gaussians"],
+            if f["same_count"] == true {
+                " in every frame"
+            } else {
+                " (counts vary by frame)"
+            }
+        );
+        let d = &f["displacement"];
+        if d.is_null() {
+            println!("motion      - (frames differ in count: no per-Gaussian trajectories)");
+        } else {
+            println!(
+                "motion      per-Gaussian largest displacement from the start: median {:.4e}, p95 {:.4e}, max {:.4e}; {:.1} % move more than 1 % of the extent {:.4e}",
+                d["median"].as_f64().unwrap_or(f64::NAN),
+                d["p95"].as_f64().unwrap_or(f64::NAN),
+                d["max"].as_f64().unwrap_or(f64::NAN),
+                100.0 * d["moving_fraction"].as_f64().unwrap_or(f64::NAN),
+                d["extent"].as_f64().unwrap_or(f64::NAN)
+            );
+        }
+    }
     if v["kind"] == "manifest" {
         let t = &v["time"];
         println!(

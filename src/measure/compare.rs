@@ -66,7 +66,7 @@ pub fn scene_cameras(
 
 /// The default times: the start of a static scene; start, middle and end of a dynamic one.
 pub fn default_times(scene: &DynamicScene) -> Vec<f64> {
-    if scene.objects.is_empty() {
+    if scene.objects.is_empty() && scene.four_d.is_none() {
         vec![scene.time.start]
     } else {
         let (a, b) = (scene.time.start, scene.time.end);

@@ -147,7 +147,31 @@ pub fn describe(file: &Path, scene: &DynamicScene, info: &LoadInfo) -> Value {
             json!(scene.effects.keys().collect::<Vec<_>>()),
         );
     }
+    if let Some(m) = &scene.four_d {
+        obj.insert("four_d".into(), four_d(m));
+    }
     out
+}
+
+/// What `info` reports of a 4D model: its time axis, counts and how far the Gaussians move
+/// (read frame by frame; for a continuous model, at its `fps` samples).
+fn four_d(m: &splatbridge_scene::fourd::FourD) -> Value {
+    let r = m.time_range();
+    let moved = match m.displacement() {
+        Ok(Some(d)) => json!({
+            "median": d.median, "p95": d.p95, "max": d.max,
+            "moving_fraction": d.moving_fraction, "extent": d.extent,
+        }),
+        Ok(None) => Value::Null,
+        Err(e) => json!({ "error": e.to_string() }),
+    };
+    json!({
+        "form": m.form.name(),
+        "time": {"start": r.start, "end": r.end, "fps": r.fps, "frames": m.frame_count()},
+        "max_gaussians": m.max_count(),
+        "same_count": m.same_count(),
+        "displacement": moved,
+    })
 }
 
 #[cfg(test)]

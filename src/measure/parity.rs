@@ -352,7 +352,7 @@ pub fn compare_selected(
     if items.is_empty() {
         return Ok(placed);
     }
-    let dynamic = !scene.objects.is_empty();
+    let dynamic = !scene.objects.is_empty() || scene.four_d.is_some();
     let tag = |ti: usize, ci: usize| format!("c{ci}_t{:.2}", times[ti]);
     let slot = |ti: usize, ci: usize| ti * cams.len() + ci;
     let named = |renderer: &str, ms: f64| Record {

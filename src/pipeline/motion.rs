@@ -103,6 +103,7 @@ pub fn frames_scene(
         bail!("no frames");
     };
     let scene = DynamicScene {
+        four_d: None,
         time: TimeRange { start, end, fps },
         static_gaussians: GaussianCloud::new(0),
         objects: Vec::new(),

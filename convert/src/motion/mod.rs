@@ -409,6 +409,7 @@ impl Decomposition {
                 .collect()
         };
         let scene = DynamicScene {
+            four_d: None,
             time: TimeRange {
                 start: times[0],
                 end: times[nf - 1],

@@ -64,6 +64,8 @@ pub enum SplatFormat {
     Ksplat { level: u8 },
     /// A `splatbridge-scene/1` manifest.
     Manifest,
+    /// A 4D model (Gaussians that change with time): see [`crate::fourd`].
+    FourD(crate::fourd::FourDForm),
 }
 
 impl fmt::Display for SplatFormat {
@@ -89,6 +91,7 @@ impl fmt::Display for SplatFormat {
             }
             SplatFormat::Ksplat { level } => write!(f, ".ksplat (GaussianSplats3D, level {level})"),
             SplatFormat::Manifest => write!(f, "splatbridge-scene/1 manifest"),
+            SplatFormat::FourD(form) => write!(f, "{} (4D)", form.name()),
         }
     }
 }
@@ -106,6 +109,10 @@ impl SplatFormat {
             SplatFormat::Gltf { binary: false, .. } => "gltf",
             SplatFormat::Ksplat { .. } => "ksplat",
             SplatFormat::Manifest => "manifest",
+            SplatFormat::FourD(crate::fourd::FourDForm::SpacetimeLite) => "spacetime-ply",
+            SplatFormat::FourD(crate::fourd::FourDForm::Splatv) => "splatv",
+            SplatFormat::FourD(crate::fourd::FourDForm::Npz) => "npz",
+            SplatFormat::FourD(crate::fourd::FourDForm::Sequence) => "ply-sequence",
         }
     }
 
@@ -169,6 +176,11 @@ impl SplatFormat {
                  opacity and SH 8-bit (SH over the file's range)"
             }
             SplatFormat::Manifest => "as stored by each referenced file",
+            SplatFormat::FourD(crate::fourd::FourDForm::Splatv) => {
+                "positions float32; rotations, scales, motion, rotation velocity and temporal \
+                 centre and width float16; colour and opacity 8-bit"
+            }
+            SplatFormat::FourD(_) => "lossless: the model's float values, evaluated at each time",
         }
     }
 }
@@ -246,12 +258,18 @@ fn head(path: &Path) -> Result<(Vec<u8>, u64)> {
 /// a gzip file, at most the first 16 decompressed bytes). The extension only breaks ties
 /// where content cannot: JSON that is neither glTF nor SOG is taken for a manifest.
 pub fn detect(path: &Path) -> Result<SplatFormat> {
+    if crate::fourd::is_sequence_spec(path) {
+        return Ok(SplatFormat::FourD(crate::fourd::FourDForm::Sequence));
+    }
     let (buf, len) = head(path)?;
     detect_bytes(path, &buf, len)
 }
 
 fn detect_bytes(path: &Path, buf: &[u8], len: u64) -> Result<SplatFormat> {
     if buf.starts_with(b"ply\n") || buf.starts_with(b"ply\r\n") {
+        if crate::fourd::spacetime::spacetime_header(buf).is_some() {
+            return Ok(SplatFormat::FourD(crate::fourd::FourDForm::SpacetimeLite));
+        }
         return Ok(if compressed_ply::looks_compressed(buf) {
             SplatFormat::CompressedPly
         } else {
@@ -268,6 +286,12 @@ fn detect_bytes(path: &Path, buf: &[u8], len: u64) -> Result<SplatFormat> {
             .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
             .ok_or_else(|| SceneError::format(path, "SPZ header truncated"))?;
         return Ok(SplatFormat::Spz { version });
+    }
+    if crate::fourd::splatv::plausible(buf) {
+        return Ok(SplatFormat::FourD(crate::fourd::FourDForm::Splatv));
+    }
+    if crate::fourd::npz::plausible(buf) {
+        return Ok(SplatFormat::FourD(crate::fourd::FourDForm::Npz));
     }
     if buf.starts_with(b"PK\x03\x04") {
         return Ok(SplatFormat::Sog {
@@ -353,7 +377,8 @@ fn detect_bytes(path: &Path, buf: &[u8], len: u64) -> Result<SplatFormat> {
         path,
         format!(
             "not a splat file this tool reads (3DGS or compressed PLY, .splat, .ksplat, SPZ, \
-             SOG, glTF/GLB, manifest); first bytes: {shown}"
+             SOG, glTF/GLB, manifest, SpacetimeGaussians PLY, .splatv, params.npz, frame \
+             sequence); first bytes: {shown}"
         ),
     ))
 }
@@ -422,6 +447,10 @@ pub fn load(path: &Path, opts: &ReadOptions) -> Result<(DynamicScene, LoadInfo)>
             info.warnings.append(&mut report.warnings);
             scene
         }
+        SplatFormat::FourD(form) => {
+            let model = crate::fourd::load(path, form, crate::fourd::frame_rate())?;
+            crate::fourd::into_scene(model)?
+        }
         _ => {
             let (cloud, warnings) = read_single(path, &mut info.format, &mut info.kind, opts)?;
             info.warnings = warnings;
@@ -457,6 +486,15 @@ pub fn load_cloud(path: &Path, opts: &ReadOptions) -> Result<(GaussianCloud, Loa
                 ));
             }
             cloud
+        }
+        SplatFormat::FourD(form) => {
+            let model = crate::fourd::load(path, form, crate::fourd::frame_rate())?;
+            let start = model.time_range().start;
+            info.warnings.push(format!(
+                "{} sampled at t = {start} into one cloud",
+                form.name()
+            ));
+            model.sample(start)?
         }
         _ => {
             let (cloud, warnings) = read_single(path, &mut info.format, &mut info.kind, opts)?;
@@ -500,7 +538,7 @@ fn read_single(
             };
             (cloud, Vec::new())
         }
-        SplatFormat::Gltf { .. } | SplatFormat::Manifest => {
+        SplatFormat::Gltf { .. } | SplatFormat::Manifest | SplatFormat::FourD(_) => {
             return Err(SceneError::format(path, "not a single-cloud format"))
         }
     };

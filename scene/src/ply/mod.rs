@@ -39,7 +39,7 @@
 
 mod ascii;
 mod binary;
-mod header;
+pub(crate) mod header;
 mod point_defaults;
 mod stream;
 mod surfels2d;

@@ -84,7 +84,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         return Ok(());
     }
     let req = args.request()?;
-    let opts = req.mesh_options(&scene)?;
+    let opts = req.mesh_options(&scene, splatbridge_scene::ply::GaussianKind::default())?;
     let (mut conv, _) = req.export(&scene, &opts)?;
     conv.seconds = t0.elapsed().as_secs_f64();
     if args.json {
