@@ -29,7 +29,10 @@ def test_save_glb_is_convert_splats(small, tmp_path):
 @pytest.mark.parametrize("profile,ext", [(None, ".glb"), ("rings", ".glb"), ("meshsplats", ".obj"), ("rings", ".ply")])
 def test_convert_writes_the_clis_meshes(small, tmp_path, profile, ext):
     scene = splatbridge.load(str(small))
-    ours, theirs = tmp_path / f"py{ext}", tmp_path / f"cli{ext}"
+    # One name in two folders: an OBJ names its .mtl.
+    (tmp_path / "py").mkdir()
+    (tmp_path / "cli").mkdir()
+    ours, theirs = tmp_path / "py" / f"out{ext}", tmp_path / "cli" / f"out{ext}"
     report = splatbridge.convert(scene, ours, profile=profile)
     args = ["convert", small, "-o", theirs, "--json"] + (["--profile", profile] if profile else [])
     expected = json.loads(cli(*args).stdout)
