@@ -554,7 +554,7 @@ pub fn save_manifest(dir: &Path, scene: &DynamicScene) -> Result<SavedScene> {
         let p = dir.join(&name);
         if k == 0 {
             std::fs::create_dir_all(dir.join("frames"))
-                .map_err(|e| SceneError::io(&dir.join("frames"), e))?;
+                .map_err(|e| SceneError::io(dir.join("frames"), e))?;
         }
         stage_ply(&mut set, &p, &f.gaussians, PlyFormat::BinaryLittleEndian)?;
         files.push(p);

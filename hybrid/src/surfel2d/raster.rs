@@ -44,6 +44,9 @@ pub fn surfel_alpha(s: &SurfelSplat, x: f64, y: f64, alpha_clamp: f64) -> Option
     Some((alpha, depth))
 }
 
+/// One blended pixel of a tile: `(rgb, alpha, depth)`.
+type TilePixel = ([f32; 3], f32, f32);
+
 /// Blend one tile (top-left pixel `(px0, py0)`, `cols × rows` pixels) and write its pixels
 /// into `out` (`(rgb, alpha, depth)` per tile pixel, row-major). Returns the blend count.
 fn blend_tile(
@@ -52,7 +55,7 @@ fn blend_tile(
     (px0, py0, cols, rows): (usize, usize, usize, usize),
     alpha_clamp: f64,
     background: [f32; 3],
-    out: &mut Vec<([f32; 3], f32, f32)>,
+    out: &mut Vec<TilePixel>,
 ) -> u64 {
     let mut blends = 0u64;
     out.clear();
@@ -103,7 +106,7 @@ pub fn rasterize(
     let gy = height.div_ceil(TILE) as usize;
     let mut order: Vec<usize> = (0..gx * gy).collect();
     order.sort_by_key(|&k| Reverse(bins.tile(k).len()));
-    let tiles: Vec<(usize, Vec<([f32; 3], f32, f32)>, u64)> = order
+    let tiles: Vec<(usize, Vec<TilePixel>, u64)> = order
         .into_par_iter()
         .with_max_len(1)
         .map(|k| {

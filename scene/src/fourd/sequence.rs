@@ -54,11 +54,14 @@ fn numbered(name: &str) -> Option<(&str, u64, &str)> {
     Some((prefix, num.parse().ok()?, ext))
 }
 
+/// Which file names of a folder belong to the sequence.
+type NameMatcher = Box<dyn Fn(&str) -> bool>;
+
 impl Sequence {
     /// Find the frames `spec` names and read their headers.
     pub fn open(spec: &Path) -> Result<Sequence> {
         let err = |what: String| SceneError::format(spec, what);
-        let (dir, matcher): (PathBuf, Box<dyn Fn(&str) -> bool>) = if spec.is_dir() {
+        let (dir, matcher): (PathBuf, NameMatcher) = if spec.is_dir() {
             (
                 spec.to_path_buf(),
                 Box::new(|n: &str| {
