@@ -55,7 +55,7 @@ enum Command {
     Render(cmd::render::Args),
     /// Convert Gaussians to triangle meshes (GLB/glTF/OBJ/PLY) or native glTF splats.
     #[command(after_help = "Example:\n  splatbridge convert scene.ply --profile rings -o out.glb")]
-    Convert(cmd::convert::Args),
+    Convert(Box<cmd::convert::Args>),
     /// Ray-trace an exported file (or a scene converted in memory) with a BVH.
     #[command(after_help = "Example:\n  splatbridge trace out.glb --camera scene:0 -o traced.png")]
     Trace(cmd::trace::Args),
@@ -127,7 +127,7 @@ fn main() {
         Command::Info(a) => cmd::info::run(a),
         Command::Fixture(a) => cmd::fixture::run(a),
         Command::Render(a) => cmd::render::run(a),
-        Command::Convert(a) => cmd::convert::run(a),
+        Command::Convert(a) => cmd::convert::run(*a),
         Command::Trace(a) => cmd::trace::run(a),
         Command::Hybrid(a) => cmd::hybrid::run(a),
         Command::Compare(a) => cmd::compare::run(a),

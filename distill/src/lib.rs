@@ -612,7 +612,7 @@ impl Distiller {
             if let Some(p) = self.history.last() {
                 on_step(p);
             }
-            if self.history.len() % guard::EVERY == 0 {
+            if self.history.len().is_multiple_of(guard::EVERY) {
                 self.validate()?;
             }
         }

@@ -203,7 +203,7 @@ pub fn worst_and_median(x: &[f64]) -> Option<(f64, f64)> {
     }
     v.sort_by(f64::total_cmp);
     let m = v.len() / 2;
-    let median = if v.len() % 2 == 0 {
+    let median = if v.len().is_multiple_of(2) {
         0.5 * (v[m - 1] + v[m])
     } else {
         v[m]

@@ -292,7 +292,7 @@ pub fn held_back_classes(
                 let d = if step % 2 == 0 {
                     step / 2
                 } else {
-                    -(step as i64 + 1) / 2
+                    -(step + 1) / 2
                 };
                 let az = base + d as f64;
                 let probe = f.camera(f.direction(el, az), factor, 8, 6)?;

@@ -264,7 +264,7 @@ fn close_up_and_grazing_surfels_match() {
             rng.range(0.0, 90.0)
         };
         // Normal nearly perpendicular to the view ray for the grazing ones.
-        let q = Quat::from_rotation_y(rng.range(0.0, 6.28))
+        let q = Quat::from_rotation_y(rng.range(0.0, std::f32::consts::TAU))
             * Quat::from_rotation_x((90.0 - tilt).to_radians());
         c.push_activated(
             mean,
