@@ -192,12 +192,25 @@ fn convert_keeps_2dgs_surfels_and_fans_lie_in_their_plane() {
         "the same vertex count per surfel"
     );
     assert_eq!(faces, (faces / cloud.len()) * cloud.len());
+    // The export may order its fans otherwise than the file (chunks): each fan is matched to
+    // the surfel whose centre is nearest the fan's centroid (a ring fan is symmetric about its
+    // centre, so the centroid is the centre to f32 rounding).
     let mut checked = 0;
-    for i in 0..cloud.len() {
+    let mut matched = vec![false; cloud.len()];
+    for fan in verts.chunks(per) {
+        let centroid = fan.iter().copied().sum::<Vec3>() / fan.len() as f32;
+        let i = (0..cloud.len())
+            .min_by(|&a, &b| {
+                let da = (cloud.means[a] - centroid).length_squared();
+                let db = (cloud.means[b] - centroid).length_squared();
+                da.total_cmp(&db)
+            })
+            .unwrap();
+        matched[i] = true;
         let n = Mat3::from_quat(cloud.unit_rotation(i)).z_axis;
         let centre = cloud.means[i];
         let s = cloud.scale(i);
-        for v in &verts[i * per..(i + 1) * per] {
+        for v in fan {
             let d = *v - centre;
             // f32 positions of a fan a few σ wide: 1e-5 relative to its size.
             assert!(
@@ -208,6 +221,7 @@ fn convert_keeps_2dgs_surfels_and_fans_lie_in_their_plane() {
             checked += 1;
         }
     }
+    assert!(matched.iter().all(|&m| m), "every surfel has its own fan");
     assert!(checked >= cloud.len() * 9);
 }
 

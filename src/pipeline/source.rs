@@ -160,8 +160,9 @@ impl TraceSource {
             Some(c) => c,
             None => self
                 .camera
+                // Framed on the scene at its start, as stills are: one camera at every time.
                 .resolve(CameraSource {
-                    cloud: &scene.composite_view(self.time),
+                    cloud: &scene.composite_view(scene.time.start),
                     own: &scene.cameras,
                 })
                 .with_context(|| name.clone())?,

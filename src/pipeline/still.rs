@@ -65,7 +65,9 @@ impl Still {
             vec![time.unwrap_or(scene.time.start)]
         };
         let resolve = || -> anyhow::Result<Camera> {
-            let cloud = scene.composite_view(times[0]);
+            // A generated camera (orbit, view) is framed on the scene at its start, so stills
+            // of one scene at several times share one camera and show the motion.
+            let cloud = scene.composite_view(scene.time.start);
             let src = CameraSource {
                 cloud: &cloud,
                 own: &scene.cameras,

@@ -115,11 +115,17 @@ impl Sequence {
             }
         }
         if names.is_empty() {
-            return Err(err(
-                "no frame files found (a folder of name_0001.ply, …, or a pattern such as \
+            // A folder that holds no frames is not a scene at all: say so as every reader
+            // says it of a folder.
+            let what = if spec.is_dir() {
+                "a folder, not a regular file, and no numbered frames in it"
+            } else {
+                "no frame files found"
+            };
+            return Err(err(format!(
+                "{what} (a sequence is a folder of name_0001.ply, …, or a pattern such as \
                  frames/name_*.ply or frames/name_%04d.ply)"
-                    .into(),
-            ));
+            )));
         }
         names.sort_by(|a, b| match (numbered(a), numbered(b)) {
             (Some((pa, na, _)), Some((pb, nb, _))) => (pa, na).cmp(&(pb, nb)),
