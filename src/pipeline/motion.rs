@@ -5,91 +5,68 @@
 //! manifest, a glTF export (objects as animated nodes, per-frame content as nodes switched
 //! by stepped scale keys) and every other command take the result.
 //!
-//! [`read_frame_folder`] reads a folder of numbered frames (`name_0000.ply`, …: any splat
-//! file the loader recognises, numbered in name order) with frame i at i/fps seconds. Other
-//! 4D forms give the same `(frames, times)` to these functions.
+//! [`read_frames`] samples any 4D input the scene crate reads (SpacetimeGaussians PLY,
+//! `.splatv`, `params.npz`, numbered frames) at its frame times and gives the
+//! `(frames, times)` these functions take.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use anyhow::{bail, Context};
+use anyhow::bail;
 use serde::Serialize;
 use splatbridge_convert::motion::{decompose, DecomposeOptions, Decomposition};
 use splatbridge_scene::dynamic::{DynamicScene, FrameContent, TimeRange};
-use splatbridge_scene::ply::ReadOptions;
+use splatbridge_scene::formats::SplatFormat;
+use splatbridge_scene::fourd::Motion;
 use splatbridge_scene::GaussianCloud;
 
-/// Most frames a folder may hold (the scene's own frame limit is far above what memory holds).
-pub const MAX_FOLDER_FRAMES: usize = 100_000;
+/// Most frames a decomposition holds in memory at once: it fits every frame's Gaussians
+/// together, so their count bounds what it allocates.
+pub const MAX_FRAMES: usize = 100_000;
 
-/// The frame files of a folder in frame order: regular files with a splat extension
-/// (`.ply`, `.splat`, `.spz`), ordered by the number at the end of their stem, then by name.
-pub fn frame_files(dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
-    let rd = std::fs::read_dir(dir).with_context(|| dir.display().to_string())?;
-    let mut files: Vec<(u64, String, PathBuf)> = Vec::new();
-    for e in rd {
-        let p = e.with_context(|| dir.display().to_string())?.path();
-        let ext = p
-            .extension()
-            .map(|e| e.to_string_lossy().to_ascii_lowercase())
-            .unwrap_or_default();
-        if !p.is_file() || !matches!(ext.as_str(), "ply" | "splat" | "spz") {
-            continue;
-        }
-        let stem = p
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_default();
-        let digits: String = stem
-            .chars()
-            .rev()
-            .take_while(|c| c.is_ascii_digit())
-            .collect::<Vec<_>>()
-            .into_iter()
-            .rev()
-            .collect();
-        let n = digits.parse::<u64>().unwrap_or(u64::MAX);
-        files.push((n, stem, p));
-        if files.len() > MAX_FOLDER_FRAMES {
-            bail!(
-                "{}: more than {MAX_FOLDER_FRAMES} frame files",
-                dir.display()
-            );
-        }
-    }
-    if files.is_empty() {
-        bail!(
-            "{}: no frame files (.ply, .splat or .spz) in this folder",
-            dir.display()
-        );
-    }
-    files.sort();
-    Ok(files.into_iter().map(|(_, _, p)| p).collect())
-}
-
-/// Read a folder of numbered frames: the frames and their times (i/fps).
-pub fn read_frame_folder(dir: &Path, fps: f64) -> anyhow::Result<(Vec<GaussianCloud>, Vec<f64>)> {
-    if !(fps > 0.0 && fps.is_finite()) {
-        bail!("--fps: {fps} is not a positive frame rate");
-    }
-    let files = frame_files(dir)?;
-    let mut frames = Vec::with_capacity(files.len());
-    for p in &files {
-        let (cloud, _) = splatbridge_scene::formats::load_cloud(p, &ReadOptions::default())?;
-        if let Some(first) = frames.first() {
-            let first: &GaussianCloud = first;
-            if cloud.len() != first.len() {
+/// The frames of any 4D input (SpacetimeGaussians PLY, `.splatv`, `params.npz`, a numbered
+/// frame sequence as a folder or a pattern) and their times: each model sampled at its frame
+/// times (`i/fps`, continuous models at `fps` over their own range), as its reader evaluates
+/// it (`splatbridge_scene::fourd`). `same_count` asks every frame to hold the same Gaussians
+/// in the same order (what finding rigid motion needs); a sequence whose counts differ is
+/// then refused naming the first frame that differs.
+pub fn read_frames(
+    path: &Path,
+    fps: f64,
+    same_count: bool,
+) -> anyhow::Result<(Vec<GaussianCloud>, Vec<f64>)> {
+    let form = match splatbridge_scene::formats::detect(path)? {
+        SplatFormat::FourD(form) => form,
+        other => bail!(
+            "{}: {other} holds no motion: --objects and --frames read a 4D model (SpacetimeGaussians PLY, .splatv, params.npz, numbered frames)",
+            path.display()
+        ),
+    };
+    let model = splatbridge_scene::fourd::load(path, form, fps)?;
+    if same_count {
+        if let Motion::Sequence(seq) = &model.motion {
+            if let Some(i) = (1..seq.counts.len()).find(|&i| seq.counts[i] != seq.counts[0]) {
                 bail!(
                     "{}: {} Gaussians, the first frame ({}) has {}: finding what moves needs the same Gaussians in every frame",
-                    p.display(),
-                    cloud.len(),
-                    files[0].display(),
-                    first.len()
+                    seq.files[i].display(),
+                    seq.counts[i],
+                    seq.files[0].display(),
+                    seq.counts[0]
                 );
             }
         }
-        frames.push(cloud);
     }
-    let times = (0..frames.len()).map(|i| i as f64 / fps).collect();
+    let times = model.frame_times();
+    if times.len() > MAX_FRAMES {
+        bail!(
+            "{}: {} frames, more than the {MAX_FRAMES} a decomposition holds",
+            path.display(),
+            times.len()
+        );
+    }
+    let frames = times
+        .iter()
+        .map(|&t| model.sample(t))
+        .collect::<Result<Vec<_>, _>>()?;
     Ok((frames, times))
 }
 

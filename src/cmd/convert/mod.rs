@@ -81,15 +81,12 @@ pub struct Args {
     /// sequence: one glTF whose per-frame nodes are switched by stepped scale keys.
     #[arg(long)]
     pub frames: bool,
-    /// Find what moves in a frame sequence (a folder of numbered frames): `auto` splits it
+    /// Find what moves in a 4D input (numbered frames, SpacetimeGaussians PLY, .splatv, params.npz): `auto` splits it
     /// into a static background, rigid objects with one pose per frame and per-frame content
     /// for the rest; `none` keeps everything that moves per frame. With -o DIR (no glTF
     /// extension) writes the manifest DIR/scene.json; with a .glb/.gltf exports it directly.
     #[arg(long, value_enum, value_name = "MODE")]
     pub objects: Option<motion::ObjectsArg>,
-    /// Frame rate of a frame sequence: frame i is at i/fps seconds.
-    #[arg(long, default_value_t = 30.0)]
-    pub fps: f64,
     /// With --objects: largest RMS distance (world units) of a Gaussian from its group's
     /// rigid motion (default: 10× the noise estimated from the trajectories).
     #[arg(long, value_name = "D", requires = "objects")]
@@ -196,7 +193,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.tiles.tiles.is_some() {
         return super::tiles::run(&args);
     }
-    if args.objects.is_some() || args.scene.is_dir() {
+    let four_d = matches!(
+        splatbridge_scene::formats::detect(&args.scene),
+        Ok(splatbridge_scene::formats::SplatFormat::FourD(_))
+    );
+    if args.objects.is_some() || (four_d && (args.frames || args.scene.is_dir())) {
         return motion::run(&args);
     }
     let req = args.request()?;

@@ -7,9 +7,7 @@ use std::time::Instant;
 use anyhow::bail;
 use clap::ValueEnum;
 use splatbridge::pipeline::export::is_gltf;
-use splatbridge::pipeline::motion::{
-    decompose_scene, frames_scene, read_frame_folder, MotionReport,
-};
+use splatbridge::pipeline::motion::{decompose_scene, frames_scene, read_frames, MotionReport};
 use splatbridge_convert::motion::DecomposeOptions;
 
 use super::Args;
@@ -23,12 +21,6 @@ pub enum ObjectsArg {
 }
 
 pub fn run(args: &Args) -> anyhow::Result<()> {
-    if !args.scene.is_dir() {
-        bail!(
-            "{}: --objects reads a frame sequence (a folder of numbered frames)",
-            args.scene.display()
-        );
-    }
     if let Some(t) = args.motion_tolerance {
         if !(t > 0.0 && t.is_finite()) {
             bail!("--motion-tolerance: {t} is not a positive distance");
@@ -48,7 +40,8 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         bail!("--splats: a frame sequence exports as a mesh glTF (per-frame content is meshed)");
     }
     let t0 = Instant::now();
-    let (frames, times) = read_frame_folder(&args.scene, args.fps)?;
+    let fps = splatbridge_scene::fourd::frame_rate();
+    let (frames, times) = read_frames(&args.scene, fps, args.objects.is_some())?;
     let (scene, report) = match args.objects {
         Some(mode) => {
             let opts = DecomposeOptions {
@@ -57,10 +50,10 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 min_group: args.min_group.max(1),
                 ..DecomposeOptions::default()
             };
-            let (scene, report) = decompose_scene(&frames, &times, args.fps, &opts)?;
+            let (scene, report) = decompose_scene(&frames, &times, fps, &opts)?;
             (scene, Some(report))
         }
-        None => (frames_scene(frames, &times, args.fps)?, None),
+        None => (frames_scene(frames, &times, fps)?, None),
     };
     if let Some(r) = &report {
         print_motion(args, r);
