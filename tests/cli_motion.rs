@@ -116,7 +116,7 @@ fn bad_sequences_exit_2() {
         out.to_str().unwrap(),
     ]);
     assert_eq!(r.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&r.stderr).contains("no frame files"));
+    assert!(String::from_utf8_lossy(&r.stderr).contains("no numbered frames"));
     // Frames of different counts.
     let mixed = tmp.path().join("mixed");
     std::fs::create_dir(&mixed).unwrap();
