@@ -95,16 +95,40 @@ fn write_stg(path: &Path, c: &GaussianCloud) {
     }
 }
 
-/// Render `scene` at `t` (orbit camera 1 of 4, 64×48) and return the PNG's bytes.
+/// One fixed camera for every render of these tests: a generated camera is framed on the
+/// scene it renders, and a still PLY of the model at time t is another scene than the model
+/// (framed at its start), so the comparisons give both the same explicit eye: looking at the
+/// cut's centre from 2 diagonals away along −z, up −y as 3DGS captures are.
+fn fixed_eye() -> [String; 8] {
+    let c = cut300();
+    let (lo, hi) = c.means.iter().fold(
+        (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
+        |(lo, hi), &m| (lo.min(m), hi.max(m)),
+    );
+    let centre = (lo + hi) * 0.5;
+    let eye = centre - Vec3::Z * 2.0 * (hi - lo).length();
+    let v = |v: Vec3| format!("{},{},{}", v.x, v.y, v.z);
+    [
+        "--eye".into(),
+        v(eye),
+        "--target".into(),
+        v(centre),
+        "--up".into(),
+        "0,-1,0".into(),
+        "--fov".into(),
+        "50".into(),
+    ]
+}
+
+/// Render `scene` at `t` (the fixed eye, 64×48) and return the PNG's bytes.
 fn render(scene: &Path, t: f64, out: &Path, extra: &[&str]) -> Vec<u8> {
     let ts = t.to_string();
+    let eye = fixed_eye();
     let mut args = vec![
         "render",
         path(scene),
         "--time",
         &ts,
-        "--camera",
-        "orbit:4:1",
         "--width",
         "64",
         "--height",
@@ -112,6 +136,7 @@ fn render(scene: &Path, t: f64, out: &Path, extra: &[&str]) -> Vec<u8> {
         "-o",
         path(out),
     ];
+    args.extend(eye.iter().map(String::as_str));
     args.extend_from_slice(extra);
     ok(&args);
     std::fs::read(out).unwrap()
