@@ -4,7 +4,9 @@
 //! every level), and the PLY layouts beside the standard 3DGS one (`red green blue` colours,
 //! 2DGS `scale_0 scale_1`, Mip-Splatting's `filter_3D`, points without Gaussian parameters),
 //! and 2DGS surfels end to end: any values through the 2DGS writer, the reader and the 2DGS
-//! renderer (finite pixels, alpha in [0, 1], the two scales and the rotation kept bit for bit).
+//! renderer (finite pixels, alpha in [0, 1], the two scales and the rotation kept bit for bit),
+//! and the 4D readers (SpacetimeGaussians PLY, `.splatv`, `params.npz`, frame sequences),
+//! each model sampled at a few times.
 //!
 //! Included by path from `tests/fuzz_regressions.rs`, so it depends only on crates that the
 //! root package also has.
@@ -25,6 +27,10 @@ pub const TARGETS: &[(&str, crate::entries::Entry)] = &[
     ("ksplat_roundtrip", ksplat_roundtrip),
     ("ply_variants", ply_variants),
     ("surfels_2d", surfels_2d),
+    ("spacetime_ply", |d| four_d(0, d)),
+    ("splatv", |d| four_d(1, d)),
+    ("npz", |d| four_d(2, d)),
+    ("ply_sequence", |d| four_d(3, d)),
 ];
 
 pub fn ksplat_raw(data: &[u8]) {
@@ -326,4 +332,47 @@ pub fn surfels_2d(data: &[u8]) {
         assert!(frame.is_finite(), "non-finite 2DGS pixels");
         assert!(frame.alpha.iter().all(|a| (0.0..=1.0).contains(a)));
     }
+}
+
+/// The 4D readers: `sel` picks the form (SpacetimeGaussians PLY, `.splatv`, `params.npz`, a
+/// two-frame sequence split at the input's first byte); every model read is sampled at a few
+/// times, as `render --time` would.
+fn four_d(sel: u8, rest: &[u8]) {
+    use splatbridge_scene::fourd::{self, FourDForm};
+    let sample = |m: &fourd::FourD| {
+        for t in [0.0, 0.37, 1.0, -5.0, f64::NAN, 1e30] {
+            let _ = m.sample(t);
+        }
+        let _ = m.displacement();
+    };
+    let form = match sel % 4 {
+        0 => FourDForm::SpacetimeLite,
+        1 => FourDForm::Splatv,
+        2 => FourDForm::Npz,
+        _ => FourDForm::Sequence,
+    };
+    if form == FourDForm::Sequence {
+        let Ok(dir) = tempfile::tempdir() else {
+            return;
+        };
+        let cut = rest.first().map_or(0, |&b| b as usize).min(rest.len());
+        let (a, b) = rest.split_at(cut);
+        for (i, part) in [a, b].iter().enumerate() {
+            if std::fs::write(dir.path().join(format!("f_{i:04}.ply")), part).is_err() {
+                return;
+            }
+        }
+        if let Ok(m) = fourd::load(dir.path(), form, 30.0) {
+            sample(&m);
+        }
+        load_both(dir.path());
+        return;
+    }
+    let ext = [".ply", ".splatv", ".npz", ""][sel as usize % 4];
+    with_file(rest, ext, |p| {
+        if let Ok(m) = fourd::load(p, form, 24.0) {
+            sample(&m);
+        }
+        load_both(p);
+    });
 }

@@ -13,6 +13,7 @@ pub mod info;
 pub mod merge;
 pub mod ranges;
 pub mod render;
+pub mod render_args;
 pub mod split_args;
 pub mod tiles;
 pub mod trace;
