@@ -1,10 +1,16 @@
 // Render a glTF/GLB in a stock browser viewer (three.js or Babylon.js) through one of the
 // file's own glTF cameras and write the frame as a PNG.
 //
-// Usage: node scripts/web-render.mjs three|babylon FILE OUT.png [--camera N] [--size WxH]
+// Usage: node scripts/web-render.mjs three|babylon FILE OUT.png [--camera N] [--size WxH] [--time T]
 //
 // `--camera` also takes a list (`0,1,2`): the file is loaded once and OUT must contain
 // `{camera}`, replaced by each index (the measurement scripts use this to save start-ups).
+//
+// `--time T` (three.js) plays the file's animations to T seconds the way a three.js app does:
+// every clip of `gltf.animations` played by one `AnimationMixer` on the loaded scene, then
+// `mixer.setTime(T)` (which updates the animated nodes) before rendering. It also takes a list
+// (`0.4,1.4`): one load, OUT must contain `{time}`, replaced by each time as given. Without
+// it the scene is drawn as loaded (the glTF's node transforms, no animation applied).
 //
 // Headless Debian `chromium` (software GL: ANGLE on SwiftShader) is driven by puppeteer-core;
 // the page loads the stock loaders (three's `GLTFLoader`, Babylon's glTF loader with its
@@ -35,7 +41,7 @@ function fail(msg, code = 1) {
 
 function parseArgs(argv) {
   const pos = [];
-  const o = { cameras: [0], size: null };
+  const o = { cameras: [0], size: null, times: null };
   for (let i = 0; i < argv.length; i++) {
     const a = argv[i];
     if (a === "--camera") {
@@ -47,12 +53,18 @@ function parseArgs(argv) {
       o.size = [Number(m[1]), Number(m[2])];
       if (!(o.size[0] >= 1 && o.size[1] >= 1 && o.size[0] <= 4096 && o.size[1] <= 4096))
         fail("--size: sides must be in 1..=4096", 2);
+    } else if (a === "--time") {
+      const list = String(argv[++i] ?? "").split(",");
+      if (!list.every((t) => /^[0-9]+([.][0-9]+)?$/.test(t))) fail("--time: expected seconds ≥ 0 (or a list: 0.4,1.4)", 2);
+      o.times = list;
     } else pos.push(a);
   }
   if (pos.length !== 3 || !["three", "babylon"].includes(pos[0]))
-    fail("usage: web-render.mjs three|babylon FILE OUT.png [--camera N] [--size WxH]", 2);
+    fail("usage: web-render.mjs three|babylon FILE OUT.png [--camera N] [--size WxH] [--time T]", 2);
   [o.client, o.file, o.out] = pos;
   if (o.cameras.length > 1 && !o.out.includes("{camera}")) fail("a camera list needs {camera} in OUT", 2);
+  if (o.times && o.client !== "three") fail("--time: only the three client plays animations", 2);
+  if (o.times && o.times.length > 1 && !o.out.includes("{time}")) fail("a time list needs {time} in OUT", 2);
   return o;
 }
 
@@ -105,7 +117,7 @@ const types = { ".js": "text/javascript", ".mjs": "text/javascript", ".json": "a
 const page3 = `
 import * as THREE from "three";
 import { GLTFLoader } from "three/addons/loaders/GLTFLoader.js";
-export async function render(url, camList, w, h) {
+export async function render(url, camList, w, h, times) {
   const renderer = new THREE.WebGLRenderer({ antialias: false, preserveDrawingBuffer: true });
   renderer.setPixelRatio(1);
   renderer.setSize(w, h);
@@ -116,19 +128,25 @@ export async function render(url, camList, w, h) {
   const gltf = await new GLTFLoader().loadAsync(url);
   const scene = gltf.scene;
   scene.background = new THREE.Color(0x000000);
+  // The animations as an app plays them: one mixer, every clip playing from the start.
+  const mixer = new THREE.AnimationMixer(scene);
+  for (const clip of gltf.animations) mixer.clipAction(clip).play();
   const shots = [];
-  for (const camIndex of camList) {
-    let cam = null;
-    scene.traverse((o) => {
-      const a = gltf.parser.associations.get(o);
-      if (!cam && o.isCamera && a && a.nodes !== undefined && gltf.parser.json.nodes[a.nodes].camera === camIndex) cam = o;
-    });
-    if (!cam) throw new Error("camera " + camIndex + " is not referenced by a node");
-    cam.aspect = w / h;
-    cam.updateProjectionMatrix();
-    scene.updateMatrixWorld(true);
-    renderer.render(scene, cam);
-    shots.push(renderer.domElement.toDataURL("image/png"));
+  for (const t of times ?? [null]) {
+    if (t !== null) mixer.setTime(t);
+    for (const camIndex of camList) {
+      let cam = null;
+      scene.traverse((o) => {
+        const a = gltf.parser.associations.get(o);
+        if (!cam && o.isCamera && a && a.nodes !== undefined && gltf.parser.json.nodes[a.nodes].camera === camIndex) cam = o;
+      });
+      if (!cam) throw new Error("camera " + camIndex + " is not referenced by a node");
+      cam.aspect = w / h;
+      cam.updateProjectionMatrix();
+      scene.updateMatrixWorld(true);
+      renderer.render(scene, cam);
+      shots.push(renderer.domElement.toDataURL("image/png"));
+    }
   }
   return shots;
 }`;
@@ -226,12 +244,14 @@ try {
   page.setDefaultTimeout(0);
   await page.goto(`${base}/`);
   const shots = await page.evaluate(
-    async (u, n, w, h) => (await import("/render.js")).render(u, n, w, h),
-    `${base}/file/${encodeURIComponent(fileName)}`, opts.cameras, width, height,
+    async (u, n, w, h, t) => (await import("/render.js")).render(u, n, w, h, t),
+    `${base}/file/${encodeURIComponent(fileName)}`, opts.cameras, width, height, opts.times?.map(Number) ?? null,
   );
+  const nc = opts.cameras.length;
   shots.forEach((dataUrl, k) => {
     const png = Buffer.from(dataUrl.slice(dataUrl.indexOf(",") + 1), "base64");
-    const out = opts.out.replaceAll("{camera}", String(opts.cameras[k]));
+    let out = opts.out.replaceAll("{camera}", String(opts.cameras[k % nc]));
+    if (opts.times) out = out.replaceAll("{time}", opts.times[Math.floor(k / nc)]);
     const tmp = `${out}.tmp${process.pid}`;
     fs.writeFileSync(tmp, png);
     fs.renameSync(tmp, out);

@@ -25,6 +25,7 @@
 mod cluster;
 pub mod rigid;
 pub mod score;
+pub mod stream;
 
 use glam::{DQuat, DVec3, Quat, Vec3};
 use rayon::prelude::*;
@@ -121,8 +122,13 @@ pub struct Decomposition {
     /// Static Gaussians and the RMS of their distance to their mean position.
     pub static_count: usize,
     pub static_rms: f64,
-    /// Gaussians kept per frame.
+    /// Gaussians kept per frame, and how many of them because their opacity or scales
+    /// change (the rest move but fit no group).
     pub per_frame: usize,
+    pub per_frame_appearance: usize,
+    /// RMS over the per-frame Gaussians and the frames of their distance from their first
+    /// position (world units): how much the content left per frame moves.
+    pub per_frame_motion_rms: f64,
 }
 
 fn check(frames: &[GaussianCloud], times: &[f64]) -> Result<()> {
@@ -270,15 +276,25 @@ pub fn decompose(
                 .sum::<f64>()
         })
         .sum();
-    let per_frame = labels.iter().filter(|l| **l == Label::PerFrame).count();
+    let per_frame_idx: Vec<usize> = (0..n).filter(|&i| labels[i] == Label::PerFrame).collect();
+    let per_frame_sq: f64 = per_frame_idx
+        .par_iter()
+        .map(|&i| {
+            all.iter()
+                .map(|&f| (tr.pos[f][i] - tr.pos[0][i]).length_squared())
+                .sum::<f64>()
+        })
+        .sum();
     Ok(Decomposition {
+        per_frame: per_frame_idx.len(),
+        per_frame_appearance: per_frame_idx.iter().filter(|&&i| changes[i]).count(),
+        per_frame_motion_rms: (per_frame_sq / (per_frame_idx.len() * nf).max(1) as f64).sqrt(),
         static_count: statics.len(),
         static_rms: (static_sq / (statics.len() * nf).max(1) as f64).sqrt(),
         labels,
         groups,
         noise,
         tolerance,
-        per_frame,
     })
 }
 
@@ -357,16 +373,42 @@ impl Decomposition {
         check(frames, times)?;
         let first = &frames[0];
         let nf = frames.len();
-        let mut static_gaussians = subset(first, |i| self.labels[i] == Label::Static);
         let statics: Vec<usize> = (0..first.len())
             .filter(|&i| self.labels[i] == Label::Static)
             .collect();
-        static_gaussians.means = statics
+        let static_means = statics
             .par_iter()
             .map(|&i| {
                 (frames.iter().map(|c| c.means[i].as_dvec3()).sum::<DVec3>() / nf as f64).as_vec3()
             })
             .collect();
+        let frame_content = if self.per_frame == 0 {
+            Vec::new()
+        } else {
+            frames
+                .iter()
+                .zip(times)
+                .map(|(c, &t)| FrameContent {
+                    t,
+                    gaussians: subset(c, |i| self.labels[i] == Label::PerFrame),
+                })
+                .collect()
+        };
+        self.scene_from(first, static_means, frame_content, times, fps)
+    }
+
+    /// The scene from frame 0, the static Gaussians' mean positions and the per-frame content.
+    fn scene_from(
+        &self,
+        first: &GaussianCloud,
+        static_means: Vec<Vec3>,
+        frame_content: Vec<FrameContent>,
+        times: &[f64],
+        fps: f64,
+    ) -> Result<DynamicScene> {
+        let nf = times.len();
+        let mut static_gaussians = subset(first, |i| self.labels[i] == Label::Static);
+        static_gaussians.means = static_means;
         let mut objects = Vec::with_capacity(self.groups.len());
         for (k, g) in self.groups.iter().enumerate() {
             let mut cloud = subset(first, |i| self.labels[i] == Label::Group(k as u32));
@@ -396,18 +438,6 @@ impl Decomposition {
                 track: Track::new(keys),
             });
         }
-        let frame_content = if self.per_frame == 0 {
-            Vec::new()
-        } else {
-            frames
-                .iter()
-                .zip(times)
-                .map(|(c, &t)| FrameContent {
-                    t,
-                    gaussians: subset(c, |i| self.labels[i] == Label::PerFrame),
-                })
-                .collect()
-        };
         let scene = DynamicScene {
             four_d: None,
             time: TimeRange {
@@ -427,7 +457,7 @@ impl Decomposition {
 }
 
 /// The Gaussians of `c` with `keep(i)`, in order, without object ids.
-fn subset(c: &GaussianCloud, keep: impl Fn(usize) -> bool) -> GaussianCloud {
+pub fn subset(c: &GaussianCloud, keep: impl Fn(usize) -> bool) -> GaussianCloud {
     let idx: Vec<usize> = (0..c.len()).filter(|&i| keep(i)).collect();
     let k = c.coeffs();
     let mut out = GaussianCloud::with_capacity(c.sh_degree, idx.len());

@@ -7,7 +7,7 @@ use std::time::Instant;
 use anyhow::bail;
 use clap::ValueEnum;
 use splatbridge::pipeline::export::is_gltf;
-use splatbridge::pipeline::motion::{decompose_scene, frames_scene, read_frames, MotionReport};
+use splatbridge::pipeline::motion::{decompose_path, frames_scene, read_frames, MotionReport};
 use splatbridge_convert::motion::DecomposeOptions;
 
 use super::Args;
@@ -41,7 +41,6 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     }
     let t0 = Instant::now();
     let fps = splatbridge_scene::fourd::frame_rate();
-    let (frames, times) = read_frames(&args.scene, fps, args.objects.is_some())?;
     let (scene, report) = match args.objects {
         Some(mode) => {
             let opts = DecomposeOptions {
@@ -50,13 +49,17 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 min_group: args.min_group.max(1),
                 ..DecomposeOptions::default()
             };
-            let (scene, report) = decompose_scene(&frames, &times, fps, &opts)?;
+            // Frames streamed: read one at a time, a few passes over them.
+            let (scene, report) = decompose_path(&args.scene, fps, &opts)?;
             (scene, Some(report))
         }
-        None => (frames_scene(frames, &times, fps)?, None),
+        None => {
+            let (frames, times) = read_frames(&args.scene, fps, false)?;
+            (frames_scene(frames, &times, fps)?, None)
+        }
     };
     if let Some(r) = &report {
-        print_motion(args, r);
+        print_motion(args, r, gltf);
     }
     if !gltf {
         if args.output.extension().is_some() && !args.output.is_dir() {
@@ -66,6 +69,16 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             );
         }
         let saved = splatbridge_scene::manifest::save_manifest(&args.output, &scene)?;
+        // The report beside the manifest (what `--json` prints), written after it.
+        if let Some(r) = &report {
+            let path = args.output.join(REPORT_FILE);
+            let tmp = args
+                .output
+                .join(format!(".{REPORT_FILE}.tmp{}", std::process::id()));
+            std::fs::write(&tmp, serde_json::to_string_pretty(r)? + "\n")
+                .and_then(|()| std::fs::rename(&tmp, &path))
+                .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        }
         if !args.json {
             println!(
                 "wrote {} ({} files) in {:.2} s",
@@ -88,10 +101,19 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn print_motion(args: &Args, r: &MotionReport) {
+/// The decomposition's report written beside a manifest.
+pub const REPORT_FILE: &str = "motion.json";
+
+/// Print the report: as text, or with `--json` as JSON (on stdout for a manifest; on stderr
+/// for a glTF, whose export summary is the JSON on stdout).
+fn print_motion(args: &Args, r: &MotionReport, gltf: bool) {
     if args.json {
         if let Ok(s) = serde_json::to_string_pretty(r) {
-            eprintln!("{s}");
+            if gltf {
+                eprintln!("{s}");
+            } else {
+                println!("{s}");
+            }
         }
         return;
     }
@@ -104,16 +126,28 @@ fn print_motion(args: &Args, r: &MotionReport) {
         r.static_gaussians, r.static_rms
     );
     for g in &r.groups {
+        let at: Vec<String> = g
+            .psnr
+            .iter()
+            .map(|p| format!("{:.1} dB at {:.2} s", p.psnr, p.t))
+            .collect();
         println!(
-            "  {:<11} {:>9} Gaussians, rigid fit RMS {:.3e}, max {:.3e}",
-            g.name, g.gaussians, g.rms, g.max
+            "  {:<11} {:>9} Gaussians, rigid fit RMS {:.3e}, max {:.3e}; fit vs true: {}",
+            g.name,
+            g.gaussians,
+            g.rms,
+            g.max,
+            at.join(", ")
         );
     }
     println!(
-        "  per frame   {:>9} Gaussians ({} frames × {} = {} kept per frame)",
+        "  per frame   {:>9} Gaussians ({} change opacity or scale, {} move without a rigid fit; RMS {:.3e} from their first position), {} × {} frames = {} kept",
+        r.per_frame_gaussians,
+        r.per_frame_appearance,
+        r.per_frame_gaussians - r.per_frame_appearance,
+        r.per_frame_motion_rms,
         r.per_frame_gaussians,
         r.frames,
-        r.per_frame_gaussians,
         r.frames * r.per_frame_gaussians
     );
 }
