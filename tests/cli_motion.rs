@@ -58,6 +58,25 @@ fn objects_auto_writes_a_manifest_other_commands_read() {
     assert_eq!(m["objects"].as_array().unwrap().len(), 2, "{m}");
     assert_eq!(m["frames"].as_array().unwrap().len(), 12);
     assert_eq!(m["time"]["end"].as_f64().unwrap(), 1.1);
+    // The report beside it: per group the fit's residual in world units and as PSNR at four
+    // sampled times, and the per-frame remainder.
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("motion.json")).unwrap()).unwrap();
+    assert_eq!(r["frames"], 12, "{r}");
+    let groups = r["groups"].as_array().unwrap();
+    assert_eq!(groups.len(), 2, "{r}");
+    for g in groups {
+        assert!(g["rms"].as_f64().unwrap() > 0.0, "{g}");
+        let psnr = g["psnr"].as_array().unwrap();
+        assert_eq!(psnr.len(), 4, "{g}");
+        assert!(
+            psnr.iter().all(|p| p["psnr"].as_f64().unwrap() > 20.0),
+            "{g}"
+        );
+    }
+    assert!(r["per_frame_gaussians"].as_u64().unwrap() > 0, "{r}");
+    assert!(r["per_frame_appearance"].is_u64(), "{r}");
+    assert!(text.contains("fit vs true"), "{text}");
     // Another command reads it: a frame rendered at t = 0.5.
     let png = tmp.path().join("t05.png");
     ok(&[
