@@ -3,7 +3,8 @@
 //! and the two footprint responses.
 //!
 //! - [`Footprint::On`], the general path: the Gaussian widened in 3-D by the ray's footprint at
-//!   its mean's depth (`response_fp`); proxies padded by `pad_for`.
+//!   its mean's depth (`response_fp`), evaluated in pixels from a per-camera record
+//!   ([`PixelSplat`], with the 3-D form as its reference); proxies padded by `pad_for`.
 //! - [`Footprint::Projected`]: the Gaussian evaluated the way native's projection evaluates it
 //!   (`hybrid::project` / the reference's `preprocessCUDA` and `renderCUDA`): the EWA 2-D
 //!   covariance `J·W·Σ·Wᵀ·Jᵀ` at the mean with the `1.3·tan(fov/2)` Jacobian clamp, plus the
