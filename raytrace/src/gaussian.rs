@@ -385,22 +385,16 @@ impl GaussianTracer {
                 forward: self.local_dir(pi, f),
                 near,
             });
-            let local = fp.map(|(f, _)| LocalFootprint {
-                forward: self.local_dir(pi, f.forward),
-                e1: self.local_dir(pi, f.e1),
-                e2: self.local_dir(pi, f.e2),
-                cov: f.cov.map(|v| v as f32),
-                det: (f.cov[0] * f.cov[2] - f.cov[1] * f.cov[1]) as f32,
-                pixel: (f.pixel.0 as f32, f.pixel.1 as f32),
-            });
-            let (buckets, pboxes, splats, mode) = match fp {
+            let local = fp.map(|(f, pad)| LocalFootprint::new(self, pi, f, pad));
+            let (buckets, pboxes, splats, pixels, mode) = match fp {
                 Some((_, pad)) => (
                     pad.accels[pi].as_slice(),
                     pad.boxes[pi].as_slice(),
                     pad.splats[pi].as_slice(),
+                    pad.pixels[pi].as_slice(),
                     pad.mode,
                 ),
-                None => (&[][..], &[][..], &[][..], Footprint::Off),
+                None => (&[][..], &[][..], &[][..], &[][..], Footprint::Off),
             };
             // Projected hits are keyed at the mean's depth already, and their flat proxy is
             // entered there.
@@ -412,6 +406,8 @@ impl GaussianTracer {
             // may not stop at the k-th key itself: a hit keyed below K lies in a box the ray
             // enters before K + reach / (d·f) (`camera::Bucket`), and that is where it stops.
             let forward_cos = near.map_or(0.0, |n| rd.dot(n.forward));
+            // Hits re-keyed at their mean's depth below need no `t*`.
+            let keyed = near.is_some() && order == HitOrder::MeanDepth;
             let mut run = |accel: &dyn Accel, ids: Option<&[u32]>, reach: f32| {
                 let widen = |c: f32| match order {
                     HitOrder::Hit => c,
@@ -433,7 +429,9 @@ impl GaussianTracer {
                         (Some(f), Footprint::Projected) => {
                             part.response_projected(p, ro, rd, f, &splats[p])
                         }
-                        (Some(f), _) => part.response_fp(p, ro, rd, f, pboxes[p]),
+                        (Some(f), _) => {
+                            part.response_fp(p, ro, rd, f, pboxes[p], &pixels[p], keyed)
+                        }
                         (None, _) => part.response(p, ro, rd),
                     };
                     let Some((mut t, alpha)) = r else {
@@ -653,7 +651,7 @@ impl GaussianTracer {
             Some(p) => p.boxes[0].as_slice(),
             None => self.parts[0].boxes.as_slice(),
         };
-        let lists = tiles::TileLists::build(self, cam, boxes, opts.near);
+        let lists = tiles::TileLists::build(self, cam, boxes, padded.as_ref(), opts.near);
         let prepare = start.elapsed().as_secs_f64();
         let (frame, mut stats) = crate::render::render_frame_tiles(
             cam,
@@ -687,5 +685,7 @@ impl GaussianTracer {
 mod brute_tests;
 #[cfg(test)]
 mod cull_tests;
+#[cfg(test)]
+mod pixel_tests;
 #[cfg(test)]
 mod tile_tests;

@@ -3,7 +3,8 @@
 //! and the two footprint responses.
 //!
 //! - [`Footprint::On`], the general path: the Gaussian widened in 3-D by the ray's footprint at
-//!   its mean's depth (`response_fp`); proxies padded by `pad_for`.
+//!   its mean's depth (`response_fp`), evaluated in pixels from a per-camera record
+//!   ([`PixelSplat`], with the 3-D form as its reference); proxies padded by `pad_for`.
 //! - [`Footprint::Projected`]: the Gaussian evaluated the way native's projection evaluates it
 //!   (`hybrid::project` / the reference's `preprocessCUDA` and `renderCUDA`): the EWA 2-D
 //!   covariance `J·W·Σ·Wᵀ·Jᵀ` at the mean with the `1.3·tan(fov/2)` Jacobian clamp, plus the
@@ -18,8 +19,10 @@
 use std::time::Instant;
 
 use glam::{DMat3, DVec3, Vec3};
+use rayon::prelude::*;
 use splatbridge_scene::Camera;
 
+use super::part::alpha_of;
 use super::{GaussianTracer, Part};
 use crate::backend::{build_boxes, fits_bvh, Accel};
 use crate::error::Result;
@@ -39,6 +42,162 @@ pub(super) struct LocalFootprint {
     pub cov: [f32; 3],
     pub det: f32,
     pub pixel: (f32, f32),
+    /// The ray's pixel relative to the principal point, `(u − cx, v − cy)` (for
+    /// [`PixelSplat`]s).
+    pub centred: (f32, f32),
+    /// The low-pass variance `s` in pixels² and `s²`.
+    pub s: f32,
+    pub s2: f32,
+}
+
+impl LocalFootprint {
+    /// `f` in part `pi`'s frame, for a render through `pad`.
+    pub(super) fn new(
+        tracer: &GaussianTracer,
+        pi: usize,
+        f: &crate::footprint::RayFootprint,
+        pad: &Padded,
+    ) -> Self {
+        let s = pad.variance as f32;
+        LocalFootprint {
+            forward: tracer.local_dir(pi, f.forward),
+            e1: tracer.local_dir(pi, f.e1),
+            e2: tracer.local_dir(pi, f.e2),
+            cov: f.cov.map(|v| v as f32),
+            det: (f.cov[0] * f.cov[2] - f.cov[1] * f.cov[1]) as f32,
+            pixel: (f.pixel.0 as f32, f.pixel.1 as f32),
+            centred: (
+                (f.pixel.0 - pad.principal.0) as f32,
+                (f.pixel.1 - pad.principal.1) as f32,
+            ),
+            s,
+            s2: s * s,
+        }
+    }
+}
+
+/// One Gaussian's footprint-widened response for the rays of one pinhole camera, as a function
+/// of the ray's pixel (mode `on`).
+///
+/// The widened response of [`Part::response_widened_3d`] is `q = xᵀ(C + Δ)⁻¹x` on the plane
+/// ⊥ d, with `Δ` native's low-pass `s·I` pulled back through the perspective Jacobian `A`
+/// of that plane at the mean's depth `z` (see [`crate::footprint`]). Carried to pixels by
+/// `A` it is `q = δᵀ(J·Σ·Jᵀ + s·I)⁻¹δ`, with `J` the full 2×3 Jacobian of the projection at
+/// the ray's point of depth `z` (`J·d = 0`, so `J` equals `A` on the plane) and `δ = J·(μ − o)`.
+/// For a ray through pixel `(u, v)` (centred: `ū = u − cx`), `J = (1/z)·[[fx, 0, −ū],
+/// [0, fy, −v̄]]·W`, which is affine in the pixel, and `δ = (μ̄u − ū, μ̄v − v̄)` is the pixel's
+/// offset from the mean's projection. With `W·M` (`Σ = M·Mᵀ`) stored as `p0 = fx·row₀/z`,
+/// `p1 = fy·row₁/z` and `w = row₂/z`, a ray needs `b0 = p0 − ū·w` and `b1 = p1 − v̄·w`
+/// (`J·Σ·Jᵀ = [bᵢ·bⱼ]`), and `det(J·Σ·Jᵀ) = |b0 × b1|²` (Lagrange's identity: no cancellation
+/// for a needle seen end-on). The same number as the 3-D form up to rounding, for about half
+/// its arithmetic, on one 56-byte record instead of the 92-byte proxy.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct PixelSplat {
+    mu: [f32; 2],
+    p0: [f32; 3],
+    p1: [f32; 3],
+    w: [f32; 3],
+    /// The proxy's squared extent in standard deviations (its `r2`) and peak opacity.
+    pub(super) r2: f32,
+    pub(super) opacity: f32,
+    /// False where the record cannot hold the response (the mean in the camera's plane, or a
+    /// coefficient beyond f32): the 3-D form is evaluated instead.
+    pub(super) ok: bool,
+}
+
+/// A [`PixelSplat::bound`]: the ellipse's centre `μ` (centred pixels), `K`, `a_max`, and its
+/// half-extents in pixels along the image axes.
+pub(super) type ScreenBound = ([f32; 2], [f32; 3], f32, [f64; 2]);
+
+impl PixelSplat {
+    /// The record of a Gaussian with `Σ = M·Mᵀ` (world `m`) and world mean `mean`, for `cam`.
+    pub(super) fn new(cam: &Camera, mean: DVec3, m: &DMat3, r2: f32, opacity: f32) -> Self {
+        let w = cam.world_to_cam;
+        let rc = w * (mean - cam.centre);
+        let mc = w * *m;
+        let z = rc.z;
+        let v = |x: DVec3| [x.x as f32, x.y as f32, x.z as f32];
+        let rec = PixelSplat {
+            mu: [(cam.fx * rc.x / z) as f32, (cam.fy * rc.y / z) as f32],
+            p0: v(mc.row(0) * (cam.fx / z)),
+            p1: v(mc.row(1) * (cam.fy / z)),
+            w: v(mc.row(2) / z),
+            r2,
+            opacity,
+            ok: true,
+        };
+        let finite = rec.mu.iter().chain(&rec.p0).chain(&rec.p1).chain(&rec.w);
+        let ok = z != 0.0 && finite.into_iter().all(|x| x.is_finite());
+        PixelSplat { ok, ..rec }
+    }
+
+    /// A screen ellipse holding every ray [`PixelSplat::q`] can pass (`q ≤ r2`), for a low-pass
+    /// of `s` pixels²: `(μ, K, a_max)` with the ray's centred pixel `p` passing only if
+    /// `δᵀ·K·δ ≤ a_max`, `δ = μ − p`, and the ellipse's half-extents along the axes. None where
+    /// no useful bound holds (the record unused, or a Gaussian deep along the view axis).
+    ///
+    /// Why it holds: with `B(p) = [b0, b1]`, `B(p) = B(μ) + w·δᵀ`, so for any `ε > 0`
+    /// `J·Σ·Jᵀ = BᵀB ⪯ (1 + ε)·B(μ)ᵀB(μ) + (1 + 1/ε)·|w|²·δδᵀ`. With
+    /// `A = (1 + ε)·B(μ)ᵀB(μ) + s·I`, `c = (1 + 1/ε)·|w|²` and `a = δᵀA⁻¹δ`,
+    /// `q ≥ δᵀ(A + c·δδᵀ)⁻¹δ = a/(1 + c·a)` (Sherman–Morrison), so `q ≤ r2` gives
+    /// `a ≤ r2/(1 − c·r2)` when `c·r2 < 1`. `ε = |w|·√r2` nearly minimises the bound's growth
+    /// (`≈ 1 + 2|w|√r2`; `|w|` is the Gaussian's extent along the view axis over its depth,
+    /// 1e-3 to 1e-2 in captures). The bound is widened for f32 rounding of `q` and of the test
+    /// itself: a relative 1e-3 plus 1e-5 per unit of `A`'s condition number (the quadratic
+    /// forms lose about that many ulps to cancellation), far above the ~1e-6 measured gaps
+    /// (`pixel_tests`); `tile_tests` check that no hit is lost, bit for bit.
+    pub(super) fn bound(&self, s: f64) -> Option<ScreenBound> {
+        if !self.ok {
+            return None;
+        }
+        let d = |x: [f32; 3]| DVec3::new(x[0] as f64, x[1] as f64, x[2] as f64);
+        let (p0, p1, w) = (d(self.p0), d(self.p1), d(self.w));
+        let (mu0, mu1) = (self.mu[0] as f64, self.mu[1] as f64);
+        let r2 = self.r2 as f64;
+        let (b0, b1) = (p0 - mu0 * w, p1 - mu1 * w);
+        let ww = w.length_squared();
+        let eps = (ww.sqrt() * r2.sqrt()).max(1e-6);
+        let c = (1.0 + 1.0 / eps) * ww;
+        if !(c * r2 < 0.5) {
+            return None;
+        }
+        let (a00, a01, a11) = (
+            (1.0 + eps) * b0.dot(b0) + s,
+            (1.0 + eps) * b0.dot(b1),
+            (1.0 + eps) * b1.dot(b1) + s,
+        );
+        let det = a00 * a11 - a01 * a01;
+        // λ_max / λ_min of A (≥ 1).
+        let tr = a00 + a11;
+        let disc = ((a00 - a11).powi(2) + 4.0 * a01 * a01).sqrt();
+        let cond = (tr + disc) / (tr - disc).max(f64::MIN_POSITIVE);
+        let amax = r2 / (1.0 - c * r2) * (1.0 + 1e-3 + 1e-5 * cond);
+        let k = [a11 / det, -a01 / det, a00 / det];
+        let half = [(amax * a00).sqrt(), (amax * a11).sqrt()];
+        let ok = det > 0.0
+            && amax.is_finite()
+            && k.iter().chain(&half).all(|x| x.is_finite())
+            && cond < 1e4;
+        ok.then(|| (self.mu, k.map(|x| x as f32), amax as f32, half))
+    }
+
+    /// The widened squared Mahalanobis distance `q` for the ray through the centred pixel of
+    /// `fp`; None where `det(J·Σ·Jᵀ + s·I)` is not a positive finite number.
+    #[inline]
+    pub(super) fn q(&self, fp: &LocalFootprint) -> Option<f32> {
+        let (u, v) = fp.centred;
+        let w = Vec3::from(self.w);
+        let b0 = Vec3::from(self.p0) - u * w;
+        let b1 = Vec3::from(self.p1) - v * w;
+        let (m00, m01, m11) = (b0.dot(b0), b0.dot(b1), b1.dot(b1));
+        let s = fp.s;
+        let det = b0.cross(b1).length_squared() + s * (m00 + m11) + fp.s2;
+        if !(det > 0.0 && det.is_finite()) {
+            return None;
+        }
+        let (x0, x1) = (self.mu[0] - u, self.mu[1] - v);
+        Some((x0 * x0 * (m11 + s) - 2.0 * x0 * x1 * m01 + x1 * x1 * (m00 + s)) / det)
+    }
 }
 
 /// One Gaussian as native's projection sees it from the camera (mode `projected`).
@@ -62,6 +221,11 @@ pub struct Padded {
     pub(super) boxes: Vec<Vec<(Vec3, Vec3)>>,
     pub(super) bounds: Vec<Option<(DVec3, DVec3)>>,
     pub(super) splats: Vec<Vec<Splat2d>>,
+    /// Per part, each proxy's [`PixelSplat`] (mode `on`; empty otherwise).
+    pub(super) pixels: Vec<Vec<PixelSplat>>,
+    /// The low-pass variance in pixels² and the camera's principal point.
+    pub(super) variance: f64,
+    pub(super) principal: (f64, f64),
     /// Seconds spent building them.
     pub build_seconds: f64,
 }
@@ -169,10 +333,13 @@ impl Part {
     /// As [`Part::response`] with the Gaussian widened by the ray's footprint at its mean's
     /// view depth (see [`crate::footprint`]): the 2-D marginal `C` of the Gaussian on the plane
     /// ⊥ d plus `z²·F`, evaluated at the mean's offset in that plane; peak opacity unchanged,
-    /// as in native splatting. The hit distance is the unwidened `t*`, clamped into the ray's
-    /// interval inside the padded proxy `bx`: a ray that meets only the widened Gaussian can
-    /// have its unwidened `t*` outside the box, and the k-buffer's cull distance must never be
-    /// passed by a hit whose box the traversal has not entered yet.
+    /// as in native splatting. `q` is the widened squared Mahalanobis distance of the ray
+    /// ([`PixelSplat::q`], or [`Part::widened_q_3d`] where the record cannot hold it). With
+    /// `keyed` the caller keys the hit at its mean's depth and the distance returned is 0;
+    /// otherwise it is the unwidened `t*`, clamped into the ray's interval inside the padded proxy
+    /// `bx`: a ray that meets only the widened Gaussian can have its unwidened `t*` outside the
+    /// box, and the k-buffer's cull distance must never be passed by a hit whose box the
+    /// traversal has not entered yet.
     #[inline]
     pub(super) fn response_fp(
         &self,
@@ -181,10 +348,50 @@ impl Part {
         d: Vec3,
         fp: &LocalFootprint,
         bx: (Vec3, Vec3),
+        px: &PixelSplat,
+        keyed: bool,
     ) -> Option<(f32, f32)> {
+        // The widened test first, on the per-camera record alone: most candidates fail it,
+        // and every condition of the response is independent of the others, so their order
+        // does not change the result.
+        let q = if px.ok {
+            px.q(fp)?
+        } else {
+            self.widened_q_3d(p, o, fp)?
+        };
+        if !(q <= px.r2) {
+            return None;
+        }
+        let alpha = alpha_of(px.opacity, q)?;
+        if keyed {
+            // The caller keys the hit at its mean's depth: `t*` is not needed.
+            return Some((0.0, alpha));
+        }
         let x = &self.proxy[p];
-        // The widened test first: most candidates fail it, and every condition of the
-        // response is independent of the others, so their order does not change the result.
+        let inv = x.inv;
+        let og = inv * (o - x.mean);
+        let dg = inv * d;
+        let dd = dg.length_squared();
+        if !(dd > 0.0 && dd.is_finite()) {
+            return None;
+        }
+        let t = (-og.dot(dg) / dd).max(0.0) + 0.0;
+        let (t0, t1) = slab(o, d, bx);
+        let t = if t0 <= t1 {
+            t.clamp(t0.max(0.0), t1.max(0.0))
+        } else {
+            t
+        };
+        t.is_finite().then_some((t, alpha))
+    }
+
+    /// The widened squared Mahalanobis distance of the ray from proxy `p`, in 3-D: the 2-D
+    /// marginal `C = [aᵢ·aⱼ]` (`aᵢ = Mᵀeᵢ`) on the plane ⊥ d plus `z²·F`, at the mean's offset
+    /// `x` in that plane, `q = xᵀ(C + z²F)⁻¹x`. None where the determinant is not a positive
+    /// finite number. The reference [`PixelSplat::q`] is checked against, and its fallback.
+    #[inline]
+    pub(super) fn widened_q_3d(&self, p: usize, o: Vec3, fp: &LocalFootprint) -> Option<f32> {
+        let x = &self.proxy[p];
         let rel = x.mean - o;
         let z = rel.dot(fp.forward);
         let z2 = z * z;
@@ -202,26 +409,7 @@ impl Part {
             return None;
         }
         let (x0, x1) = (rel.dot(fp.e1), rel.dot(fp.e2));
-        let q = (c2 * x0 * x0 - 2.0 * c1 * x0 * x1 + c0 * x1 * x1) / det;
-        if !(q <= x.r2) {
-            return None;
-        }
-        let inv = x.inv;
-        let og = inv * (o - x.mean);
-        let dg = inv * d;
-        let dd = dg.length_squared();
-        if !(dd > 0.0 && dd.is_finite()) {
-            return None;
-        }
-        let alpha = self.alpha(p, q)?;
-        let t = (-og.dot(dg) / dd).max(0.0) + 0.0;
-        let (t0, t1) = slab(o, d, bx);
-        let t = if t0 <= t1 {
-            t.clamp(t0.max(0.0), t1.max(0.0))
-        } else {
-            t
-        };
-        t.is_finite().then_some((t, alpha))
+        Some((c2 * x0 * x0 - 2.0 * c1 * x0 * x1 + c0 * x1 * x1) / det)
     }
 
     /// Native's response of proxy `p` at the ray's pixel (mode `projected`): the splat's conic
@@ -305,7 +493,19 @@ impl GaussianTracer {
             let z = (w - cam.centre).dot(forward);
             let pad = pad_for(cam, variance_px2, z, part.proxy[p].r2.sqrt() as f64);
             let pad = Vec3::splat((pad * (1.0 + 1e-5)) as f32) + slack(blo, bhi);
-            ((blo - pad, bhi + pad), Splat2d::default())
+            let rot = match &self.placed[pi] {
+                Some(pl) => pl.to_world.matrix3,
+                None => DMat3::IDENTITY,
+            };
+            let m = rot * part.proxy[p].m.as_dmat3();
+            let x = &part.proxy[p];
+            let px = PixelSplat::new(cam, w, &m, x.r2, x.opacity);
+            ((blo - pad, bhi + pad), Splat2d::default(), px)
+        })
+        .map(|mut out| {
+            out.variance = variance_px2;
+            out.principal = (cam.cx, cam.cy);
+            out
         })
     }
 
@@ -334,7 +534,7 @@ impl GaussianTracer {
             let m = rot * part.proxy[p].m.as_dmat3();
             let Some((s, half)) = splat_2d(cam, t, &m, variance_px2, part.proxy[p].r2 as f64, grid)
             else {
-                return (own, Splat2d::default());
+                return (own, Splat2d::default(), PixelSplat::default());
             };
             // The screen square holding the α ≥ 1/255 ellipse, back-projected to depth t.z.
             let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
@@ -347,9 +547,9 @@ impl GaussianTracer {
             }
             let pad = slack(lo, hi);
             if !(lo.is_finite() && hi.is_finite()) {
-                return (own, Splat2d::default());
+                return (own, Splat2d::default(), PixelSplat::default());
             }
-            ((lo - pad, hi + pad), s)
+            ((lo - pad, hi + pad), s, PixelSplat::default())
         })
     }
 
@@ -377,11 +577,12 @@ impl GaussianTracer {
         }
     }
 
-    /// Per-part `grow(part, part index, proxy, own box)` boxes, and the BVHs over them when
-    /// `bvh` is set (none otherwise: `accels` is left empty).
+    /// Per-part `grow(part, part index, proxy, own box)` boxes (and splats, pixel records),
+    /// in parallel over the proxies, and the BVHs over them when `bvh` is set (none
+    /// otherwise: `accels` is left empty).
     fn grown<F>(&self, mode: Footprint, bvh: bool, grow: F) -> Result<Padded>
     where
-        F: Fn(&Part, usize, usize, (Vec3, Vec3)) -> ((Vec3, Vec3), Splat2d),
+        F: Fn(&Part, usize, usize, (Vec3, Vec3)) -> ((Vec3, Vec3), Splat2d, PixelSplat) + Sync,
     {
         let start = Instant::now();
         let n = self.parts.len();
@@ -391,28 +592,43 @@ impl GaussianTracer {
             boxes: Vec::with_capacity(n),
             bounds: Vec::with_capacity(n),
             splats: Vec::with_capacity(n),
+            pixels: Vec::with_capacity(n),
+            variance: 0.0,
+            principal: (0.0, 0.0),
             build_seconds: 0.0,
         };
         for (pi, part) in self.parts.iter().enumerate() {
+            let grown: Vec<((Vec3, Vec3), Splat2d, PixelSplat)> = part
+                .boxes
+                .par_iter()
+                .enumerate()
+                .map(|(p, &own)| {
+                    let (mut b, s, px) = grow(part, pi, p, own);
+                    // A footprint so wide that the grown box leaves what an f32 BVH holds (a
+                    // camera ~1e12 away, framing an outlier) covers far less than a pixel
+                    // there: keep the Gaussian's own box rather than refuse the render (the
+                    // tracer's own BVHs cull such boxes the same way, `Part::new`).
+                    if !(fits_bvh(b.0) && fits_bvh(b.1)) {
+                        b = own;
+                    }
+                    (b, s, px)
+                })
+                .collect();
             let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-            let mut boxes = Vec::with_capacity(part.boxes.len());
-            let mut splats = Vec::new();
-            for (p, &own) in part.boxes.iter().enumerate() {
-                let (mut b, s) = grow(part, pi, p, own);
-                // A footprint so wide that the grown box leaves what an f32 BVH holds (a camera
-                // ~1e12 away, framing an outlier) covers far less than a pixel there: keep the
-                // Gaussian's own box rather than refuse the render (the tracer's own BVHs cull
-                // such boxes the same way, `Part::new`).
-                if !(fits_bvh(b.0) && fits_bvh(b.1)) {
-                    b = own;
-                }
+            for (b, _, _) in &grown {
                 lo = lo.min(b.0.as_dvec3() + part.anchor);
                 hi = hi.max(b.1.as_dvec3() + part.anchor);
-                boxes.push(b);
-                if mode == Footprint::Projected {
-                    splats.push(s);
-                }
             }
+            let boxes: Vec<(Vec3, Vec3)> = grown.iter().map(|g| g.0).collect();
+            let splats = match mode {
+                Footprint::Projected => grown.iter().map(|g| g.1).collect(),
+                _ => Vec::new(),
+            };
+            let pixels = match mode {
+                Footprint::On => grown.iter().map(|g| g.2).collect(),
+                _ => Vec::new(),
+            };
+            drop(grown);
             out.accels.push(match mode {
                 _ if !bvh => Vec::new(),
                 // Projected hits are keyed where their flat proxy is entered: one BVH.
@@ -429,6 +645,7 @@ impl GaussianTracer {
             });
             out.boxes.push(boxes);
             out.splats.push(splats);
+            out.pixels.push(pixels);
         }
         out.build_seconds = start.elapsed().as_secs_f64();
         Ok(out)

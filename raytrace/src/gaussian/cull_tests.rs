@@ -32,7 +32,7 @@ pub(super) fn random_rotation_and_sh(r: &mut Rng) -> (Quat, Vec<Vec3>) {
 
 /// A deep corridor of Gaussians (many per ray, so the k-buffer runs several rounds) whose
 /// sizes span three decades (so a part splits into several buckets), with a few large ones.
-fn corridor(seed: u64, n: usize) -> GaussianCloud {
+pub(super) fn corridor(seed: u64, n: usize) -> GaussianCloud {
     // The project's SplitMix64, started at state `seed`.
     let mut r = Rng::new(seed ^ 0x9E37_79B9_7F4A_7C15);
     let mut c = GaussianCloud::new(1);
@@ -57,7 +57,7 @@ fn corridor(seed: u64, n: usize) -> GaussianCloud {
     c
 }
 
-fn camera() -> Camera {
+pub(super) fn camera() -> Camera {
     Camera::look_at(
         DVec3::new(0.05, 0.02, -0.5),
         DVec3::new(0.0, 0.0, 6.0),
@@ -147,10 +147,8 @@ fn mean_depth_cull_matches_no_cull_static() {
     check(&tracer, &camera());
 }
 
-/// Several parts (objects under tracks): a part traversed after the k-buffer filled must
-/// start from the widened cull too.
-#[test]
-fn mean_depth_cull_matches_no_cull_dynamic() {
+/// A static corridor and two objects moving under tracks (rotating and translating).
+pub(super) fn moving_scene() -> DynamicScene {
     let mut scene = DynamicScene::from_static(corridor(3, 900));
     scene.time = TimeRange {
         start: 0.0,
@@ -175,6 +173,14 @@ fn mean_depth_cull_matches_no_cull_dynamic() {
         });
     }
     scene.validate().unwrap();
+    scene
+}
+
+/// Several parts (objects under tracks): a part traversed after the k-buffer filled must
+/// start from the widened cull too.
+#[test]
+fn mean_depth_cull_matches_no_cull_dynamic() {
+    let scene = moving_scene();
     let mut tracer =
         GaussianTracer::for_scene(&scene, 0.0, BackendKind::Obvhs, BuildPreset::Medium).unwrap();
     for t in [0.0, 0.7] {

@@ -1,7 +1,53 @@
 //! A part of a traced cloud: its proxies (one padded ellipsoid box per Gaussian), their BVH,
 //! where the part stands at time t, and the per-proxy response and α the tracer composites.
 
+use rayon::prelude::*;
+
 use super::*;
+
+/// Gaussian `i`'s box (anchor-relative), index and proxy record; None for a Gaussian that
+/// cannot be traced (invalid, never reaching α = 1/255, degenerate, or beyond what an f32
+/// BVH holds).
+fn proxy_of(cloud: &GaussianCloud, i: usize, anchor: DVec3) -> Option<((Vec3, Vec3), u32, Proxy)> {
+    if cloud.invalid_reason(i).is_some() {
+        return None;
+    }
+    let o = cloud.opacity(i);
+    // Below 1/255 the Gaussian never reaches the α cut anywhere.
+    if !(o * 255.0 > 1.0) {
+        return None;
+    }
+    let r2 = 2.0 * (255.0 * o).ln();
+    let s = cloud.scale(i);
+    if !(s.min_element() > 0.0) || !s.is_finite() {
+        return None;
+    }
+    let rot = Mat3::from_quat(cloud.unit_rotation(i));
+    let inv = Mat3::from_diagonal(s.recip()) * rot.transpose();
+    if !inv.is_finite() {
+        return None;
+    }
+    let mu = (cloud.means[i].as_dvec3() - anchor).as_vec3();
+    let m = rot * Mat3::from_diagonal(s * r2.sqrt());
+    // Half-extent of the ellipsoid R·diag(s·r) along each world axis, padded by a relative
+    // 1e-5 plus one f32 ulp of the mean so rounding cannot clip the proxy.
+    let half = Vec3::new(m.row(0).length(), m.row(1).length(), m.row(2).length());
+    let pad = half * 1e-5 + Vec3::splat(mu.abs().max_element() * 1.2e-7);
+    let (blo, bhi) = (mu - half - pad, mu + half + pad);
+    // Culled: boxes an f32 BVH cannot hold (positions ~1e26, log-scales ~45); see
+    // `backend::MAX_BVH_COORD`.
+    if !(fits_bvh(blo) && fits_bvh(bhi) && fits_bvh(cloud.means[i])) {
+        return None;
+    }
+    let proxy = Proxy {
+        mean: mu,
+        r2,
+        opacity: o,
+        inv,
+        m: rot * Mat3::from_diagonal(s),
+    };
+    Some(((blo, bhi), i as u32, proxy))
+}
 
 impl Part {
     pub(super) fn build(
@@ -37,49 +83,20 @@ impl Part {
             lo: DVec3::splat(f64::INFINITY),
             hi: DVec3::splat(f64::NEG_INFINITY),
         };
-        let mut boxes = Vec::new();
-        for i in 0..cloud.len() {
-            if cloud.invalid_reason(i).is_some() {
-                continue;
-            }
-            let o = cloud.opacity(i);
-            // Below 1/255 the Gaussian never reaches the α cut anywhere.
-            if !(o * 255.0 > 1.0) {
-                continue;
-            }
-            let r2 = 2.0 * (255.0 * o).ln();
-            let s = cloud.scale(i);
-            if !(s.min_element() > 0.0) || !s.is_finite() {
-                continue;
-            }
-            let rot = Mat3::from_quat(cloud.unit_rotation(i));
-            let inv = Mat3::from_diagonal(s.recip()) * rot.transpose();
-            if !inv.is_finite() {
-                continue;
-            }
-            let mu = (cloud.means[i].as_dvec3() - anchor).as_vec3();
-            let m = rot * Mat3::from_diagonal(s * r2.sqrt());
-            // Half-extent of the ellipsoid R·diag(s·r) along each world axis, padded by a
-            // relative 1e-5 plus one f32 ulp of the mean so rounding cannot clip the proxy.
-            let half = Vec3::new(m.row(0).length(), m.row(1).length(), m.row(2).length());
-            let pad = half * 1e-5 + Vec3::splat(mu.abs().max_element() * 1.2e-7);
-            let (blo, bhi) = (mu - half - pad, mu + half + pad);
-            // Culled: boxes an f32 BVH cannot hold (positions ~1e26, log-scales ~45); see
-            // `backend::MAX_BVH_COORD`.
-            if !(fits_bvh(blo) && fits_bvh(bhi) && fits_bvh(cloud.means[i])) {
-                continue;
-            }
+        // Each Gaussian's proxy on its own, in parallel, then gathered in the cloud's order.
+        let made: Vec<((Vec3, Vec3), u32, Proxy)> = (0..cloud.len())
+            .into_par_iter()
+            .filter_map(|i| proxy_of(&cloud, i, anchor))
+            .collect();
+        let mut boxes = Vec::with_capacity(made.len());
+        t.index.reserve_exact(made.len());
+        t.proxy.reserve_exact(made.len());
+        for ((blo, bhi), i, x) in made {
             t.lo = t.lo.min(blo.as_dvec3() + anchor);
             t.hi = t.hi.max(bhi.as_dvec3() + anchor);
             boxes.push((blo, bhi));
-            t.index.push(i as u32);
-            t.proxy.push(Proxy {
-                mean: mu,
-                r2,
-                opacity: o,
-                inv,
-                m: rot * Mat3::from_diagonal(s),
-            });
+            t.index.push(i);
+            t.proxy.push(x);
         }
         spatial_order(&mut boxes, &mut t.index, &mut t.proxy);
         if backend != BackendKind::Obvhs {
@@ -149,7 +166,14 @@ impl Part {
     /// clamp at 0.99 and cut below 1/255 (None).
     #[inline]
     pub(crate) fn alpha(&self, p: usize, q: f32) -> Option<f32> {
-        let alpha = (self.proxy[p].opacity * (-0.5 * q).exp()).min(0.99);
-        (alpha >= 1.0 / 255.0).then_some(alpha)
+        alpha_of(self.proxy[p].opacity, q)
     }
+}
+
+/// α of a Gaussian of peak opacity `opacity` at squared Mahalanobis distance `q` (see
+/// [`Part::alpha`]).
+#[inline]
+pub(super) fn alpha_of(opacity: f32, q: f32) -> Option<f32> {
+    let alpha = (opacity * (-0.5 * q).exp()).min(0.99);
+    (alpha >= 1.0 / 255.0).then_some(alpha)
 }

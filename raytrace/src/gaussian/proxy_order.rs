@@ -1,6 +1,7 @@
 //! The order of a part's proxy records in memory.
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use super::Proxy;
 
@@ -36,11 +37,12 @@ pub(super) fn spatial_order(
         spread(q.x as u32) | (spread(q.y as u32) << 1) | (spread(q.z as u32) << 2)
     };
     let mut order: Vec<(u32, u32)> = boxes
-        .iter()
+        .par_iter()
         .enumerate()
         .map(|(i, b)| (code(b), i as u32))
         .collect();
-    order.sort_unstable();
+    // (code, position) pairs are distinct: the order is total, whatever the sort.
+    order.par_sort_unstable();
     *boxes = order.iter().map(|&(_, i)| boxes[i as usize]).collect();
     *index = order.iter().map(|&(_, i)| index[i as usize]).collect();
     *proxy = order.iter().map(|&(_, i)| proxy[i as usize]).collect();

@@ -22,9 +22,9 @@
 
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
-use splatbridge_scene::Camera;
+use splatbridge_scene::{sh, Camera};
 
-use super::camera::{self, LocalFootprint, Padded};
+use super::camera::{LocalFootprint, Padded};
 use super::{GaussianHit, GaussianPayload, GaussianTracer};
 use crate::footprint::{Footprint, HitOrder, RayFootprint, ShDirection};
 use crate::kbuffer::{Accum, Hit};
@@ -60,11 +60,19 @@ impl Cells {
 }
 
 /// One proxy in a tile's list.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, Default)]
 pub(super) struct Entry {
     /// `[u0, v0, u1, v1]`: the continuous image coordinates whose rays can enter the proxy's
-    /// box (infinite for a box around the camera plane).
+    /// box and, with the footprint on, its screen ellipse (infinite for a box around the
+    /// camera plane).
     rect: [f32; 4],
+    /// The screen ellipse of [`super::camera::PixelSplat::bound`] (centred pixels): a ray passes only if
+    /// `δᵀ·k·δ ≤ amax`, `δ = mu − p` (`k = 0`, `amax = ∞` where there is none).
+    mu: [f32; 2],
+    k: [f32; 3],
+    amax: f32,
+    /// The mean's view depth `(μ − o)·f`, the numerator of every hit's key.
+    z: f32,
     /// The proxy's index in its part.
     p: u32,
 }
@@ -131,8 +139,13 @@ impl TileLists {
         tracer: &GaussianTracer,
         cam: &Camera,
         boxes: &[(Vec3, Vec3)],
+        pad: Option<&Padded>,
         near: f32,
     ) -> TileLists {
+        // The pixel records' screen ellipses (footprint on).
+        let pixels = pad
+            .filter(|p| p.mode == Footprint::On)
+            .map(|p| (p.pixels[0].as_slice(), p.variance, p.principal));
         let part = &tracer.parts[0];
         let ro = tracer.local_point(0, cam.centre);
         let fwd = tracer.local_dir(0, cam.world_to_cam.row(2));
@@ -149,9 +162,36 @@ impl TileLists {
                     return None;
                 }
                 let key = ((order_bits(z) as u64) << 32) | (part.id_offset + part.index[p]) as u64;
-                let (rect, tiles) = match screen_rect(cam, part.anchor, boxes[p]) {
+                let bound = pixels.and_then(|(px, s, _)| px[p].bound(s));
+                let mut entry = Entry {
+                    z,
+                    p: p as u32,
+                    amax: f32::INFINITY,
+                    ..Entry::default()
+                };
+                let rect = screen_rect(cam, part.anchor, boxes[p]);
+                let rect = match (rect, bound, pixels) {
+                    (Some(r), Some((mu, k, amax, half)), Some((_, _, (cx, cy)))) => {
+                        (entry.mu, entry.k, entry.amax) = (mu, k, amax);
+                        let (u, v) = (cx + mu[0] as f64, cy + mu[1] as f64);
+                        let e = [u - half[0], v - half[1], u + half[0], v + half[1]];
+                        let m = |x: f64| RECT_MARGIN + 1e-5 * x.abs();
+                        Some([
+                            r[0].max(e[0] - m(e[0])),
+                            r[1].max(e[1] - m(e[1])),
+                            r[2].min(e[2] + m(e[2])),
+                            r[3].min(e[3] + m(e[3])),
+                        ])
+                    }
+                    (r, _, _) => r,
+                };
+                let (rect, tiles) = match rect {
                     Some(r) => {
+                        // Off screen, or no ray both enters the box and meets the ellipse.
                         if r[2] < 0.0 || r[3] < 0.0 || r[0] > w || r[1] > h {
+                            return None;
+                        }
+                        if r[0] > r[2] || r[1] > r[3] {
                             return None;
                         }
                         let tile = |x: f64, n: usize| (x / t).floor().clamp(0.0, (n - 1) as f64);
@@ -190,7 +230,8 @@ impl TileLists {
                         [0, 0, tw as u32 - 1, th as u32 - 1],
                     ),
                 };
-                Some((key, Entry { rect, p: p as u32 }, tiles))
+                entry.rect = rect;
+                Some((key, entry, tiles))
             })
             .collect();
         // Keys are unique (the Gaussian index is in them), so the order is total.
@@ -208,13 +249,7 @@ impl TileLists {
         }
         let starts = count.clone();
         let mut next = count;
-        let mut entries = vec![
-            Entry {
-                rect: [0.0; 4],
-                p: 0
-            };
-            *starts.last().unwrap_or(&0)
-        ];
+        let mut entries = vec![Entry::default(); *starts.last().unwrap_or(&0)];
         // In key order into each tile: every tile's list comes out sorted.
         for (_, e, r) in &items {
             for ty in r[1]..=r[3] {
@@ -272,6 +307,17 @@ impl TileLists {
     }
 }
 
+/// [`sh::eval_color`] of `coeffs` with the direction's basis `b` already computed: the same
+/// float operations in the same order, so the same bits (`tile_tests`).
+#[inline]
+pub(super) fn color_from_basis(coeffs: &[Vec3], b: &[f32; 16]) -> Vec3 {
+    let mut c = Vec3::ZERO;
+    for (x, b) in coeffs.iter().zip(b) {
+        c += *x * *b;
+    }
+    (c + Vec3::splat(0.5)).max(Vec3::ZERO)
+}
+
 impl GaussianTracer {
     /// Whether [`GaussianTracer::render`] takes the tile path (see the module documentation).
     pub(super) fn tiles_apply(&self, opts: &RenderOptions) -> bool {
@@ -301,22 +347,19 @@ impl GaussianTracer {
         let (ro, rd) = (self.local_point(0, o), self.local_dir(0, d));
         let fwd = self.local_dir(0, forward);
         let forward_cos = rd.dot(fwd);
-        let local = fp.map(|(f, _)| LocalFootprint {
-            forward: self.local_dir(0, f.forward),
-            e1: self.local_dir(0, f.e1),
-            e2: self.local_dir(0, f.e2),
-            cov: f.cov.map(|v| v as f32),
-            det: (f.cov[0] * f.cov[2] - f.cov[1] * f.cov[1]) as f32,
-            pixel: (f.pixel.0 as f32, f.pixel.1 as f32),
-        });
+        let local = fp.map(|(f, pad)| LocalFootprint::new(self, 0, f, pad));
         let mode = fp.map_or(Footprint::Off, |(_, p)| p.mode);
         let (u, v) = (uv.0 as f32, uv.1 as f32);
+        let (cu, cv) = local.map_or((0.0, 0.0), |f| f.centred);
         let mut acc = Accum::default();
         let mut hits = 0u32;
         let mut candidates = 0u32;
+        // The SH basis of the ray's direction, computed at its first composited hit: every
+        // hit of the ray is seen along the same direction (`hit_color`).
+        let mut basis: Option<[f32; 16]> = None;
         // Composite `pending` (hits of one key distance) in Gaussian order; true: the ray
         // stopped (native's rule: the hit that would take T below the threshold is not added).
-        let flush = |pending: &mut Vec<GaussianHit>, acc: &mut Accum, hits: &mut u32| {
+        let mut flush = |pending: &mut Vec<GaussianHit>, acc: &mut Accum, hits: &mut u32| {
             if pending.len() > 1 {
                 pending.sort_unstable_by_key(|h| h.gaussian);
             }
@@ -328,7 +371,10 @@ impl GaussianTracer {
                 *hits += 1;
                 let color = match opts.sh_direction {
                     ShDirection::Mean => self.hit_color_toward_mean(h, o),
-                    ShDirection::Ray => self.hit_color(h, d),
+                    ShDirection::Ray => {
+                        let b = basis.get_or_insert_with(|| sh::basis(part.cloud.sh_degree, rd));
+                        color_from_basis(part.cloud.sh_of(h.payload.index as usize), b)
+                    }
                 };
                 acc.add(color, a, h.t);
             }
@@ -341,28 +387,28 @@ impl GaussianTracer {
             if !(u >= e.rect[0] && u <= e.rect[2] && v >= e.rect[1] && v <= e.rect[3]) {
                 continue;
             }
+            // The screen ellipse (passes when there is none: k = 0, amax = ∞).
+            let (x0, x1) = (e.mu[0] - cu, e.mu[1] - cv);
+            if !(e.k[0] * x0 * x0 + 2.0 * e.k[1] * x0 * x1 + e.k[2] * x1 * x1 <= e.amax) {
+                continue;
+            }
             candidates += 1;
             let p = e.p as usize;
             let r = match (&local, fp) {
                 (Some(f), Some((_, pad))) if mode == Footprint::Projected => {
                     part.response_projected(p, ro, rd, f, &pad.splats[0][p])
                 }
-                (Some(f), Some((_, pad))) => part.response_fp(p, ro, rd, f, pad.boxes[0][p]),
+                (Some(f), Some((_, pad))) => {
+                    part.response_fp(p, ro, rd, f, pad.boxes[0][p], &pad.pixels[0][p], true)
+                }
                 _ => part.response(p, ro, rd),
             };
             let Some((mut t, alpha)) = r else {
                 continue;
             };
             if mode != Footprint::Projected {
-                if let Some(k) = camera::mean_depth_key(
-                    HitOrder::MeanDepth,
-                    part.proxy[p].mean,
-                    ro,
-                    fwd,
-                    forward_cos,
-                ) {
-                    t = k;
-                }
+                // `camera::mean_depth_key`, its numerator computed once per camera.
+                t = e.z / forward_cos;
             }
             if pending
                 .first()
