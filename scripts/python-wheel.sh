@@ -5,9 +5,10 @@
 #
 # Usage: scripts/python-wheel.sh
 # SPLATBRIDGE_WHEEL_ARGS: more `maturin build` options (default `--release`); the test
-# command passes `--profile test --features embree --auditwheel skip --strip`, the profile and
-# features `cargo test` has already built, so the wheel adds only the bindings crate instead
-# of a second full build.
+# command passes `--profile dev --features embree --auditwheel skip --strip`: the libraries
+# `cargo test` has already built are reused (the test profile shares the dev profile's
+# artifacts), so the wheel adds only PyO3 and the bindings crate. Not `--profile test`:
+# `cargo rustc --profile test` builds a test harness, not a loadable extension module.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 read -r -a extra <<< "${SPLATBRIDGE_WHEEL_ARGS:---release}"

@@ -14,8 +14,9 @@ installed() { dpkg-query -W -f='${Status}' "$1" 2>/dev/null | grep -q "install o
 # blender: the import check; python3-numpy: Debian's Blender 3.4 importer needs it;
 # libclang-dev: bindgen in embree4-sys (headers included, not just the runtime library);
 # xvfb, xauth: a virtual display (software GL) for EEVEE (`xvfb-run` needs xauth);
-# chromium: headless software-GL browser for the three.js / Babylon.js viewer check.
-for pkg in blender python3-numpy libclang-dev unzip xvfb xauth chromium; do
+# chromium: headless software-GL browser for the three.js / Babylon.js viewer check;
+# python3-venv: the Python package's test environment (target/py-venv).
+for pkg in blender python3-numpy python3-venv libclang-dev unzip xvfb xauth chromium; do
   installed "$pkg" || need+=("$pkg")
 done
 command -v node >/dev/null 2>&1 || need+=(nodejs npm)

@@ -15,18 +15,19 @@ fi
 cargo fmt --all -- --check
 cargo clippy --workspace --all-targets $features -- -D warnings
 cargo test --workspace $features
-# The Python package (python/): a wheel built with the profile and features `cargo test` just
-# used, installed into target/py-venv; its pytest suite compares it with the CLI `cargo test`
-# built. The Blender extension's tests run in the same environment with the `bpy` wheel from
-# PyPI (EEVEE under Xvfb). Off unless SPLATBRIDGE_PYTHON_TESTS=1 until the wheel build reuses
-# cargo test's artifacts (see docs/python.md, "Tests").
-if [ "${SPLATBRIDGE_PYTHON_TESTS:-0}" = 1 ]; then
-  SPLATBRIDGE_WHEEL_ARGS="--profile test $features --auditwheel skip --strip" scripts/python-wheel.sh >/dev/null
+# The Python package (python/): a wheel built with the dev profile and the features
+# `cargo test` just built (cargo test's libraries are reused: only PyO3 and the bindings crate
+# compile), installed into target/py-venv; its pytest suite compares it with the CLI `cargo
+# test` built. The Blender extension's tests run in the same environment with the `bpy` wheel
+# from PyPI (Cycles; EEVEE only with SPLATBRIDGE_EEVEE_TESTS=1, see blender/tests). Skip the
+# whole Python part with SPLATBRIDGE_PYTHON_TESTS=0.
+if [ "${SPLATBRIDGE_PYTHON_TESTS:-1}" = 1 ]; then
+  SPLATBRIDGE_WHEEL_ARGS="--profile dev $features --auditwheel skip --strip" scripts/python-wheel.sh >/dev/null
   venv=target/py-venv
   "$venv/bin/pip" install -q --force-reinstall --no-deps target/wheels/splatbridge-*.whl
   "$venv/bin/python" -c "import bpy" 2>/dev/null || "$venv/bin/pip" install -q "bpy>=4.5,<4.6"
   export SPLATBRIDGE_CLI="$PWD/target/debug/splatbridge"
-  pytest=("$venv/bin/python" -m pytest -q python/tests blender/tests)
+  pytest=("$venv/bin/python" -m pytest -q -rs python/tests blender/tests)
   if [ -z "${DISPLAY:-}" ] && command -v xvfb-run >/dev/null; then
     pytest=(xvfb-run -a -s "-screen 0 1280x1024x24" "${pytest[@]}")
   fi

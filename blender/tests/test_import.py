@@ -68,7 +68,20 @@ def eevee_engine():
     return "BLENDER_EEVEE_NEXT" if "BLENDER_EEVEE_NEXT" in items else "BLENDER_EEVEE"
 
 
-def test_fourth_st_imports_ready_to_render_close_to_our_tracer(tmp_path):
+# EEVEE (Next, Blender 4.2+) compiles its shaders on first use; under Xvfb's software OpenGL
+# (llvmpipe) that alone took 10 min on the 2-core test machine (Cycles: under a minute), so the
+# EEVEE check runs when asked (SPLATBRIDGE_EEVEE_TESTS=1) and is reported as skipped otherwise.
+EEVEE_WANTED = os.environ.get("SPLATBRIDGE_EEVEE_TESTS") == "1"
+ENGINES = [
+    "CYCLES",
+    pytest.param("EEVEE", marks=pytest.mark.skipif(
+        not EEVEE_WANTED, reason="EEVEE shader compilation under llvmpipe takes ~10 min; "
+        "set SPLATBRIDGE_EEVEE_TESTS=1")),
+]
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_fourth_st_imports_ready_to_render_close_to_our_tracer(tmp_path, engine):
     fresh()
     t0 = time.perf_counter()
     r = bpy.ops.import_scene.gaussian_splats(filepath=str(FOURTH_ST), cameras="orbit:8:1",
@@ -92,16 +105,13 @@ def test_fourth_st_imports_ready_to_render_close_to_our_tracer(tmp_path):
     # Native and the tracer write display values as they are (PNG quantised); Blender's Raw
     # view does too.
     trace_db = psnr(native, np.round(np.clip(traced, 0, 1) * 255) / 255)
-    results = {}
-    for engine in ("CYCLES", eevee_engine()):
-        if engine != "CYCLES":
-            splat_setup.sort_back_to_front(scene, scene.camera)
-        img = render_png(tmp_path / f"{engine}.png", engine)
-        results[engine] = psnr(native, img)
-    print("BLENDER_PSNR " + json.dumps({"trace": trace_db, **results}))
-    for engine, db in results.items():
-        # tests/blender_render.rs's criterion: within 1 dB of our tracer on the same file.
-        assert db >= trace_db - 1.0, (engine, db, trace_db)
+    name = "CYCLES" if engine == "CYCLES" else eevee_engine()
+    if engine != "CYCLES":
+        splat_setup.sort_back_to_front(scene, scene.camera)
+    db = psnr(native, render_png(tmp_path / f"{name}.png", name))
+    print("BLENDER_PSNR " + json.dumps({"trace": trace_db, name: db}))
+    # tests/blender_render.rs's criterion: within 1 dB of our tracer on the same file.
+    assert db >= trace_db - 1.0, (name, db, trace_db)
 
 
 def test_the_street_imports_with_its_animation(tmp_path):
