@@ -105,6 +105,29 @@ check() {
   python3 -c "import sys; sys.exit(0 if $t_st / $t_sb >= 5 and $heap <= 1.5 else 1)" || { echo "  ^ below target (5× faster, ≤ 1.5× memory)"; fail=1; }
 }
 
+# decode FILE with both tools and time them, without comparing the decodings: for the inputs
+# splat-transform reads as plain PLY columns (it keeps `filter_3D` and `red green blue` as
+# extra columns instead of applying them, so the two outputs differ by design) and for
+# `.ksplat` (decoding checked against splat-transform's in tests/, fixtures/formats/*.ksplat*).
+# $1 label, $2 file
+timed() {
+  local label=$1 file=$2 base
+  base=$out/$(basename "$file")
+  "$st" -q -w "$file" "$base.st.ply" || { echo "  splat-transform cannot read $label"; fail=1; return; }
+  "$sb" convert "$file" --splats -o "$base.sb.ply" >/dev/null 2>&1 || { echo "  splatbridge cannot read $label"; fail=1; return; }
+  local t_sb t_st ratio mem heap rss
+  t_sb=$(timeit "$sb" convert "$file" --splats -o "$base.sb.ply")
+  t_st=$(timeit "$st" -q -w "$file" "$base.st.ply")
+  ratio=$(python3 -c "print(f'{$t_st / $t_sb:.1f}')")
+  mem=$(peak "$file"); heap=${mem% *}
+  rss=$(maxrss "$sb" convert "$file" --splats -o "$base.sb.ply")
+  printf '  decode %-16s splatbridge %7.3f s  splat-transform %7.3f s  %5s×  peak heap / RSS %s× cloud  (max RSS %s)\n' \
+    "$label" "$t_sb" "$t_st" "$ratio" "${mem/ / \/ }" "$rss"
+  # A .ksplat is read whole (sections addressed by offset): its memory target is 2× the cloud.
+  local cap=1.5; [[ $label == ksplat* ]] && cap=2.0
+  python3 -c "import sys; sys.exit(0 if $t_st / $t_sb >= 5 and $heap <= $cap else 1)" || { echo "  ^ below target (5× faster, ≤ $cap× memory)"; fail=1; }
+}
+
 for ply in "${plys[@]}"; do
   name=$(basename "$ply" .ply)
   echo "== $name ($(stat -c %s "$ply") bytes)"
@@ -112,6 +135,18 @@ for ply in "${plys[@]}"; do
     "$st" -q -w "$ply" "$out/$name.$ext" || { echo "  splat-transform cannot write $ext"; fail=1; continue; }
     fmt=$ext; [[ $ext == compressed.ply ]] && fmt=compressed-ply
     check "$fmt" "$out/$name.$ext"
+  done
+  # The newer readers splat-transform also reads: .ksplat at every compression level (written
+  # by our writer), and the PLY layouts beside 3DGS's (scripts/ply-variants.py): 2DGS
+  # (`scale_0 scale_1`, which splat-transform reads as 2DGS), Mip-Splatting (`filter_3D`) and
+  # `red green blue` colours.
+  for level in 0 1 2; do
+    "$sb" convert "$ply" --ksplat-level "$level" -o "$out/$name.l$level.ksplat" >/dev/null
+    timed "ksplat level $level" "$out/$name.l$level.ksplat"
+  done
+  python3 "$here/ply-variants.py" "$ply" "$out" >/dev/null
+  for v in 2dgs mip rgb; do
+    timed "$v PLY" "$out/$name.$v.ply"
   done
   t_sb=$(timeit "$sb" convert "$ply" -o "$out/$name.sb.spz")
   t_st=$(timeit "$st" -q -w "$ply" "$out/$name.st.spz")

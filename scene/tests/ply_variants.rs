@@ -370,3 +370,145 @@ fn two_d_gaussian_surfels_are_thin_discs() {
         .to_string();
     assert!(err.contains("'filter_3D'") && err.contains("2DGS"), "{err}");
 }
+
+/// Every stored value of a cloud as bits (so −0.0 and +0.0 differ).
+fn cloud_bits(c: &GaussianCloud) -> Vec<u32> {
+    let mut b: Vec<u32> = Vec::new();
+    for i in 0..c.len() {
+        b.extend(c.means[i].to_array().map(f32::to_bits));
+        b.extend(c.log_scales[i].to_array().map(f32::to_bits));
+        b.extend(c.rotations[i].to_array().map(f32::to_bits));
+        b.push(c.opacity_logits[i].to_bits());
+    }
+    b.extend(c.sh.iter().flat_map(|v| v.to_array().map(f32::to_bits)));
+    b.push(c.sh_degree as u32);
+    b
+}
+
+/// The binary reader of non-standard layouts (each slot resolved to a load on the record's
+/// bytes) against the ASCII reader's per-property path (`Variant::assemble`, the reference):
+/// the same values in both encodings give the same cloud bit for bit, for every layout and
+/// colour type, with −0.0 among the values.
+#[test]
+fn binary_variant_path_matches_the_per_property_reference() {
+    let tmp = tempfile::tempdir().unwrap();
+    let n = 257;
+    let rng = std::cell::RefCell::new(splatbridge_scene::rng::Rng::new(7));
+    // Values exactly representable in f32 (the binary files store float32), one in 16 a −0.0.
+    let mut floats = |lo: f64, hi: f64| -> Vec<f64> {
+        let mut r = rng.borrow_mut();
+        (0..n)
+            .map(|_| {
+                if r.range(0.0, 1.0) < 1.0 / 16.0 {
+                    -0.0
+                } else {
+                    r.range(lo as f32, hi as f32) as f64
+                }
+            })
+            .collect()
+    };
+    let ints = |hi: f64| -> Vec<f64> {
+        let mut r = rng.borrow_mut();
+        (0..n)
+            .map(|_| (r.range(0.0, 1.0) as f64 * hi).floor().min(hi - 1.0))
+            .collect()
+    };
+    let base = |f: &mut dyn FnMut(f64, f64) -> Vec<f64>, scales: usize| {
+        let mut p = vec![
+            Prop {
+                name: "x",
+                ty: "float",
+                values: f(-2.0, 2.0),
+            },
+            Prop {
+                name: "y",
+                ty: "float",
+                values: f(-2.0, 2.0),
+            },
+            Prop {
+                name: "z",
+                ty: "float",
+                values: f(-2.0, 2.0),
+            },
+        ];
+        for name in ["scale_0", "scale_1", "scale_2"].into_iter().take(scales) {
+            p.push(Prop {
+                name,
+                ty: "float",
+                values: f(-5.0, -1.0),
+            });
+        }
+        for name in ["rot_0", "rot_1", "rot_2", "rot_3"] {
+            p.push(Prop {
+                name,
+                ty: "float",
+                values: f(0.1, 1.0),
+            });
+        }
+        p.push(Prop {
+            name: "opacity",
+            ty: "float",
+            values: f(-2.0, 3.0),
+        });
+        for name in [
+            "f_rest_0", "f_rest_1", "f_rest_2", "f_rest_3", "f_rest_4", "f_rest_5", "f_rest_6",
+            "f_rest_7", "f_rest_8",
+        ] {
+            p.push(Prop {
+                name,
+                ty: "float",
+                values: f(-0.3, 0.3),
+            });
+        }
+        p
+    };
+    let mut layouts: Vec<(&str, Vec<Prop>)> = Vec::new();
+    let dc = |f: &mut dyn FnMut(f64, f64) -> Vec<f64>| {
+        ["f_dc_0", "f_dc_1", "f_dc_2"].map(|name| Prop {
+            name,
+            ty: "float",
+            values: f(-1.0, 1.0),
+        })
+    };
+    // Colour as uchar, ushort, float and double instead of f_dc.
+    for (ty, hi) in [
+        ("uchar", 256.0),
+        ("ushort", 65536.0),
+        ("float", 0.0),
+        ("double", 0.0),
+    ] {
+        let mut p = base(&mut floats, 3);
+        for name in ["red", "green", "blue"] {
+            let values = if hi > 0.0 { ints(hi) } else { floats(0.0, 1.0) };
+            p.push(Prop { name, ty, values });
+        }
+        layouts.push((ty, p));
+    }
+    // 2DGS: two scales.
+    let mut p = base(&mut floats, 2);
+    p.extend(dc(&mut floats));
+    layouts.push(("2dgs", p));
+    // Mip-Splatting: filter_3D, as float and as double.
+    for ty in ["float", "double"] {
+        let mut p = base(&mut floats, 3);
+        p.extend(dc(&mut floats));
+        p.push(Prop {
+            name: "filter_3D",
+            ty,
+            values: floats(0.0, 0.02),
+        });
+        layouts.push(("mip", p));
+    }
+    for (k, (name, props)) in layouts.iter().enumerate() {
+        let b = write(tmp.path(), &format!("{k}b.ply"), props, false);
+        let a = write(tmp.path(), &format!("{k}a.ply"), props, true);
+        let (cb, rb) = read(&b);
+        let (ca, ra) = read(&a);
+        assert_eq!(rb.kind, ra.kind, "{name}");
+        assert_eq!(cb.len(), n, "{name}");
+        assert!(
+            cloud_bits(&cb) == cloud_bits(&ca),
+            "{name} ({k}): the binary and the per-property paths differ"
+        );
+    }
+}

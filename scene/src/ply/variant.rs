@@ -96,16 +96,25 @@ impl Variant {
     pub(crate) fn assemble(&self, raw: &[f64], v: &mut [f32; MAX_SLOTS]) {
         for (dst, s) in v.iter_mut().zip(&self.slots) {
             *dst = match *s {
+                // Taken as is (keeps −0.0, which `· 1 + 0` would turn into +0.0).
+                Source::Prop { pi, mul, add } if mul == 1.0 && add == 0.0 => raw[pi] as f32,
                 Source::Prop { pi, mul, add } => (raw[pi] * mul + add) as f32,
                 Source::Const(c) => c,
                 Source::ThinAxis => 0.0,
             };
         }
+        self.finish(v, self.filter_3d.map(|pi| raw[pi]));
+    }
+
+    /// What follows the per-slot values: the 2DGS thin axis from the two scales, and
+    /// Mip-Splatting's `filter` (the `filter_3D` value) folded in.
+    #[inline]
+    pub(crate) fn finish(&self, v: &mut [f32; MAX_SLOTS], filter: Option<f64>) {
         if matches!(self.slots[SLOT_SCALE + 2], Source::ThinAxis) {
             v[SLOT_SCALE + 2] = v[SLOT_SCALE].min(v[SLOT_SCALE + 1]) + SURFEL_THICKNESS.ln();
         }
-        if let Some(pi) = self.filter_3d {
-            fold_filter_3d(v, raw[pi]);
+        if let Some(f) = filter {
+            fold_filter_3d(v, f);
         }
     }
 }
