@@ -92,7 +92,7 @@ impl MeshTracer {
 
     /// The hit lists of every pixel of `cam` at time `time` (rays through pixel centres, as
     /// [`MeshTracer::render`] shoots them): through the screen tiles where
-    /// [`MeshTracer::tiles_apply`] (one pass a ray, the same hits), otherwise with a k-buffer
+    /// [`MeshTracer::tiles_pay`] (one pass a ray, the same hits), otherwise with a k-buffer
     /// of `k`.
     pub fn record_hits(
         &self,
@@ -101,7 +101,7 @@ impl MeshTracer {
         k: usize,
         min_transmittance: f32,
     ) -> Result<HitLists> {
-        if self.tiles_apply() {
+        if self.tiles_pay(time) {
             return self.record_hits_tiles(cam, time, min_transmittance);
         }
         self.record_hits_per_ray(cam, time, k, min_transmittance)

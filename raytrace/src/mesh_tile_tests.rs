@@ -273,7 +273,7 @@ fn reference_image(tracer: &MeshTracer, cam: &Camera, opts: &RenderOptions) -> F
 
 fn tracer(scene: TriScene) -> MeshTracer {
     let t = MeshTracer::new(scene, BackendKind::Obvhs, BuildPreset::Medium).unwrap();
-    assert!(t.tiles_apply());
+    assert!(t.tiles_pay(0.0));
     t
 }
 

@@ -24,7 +24,9 @@
 //!
 //! Which renders take this path: obvhs (the default backend; an Embree build traces over
 //! single triangles and may report a hit by its own edge rule, so it keeps its per-ray path),
-//! every mesh over runs of triangles (`MeshTracer::new`'s default).
+//! every mesh over runs of triangles (`MeshTracer::new`'s default), and a scene of several
+//! instances (the node layout of a viewer export, where the per-ray path's two-level traversal
+//! was slowest; a one-node mesh keeps its own BVH, see [`MeshTracer::tiles_pay`]).
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -380,6 +382,17 @@ impl MeshTracer {
                 .iter()
                 .zip(&self.blas)
                 .all(|(m, b)| m.tris.is_empty() || !b.run_start.is_empty())
+    }
+
+    /// Whether a render at `time` takes the tile path: where it applies
+    /// ([`MeshTracer::tiles_apply`]) and the scene has at least
+    /// [`crate::instances::MIN_INSTANCES`] instances. Binning costs a pass over every triangle
+    /// a frame, which a one-node mesh's own BVH does not need: measured in `compare` at
+    /// 320×240 on `fourth_st`'s OBJ exports (one node), the per-ray path took 269–962 ms a
+    /// frame and the tile path 499–6479 ms, while on the 639-node GLBs the tile path was faster
+    /// at every size measured, 160×120 to 1920×1080 (`docs/trace-speed.md`).
+    pub fn tiles_pay(&self, time: f64) -> bool {
+        self.tiles_apply() && self.prepare_list(time).len() >= crate::instances::MIN_INSTANCES
     }
 
     /// Render `cam` at `time` through the tile lists.

@@ -25,7 +25,7 @@
 //! result, as Blender or three.js show the file. Colours are clamped to [0, 1] (glTF's range).
 //!
 //! A render's primary rays take the screen-tile path of `mesh_tiles` where it applies
-//! ([`MeshTracer::tiles_apply`]): the same per-candidate test and compositing (`mesh_hit`) on
+//! ([`MeshTracer::tiles_pay`]): the same per-candidate test and compositing (`mesh_hit`) on
 //! triangles binned per tile, one pass a ray instead of BVH traversals and k-buffer rounds.
 //!
 //! Geometry: one BVH per mesh in the mesh's local frame, relative to an anchor (the centre of
@@ -545,10 +545,10 @@ impl MeshTracer {
     }
 
     /// Render camera `cam` at time `time`: through screen tiles where they apply
-    /// ([`MeshTracer::tiles_apply`], `mesh_tiles`), otherwise ray by ray.
+    /// ([`MeshTracer::tiles_pay`], `mesh_tiles`), otherwise ray by ray.
     pub fn render(&self, cam: &Camera, time: f64, opts: &RenderOptions) -> Result<(Frame, Stats)> {
         opts.validate()?;
-        if self.tiles_apply() {
+        if self.tiles_pay(time) {
             return self.render_tiles(cam, time, opts);
         }
         self.render_per_ray(cam, time, opts)
