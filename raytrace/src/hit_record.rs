@@ -91,8 +91,24 @@ impl MeshTracer {
     }
 
     /// The hit lists of every pixel of `cam` at time `time` (rays through pixel centres, as
-    /// [`MeshTracer::render`] shoots them), with a k-buffer of `k`.
+    /// [`MeshTracer::render`] shoots them): through the screen tiles where
+    /// [`MeshTracer::tiles_pay`] (one pass a ray, the same hits), otherwise with a k-buffer
+    /// of `k`.
     pub fn record_hits(
+        &self,
+        cam: &Camera,
+        time: f64,
+        k: usize,
+        min_transmittance: f32,
+    ) -> Result<HitLists> {
+        if self.tiles_pay(time) {
+            return self.record_hits_tiles(cam, time, min_transmittance);
+        }
+        self.record_hits_per_ray(cam, time, k, min_transmittance)
+    }
+
+    /// [`MeshTracer::record_hits`] ray by ray through the BVHs and k-buffer rounds.
+    pub fn record_hits_per_ray(
         &self,
         cam: &Camera,
         time: f64,

@@ -82,6 +82,19 @@ impl<P: Payload> KBuffer<P> {
         }
     }
 
+    /// A buffer that is never full: it keeps every hit up to [`KBuffer::stop`]'s (for a
+    /// query that finds all of a ray's hits in one pass, `mesh_tiles`).
+    pub fn unbounded() -> Self {
+        KBuffer {
+            k: usize::MAX,
+            hits: Vec::new(),
+            candidates: 0,
+            shade_on_insert: false,
+            stop: None,
+            stop_key: None,
+        }
+    }
+
     pub fn clear(&mut self) {
         self.hits.clear();
         self.stop_key = None;

@@ -8,6 +8,10 @@
 //! renders a `GaussianCloud`; [`secondary`] answers transmittance and closest-opaque queries.
 
 pub mod backend;
+pub(crate) mod mesh_hit;
+#[cfg(test)]
+mod mesh_tile_tests;
+pub(crate) mod mesh_tiles;
 pub mod mesh_tracer;
 /// The mesh tracer under its former name.
 pub use mesh_tracer as composite;

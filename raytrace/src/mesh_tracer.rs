@@ -24,6 +24,10 @@
 //! (`Compositing::Display`); `Compositing::Viewer` blends in linear light and encodes the
 //! result, as Blender or three.js show the file. Colours are clamped to [0, 1] (glTF's range).
 //!
+//! A render's primary rays take the screen-tile path of `mesh_tiles` where it applies
+//! ([`MeshTracer::tiles_pay`]): the same per-candidate test and compositing (`mesh_hit`) on
+//! triangles binned per tile, one pass a ray instead of BVH traversals and k-buffer rounds.
+//!
 //! Geometry: one BVH per mesh in the mesh's local frame, relative to an anchor (the centre of
 //! its bounds) so f32 keeps precision far from the origin; at time t each visible node is an
 //! instance and the ray is carried into its frame in f64 (instancing, no per-frame rebuild).
@@ -38,10 +42,10 @@ use crate::error::Result;
 use crate::geom::{ray_box, transformed_box};
 pub use crate::instances::Instances;
 pub use crate::kbuffer::Key;
-use crate::kbuffer::{self, Accum, Hit, KBuffer, Payload};
-use crate::model::{linear_to_srgb, srgb_to_linear, TriScene};
-use crate::render::{render_frame_spp, Compositing, PixelOut, RenderOptions, Stats};
-use crate::tri::WRay;
+use crate::kbuffer::{self, Hit, KBuffer, Payload};
+use crate::mesh_hit::{Compositor, LocalRay, Query};
+use crate::model::TriScene;
+use crate::render::{render_frame_spp, PixelOut, RenderOptions, Stats};
 use splatbridge_scene::{Camera, Frame};
 
 /// What a mode-mesh hit carries: the triangle, where on it, and (when shaded during
@@ -232,30 +236,11 @@ fn run_boxes(
         .collect())
 }
 
-/// Barycentrics of the ray's crossing of the triangle's plane, in f64, clamped to the
-/// triangle (the watertight test already decided coverage) and renormalised.
-#[inline]
-fn refine_bary(a: DVec3, b: DVec3, c: DVec3, o: DVec3, d: DVec3) -> Option<[f32; 3]> {
-    let n = (b - a).cross(c - a);
-    let nn = n.length_squared();
-    let den = n.dot(d);
-    if !(nn > 0.0) || den == 0.0 {
-        return None;
-    }
-    let p = o + d * (n.dot(a - o) / den);
-    let l = [
-        (c - b).cross(p - b).dot(n).max(0.0),
-        (a - c).cross(p - c).dot(n).max(0.0),
-        (b - a).cross(p - a).dot(n).max(0.0),
-    ];
-    let s = l[0] + l[1] + l[2];
-    (s > 0.0 && s.is_finite()).then(|| [(l[0] / s) as f32, (l[1] / s) as f32, (l[2] / s) as f32])
-}
-
 /// An instance prepared for one time: mesh, inverse transform, world bounds.
 #[derive(Clone, Copy, Debug)]
 pub struct PreparedInstance {
     pub mesh: usize,
+    pub to_world: DAffine3,
     pub to_local: DAffine3,
     pub lo: DVec3,
     pub hi: DVec3,
@@ -419,6 +404,7 @@ impl MeshTracer {
                 let (lo, hi) = transformed_box(&i.to_world, b.lo, b.hi);
                 PreparedInstance {
                     mesh: i.mesh,
+                    to_world: i.to_world,
                     to_local: i.to_world.inverse(),
                     lo,
                     hi,
@@ -471,76 +457,18 @@ impl MeshTracer {
             let mesh = &self.scene.meshes[inst.mesh];
             let lo64 = inst.to_local.transform_point3(o) - blas.anchor;
             let ld64 = inst.to_local.transform_vector3(d);
-            let (lo, ld) = (lo64.as_vec3(), ld64.as_vec3());
-            if !lo.is_finite() || !ld.is_finite() || ld == Vec3::ZERO {
+            let Some(r) = LocalRay::new(lo64, ld64) else {
                 return;
-            }
-            let wray = WRay::new(lo, ld);
+            };
             let cull0 = buf.cull(tmax);
             // Resume from the last hit: the distance of `after` in this instance's ray units
             // (the local direction keeps the world parameter, so it is the same number).
             let t_from = after.map(|a| f32::from_bits(a.0)).unwrap_or(0.0).max(tmin);
-            let mut test =
-                |[a, b, c]: [Vec3; 3], g: u32, prim: u32, reported: bool, cull: &mut f32| {
-                    buf.candidates = buf.candidates.wrapping_add(1);
-                    // Coverage from the watertight f32 test (or the backend's own report, whose
-                    // edge rule may pick the neighbouring triangle); distance and barycentrics of
-                    // accepted hits are refined in f64 (f32 loses ~ulp(|o − v|)/size on small far
-                    // triangles).
-                    let wt = wray.intersect(a, b, c, f32::NEG_INFINITY, f32::INFINITY);
-                    if wt.is_none() && !reported {
-                        return;
-                    }
-                    let (pn, pw) = blas.planes[g as usize];
-                    let tp = (pw - pn.dot(lo64)) / pn.dot(ld64);
-                    let t = match wt {
-                        _ if tp.is_finite() => tp as f32,
-                        Some(h) => h.t,
-                        None => return,
-                    };
-                    // +0.0 normalises −0.0 so the bit pattern orders like the value.
-                    let t = t + 0.0;
-                    if !(t >= tmin && t <= tmax) {
-                        return;
-                    }
-                    let key = (t.to_bits(), mesh.tri_gaussian[prim as usize], ii as u32, g);
-                    if after.is_some_and(|a| key <= a) || buf.rejects(key) || buf.holds(key, prim) {
-                        return;
-                    }
-                    // Only hits that enter the buffer pay for the f64 barycentrics.
-                    let refined = refine_bary(a.as_dvec3(), b.as_dvec3(), c.as_dvec3(), lo64, ld64);
-                    let bary = match (wt, refined) {
-                        (_, Some(bary)) => bary,
-                        (Some(h), None) => h.bary,
-                        (None, None) => return,
-                    };
-                    let rgba = if buf.shade_on_insert {
-                        let c = mesh.shade(
-                            prim as usize,
-                            bary,
-                            &self.scene.materials,
-                            &self.scene.textures,
-                        );
-                        if !(c.w > 0.0) {
-                            return;
-                        }
-                        c
-                    } else {
-                        Vec4::ZERO
-                    };
-                    let hit = Hit {
-                        t,
-                        gaussian: key.1,
-                        instance: ii as u32,
-                        group: g,
-                        payload: TrianglePayload {
-                            tri: prim,
-                            bary,
-                            rgba,
-                        },
-                    };
-                    *cull = buf.insert(hit, tmax);
-                };
+            let (lo, ld) = (r.wray.origin, r.wray.dir);
+            let q = Query { tmin, tmax, after };
+            let mut test = |v: [Vec3; 3], g: u32, prim: u32, reported: bool, cull: &mut f32| {
+                self.test_triangle(ii, inst.mesh, &r, v, g, prim, reported, &q, buf, cull)
+            };
             blas.accel
                 .traverse_slots(lo, ld, t_from, cull0, &mut |slot, reported, cull| {
                     let s = slot as usize;
@@ -587,18 +515,11 @@ impl MeshTracer {
         opts: &RenderOptions,
         buf: &mut KBuffer<TrianglePayload>,
     ) -> PixelOut {
-        let mut out = PixelOut::default();
-        let mut acc = Accum::default();
+        let mut comp = Compositor::new(opts, self.scene.colors_linear);
         buf.candidates = 0;
-        let lin = self.scene.colors_linear;
-        let (to_display, to_linear) = match opts.compositing {
-            Compositing::Display => (lin, false),
-            Compositing::Viewer => (false, !lin),
-        };
         buf.shade_on_insert = true;
-        let mut hits = 0u32;
         // The transmittance compositing has reached, for the buffer's stop (`KBuffer::stop`).
-        let tr_now = std::cell::Cell::new(acc.tr);
+        let tr_now = std::cell::Cell::new(comp.acc.tr);
         let (rounds, _) = kbuffer::walk(
             buf,
             |after, buf| {
@@ -606,63 +527,40 @@ impl MeshTracer {
                 self.collect(insts, o, d, 0.0, f32::INFINITY, after, buf)
             },
             |h| {
-                hits += 1;
-                let rgba = h.payload.rgba;
-                let a = rgba.w;
-                if a > 0.0 {
-                    let mut rgb = rgba.truncate().clamp(Vec3::ZERO, Vec3::ONE);
-                    if to_display {
-                        rgb = Vec3::new(
-                            linear_to_srgb(rgb.x),
-                            linear_to_srgb(rgb.y),
-                            linear_to_srgb(rgb.z),
-                        );
-                    } else if to_linear {
-                        rgb = Vec3::new(
-                            srgb_to_linear(rgb.x),
-                            srgb_to_linear(rgb.y),
-                            srgb_to_linear(rgb.z),
-                        );
-                    }
-                    // Composited before the termination test: a viewer draws the triangle.
-                    acc.add(rgb, a, h.t);
-                    tr_now.set(acc.tr);
-                    if acc.tr < opts.min_transmittance {
-                        return ControlFlow::Break(());
-                    }
+                let stop = comp.add(h);
+                tr_now.set(comp.acc.tr);
+                if stop {
+                    ControlFlow::Break(())
+                } else {
+                    ControlFlow::Continue(())
                 }
-                ControlFlow::Continue(())
             },
         );
-        out.hits = hits;
+        let mut out = comp.finish();
         out.traversals = rounds;
-        let (c, tr) = (acc.rgb, acc.tr);
-        out.rgb = c + opts.background * tr;
-        if opts.compositing == Compositing::Viewer {
-            // The background is a display colour; blend it in linear light, then encode.
-            let bg = opts.background;
-            let lin = c + Vec3::new(
-                srgb_to_linear(bg.x),
-                srgb_to_linear(bg.y),
-                srgb_to_linear(bg.z),
-            ) * tr;
-            let l = lin.clamp(Vec3::ZERO, Vec3::ONE);
-            out.rgb = Vec3::new(
-                linear_to_srgb(l.x),
-                linear_to_srgb(l.y),
-                linear_to_srgb(l.z),
-            );
-        }
-        out.alpha = 1.0 - tr;
-        out.depth = acc.depth();
         out.candidates = buf.candidates;
         buf.shade_on_insert = false;
         buf.stop = None;
         out
     }
 
-    /// Render camera `cam` at time `time`.
+    /// Render camera `cam` at time `time`: through screen tiles where they apply
+    /// ([`MeshTracer::tiles_pay`], `mesh_tiles`), otherwise ray by ray.
     pub fn render(&self, cam: &Camera, time: f64, opts: &RenderOptions) -> Result<(Frame, Stats)> {
+        opts.validate()?;
+        if self.tiles_pay(time) {
+            return self.render_tiles(cam, time, opts);
+        }
+        self.render_per_ray(cam, time, opts)
+    }
+
+    /// Render ray by ray through the BVHs and k-buffer rounds (the path every backend takes).
+    pub fn render_per_ray(
+        &self,
+        cam: &Camera,
+        time: f64,
+        opts: &RenderOptions,
+    ) -> Result<(Frame, Stats)> {
         opts.validate()?;
         let insts = self.prepare(time);
         render_frame_spp(cam, opts.spp, |o, d| {

@@ -1,0 +1,237 @@
+//! The per-candidate work of mode `mesh`, shared by every path that finds candidates (the
+//! per-ray BVH traversal of `mesh_tracer` and the screen tiles of `mesh_tiles`): carrying a
+//! world ray into an instance's frame, the exact triangle test and its k-buffer insertion, and
+//! front-to-back compositing of the hits. Sharing it is what makes the paths' images equal:
+//! they differ only in which candidates they offer and in which order, and the k-buffer orders
+//! hits by their full key.
+
+use glam::{DVec3, Vec3, Vec4};
+
+use crate::kbuffer::{Accum, Hit, KBuffer, Key};
+use crate::mesh_tracer::{MeshTracer, TrianglePayload};
+use crate::model::{linear_to_srgb, srgb_to_linear};
+use crate::render::{Compositing, PixelOut, RenderOptions};
+use crate::tri::WRay;
+
+/// A world ray carried into an instance's frame: origin relative to the mesh's anchor and
+/// direction in f64 (plane distances, barycentrics) and the f32 watertight ray.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct LocalRay {
+    pub lo64: DVec3,
+    pub ld64: DVec3,
+    pub wray: WRay,
+}
+
+impl LocalRay {
+    /// None when the f32 ray cannot be formed (non-finite, or a zero direction).
+    #[inline]
+    pub fn new(lo64: DVec3, ld64: DVec3) -> Option<Self> {
+        let (lo, ld) = (lo64.as_vec3(), ld64.as_vec3());
+        if !lo.is_finite() || !ld.is_finite() || ld == Vec3::ZERO {
+            return None;
+        }
+        Some(LocalRay {
+            lo64,
+            ld64,
+            wray: WRay::new(lo, ld),
+        })
+    }
+}
+
+/// The query a candidate is tested for: the accepted distances and the last key already
+/// visited (hits at or before it belong to an earlier k-buffer round).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Query {
+    pub tmin: f32,
+    pub tmax: f32,
+    pub after: Option<Key>,
+}
+
+/// Barycentrics of the ray's crossing of the triangle's plane, in f64, clamped to the
+/// triangle (the watertight test already decided coverage) and renormalised.
+#[inline]
+fn refine_bary(a: DVec3, b: DVec3, c: DVec3, o: DVec3, d: DVec3) -> Option<[f32; 3]> {
+    let n = (b - a).cross(c - a);
+    let nn = n.length_squared();
+    let den = n.dot(d);
+    if !(nn > 0.0) || den == 0.0 {
+        return None;
+    }
+    let p = o + d * (n.dot(a - o) / den);
+    let l = [
+        (c - b).cross(p - b).dot(n).max(0.0),
+        (a - c).cross(p - c).dot(n).max(0.0),
+        (b - a).cross(p - a).dot(n).max(0.0),
+    ];
+    let s = l[0] + l[1] + l[2];
+    (s > 0.0 && s.is_finite()).then(|| [(l[0] / s) as f32, (l[1] / s) as f32, (l[2] / s) as f32])
+}
+
+impl MeshTracer {
+    /// Test triangle `prim` (anchor-relative vertices `[a, b, c]`, planar group `g`) of
+    /// instance `ii` (mesh `mesh`) against the local ray `r`, and insert its hit into `buf`,
+    /// lowering `cull` to the buffer's new cull distance. `reported`: the backend's own test
+    /// found the hit (see `Accel::traverse`).
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    pub(crate) fn test_triangle(
+        &self,
+        ii: usize,
+        mesh: usize,
+        r: &LocalRay,
+        [a, b, c]: [Vec3; 3],
+        g: u32,
+        prim: u32,
+        reported: bool,
+        q: &Query,
+        buf: &mut KBuffer<TrianglePayload>,
+        cull: &mut f32,
+    ) {
+        let blas = &self.blas[mesh];
+        let m = &self.scene.meshes[mesh];
+        buf.candidates = buf.candidates.wrapping_add(1);
+        // Coverage from the watertight f32 test (or the backend's own report, whose edge rule
+        // may pick the neighbouring triangle); distance and barycentrics of accepted hits are
+        // refined in f64 (f32 loses ~ulp(|o − v|)/size on small far triangles).
+        let wt = r.wray.intersect(a, b, c, f32::NEG_INFINITY, f32::INFINITY);
+        if wt.is_none() && !reported {
+            return;
+        }
+        let (pn, pw) = blas.planes[g as usize];
+        let tp = (pw - pn.dot(r.lo64)) / pn.dot(r.ld64);
+        let t = match wt {
+            _ if tp.is_finite() => tp as f32,
+            Some(h) => h.t,
+            None => return,
+        };
+        // +0.0 normalises −0.0 so the bit pattern orders like the value.
+        let t = t + 0.0;
+        if !(t >= q.tmin && t <= q.tmax) {
+            return;
+        }
+        let key = (t.to_bits(), m.tri_gaussian[prim as usize], ii as u32, g);
+        if q.after.is_some_and(|a| key <= a) || buf.rejects(key) || buf.holds(key, prim) {
+            return;
+        }
+        // Only hits that enter the buffer pay for the f64 barycentrics.
+        let refined = refine_bary(a.as_dvec3(), b.as_dvec3(), c.as_dvec3(), r.lo64, r.ld64);
+        let bary = match (wt, refined) {
+            (_, Some(bary)) => bary,
+            (Some(h), None) => h.bary,
+            (None, None) => return,
+        };
+        let rgba = if buf.shade_on_insert {
+            let c = m.shade(
+                prim as usize,
+                bary,
+                &self.scene.materials,
+                &self.scene.textures,
+            );
+            if !(c.w > 0.0) {
+                return;
+            }
+            c
+        } else {
+            Vec4::ZERO
+        };
+        let hit = Hit {
+            t,
+            gaussian: key.1,
+            instance: ii as u32,
+            group: g,
+            payload: TrianglePayload {
+                tri: prim,
+                bary,
+                rgba,
+            },
+        };
+        *cull = buf.insert(hit, q.tmax);
+    }
+}
+
+/// Front-to-back compositing of one ray's shaded hits, in key order, as a viewer with an unlit
+/// BLEND material draws them (see the `mesh_tracer` module documentation).
+pub(crate) struct Compositor<'a> {
+    pub acc: Accum,
+    pub hits: u32,
+    opts: &'a RenderOptions,
+    to_display: bool,
+    to_linear: bool,
+}
+
+impl<'a> Compositor<'a> {
+    /// `colors_linear`: the scene's vertex colours are linear (glTF).
+    pub fn new(opts: &'a RenderOptions, colors_linear: bool) -> Self {
+        let (to_display, to_linear) = match opts.compositing {
+            Compositing::Display => (colors_linear, false),
+            Compositing::Viewer => (false, !colors_linear),
+        };
+        Compositor {
+            acc: Accum::default(),
+            hits: 0,
+            opts,
+            to_display,
+            to_linear,
+        }
+    }
+
+    /// Blend the next hit; true once the ray is opaque (transmittance below the threshold).
+    #[inline]
+    pub fn add(&mut self, h: &Hit<TrianglePayload>) -> bool {
+        self.hits += 1;
+        let rgba = h.payload.rgba;
+        let a = rgba.w;
+        if a > 0.0 {
+            let mut rgb = rgba.truncate().clamp(Vec3::ZERO, Vec3::ONE);
+            if self.to_display {
+                rgb = Vec3::new(
+                    linear_to_srgb(rgb.x),
+                    linear_to_srgb(rgb.y),
+                    linear_to_srgb(rgb.z),
+                );
+            } else if self.to_linear {
+                rgb = Vec3::new(
+                    srgb_to_linear(rgb.x),
+                    srgb_to_linear(rgb.y),
+                    srgb_to_linear(rgb.z),
+                );
+            }
+            // Composited before the termination test: a viewer draws the triangle.
+            self.acc.add(rgb, a, h.t);
+            if self.acc.tr < self.opts.min_transmittance {
+                return true;
+            }
+        }
+        false
+    }
+
+    /// The pixel: colour over the background, alpha, depth and the hit count (the caller
+    /// fills in rounds and candidates).
+    pub fn finish(self) -> PixelOut {
+        let opts = self.opts;
+        let mut out = PixelOut {
+            hits: self.hits,
+            ..PixelOut::default()
+        };
+        let (c, tr) = (self.acc.rgb, self.acc.tr);
+        out.rgb = c + opts.background * tr;
+        if opts.compositing == Compositing::Viewer {
+            // The background is a display colour; blend it in linear light, then encode.
+            let bg = opts.background;
+            let lin = c + Vec3::new(
+                srgb_to_linear(bg.x),
+                srgb_to_linear(bg.y),
+                srgb_to_linear(bg.z),
+            ) * tr;
+            let l = lin.clamp(Vec3::ZERO, Vec3::ONE);
+            out.rgb = Vec3::new(
+                linear_to_srgb(l.x),
+                linear_to_srgb(l.y),
+                linear_to_srgb(l.z),
+            );
+        }
+        out.alpha = 1.0 - tr;
+        out.depth = self.acc.depth();
+        out
+    }
+}

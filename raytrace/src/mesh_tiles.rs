@@ -1,0 +1,620 @@
+//! Mode `mesh`, primary rays of a pinhole camera traced tile by tile: the triangles a
+//! 16×16-pixel tile can see are gathered once, ordered by a lower bound of their hits'
+//! distances, and each of the tile's rays walks that list with the per-ray test, k-buffer and
+//! compositing of [`MeshTracer::trace`] (`mesh_hit`), stopping where no later triangle can
+//! come before the hit compositing stops at.
+//!
+//! The binning is native splatting's (Kerbl et al. 2023: a global depth sort, then per-tile
+//! ranges), with triangles: each triangle's vertices, as the hit test sees them (anchor-relative
+//! f32 values carried to the world in f64), are projected; the triangle goes into every tile
+//! its widened screen rectangle touches. Its list key is the least view depth `z` of its planar
+//! group (a fan's hits all take the group plane's distance) less a margin: along a unit
+//! direction `d`, a point at view depth `z ≥ 0` is at ray distance `z / (d·f) ≥ z`, so no hit of
+//! the triangle is nearer than its key, and a ray can stop walking at the first entry keyed
+//! beyond its k-buffer's cull distance.
+//!
+//! A ray collects all its hits up to compositing's stop in one unbounded buffer
+//! ([`KBuffer::unbounded`]), ordered by the full key (distance, Gaussian, instance, group)
+//! with the lowest triangle index kept among equal keys: exactly the brute-force reference
+//! (every triangle tested, hits sorted, `mesh_tile_tests`). The per-ray BVH path fills buffers
+//! of k hits round after round and keeps the first-found triangle for the k-th key of a full
+//! buffer; the two can differ only there (a tie at the k-th key between triangles of one fan,
+//! or the two windings of one triangle, whose barycentrics are the same numbers in another
+//! order), in the last bits of the interpolated colour.
+//!
+//! Which renders take this path: obvhs (the default backend; an Embree build traces over
+//! single triangles and may report a hit by its own edge rule, so it keeps its per-ray path),
+//! every mesh over runs of triangles (`MeshTracer::new`'s default), and a scene of several
+//! instances (the node layout of a viewer export, where the per-ray path's two-level traversal
+//! was slowest; a one-node mesh keeps its own BVH, see [`MeshTracer::tiles_pay`]).
+
+use glam::DVec3;
+use rayon::prelude::*;
+use splatbridge_scene::{Camera, Frame};
+
+use crate::backend::BackendKind;
+use crate::error::Result;
+use crate::geom::ray_box;
+use crate::hit_record::{HitLists, RecordedHit};
+use crate::kbuffer::{Accum, KBuffer};
+use crate::mesh_hit::{Compositor, LocalRay, Query};
+use crate::mesh_tracer::{MeshTracer, PreparedInstance, TrianglePayload};
+use crate::render::{camera_ray, render_frame_tiles, RenderOptions, Stats};
+
+/// Tile edge in pixels (native's `BLOCK_X = BLOCK_Y`).
+pub const TILE: u32 = 16;
+
+/// Edge in pixels of the cells a tile's list is split into before its rays are traced.
+const CELL: u32 = 4;
+
+/// Widening of a triangle's screen rectangle beyond its vertices' projection, in pixels: the
+/// f32 rounding of the ray's direction moves its pixel by about 1e-4 px at focal lengths of
+/// 1e3 px; 0.05 px plus a relative 1e-5 of the coordinate is a wide margin over it. The f32
+/// hit test's own rounding (the ray origin and vertices relative to the mesh's anchor) is
+/// covered by [`ORIGIN_MARGIN`].
+const RECT_MARGIN: f64 = 0.05;
+
+/// The watertight test runs on f32 coordinates relative to the mesh's anchor, which round by
+/// 6e-8 of their magnitude `R` (the camera's distance from the anchor plus the mesh's size): a
+/// crossing may move sideways by a few such ulps, `R / z · f` pixels at view depth `z` and
+/// focal length `f`. 1e-6 (about 17 ulps) of it widens each rectangle.
+const ORIGIN_MARGIN: f64 = 1e-6;
+
+/// One triangle in a tile's list.
+#[derive(Clone, Copy, Debug)]
+struct Entry {
+    /// `[u0, v0, u1, v1]`: the continuous image coordinates whose rays can cross the triangle
+    /// (infinite for a triangle reaching the camera plane).
+    rect: [f32; 4],
+    /// No hit of the triangle is nearer than this (see the module documentation).
+    zmin: f32,
+    inst: u32,
+    tri: u32,
+    group: u32,
+}
+
+/// Every tile's triangles, each list in key order.
+pub(crate) struct TileLists {
+    tw: usize,
+    starts: Vec<usize>,
+    entries: Vec<Entry>,
+}
+
+/// A total order on f32 as u32 (negative values below positive ones).
+#[inline]
+fn order_bits(z: f32) -> u32 {
+    let b = z.to_bits();
+    if b >> 31 == 1 {
+        !b
+    } else {
+        b | 0x8000_0000
+    }
+}
+
+/// `x` rounded to an f32 not above it.
+fn down(x: f64) -> f32 {
+    let f = x as f32;
+    if f as f64 > x {
+        f.next_down()
+    } else {
+        f
+    }
+}
+
+/// `x` rounded to an f32 not below it.
+fn up(x: f64) -> f32 {
+    let f = x as f32;
+    if (f as f64) < x {
+        f.next_up()
+    } else {
+        f
+    }
+}
+
+/// A vertex seen from the camera: view depth and image coordinates (meaningful for z > 0).
+#[derive(Clone, Copy)]
+struct Projected {
+    z: f64,
+    u: f64,
+    v: f64,
+}
+
+impl TileLists {
+    /// Bin the triangles of `insts` for `cam`.
+    pub(crate) fn build(tracer: &MeshTracer, insts: &[PreparedInstance], cam: &Camera) -> Self {
+        let (w, h) = (cam.width as f64, cam.height as f64);
+        let tw = cam.width.div_ceil(TILE) as usize;
+        let th = cam.height.div_ceil(TILE) as usize;
+        let focal = cam.fx.max(cam.fy);
+        let mut items: Vec<(u128, Entry, [u32; 4])> = Vec::new();
+        for (ii, inst) in insts.iter().enumerate() {
+            let blas = &tracer.blas[inst.mesh];
+            let mesh = &tracer.scene.meshes[inst.mesh];
+            if mesh.tris.is_empty() || blas.run_start.is_empty() {
+                continue;
+            }
+            let proj: Vec<Projected> = mesh
+                .positions
+                .par_iter()
+                .map(|&p| {
+                    let x = inst
+                        .to_world
+                        .transform_point3(blas.anchor + blas.relative(p).as_dvec3());
+                    let q = cam.world_to_cam * (x - cam.centre);
+                    Projected {
+                        z: q.z,
+                        u: cam.fx * q.x / q.z + cam.cx,
+                        v: cam.fy * q.y / q.z + cam.cy,
+                    }
+                })
+                .collect();
+            // A bound on how much the node's transform stretches a length (three times its
+            // largest matrix entry), and the camera's distance from the anchor plus the mesh's
+            // size, in world units.
+            let scale = 3.0
+                * inst
+                    .to_world
+                    .matrix3
+                    .to_cols_array()
+                    .iter()
+                    .fold(0.0f64, |m, x| m.max(x.abs()));
+            let reach = (inst.to_world.transform_point3(blas.anchor) - cam.centre).length()
+                + scale * (blas.hi - blas.lo).length();
+            // Each triangle's group (runs of triangles keep them compacted).
+            let mut group = vec![0u32; mesh.tris.len()];
+            for (p, r) in blas.run_start.windows(2).enumerate() {
+                for t in r[0] as usize..r[1] as usize {
+                    group[t] = blas.group.get(p, t);
+                }
+            }
+            // The least view depth of each group, less its planarity tolerance (the plane a
+            // fan's hits take may lie off a triangle by 1e-3 of its size, `planar_groups`).
+            let mut gz = vec![f64::INFINITY; blas.planes.len()];
+            for (t, tri) in mesh.tris.iter().enumerate() {
+                let g = group[t] as usize;
+                let [a, b, c] = tri.map(|i| mesh.positions[i as usize].as_dvec3());
+                let ext = (b - a).length().max((c - a).length()).max((c - b).length());
+                let z = tri
+                    .iter()
+                    .map(|&i| proj[i as usize].z)
+                    .fold(f64::INFINITY, f64::min);
+                gz[g] = gz[g].min(z - 2e-3 * scale * ext);
+            }
+            let slack = 1e-6 * reach;
+            let tris = &mesh.tris;
+            let mut part: Vec<(u128, Entry, [u32; 4])> = (0..tris.len())
+                .into_par_iter()
+                .filter_map(|t| {
+                    let v = tris[t].map(|i| proj[i as usize]);
+                    let zmax = v[0].z.max(v[1].z).max(v[2].z);
+                    // Wholly behind the camera: a hit at t ≥ 0 has view depth ≥ 0.
+                    if zmax < -slack {
+                        return None;
+                    }
+                    let g = group[t];
+                    let zg = gz[g as usize];
+                    let zmin = down(zg - 1e-5 * zg.abs() - slack);
+                    let zfront = v[0].z.min(v[1].z).min(v[2].z);
+                    let (rect, tiles) = if zfront > slack {
+                        let m = |x: f64| {
+                            RECT_MARGIN + 1e-5 * x.abs() + ORIGIN_MARGIN * focal * reach / zfront
+                        };
+                        let mut r = [
+                            f64::INFINITY,
+                            f64::INFINITY,
+                            f64::NEG_INFINITY,
+                            f64::NEG_INFINITY,
+                        ];
+                        for p in &v {
+                            r = [r[0].min(p.u), r[1].min(p.v), r[2].max(p.u), r[3].max(p.v)];
+                        }
+                        let r = [
+                            r[0] - m(r[0]),
+                            r[1] - m(r[1]),
+                            r[2] + m(r[2]),
+                            r[3] + m(r[3]),
+                        ];
+                        if !r.iter().all(|x| x.is_finite()) {
+                            everywhere(tw, th)
+                        } else {
+                            if r[2] < 0.0 || r[3] < 0.0 || r[0] > w || r[1] > h {
+                                return None;
+                            }
+                            let tile = |x: f64, n: usize| {
+                                (x / TILE as f64).floor().clamp(0.0, (n - 1) as f64) as u32
+                            };
+                            (
+                                [down(r[0]), down(r[1]), up(r[2]), up(r[3])],
+                                [
+                                    tile(r[0], tw),
+                                    tile(r[1], th),
+                                    tile(r[2], tw),
+                                    tile(r[3], th),
+                                ],
+                            )
+                        }
+                    } else {
+                        everywhere(tw, th)
+                    };
+                    let key = ((order_bits(zmin) as u128) << 64) | ((ii as u128) << 32) | t as u128;
+                    Some((
+                        key,
+                        Entry {
+                            rect,
+                            zmin,
+                            inst: ii as u32,
+                            tri: t as u32,
+                            group: g,
+                        },
+                        tiles,
+                    ))
+                })
+                .collect();
+            items.append(&mut part);
+        }
+        // Keys are unique (instance and triangle are in them), so the order is total.
+        items.par_sort_unstable_by_key(|x| x.0);
+        let mut count = vec![0usize; tw * th + 1];
+        for (_, _, r) in &items {
+            for ty in r[1]..=r[3] {
+                for tx in r[0]..=r[2] {
+                    count[ty as usize * tw + tx as usize + 1] += 1;
+                }
+            }
+        }
+        for k in 1..count.len() {
+            count[k] += count[k - 1];
+        }
+        let starts = count.clone();
+        let mut next = count;
+        let blank = Entry {
+            rect: [0.0; 4],
+            zmin: 0.0,
+            inst: 0,
+            tri: 0,
+            group: 0,
+        };
+        let mut entries = vec![blank; *starts.last().unwrap_or(&0)];
+        for (_, e, r) in &items {
+            for ty in r[1]..=r[3] {
+                for tx in r[0]..=r[2] {
+                    let k = ty as usize * tw + tx as usize;
+                    entries[next[k]] = *e;
+                    next[k] += 1;
+                }
+            }
+        }
+        TileLists {
+            tw,
+            starts,
+            entries,
+        }
+    }
+
+    /// Tile `(tx, ty)`'s list.
+    fn tile(&self, tx: u32, ty: u32) -> &[Entry] {
+        let k = ty as usize * self.tw + tx as usize;
+        &self.entries[self.starts[k]..self.starts[k + 1]]
+    }
+}
+
+/// The rectangle and tile range of a triangle every ray may cross.
+fn everywhere(tw: usize, th: usize) -> ([f32; 4], [u32; 4]) {
+    (
+        [
+            f32::NEG_INFINITY,
+            f32::NEG_INFINITY,
+            f32::INFINITY,
+            f32::INFINITY,
+        ],
+        [0, 0, tw as u32 - 1, th as u32 - 1],
+    )
+}
+
+/// A tile's rays' shared state: its list split into [`CELL`]×[`CELL`]-pixel cells (each in
+/// the tile's order), each instance's local ray for the current ray (made on first use), and
+/// the buffer.
+pub(crate) struct TileCtx {
+    x0: u32,
+    y0: u32,
+    cells: Vec<Vec<Entry>>,
+    /// `(ray number, local ray)` per instance; None: the ray misses the instance's bounds.
+    rays: Vec<(u32, Option<LocalRay>)>,
+    ray: u32,
+    buf: KBuffer<TrianglePayload>,
+}
+
+impl TileCtx {
+    pub(crate) fn new(lists: &TileLists, tx: u32, ty: u32, instances: usize) -> Self {
+        let list = lists.tile(tx, ty);
+        let (x0, y0) = ((tx * TILE) as f64, (ty * TILE) as f64);
+        let n = (TILE / CELL) as usize;
+        let range = |lo: f32, hi: f32, origin: f64| {
+            // Cell c spans [origin + c·CELL, origin + (c + 1)·CELL]; in f64 the offset of an
+            // f32 coordinate is exact, so no rectangle loses its cell.
+            let c = |x: f32| {
+                ((x as f64 - origin) / CELL as f64)
+                    .floor()
+                    .clamp(0.0, (n - 1) as f64)
+            };
+            (c(lo) as usize, c(hi) as usize)
+        };
+        let mut cells: Vec<Vec<Entry>> = vec![Vec::new(); n * n];
+        for e in list {
+            let (cx0, cx1) = range(e.rect[0], e.rect[2], x0);
+            let (cy0, cy1) = range(e.rect[1], e.rect[3], y0);
+            for cy in cy0..=cy1 {
+                for cx in cx0..=cx1 {
+                    cells[cy * n + cx].push(*e);
+                }
+            }
+        }
+        TileCtx {
+            x0: tx * TILE,
+            y0: ty * TILE,
+            cells,
+            rays: Vec::new(),
+            ray: 0,
+            buf: KBuffer::unbounded(),
+        }
+        .with_instances(instances)
+    }
+
+    /// The buffer [`MeshTracer::tile_hits`] filled.
+    #[cfg(test)]
+    pub(crate) fn buffer(&self) -> &KBuffer<TrianglePayload> {
+        &self.buf
+    }
+
+    fn with_instances(mut self, n: usize) -> Self {
+        self.rays = vec![(0, None); n];
+        self
+    }
+}
+
+impl MeshTracer {
+    /// Whether [`MeshTracer::render`] takes the tile path (see the module documentation).
+    pub fn tiles_apply(&self) -> bool {
+        self.backend == BackendKind::Obvhs
+            && self
+                .scene
+                .meshes
+                .iter()
+                .zip(&self.blas)
+                .all(|(m, b)| m.tris.is_empty() || !b.run_start.is_empty())
+    }
+
+    /// Whether a render at `time` takes the tile path: where it applies
+    /// ([`MeshTracer::tiles_apply`]) and the scene has at least
+    /// [`crate::instances::MIN_INSTANCES`] instances. Binning costs a pass over every triangle
+    /// a frame, which a one-node mesh's own BVH does not need: measured in `compare` at
+    /// 320×240 on `fourth_st`'s OBJ exports (one node), the per-ray path took 269–962 ms a
+    /// frame and the tile path 499–6479 ms, while on the 639-node GLBs the tile path was faster
+    /// at every size measured, 160×120 to 1920×1080 (`docs/trace-speed.md`).
+    pub fn tiles_pay(&self, time: f64) -> bool {
+        self.tiles_apply() && self.prepare_list(time).len() >= crate::instances::MIN_INSTANCES
+    }
+
+    /// Render `cam` at `time` through the tile lists.
+    pub(crate) fn render_tiles(
+        &self,
+        cam: &Camera,
+        time: f64,
+        opts: &RenderOptions,
+    ) -> Result<(Frame, Stats)> {
+        cam.validate()?;
+        let start = std::time::Instant::now();
+        let insts = self.prepare_list(time);
+        let lists = TileLists::build(self, &insts, cam);
+        let bin = start.elapsed().as_secs_f64();
+        let lin = self.scene.colors_linear;
+        let (frame, mut stats) = render_frame_tiles(
+            cam,
+            opts.spp,
+            TILE,
+            |tx, ty| TileCtx::new(&lists, tx, ty, insts.len()),
+            |ctx, o, d, uv| {
+                self.tile_hits(&insts, ctx, o, d, uv, opts.min_transmittance);
+                let mut comp = Compositor::new(opts, lin);
+                for h in &ctx.buf.hits {
+                    if comp.add(h) {
+                        break;
+                    }
+                }
+                let mut out = comp.finish();
+                out.traversals = 1;
+                out.candidates = ctx.buf.candidates;
+                out
+            },
+        )?;
+        stats.seconds += bin;
+        Ok((frame, stats))
+    }
+
+    /// Fill `ctx.buf` with the hits of the ray `o + t·d` (unit `d`, image coordinate `uv` in
+    /// the tile) in key order, shaded, up to the hit where compositing from transmittance 1
+    /// falls below `min_transmittance`.
+    pub(crate) fn tile_hits(
+        &self,
+        insts: &[PreparedInstance],
+        ctx: &mut TileCtx,
+        o: DVec3,
+        d: DVec3,
+        uv: (f64, f64),
+        min_transmittance: f32,
+    ) {
+        ctx.ray = ctx.ray.wrapping_add(1);
+        if ctx.ray == 0 {
+            // Ray numbers wrapped: forget every instance's ray.
+            ctx.rays.iter_mut().for_each(|r| r.0 = u32::MAX);
+        }
+        let q = Query {
+            tmin: 0.0,
+            tmax: f32::INFINITY,
+            after: None,
+        };
+        let (u, v) = (uv.0 as f32, uv.1 as f32);
+        let mut buf = std::mem::replace(&mut ctx.buf, KBuffer::unbounded());
+        buf.clear();
+        buf.candidates = 0;
+        buf.shade_on_insert = true;
+        buf.stop = Some((1.0, min_transmittance));
+        let mut cull = f32::INFINITY;
+        let ray = ctx.ray;
+        let rays = &mut ctx.rays;
+        for e in ctx_cell(ctx.x0, ctx.y0, &ctx.cells, uv) {
+            if e.zmin > cull {
+                break;
+            }
+            if !(u >= e.rect[0] && u <= e.rect[2] && v >= e.rect[1] && v <= e.rect[3]) {
+                continue;
+            }
+            let ii = e.inst as usize;
+            let inst = &insts[ii];
+            let slot = &mut rays[ii];
+            if slot.0 != ray {
+                *slot = (ray, local_ray(self, inst, o, d));
+            }
+            let Some(r) = slot.1 else {
+                continue;
+            };
+            let blas = &self.blas[inst.mesh];
+            let mesh = &self.scene.meshes[inst.mesh];
+            let tri = mesh.tris[e.tri as usize].map(|i| blas.relative(mesh.positions[i as usize]));
+            self.test_triangle(
+                ii, inst.mesh, &r, tri, e.group, e.tri, false, &q, &mut buf, &mut cull,
+            );
+        }
+        buf.shade_on_insert = false;
+        buf.stop = None;
+        ctx.buf = buf;
+    }
+}
+
+/// The cell list of `uv` (see [`TileCtx::cell`]).
+fn ctx_cell(x0: u32, y0: u32, cells: &[Vec<Entry>], uv: (f64, f64)) -> &[Entry] {
+    let n = TILE / CELL;
+    let c = |x: f64, origin: u32| {
+        ((x - origin as f64) / CELL as f64)
+            .floor()
+            .clamp(0.0, (n - 1) as f64) as u32
+    };
+    let (cx, cy) = (c(uv.0, x0), c(uv.1, y0));
+    &cells[(cy * n + cx) as usize]
+}
+
+/// The world ray carried into `inst`'s frame, as [`MeshTracer::collect`] carries it: None when
+/// it misses the instance's world bounds or leaves them behind its origin.
+pub(crate) fn local_ray(
+    tracer: &MeshTracer,
+    inst: &PreparedInstance,
+    o: DVec3,
+    d: DVec3,
+) -> Option<LocalRay> {
+    let (_, b1) = ray_box(o, d, inst.lo, inst.hi)?;
+    if b1 < 0.0 {
+        return None;
+    }
+    let blas = &tracer.blas[inst.mesh];
+    LocalRay::new(
+        inst.to_local.transform_point3(o) - blas.anchor,
+        inst.to_local.transform_vector3(d),
+    )
+}
+
+impl MeshTracer {
+    /// [`MeshTracer::record_hits`] through the tile lists: each pixel centre's hits in
+    /// compositing order, up to the hit that takes the transmittance below `min_transmittance`
+    /// (the walk of [`MeshTracer::ordered_hits`], on the same hits).
+    pub(crate) fn record_hits_tiles(
+        &self,
+        cam: &Camera,
+        time: f64,
+        min_transmittance: f32,
+    ) -> Result<HitLists> {
+        cam.validate()?;
+        let insts = self.prepare_list(time);
+        let lists = TileLists::build(self, &insts, cam);
+        let (w, h) = (cam.width as usize, cam.height as usize);
+        let t = TILE as usize;
+        let (tw, th) = (w.div_ceil(t), h.div_ceil(t));
+        // Per tile: each pixel's hit count (row-major in the tile) and the hits.
+        let tiles: Vec<(Vec<u32>, Vec<RecordedHit>)> = (0..tw * th)
+            .into_par_iter()
+            .map(|k| {
+                let (tx, ty) = (k % tw, k / tw);
+                let mut ctx = TileCtx::new(&lists, tx as u32, ty as u32, insts.len());
+                let (mut counts, mut hits) = (Vec::with_capacity(t * t), Vec::new());
+                for j in ty * t..((ty + 1) * t).min(h) {
+                    for i in tx * t..((tx + 1) * t).min(w) {
+                        let uv = (i as f64 + 0.5, j as f64 + 0.5);
+                        let (o, d) = camera_ray(cam, uv.0, uv.1);
+                        self.tile_hits(&insts, &mut ctx, o, d, uv, min_transmittance);
+                        let before = hits.len();
+                        let mut acc = Accum::default();
+                        for hit in &ctx.buf.hits {
+                            let a = hit.payload.rgba.w;
+                            if a > 0.0 {
+                                hits.push(RecordedHit {
+                                    mesh: insts[hit.instance as usize].mesh as u32,
+                                    tri: hit.payload.tri,
+                                    bary: hit.payload.bary,
+                                    t: hit.t,
+                                });
+                                acc.add(glam::Vec3::ZERO, a, hit.t);
+                                if acc.tr < min_transmittance {
+                                    break;
+                                }
+                            }
+                        }
+                        counts.push((hits.len() - before) as u32);
+                    }
+                }
+                (counts, hits)
+            })
+            .collect();
+        // Row-major pixels from the tiles' row-major pixels.
+        let mut count = vec![0u32; w * h];
+        for (k, (c, _)) in tiles.iter().enumerate() {
+            let (tx, ty) = (k % tw, k / tw);
+            let x0 = tx * t;
+            let tw_px = (x0 + t).min(w) - x0;
+            for (n, &cnt) in c.iter().enumerate() {
+                count[(ty * t + n / tw_px) * w + x0 + n % tw_px] = cnt;
+            }
+        }
+        let mut out = HitLists {
+            width: cam.width,
+            height: cam.height,
+            offsets: Vec::with_capacity(w * h + 1),
+            hits: Vec::with_capacity(tiles.iter().map(|x| x.1.len()).sum()),
+        };
+        out.offsets.push(0);
+        for &c in &count {
+            let last = *out.offsets.last().unwrap_or(&0);
+            out.offsets.push(last + c as u64);
+        }
+        out.hits.resize(
+            *out.offsets.last().unwrap_or(&0) as usize,
+            RecordedHit {
+                mesh: 0,
+                tri: 0,
+                bary: [0.0; 3],
+                t: 0.0,
+            },
+        );
+        for (k, (c, hs)) in tiles.iter().enumerate() {
+            let (tx, ty) = (k % tw, k / tw);
+            let x0 = tx * t;
+            let tw_px = (x0 + t).min(w) - x0;
+            let mut at = 0usize;
+            for (n, &cnt) in c.iter().enumerate() {
+                let p = (ty * t + n / tw_px) * w + x0 + n % tw_px;
+                let dst = out.offsets[p] as usize;
+                out.hits[dst..dst + cnt as usize].copy_from_slice(&hs[at..at + cnt as usize]);
+                at += cnt as usize;
+            }
+        }
+        Ok(out)
+    }
+}
