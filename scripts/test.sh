@@ -27,9 +27,12 @@ if [ "${SPLATBRIDGE_PYTHON_TESTS:-1}" = 1 ]; then
   "$venv/bin/pip" install -q --force-reinstall --no-deps target/wheels/splatbridge-*.whl
   "$venv/bin/python" -c "import bpy" 2>/dev/null || "$venv/bin/pip" install -q "bpy>=4.5,<4.6"
   export SPLATBRIDGE_CLI="$PWD/target/debug/splatbridge"
-  pytest=("$venv/bin/python" -m pytest -q -rs python/tests blender/tests)
+  pytest=("$venv/bin/python" -m pytest -q -rs)
   if [ -z "${DISPLAY:-}" ] && command -v xvfb-run >/dev/null; then
     pytest=(xvfb-run -a -s "-screen 0 1280x1024x24" "${pytest[@]}")
   fi
-  "${pytest[@]}"
+  # Two runs: each suite has its own conftest module (one pytest session would import only
+  # the first `conftest`).
+  "${pytest[@]}" python/tests
+  "${pytest[@]}" blender/tests
 fi

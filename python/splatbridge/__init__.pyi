@@ -61,6 +61,9 @@ class Scene:
     """A Gaussian scene; array attributes are read-only views of the static cloud."""
 
     @property
+    def kind(self) -> Literal["3dgs", "2dgs", "points"]:
+        """What the Gaussians are, as read (2DGS surfels stay surfels in save and convert)."""
+    @property
     def means(self) -> npt.NDArray[np.float32]:
         """(N, 3) positions."""
     @property

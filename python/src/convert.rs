@@ -214,11 +214,7 @@ fn convert<'py>(
                     path.display()
                 );
             }
-            let c = req.write_cloud(
-                owned.unwrap_or_else(|| sc.clone()),
-                format,
-                splatbridge_scene::ply::GaussianKind::default(),
-            )?;
+            let c = req.write_cloud(owned.unwrap_or_else(|| sc.clone()), format, s.kind)?;
             return Ok(serde_json::json!({
                 "format": c.format,
                 "gaussians": c.gaussians,
@@ -228,10 +224,7 @@ fn convert<'py>(
             })
             .to_string());
         }
-        let mut opts = req.mesh_options(
-            owned.as_ref().unwrap_or(sc),
-            splatbridge_scene::ply::GaussianKind::default(),
-        )?;
+        let mut opts = req.mesh_options(owned.as_ref().unwrap_or(sc), s.kind)?;
         if let Some(d) = &fit {
             let s = owned.get_or_insert_with(|| sc.clone());
             distill_export(s, &mut opts, &d.views, &d.options, |_| cancel.check())

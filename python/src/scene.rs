@@ -14,9 +14,10 @@ use numpy::ndarray::ArrayView;
 use numpy::{IntoPyArray, PyArray, PyArrayMethods, PyReadonlyArrayDyn};
 use pyo3::prelude::*;
 use splatbridge::pipeline::export::{cloud_format, write_cloud_export};
-use splatbridge::pipeline::source::load_scene_warn;
+use splatbridge::pipeline::source::load_scene_kind;
 use splatbridge_scene::dynamic::{quat_wxyz, DynamicScene};
 use splatbridge_scene::gaussians::sh_coeffs;
+use splatbridge_scene::ply::GaussianKind;
 use splatbridge_scene::GaussianCloud;
 
 use crate::camera::PyCamera;
@@ -38,6 +39,9 @@ pub struct PyScene {
     pub scene: DynamicScene,
     /// The name errors and reports use (the file it was loaded from, or "arrays").
     pub name: String,
+    /// What the file's Gaussians are (2DGS surfels stay surfels when saved or converted, as
+    /// `convert` keeps them).
+    pub kind: GaussianKind,
 }
 
 /// A read-only NumPy view of `data` (whose elements are `width` f32 each, `width` 1 giving a
@@ -147,6 +151,18 @@ impl PyScene {
         self.scene.gaussian_count()
     }
 
+    /// What the Gaussians are, as read: ``"3dgs"`` (3D Gaussians, Mip-Splatting's filter
+    /// folded in), ``"2dgs"`` (2D Gaussian surfels: ``save`` writes them back as a 2DGS PLY,
+    /// ``convert`` makes fans in their plane) or ``"points"`` (coloured points).
+    #[getter]
+    fn kind(&self) -> &'static str {
+        match self.kind {
+            GaussianKind::Gaussians3D => "3dgs",
+            GaussianKind::Surfels2D => "2dgs",
+            GaussianKind::Points => "points",
+        }
+    }
+
     fn __repr__(&self) -> String {
         format!(
             "<splatbridge.Scene '{}': {} Gaussians, SH degree {}, {} objects, {} cameras>",
@@ -168,6 +184,7 @@ impl PyScene {
         Ok(PyScene {
             scene: DynamicScene::from_static(cloud),
             name: self.name.clone(),
+            kind: self.kind,
         })
     }
 
@@ -273,6 +290,7 @@ impl PyScene {
         Ok(PyScene {
             scene: DynamicScene::from_static(cloud),
             name: "arrays".into(),
+            kind: GaussianKind::default(),
         })
     }
 }
@@ -293,17 +311,19 @@ impl PyScene {
 fn load(py: Python<'_>, path: PathBuf, drop_invalid: bool) -> PyResult<PyScene> {
     let (scene, warnings) = run(py, |_| {
         let warnings = std::sync::Mutex::new(Vec::new());
-        let scene = load_scene_warn(&path, drop_invalid, &|w: &str| {
+        let (scene, kind) = load_scene_kind(&path, drop_invalid, &|w: &str| {
             if let Ok(mut v) = warnings.lock() {
                 v.push(w.to_string());
             }
         })?;
-        Ok((scene, warnings.into_inner().unwrap_or_default()))
+        Ok(((scene, kind), warnings.into_inner().unwrap_or_default()))
     })?;
     warn_all(py, &warnings)?;
+    let (scene, kind) = scene;
     Ok(PyScene {
         scene,
         name: path.display().to_string(),
+        kind,
     })
 }
 
@@ -343,19 +363,11 @@ fn save(
     run(py, |_| {
         let version = spz_version.unwrap_or(splatbridge_scene::formats::spz::WRITE_VERSION);
         if let Some(format) = cloud_format(&path, None, true, version, 1)? {
-            return Ok(write_cloud_export(
-                sc.clone(),
-                &path,
-                format,
-                time,
-                None,
-                splatbridge_scene::ply::GaussianKind::default(),
-            )?
-            .bytes);
+            return Ok(write_cloud_export(sc.clone(), &path, format, time, None, s.kind)?.bytes);
         }
         if splatbridge::pipeline::export::is_gltf(&path) {
             let req = crate::convert::request(sc, name, &path, true, None, None, None)?;
-            let opts = req.mesh_options(sc, splatbridge_scene::ply::GaussianKind::default())?;
+            let opts = req.mesh_options(sc, s.kind)?;
             req.export(sc, &opts)?;
             return Ok(std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0));
         }

@@ -114,3 +114,39 @@ def test_compare_returns_the_clis_figures(small, tmp_path):
 
     assert figures(report["records"]) == figures(theirs)
     assert len(theirs) >= 4
+
+
+def write_2dgs_ply(path, scene):
+    """A 2DGS PLY (two scales, no third; SH degree 0) of `scene`'s first Gaussians, written
+    with NumPy as 2DGS's `save_ply` lays it out."""
+    n = 500
+    means, ls = scene.means[:n], scene.log_scales[:n]
+    rot, op, dc = scene.rotations[:n], scene.opacities[:n], scene.sh[:n, 0, :]
+    names = ["x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2", "opacity",
+             "scale_0", "scale_1", "rot_0", "rot_1", "rot_2", "rot_3"]
+    cols = np.concatenate([means, np.zeros((n, 3), np.float32), dc, op[:, None], ls[:, :2], rot],
+                          axis=1).astype("<f4")
+    header = "ply\nformat binary_little_endian 1.0\nelement vertex %d\n" % n
+    header += "".join(f"property float {p}\n" for p in names) + "end_header\n"
+    path.write_bytes(header.encode() + cols.tobytes())
+
+
+@pytest.mark.parametrize("ext", [".ply", ".glb"])
+def test_2dgs_surfels_stay_surfels_as_the_cli_keeps_them(small, tmp_path, ext):
+    src = tmp_path / "surfels.ply"
+    write_2dgs_ply(src, splatbridge.load(small))
+    scene = splatbridge.load(src)
+    assert scene.kind == "2dgs"
+    ours, theirs = tmp_path / f"py{ext}", tmp_path / f"cli{ext}"
+    if ext == ".ply":
+        # save: a 2DGS PLY again (two scales), the bytes of `convert IN -o OUT.ply`.
+        splatbridge.save(scene, ours)
+        header = ours.read_bytes().split(b"end_header")[0]
+        assert b"scale_1" in header and b"scale_2" not in header
+    else:
+        # convert: fans in the surfels' plane, the bytes of `convert IN -o OUT.glb`.
+        splatbridge.convert(scene, ours)
+    cli("convert", src, "-o", theirs)
+    assert ours.read_bytes() == theirs.read_bytes()
+    # A 3D scene made from the same arrays is not a surfel scene.
+    assert splatbridge.load(small).kind == "3dgs"
