@@ -13,6 +13,7 @@ pub(crate) mod mesh_hit;
 mod mesh_tile_tests;
 pub(crate) mod mesh_tiles;
 pub mod mesh_tracer;
+mod screen_cells;
 /// The mesh tracer under its former name.
 pub use mesh_tracer as composite;
 pub mod dedup;

@@ -327,28 +327,7 @@ pub(crate) struct TileCtx {
 impl TileCtx {
     pub(crate) fn new(lists: &TileLists, tx: u32, ty: u32, instances: usize) -> Self {
         let list = lists.tile(tx, ty);
-        let (x0, y0) = ((tx * TILE) as f64, (ty * TILE) as f64);
-        let n = (TILE / CELL) as usize;
-        let range = |lo: f32, hi: f32, origin: f64| {
-            // Cell c spans [origin + c·CELL, origin + (c + 1)·CELL]; in f64 the offset of an
-            // f32 coordinate is exact, so no rectangle loses its cell.
-            let c = |x: f32| {
-                ((x as f64 - origin) / CELL as f64)
-                    .floor()
-                    .clamp(0.0, (n - 1) as f64)
-            };
-            (c(lo) as usize, c(hi) as usize)
-        };
-        let mut cells: Vec<Vec<Entry>> = vec![Vec::new(); n * n];
-        for e in list {
-            let (cx0, cx1) = range(e.rect[0], e.rect[2], x0);
-            let (cy0, cy1) = range(e.rect[1], e.rect[3], y0);
-            for cy in cy0..=cy1 {
-                for cx in cx0..=cx1 {
-                    cells[cy * n + cx].push(*e);
-                }
-            }
-        }
+        let cells = crate::screen_cells::split_cells(list, |e| e.rect, (tx, ty), TILE, CELL);
         TileCtx {
             x0: tx * TILE,
             y0: ty * TILE,

@@ -1,0 +1,38 @@
+//! A screen tile's depth-ordered candidate list split into `cell`×`cell`-pixel cells, shared
+//! by the two tile paths (`gaussian::tiles` for Gaussians, `mesh_tiles` for triangles): a ray
+//! then scans only the entries whose screen rectangles reach its cell, in the tile's order.
+
+/// Tile `(tx, ty)`'s `list` (tiles of `tile` pixels) split into its cells, row-major, each in
+/// the list's order; `rect(e)` is an entry's `[x0, y0, x1, y1]` in image coordinates.
+pub(crate) fn split_cells<E: Copy>(
+    list: &[E],
+    rect: impl Fn(&E) -> [f32; 4],
+    (tx, ty): (u32, u32),
+    tile: u32,
+    cell: u32,
+) -> Vec<Vec<E>> {
+    let (x0, y0) = ((tx * tile) as f64, (ty * tile) as f64);
+    let n = (tile / cell) as usize;
+    let range = |lo: f32, hi: f32, origin: f64| {
+        // Cell c spans [origin + c·cell, origin + (c + 1)·cell] in image coordinates; in f64
+        // the offset of an f32 coordinate is exact, so no rectangle loses its cell.
+        let c = |x: f32| {
+            ((x as f64 - origin) / cell as f64)
+                .floor()
+                .clamp(0.0, (n - 1) as f64)
+        };
+        (c(lo) as usize, c(hi) as usize)
+    };
+    let mut cells: Vec<Vec<E>> = vec![Vec::new(); n * n];
+    for e in list {
+        let r = rect(e);
+        let (cx0, cx1) = range(r[0], r[2], x0);
+        let (cy0, cy1) = range(r[1], r[3], y0);
+        for cy in cy0..=cy1 {
+            for cx in cx0..=cx1 {
+                cells[cy * n + cx].push(*e);
+            }
+        }
+    }
+    cells
+}
