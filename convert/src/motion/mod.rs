@@ -149,20 +149,7 @@ fn check(frames: &[GaussianCloud], times: &[f64]) -> Result<()> {
     }
     let n = frames[0].len();
     for (f, c) in frames.iter().enumerate() {
-        if c.len() != n {
-            return Err(ConvertError::Invalid(format!(
-                "frame {f} has {} Gaussians, frame 0 has {n}: decomposition needs the same \
-                 Gaussians in every frame",
-                c.len()
-            )));
-        }
-        c.check_shape()
-            .map_err(|e| ConvertError::Invalid(format!("frame {f}: {e}")))?;
-        if let Some(i) = c.means.iter().position(|m| !m.is_finite()) {
-            return Err(ConvertError::Invalid(format!(
-                "frame {f}: Gaussian {i} has a non-finite mean"
-            )));
-        }
+        stream::check_frame(c, f, n)?;
     }
     Ok(())
 }

@@ -55,7 +55,9 @@ pub struct StreamedDecomposition {
     sum: Vec<DVec3>,
 }
 
-fn check_frame(c: &GaussianCloud, f: usize, n: usize) -> Result<()> {
+/// Frame `f` has frame 0's `n` Gaussians, a consistent shape and finite means (the checks
+/// both the in-memory and the streamed decomposition make).
+pub(super) fn check_frame(c: &GaussianCloud, f: usize, n: usize) -> Result<()> {
     if c.len() != n {
         return Err(ConvertError::Invalid(format!(
             "frame {f} has {} Gaussians, frame 0 has {n}: decomposition needs the same \
