@@ -50,12 +50,15 @@ fn q_gap(tracer: &GaussianTracer, cam: &Camera, variance: f64) -> (f64, usize) {
     (worst, n)
 }
 
-/// The two forms are one number up to f32 rounding, for a static cloud and for moving parts
-/// (whose records carry the part's rotation).
-#[test]
-fn pixel_form_matches_3d_form() {
-    let stat =
-        GaussianTracer::new(corridor(21, 1200), BackendKind::Obvhs, BuildPreset::Medium).unwrap();
+/// A static corridor (seed `seed`) and the moving scene posed at t = 0.7: the two kinds of
+/// record (no part rotation, and a part's rotation).
+fn static_and_moving(seed: u64) -> (GaussianTracer, GaussianTracer) {
+    let stat = GaussianTracer::new(
+        corridor(seed, 1200),
+        BackendKind::Obvhs,
+        BuildPreset::Medium,
+    )
+    .unwrap();
     let mut moving = GaussianTracer::for_scene(
         &moving_scene(),
         0.0,
@@ -64,6 +67,14 @@ fn pixel_form_matches_3d_form() {
     )
     .unwrap();
     moving.set_time(0.7);
+    (stat, moving)
+}
+
+/// The two forms are one number up to f32 rounding, for a static cloud and for moving parts
+/// (whose records carry the part's rotation).
+#[test]
+fn pixel_form_matches_3d_form() {
+    let (stat, moving) = static_and_moving(21);
     for (what, tracer) in [("static", &stat), ("moving", &moving)] {
         for variance in [0.3, 0.3 / 4.0] {
             let (gap, n) = q_gap(tracer, &camera(), variance);
@@ -141,16 +152,7 @@ fn basis_once_is_eval_color() {
 /// and it is a real bound: most Gaussians get one, and it rejects rays.
 #[test]
 fn screen_ellipse_holds_every_accepted_ray() {
-    let stat =
-        GaussianTracer::new(corridor(23, 1200), BackendKind::Obvhs, BuildPreset::Medium).unwrap();
-    let mut moving = GaussianTracer::for_scene(
-        &moving_scene(),
-        0.0,
-        BackendKind::Obvhs,
-        BuildPreset::Medium,
-    )
-    .unwrap();
-    moving.set_time(0.7);
+    let (stat, moving) = static_and_moving(23);
     let cam = camera();
     for (what, tracer) in [("static", &stat), ("moving", &moving)] {
         for variance in [0.3, 0.3 / 4.0] {
