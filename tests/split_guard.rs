@@ -334,10 +334,12 @@ fn auto_split_says_when_no_rung_meets_the_target() {
     assert_eq!(a.candidates[a.chosen].worst_psnr, best);
 }
 
-fn temp(name: &str) -> std::path::PathBuf {
-    let d = std::env::temp_dir().join(format!("splatbridge-split-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// A temporary folder removed when the guard drops.
+fn temp(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new()
+        .prefix(&format!("splatbridge-split-{name}-"))
+        .tempdir()
+        .expect("a temporary folder")
 }
 
 fn street() -> String {

@@ -55,8 +55,8 @@ fn footprint_is_closer_to_native_at_low_resolution() {
 
 #[test]
 fn trace_options_reach_the_tracer_and_bad_values_exit_2() {
-    let dir = std::env::temp_dir().join(format!("splatbridge-trace-fp-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let tmp = tempfile::tempdir().expect("a temporary folder");
+    let dir = tmp.path();
     let scene = street();
     let out = dir.join("x.png");
     let o = out.to_str().unwrap();

@@ -50,14 +50,32 @@ pub fn succeeded(cmd: &mut Command) -> Output {
     r
 }
 
-/// A fresh folder `splatbridge-PREFIX-PID-NAME` under the system's temporary folder.
-pub fn temp_dir(prefix: &str, name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!(
-        "splatbridge-{prefix}-{}-{name}",
-        std::process::id()
-    ));
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// A fresh folder `splatbridge-PREFIX-NAME-…` under the system's temporary folder, removed
+/// with everything in it when the returned guard drops (a test's outputs would otherwise pile
+/// up run after run). Dereferences to the folder's path.
+pub fn temp_dir(prefix: &str, name: &str) -> TempDir {
+    TempDir(
+        tempfile::Builder::new()
+            .prefix(&format!("splatbridge-{prefix}-{name}-"))
+            .tempdir()
+            .expect("a temporary folder"),
+    )
+}
+
+/// A temporary folder that is deleted on drop; see [`temp_dir`].
+pub struct TempDir(tempfile::TempDir);
+
+impl std::ops::Deref for TempDir {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        self.0.path()
+    }
+}
+
+impl AsRef<Path> for TempDir {
+    fn as_ref(&self) -> &Path {
+        self.0.path()
+    }
 }
 
 pub fn path(p: &Path) -> &str {
