@@ -3,8 +3,10 @@
 # splatbridge wheel bundled into target/blender/splatbridge-VERSION.zip, installable with
 # Edit > Preferences > Get Extensions > Install from Disk or
 # `blender --command extension install-file -r user_default FILE.zip`.
-# The same folder, copied into Blender 3.4's scripts/addons, is the legacy add-on (the wheel
-# then has to be installed into Blender's Python: see docs/blender.md).
+# The same files under a folder `splatbridge_import/` make the legacy add-on for Blender
+# 3.4–4.1, target/blender/splatbridge-VERSION-legacy.zip (Edit > Preferences > Add-ons >
+# Install, or `bpy.ops.preferences.addon_install`); it unpacks the bundled wheel itself on
+# first use. Both paths are printed, the extension's first.
 #
 # Usage: scripts/blender-extension.sh [WHEEL]   (default: build one, scripts/python-wheel.sh)
 set -euo pipefail
@@ -27,4 +29,8 @@ mkdir -p target/blender
 out="$PWD/target/blender/splatbridge-$version.zip"
 rm -f "$out"
 (cd "$dir" && python3 -m zipfile -c "$out" blender_manifest.toml ./*.py wheels)
+legacy="$PWD/target/blender/splatbridge-$version-legacy.zip"
+rm -f "$legacy"
+(cd "$stage" && python3 -m zipfile -c "$legacy" splatbridge_import)
 echo "$out"
+echo "$legacy"

@@ -13,7 +13,7 @@ use serde_json::Value;
 
 const SIZE: [&str; 6] = ["--camera", "scene:0", "--width", "64", "--height", "48"];
 
-fn temp_dir(name: &str) -> std::path::PathBuf {
+fn temp_dir(name: &str) -> cli_common::TempDir {
     cli_common::temp_dir("cli-hybrid", name)
 }
 

@@ -11,7 +11,7 @@ use std::path::Path;
 use cli_common::*;
 use serde_json::Value;
 
-fn temp_dir(name: &str) -> std::path::PathBuf {
+fn temp_dir(name: &str) -> cli_common::TempDir {
     cli_common::temp_dir("split-blend", name)
 }
 

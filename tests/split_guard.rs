@@ -349,7 +349,7 @@ fn street() -> String {
 #[test]
 fn cli_split_auto_reports_the_choice_and_its_cost() {
     let dir = temp("auto");
-    let out = dir.join("h.png");
+    let out = dir.path().join("h.png");
     let scene = street();
     let r = Command::new(BIN)
         .args([
@@ -385,7 +385,7 @@ fn cli_split_auto_reports_the_choice_and_its_cost() {
 #[test]
 fn cli_bad_split_values_exit_2_naming_the_option() {
     let dir = temp("bad");
-    let out = dir.join("h.png");
+    let out = dir.path().join("h.png");
     let scene = street();
     for (opt, val) in [
         ("--split", "sometimes"),

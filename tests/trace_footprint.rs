@@ -113,5 +113,4 @@ fn trace_options_reach_the_tracer_and_bad_values_exit_2() {
     assert_eq!(d["options"]["spp"], 4);
     assert_eq!(d["stats"]["rays"], 32 * 24 * 4);
     assert_ne!(std::fs::read(&out).unwrap(), on);
-    std::fs::remove_dir_all(&dir).ok();
 }

@@ -33,10 +33,52 @@ bl_info = {  # the legacy add-on header (Blender 3.4); extensions read blender_m
 EXTENSIONS = "*.ply;*.spz;*.splat;*.ksplat;*.sog;*.json;*.glb;*.gltf"
 
 
+def ensure_package():
+    """Make the bundled `splatbridge` package importable.
+
+    Blender 4.2+ installs an extension's `wheels` into its own site-packages. A legacy add-on
+    (Blender 3.4 to 4.1) gets no such step: the wheel bundled in `wheels/` is unpacked once
+    into `_vendor/` beside this file (a wheel is a zip of the installed files; the abi3
+    extension module loads in any CPython from 3.9 on) and that folder goes on `sys.path`.
+    A `splatbridge` already importable (pip-installed into Blender's Python) is used as is.
+    """
+    try:
+        import splatbridge  # noqa: F401
+        return
+    except ImportError:
+        pass
+    import glob
+    import sys
+    import zipfile
+
+    here = os.path.dirname(os.path.abspath(__file__))
+    wheels = sorted(glob.glob(os.path.join(here, "wheels", "splatbridge-*.whl")))
+    if not wheels:
+        raise ImportError("the splatbridge package is not installed and no wheel is bundled "
+                          f"in {os.path.join(here, 'wheels')}")
+    vendor = os.path.join(here, "_vendor")
+    stamp = os.path.join(vendor, ".wheel")
+    wheel = os.path.basename(wheels[-1])
+    current = open(stamp).read() if os.path.exists(stamp) else None
+    if current != wheel:
+        # Unpacked beside, then renamed: an interrupted unpack never looks complete.
+        part = vendor + ".part"
+        shutil.rmtree(part, ignore_errors=True)
+        with zipfile.ZipFile(wheels[-1]) as z:
+            z.extractall(part)
+        with open(os.path.join(part, ".wheel"), "w") as f:
+            f.write(wheel)
+        shutil.rmtree(vendor, ignore_errors=True)
+        os.replace(part, vendor)
+    if vendor not in sys.path:
+        sys.path.insert(0, vendor)
+
+
 def import_splats(context, filepath, profile="texture", distill=False, distill_views=16,
                   distill_seconds=30.0, time_start=None, time_end=None, up="-y",
                   cameras="", samples=splat_setup.DEFAULT_SAMPLES):
     """Import `filepath` into `context.scene`; returns a report (what was set, seconds)."""
+    ensure_package()
     import splatbridge  # the bundled wheel
 
     t0 = time.perf_counter()

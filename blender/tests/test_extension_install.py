@@ -47,7 +47,7 @@ def test_packaged_extension_installs_and_imports(tmp_path):
     if not wheels:
         pytest.skip("no wheel in target/wheels (scripts/python-wheel.sh builds it)")
     out = subprocess.run([str(ROOT / "scripts" / "blender-extension.sh"), str(wheels[-1])],
-                         check=True, capture_output=True, text=True).stdout.strip()
+                         check=True, capture_output=True, text=True).stdout.split()[0]
     user = tmp_path / "user"
     user.mkdir()
     env = dict(os.environ, BLENDER_USER_RESOURCES=str(user))

@@ -149,15 +149,27 @@ fn render<'py>(
         let cam = camera
             .resolve(sc, t, width, height)
             .with_context(|| name.clone())?;
-        let mut r = Renderer::native(RenderOptions {
+        let options = RenderOptions {
             extent,
             alpha_clamp,
             sh_degree_cap: sh_degree,
             near,
             background: rgb(background),
             exhaustive: false,
-        })?;
-        frame_of(sc, name, &mut r, &cam, t)
+        };
+        // Warm buffers from this scene's last render when no other thread holds them.
+        let kept = s.native_buffers.try_lock().ok().and_then(|mut b| b.take());
+        let mut r = match kept {
+            Some(buffers) => Renderer::native_reusing(options, buffers)?,
+            None => Renderer::native(options)?,
+        };
+        let frame = frame_of(sc, name, &mut r, &cam, t);
+        if let (Some(buffers), Ok(mut slot)) =
+            (r.into_native_buffers(), s.native_buffers.try_lock())
+        {
+            *slot = Some(buffers);
+        }
+        frame
     })?;
     to_array(py, frame, ch)
 }

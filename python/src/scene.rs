@@ -42,6 +42,10 @@ pub struct PyScene {
     /// What the file's Gaussians are (2DGS surfels stay surfels when saved or converted, as
     /// `convert` keeps them).
     pub kind: GaussianKind,
+    /// The native renderer's buffers from the last `render` of this scene, reused by the next
+    /// (a fresh renderer per call faulted in its frame buffers each time). Taken under the
+    /// lock, so concurrent renders of one scene each get buffers (one of them fresh).
+    pub native_buffers: std::sync::Mutex<Option<splatbridge_hybrid::Renderer>>,
 }
 
 /// A read-only NumPy view of `data` (whose elements are `width` f32 each, `width` 1 giving a
@@ -185,6 +189,7 @@ impl PyScene {
             scene: DynamicScene::from_static(cloud),
             name: self.name.clone(),
             kind: self.kind,
+            native_buffers: Default::default(),
         })
     }
 
@@ -291,6 +296,7 @@ impl PyScene {
             scene: DynamicScene::from_static(cloud),
             name: "arrays".into(),
             kind: GaussianKind::default(),
+            native_buffers: Default::default(),
         })
     }
 }
@@ -324,6 +330,7 @@ fn load(py: Python<'_>, path: PathBuf, drop_invalid: bool) -> PyResult<PyScene> 
         scene,
         name: path.display().to_string(),
         kind,
+        native_buffers: Default::default(),
     })
 }
 

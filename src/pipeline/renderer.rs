@@ -147,6 +147,28 @@ impl Renderer {
         })
     }
 
+    /// [`Renderer::native`] drawing into `buffers`, a native renderer kept from an earlier
+    /// frame (see [`Renderer::into_native_buffers`]): callers that render one frame per call,
+    /// as the Python bindings do, keep warm buffers instead of faulting new ones each frame.
+    pub fn native_reusing(
+        options: NativeOptions,
+        buffers: splatbridge_hybrid::Renderer,
+    ) -> anyhow::Result<Renderer> {
+        options.validate()?;
+        Ok(Renderer::Native {
+            renderer: buffers,
+            options,
+        })
+    }
+
+    /// A native renderer's buffers, for [`Renderer::native_reusing`]; `None` for the others.
+    pub fn into_native_buffers(self) -> Option<splatbridge_hybrid::Renderer> {
+        match self {
+            Renderer::Native { renderer, .. } => Some(renderer),
+            _ => None,
+        }
+    }
+
     /// The 2DGS surfel renderer with `options` (checked; the extent knob is not used).
     pub fn surfels_2d(options: NativeOptions) -> anyhow::Result<Renderer> {
         options.validate()?;

@@ -1,9 +1,9 @@
 //! What the command-line tests share: the binary, the street fixture, running and checking a
-//! command, a per-process temporary folder, and `hybrid`'s JSON report.
+//! command, a temporary folder removed after the test, and `hybrid`'s JSON report.
 
 #![allow(dead_code)]
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
 use serde_json::Value;
