@@ -8,8 +8,9 @@
 //! fused multiply-add, no reassociation), so each lane's result has the scalar result's bits:
 //! the tile path's images stay equal to the per-ray BVH path's and the brute-force
 //! reference's bit for bit (`tile_tests`), and the kernels are checked lane by lane against
-//! the scalar functions (`lane_tests`). The lanes are plain arrays the compiler vectorizes;
-//! nothing here needs `unsafe` or a CPU feature.
+//! the scalar functions (`lane_tests`). The lanes are plain arrays, vectorized as far as the
+//! compiler finds (no CPU feature is required); the only `unsafe` is the cache hint of
+//! [`prefetch`].
 
 use glam::Vec3;
 
