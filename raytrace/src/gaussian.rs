@@ -41,6 +41,7 @@ use crate::kbuffer::{self, Accum, Hit, KBuffer, Key, Payload};
 use crate::render::{render_frame_spp, PixelOut, RenderOptions, Stats};
 
 mod camera;
+mod lanes;
 mod part;
 mod proxy_order;
 mod tiles;
@@ -657,8 +658,13 @@ impl GaussianTracer {
             cam,
             opts.spp,
             tiles::TILE,
-            |tx, ty| (lists.cells(tx, ty), Vec::new()),
-            |(cells, pending), o, d, uv| {
+            |tx, ty| {
+                (
+                    lists.cells(tx, ty, padded.as_ref()),
+                    tiles::Scratch::default(),
+                )
+            },
+            |(cells, scratch), o, d, uv| {
                 // The sample's pixel (a sample of pixel i lies in [i, i + 1)).
                 let list = cells.of(uv.0 as u32, uv.1 as u32);
                 let fp = padded
@@ -670,9 +676,9 @@ impl GaussianTracer {
                         self.trace_fp(o, d, Some(forward), None, opts, b)
                     }),
                     Some((Some(f), p)) => {
-                        self.trace_tile(list, o, d, uv, forward, Some((&f, p)), opts, pending)
+                        self.trace_tile(list, o, d, uv, forward, Some((&f, p)), opts, scratch)
                     }
-                    None => self.trace_tile(list, o, d, uv, forward, None, opts, pending),
+                    None => self.trace_tile(list, o, d, uv, forward, None, opts, scratch),
                 }
             },
         )?;

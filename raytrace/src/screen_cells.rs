@@ -13,21 +13,11 @@ pub(crate) fn split_cells<E: Copy>(
 ) -> Vec<Vec<E>> {
     let (x0, y0) = ((tx * tile) as f64, (ty * tile) as f64);
     let n = (tile / cell) as usize;
-    let range = |lo: f32, hi: f32, origin: f64| {
-        // Cell c spans [origin + c·cell, origin + (c + 1)·cell] in image coordinates; in f64
-        // the offset of an f32 coordinate is exact, so no rectangle loses its cell.
-        let c = |x: f32| {
-            ((x as f64 - origin) / cell as f64)
-                .floor()
-                .clamp(0.0, (n - 1) as f64)
-        };
-        (c(lo) as usize, c(hi) as usize)
-    };
     let mut cells: Vec<Vec<E>> = vec![Vec::new(); n * n];
     for e in list {
         let r = rect(e);
-        let (cx0, cx1) = range(r[0], r[2], x0);
-        let (cy0, cy1) = range(r[1], r[3], y0);
+        let (cx0, cx1) = cell_span(r[0], r[2], x0, cell, n);
+        let (cy0, cy1) = cell_span(r[1], r[3], y0, cell, n);
         for cy in cy0..=cy1 {
             for cx in cx0..=cx1 {
                 cells[cy * n + cx].push(*e);
@@ -35,4 +25,18 @@ pub(crate) fn split_cells<E: Copy>(
         }
     }
     cells
+}
+
+/// The first and last of `n` cells of `cell` pixels from image coordinate `origin` that the
+/// span `[lo, hi]` (image coordinates) reaches, clamped to the `n` cells.
+#[inline]
+pub(crate) fn cell_span(lo: f32, hi: f32, origin: f64, cell: u32, n: usize) -> (usize, usize) {
+    // Cell c spans [origin + c·cell, origin + (c + 1)·cell] in image coordinates; in f64
+    // the offset of an f32 coordinate is exact, so no rectangle loses its cell.
+    let c = |x: f32| {
+        ((x as f64 - origin) / cell as f64)
+            .floor()
+            .clamp(0.0, (n - 1) as f64)
+    };
+    (c(lo) as usize, c(hi) as usize)
 }

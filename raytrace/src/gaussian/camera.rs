@@ -93,10 +93,10 @@ impl LocalFootprint {
 /// its arithmetic, on one 56-byte record instead of the 92-byte proxy.
 #[derive(Clone, Copy, Debug, Default)]
 pub(super) struct PixelSplat {
-    mu: [f32; 2],
-    p0: [f32; 3],
-    p1: [f32; 3],
-    w: [f32; 3],
+    pub(super) mu: [f32; 2],
+    pub(super) p0: [f32; 3],
+    pub(super) p1: [f32; 3],
+    pub(super) w: [f32; 3],
     /// The proxy's squared extent in standard deviations (its `r2`) and peak opacity.
     pub(super) r2: f32,
     pub(super) opacity: f32,

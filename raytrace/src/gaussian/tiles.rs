@@ -24,11 +24,14 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use splatbridge_scene::{sh, Camera};
 
-use super::camera::{LocalFootprint, Padded};
+use super::camera::{LocalFootprint, Padded, PixelSplat};
+use super::lanes::{colors_from_basis, prefetch, Chunk, Products, LANES};
+use super::part::alpha_of;
 use super::{GaussianHit, GaussianPayload, GaussianTracer};
 use crate::footprint::{Footprint, HitOrder, RayFootprint, ShDirection};
 use crate::kbuffer::{Accum, Hit};
 use crate::render::{PixelOut, RenderOptions};
+use crate::screen_cells::cell_span;
 
 /// Tile edge in pixels (native's `BLOCK_X = BLOCK_Y`).
 pub(super) const TILE: u32 = 16;
@@ -43,20 +46,33 @@ const RECT_MARGIN: f64 = 0.05;
 /// Edge in pixels of the cells a tile's list is split into before its rays are traced.
 pub(super) const CELL: u32 = 4;
 
-/// A tile's list split by cell (see [`TileLists::cells`]).
+/// A tile's list split by cell (see [`TileLists::cells`]), each cell's list in [`Chunk`]s.
 pub(super) struct Cells {
     x0: u32,
     y0: u32,
-    lists: Vec<Vec<Entry>>,
+    chunks: Vec<Chunk>,
+    /// `ranges[c]..ranges[c + 1]`: cell `c`'s chunks (cells row-major).
+    ranges: Vec<usize>,
 }
 
 impl Cells {
-    /// The list of the cell holding pixel `(i, j)` (a pixel of the tile).
-    pub(super) fn of(&self, i: u32, j: u32) -> &[Entry] {
+    /// The chunks of the cell holding pixel `(i, j)` (a pixel of the tile).
+    pub(super) fn of(&self, i: u32, j: u32) -> &[Chunk] {
         let n = TILE / CELL;
         let (cx, cy) = ((i - self.x0) / CELL, (j - self.y0) / CELL);
-        &self.lists[(cy * n + cx) as usize]
+        let c = (cy * n + cx) as usize;
+        &self.chunks[self.ranges[c]..self.ranges[c + 1]]
     }
+}
+
+/// A tile's per-ray scratch space: the hits of one key distance awaiting compositing, and the
+/// composited hits' Gaussians (or colours) and weights awaiting their colours.
+#[derive(Default)]
+pub(super) struct Scratch {
+    pending: Vec<GaussianHit>,
+    composited: Vec<(u32, f32)>,
+    colors: Vec<Vec3>,
+    products: Products,
 }
 
 /// One proxy in a tile's list.
@@ -65,16 +81,16 @@ pub(super) struct Entry {
     /// `[u0, v0, u1, v1]`: the continuous image coordinates whose rays can enter the proxy's
     /// box and, with the footprint on, its screen ellipse (infinite for a box around the
     /// camera plane).
-    rect: [f32; 4],
+    pub(super) rect: [f32; 4],
     /// The screen ellipse of [`super::camera::PixelSplat::bound`] (centred pixels): a ray passes only if
     /// `δᵀ·k·δ ≤ amax`, `δ = mu − p` (`k = 0`, `amax = ∞` where there is none).
-    mu: [f32; 2],
-    k: [f32; 3],
-    amax: f32,
+    pub(super) mu: [f32; 2],
+    pub(super) k: [f32; 3],
+    pub(super) amax: f32,
     /// The mean's view depth `(μ − o)·f`, the numerator of every hit's key.
-    z: f32,
+    pub(super) z: f32,
     /// The proxy's index in its part.
-    p: u32,
+    pub(super) p: u32,
 }
 
 /// Every tile's proxies, in key order.
@@ -275,13 +291,67 @@ impl TileLists {
 
     /// Tile `(tx, ty)`'s list split into its [`CELL`]×[`CELL`]-pixel cells, each in the
     /// tile's order: a ray then scans only the proxies whose rectangles reach its cell.
-    pub(super) fn cells(&self, tx: u32, ty: u32) -> Cells {
-        let list = self.tile(tx, ty);
-        let lists = crate::screen_cells::split_cells(list, |e| e.rect, (tx, ty), TILE, CELL);
+    /// `pad`'s pixel records (mode `on`) go into the chunks beside their entries.
+    pub(super) fn cells(&self, tx: u32, ty: u32, pad: Option<&Padded>) -> Cells {
+        let records = pad
+            .filter(|p| p.mode == Footprint::On)
+            .map(|p| p.pixels[0].as_slice());
+        Cells::build(self.tile(tx, ty), records, (tx, ty))
+    }
+}
+
+impl Cells {
+    /// Tile `(tx, ty)`'s `list` split into cells, each cell's entries in [`Chunk`]s with their
+    /// proxies' `records` (the default record without them): the cells of
+    /// `screen_cells::split_cells` (`cell_span`), each in the list's order, without the
+    /// intermediate lists.
+    pub(super) fn build(
+        list: &[Entry],
+        records: Option<&[PixelSplat]>,
+        (tx, ty): (u32, u32),
+    ) -> Cells {
+        let n = (TILE / CELL) as usize;
+        let (x0, y0) = ((tx * TILE) as f64, (ty * TILE) as f64);
+        let spans: Vec<[usize; 4]> = list
+            .iter()
+            .map(|e| {
+                let (cx0, cx1) = cell_span(e.rect[0], e.rect[2], x0, CELL, n);
+                let (cy0, cy1) = cell_span(e.rect[1], e.rect[3], y0, CELL, n);
+                [cx0, cy0, cx1, cy1]
+            })
+            .collect();
+        let mut count = vec![0usize; n * n];
+        for s in &spans {
+            for cy in s[1]..=s[3] {
+                for c in &mut count[cy * n + s[0]..=cy * n + s[2]] {
+                    *c += 1;
+                }
+            }
+        }
+        let mut ranges = Vec::with_capacity(n * n + 1);
+        ranges.push(0);
+        for c in &count {
+            ranges.push(ranges[ranges.len() - 1] + c.div_ceil(LANES));
+        }
+        let mut chunks = vec![Chunk::EMPTY; ranges[n * n]];
+        // Entries placed so far in each cell.
+        count.fill(0);
+        for (e, s) in list.iter().zip(&spans) {
+            let px = records.map_or_else(PixelSplat::default, |r| r[e.p as usize]);
+            for cy in s[1]..=s[3] {
+                for cx in s[0]..=s[2] {
+                    let c = cy * n + cx;
+                    let at = count[c];
+                    count[c] += 1;
+                    chunks[ranges[c] + at / LANES].set(at % LANES, e, &px);
+                }
+            }
+        }
         Cells {
             x0: tx * TILE,
             y0: ty * TILE,
-            lists,
+            chunks,
+            ranges,
         }
     }
 }
@@ -289,6 +359,7 @@ impl TileLists {
 /// [`sh::eval_color`] of `coeffs` with the direction's basis `b` already computed: the same
 /// float operations in the same order, so the same bits (`tile_tests`).
 #[inline]
+#[cfg(test)]
 pub(super) fn color_from_basis(coeffs: &[Vec3], b: &[f32; 16]) -> Vec3 {
     let mut c = Vec3::ZERO;
     for (x, b) in coeffs.iter().zip(b) {
@@ -306,21 +377,26 @@ impl GaussianTracer {
             && (opts.footprint == Footprint::Projected || opts.order == HitOrder::MeanDepth)
     }
 
-    /// One primary ray through the tile list `list`: what [`GaussianTracer::trace_fp`] returns
-    /// for it (its statistics aside: one traversal, and the candidates its rectangle test
-    /// passed). `uv` is the ray's continuous image coordinate, `fp` its footprint (None with
-    /// the footprint off), `padded` the camera's grown boxes, `pending` scratch space.
+    /// One primary ray through the cell list `list`: what [`GaussianTracer::trace_fp`]
+    /// returns for it (its statistics aside: one traversal, and the candidates its rectangle
+    /// and ellipse tests passed). `uv` is the ray's continuous image coordinate, `fp` its
+    /// footprint (None with the footprint off), `padded` the camera's grown boxes, `scratch`
+    /// the tile's scratch space.
+    ///
+    /// Hits are composited as they come (transmittance, depth and where the ray stops need no
+    /// colour); their colours are evaluated together at the end and added in the hits' order,
+    /// the same float operations in the same order as blending each hit's colour as it comes.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn trace_tile(
         &self,
-        list: &[Entry],
+        list: &[Chunk],
         o: DVec3,
         d: DVec3,
         uv: (f64, f64),
         forward: DVec3,
         fp: Option<(&RayFootprint, &Padded)>,
         opts: &RenderOptions,
-        pending: &mut Vec<GaussianHit>,
+        scratch: &mut Scratch,
     ) -> PixelOut {
         let part = &self.parts[0];
         let (ro, rd) = (self.local_point(0, o), self.local_dir(0, d));
@@ -333,11 +409,18 @@ impl GaussianTracer {
         let mut acc = Accum::default();
         let mut hits = 0u32;
         let mut candidates = 0u32;
-        // The SH basis of the ray's direction, computed at its first composited hit: every
-        // hit of the ray is seen along the same direction (`hit_color`).
-        let mut basis: Option<[f32; 16]> = None;
-        // Composite `pending` (hits of one key distance) in Gaussian order; true: the ray
-        // stopped (native's rule: the hit that would take T below the threshold is not added).
+        let Scratch {
+            pending,
+            composited,
+            colors,
+            products,
+        } = scratch;
+        let by_ray = opts.sh_direction == ShDirection::Ray;
+        composited.clear();
+        colors.clear();
+        // Composite `pending` (hits of one key distance) in Gaussian order, as `Accum::add`
+        // does but for the colour; true: the ray stopped (native's rule: the hit that would
+        // take T below the threshold is not added).
         let mut flush = |pending: &mut Vec<GaussianHit>, acc: &mut Accum, hits: &mut u32| {
             if pending.len() > 1 {
                 pending.sort_unstable_by_key(|h| h.gaussian);
@@ -348,68 +431,98 @@ impl GaussianTracer {
                     return true;
                 }
                 *hits += 1;
-                let color = match opts.sh_direction {
-                    ShDirection::Mean => self.hit_color_toward_mean(h, o),
-                    ShDirection::Ray => {
-                        let b = basis.get_or_insert_with(|| sh::basis(part.cloud.sh_degree, rd));
-                        color_from_basis(part.cloud.sh_of(h.payload.index as usize), b)
-                    }
-                };
-                acc.add(color, a, h.t);
+                let w = a * acc.tr;
+                acc.dsum += w * h.t;
+                acc.wsum += w;
+                acc.tr *= 1.0 - a;
+                if opts.sh_direction == ShDirection::Mean {
+                    colors.push(self.hit_color_toward_mean(h, o));
+                }
+                composited.push((h.payload.index, w));
             }
             pending.clear();
             false
         };
         pending.clear();
         let mut stopped = false;
-        for e in list {
-            if !(u >= e.rect[0] && u <= e.rect[2] && v >= e.rect[1] && v <= e.rect[3]) {
+        'walk: for chunk in list {
+            let mut pass = chunk.pass(u, v, cu, cv);
+            if pass == 0 {
                 continue;
             }
-            // The screen ellipse (passes when there is none: k = 0, amax = ∞).
-            let (x0, x1) = (e.mu[0] - cu, e.mu[1] - cv);
-            if !(e.k[0] * x0 * x0 + 2.0 * e.k[1] * x0 * x1 + e.k[2] * x1 * x1 <= e.amax) {
-                continue;
-            }
-            candidates += 1;
-            let p = e.p as usize;
-            let r = match (&local, fp) {
-                (Some(f), Some((_, pad))) if mode == Footprint::Projected => {
-                    part.response_projected(p, ro, rd, f, &pad.splats[0][p])
-                }
-                (Some(f), Some((_, pad))) => {
-                    part.response_fp(p, ro, rd, f, pad.boxes[0][p], &pad.pixels[0][p], true)
-                }
-                _ => part.response(p, ro, rd),
+            // Mode `on`: the eight lanes' `q` from the pixel records (`Part::response_fp`).
+            let lanes_q = match local {
+                Some(f) if mode == Footprint::On => Some(chunk.q(f.centred, f.s, f.s2)),
+                _ => None,
             };
-            let Some((mut t, alpha)) = r else {
-                continue;
-            };
-            if mode != Footprint::Projected {
-                // `camera::mean_depth_key`, its numerator computed once per camera.
-                t = e.z / forward_cos;
+            while pass != 0 {
+                let l = pass.trailing_zeros() as usize;
+                pass &= pass - 1;
+                candidates += 1;
+                let p = chunk.p[l] as usize;
+                let r = match (&local, fp) {
+                    (Some(f), Some((_, pad))) if mode == Footprint::Projected => {
+                        part.response_projected(p, ro, rd, f, &pad.splats[0][p])
+                    }
+                    (Some(f), Some(_)) => {
+                        // `Part::response_fp` keyed at the mean's depth, lane `l`'s share.
+                        let q = match lanes_q {
+                            Some((q, ok)) if chunk.ok[l] => (ok >> l & 1 == 1).then_some(q[l]),
+                            _ => part.widened_q_3d(p, ro, f),
+                        };
+                        q.filter(|q| *q <= chunk.r2[l])
+                            .and_then(|q| alpha_of(chunk.opacity[l], q))
+                            .map(|alpha| (0.0, alpha))
+                    }
+                    _ => part.response(p, ro, rd),
+                };
+                let Some((mut t, alpha)) = r else {
+                    continue;
+                };
+                if mode != Footprint::Projected {
+                    // `camera::mean_depth_key`, its numerator computed once per camera.
+                    t = chunk.z[l] / forward_cos;
+                }
+                if pending
+                    .first()
+                    .is_some_and(|h| h.t.to_bits() != t.to_bits())
+                    && flush(pending, &mut acc, &mut hits)
+                {
+                    stopped = true;
+                    break 'walk;
+                }
+                if by_ray {
+                    // Its colour is evaluated after the walk.
+                    prefetch(part.cloud.sh_of(part.index[p] as usize));
+                }
+                pending.push(Hit {
+                    t,
+                    gaussian: part.id_offset + part.index[p],
+                    instance: 0,
+                    group: 0,
+                    payload: GaussianPayload {
+                        index: part.index[p],
+                        alpha,
+                    },
+                });
             }
-            if pending
-                .first()
-                .is_some_and(|h| h.t.to_bits() != t.to_bits())
-                && flush(pending, &mut acc, &mut hits)
-            {
-                stopped = true;
-                break;
-            }
-            pending.push(Hit {
-                t,
-                gaussian: part.id_offset + part.index[p],
-                instance: 0,
-                group: 0,
-                payload: GaussianPayload {
-                    index: part.index[p],
-                    alpha,
-                },
-            });
         }
         if !stopped {
             flush(pending, &mut acc, &mut hits);
+        }
+        if by_ray && !composited.is_empty() {
+            // The SH basis of the ray's direction: every hit is seen along it (`hit_color`).
+            let b = sh::basis(part.cloud.sh_degree, rd);
+            for group in composited.chunks(LANES) {
+                let mut coeffs = [[].as_slice(); LANES];
+                for (c, (g, _)) in coeffs.iter_mut().zip(group) {
+                    *c = part.cloud.sh_of(*g as usize);
+                }
+                colors_from_basis(&coeffs[..group.len()], &b, products, colors);
+            }
+        }
+        for (c, (_, w)) in colors.iter().zip(composited.iter()) {
+            acc.rgb += *c * *w;
         }
         PixelOut {
             rgb: acc.rgb + opts.background * acc.tr,
