@@ -92,6 +92,10 @@ class Scene:
     def name(self) -> str: ...
     def __len__(self) -> int: ...
     def composite(self, time: float) -> Scene: ...
+    def camera(self, spec: str, width: Optional[int] = None, height: Optional[int] = None, *,
+               time: Optional[float] = None) -> Camera:
+        """The camera a spec names for this scene, resolved once (orbits frame the scene)."""
+
     @staticmethod
     def from_arrays(
         means: npt.ArrayLike,

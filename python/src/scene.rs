@@ -144,6 +144,31 @@ impl PyScene {
             .collect()
     }
 
+    /// The camera a spec names for this scene (``"orbit:N:I"``, ``"scene:I"``,
+    /// ``"cameras.json:I"``), resolved once: an orbit frames the scene's Gaussians at
+    /// ``time`` (default: its start), which a render loop need not repeat per frame.
+    ///
+    /// >>> cam = scene.camera("orbit:8:0", 640, 480)
+    /// >>> img = splatbridge.render(scene, cam)
+    #[pyo3(signature = (spec, width = None, height = None, *, time = None))]
+    fn camera(
+        &self,
+        py: Python<'_>,
+        spec: String,
+        width: Option<u32>,
+        height: Option<u32>,
+        time: Option<f64>,
+    ) -> PyResult<PyCamera> {
+        let t = time.unwrap_or(self.scene.time.start);
+        let arg = crate::camera::CameraArg::Spec(spec);
+        let camera = run(py, |_| {
+            anyhow::Context::with_context(arg.resolve(&self.scene, t, width, height), || {
+                self.name.clone()
+            })
+        })?;
+        Ok(PyCamera { camera })
+    }
+
     /// The name used in errors (the file it was loaded from, or ``"arrays"``).
     #[getter]
     fn name(&self) -> &str {

@@ -9,6 +9,7 @@ import threading
 import time
 
 import numpy as np
+import pytest
 
 import splatbridge
 
@@ -90,3 +91,25 @@ def test_a_thousand_calls_do_not_grow_the_process(small):
     # leak of any of them over 1,000 calls is at least 9 MB (the frame alone) and 750 MB for
     # the scenes. 8 MB is the allocator's noise with room to spare (measured: under 1 MB).
     assert grown < 8 << 20, grown
+
+
+def test_kept_buffers_render_what_a_fresh_renderer_renders(small):
+    """`render` keeps a scene's native buffers between calls: frames of changing sizes and
+    knobs from one scene equal those of a freshly loaded scene (fresh buffers) exactly."""
+    warm = splatbridge.load(small)
+    for w, h, bg in [(96, 72, (0, 0, 0)), (40, 30, (1, 0, 0)), (128, 40, (0, 0.5, 1)),
+                     (96, 72, (0, 0, 0))]:
+        a = splatbridge.render(warm, "orbit:8:1", w, h, background=bg)
+        b = splatbridge.render(splatbridge.load(small), "orbit:8:1", w, h, background=bg)
+        assert a.shape == (h, w, 3)
+        assert np.array_equal(a, b), (w, h, bg)
+
+
+def test_a_camera_resolved_once_renders_as_its_spec(small):
+    scene = splatbridge.load(small)
+    cam = scene.camera("orbit:8:3", 64, 48)
+    assert (cam.width, cam.height) == (64, 48)
+    assert np.array_equal(splatbridge.render(scene, cam),
+                          splatbridge.render(scene, "orbit:8:3", 64, 48))
+    with pytest.raises(splatbridge.Error, match="orbit"):
+        scene.camera("orbit:0:0")
