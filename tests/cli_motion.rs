@@ -118,6 +118,40 @@ fn objects_auto_writes_a_manifest_other_commands_read() {
     );
     // Two rigid balls and the background are written once instead of twelve times.
     assert!(a * 3 < f, "animated {a} B vs per-frame {f} B");
+    // One GLB per frame and the index, into a folder.
+    let dir = tmp.path().join("per_frame");
+    ok(&[
+        "convert",
+        seq.to_str().unwrap(),
+        "--frames",
+        "-o",
+        &format!("{}/", dir.display()),
+    ]);
+    let index: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("frames.json")).unwrap()).unwrap();
+    assert_eq!(index["format"], "splatbridge-frames/1");
+    let listed = index["frames"].as_array().unwrap();
+    assert_eq!(listed.len(), 12);
+    for (i, f) in listed.iter().enumerate() {
+        let glb = dir.join(f["uri"].as_str().unwrap());
+        assert_eq!(
+            std::fs::metadata(&glb).unwrap().len(),
+            f["bytes"].as_u64().unwrap(),
+            "frame {i}"
+        );
+    }
+    // Neither a mesh of another kind nor a partial output.
+    let obj = tmp.path().join("frames.obj");
+    let r = run(&[
+        "convert",
+        seq.to_str().unwrap(),
+        "--frames",
+        "-o",
+        obj.to_str().unwrap(),
+    ]);
+    assert_eq!(r.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&r.stderr).contains("one GLB per frame into a folder"));
+    assert!(!obj.exists());
 }
 
 #[test]

@@ -147,20 +147,20 @@ pub(crate) fn index_bytes(idx: &[u32]) -> Vec<u8> {
 }
 
 /// A mesh region streamed after the small data.
-struct Region {
+pub(crate) struct Region {
     vertex_offset: u64,
     vertex_len: u64,
     index_len: u64,
 }
 
 /// Everything decided before streaming.
-struct Plan {
-    json: Vec<u8>,
-    small: Vec<u8>,
+pub(crate) struct Plan {
+    pub json: Vec<u8>,
+    pub small: Vec<u8>,
     /// Per entry: the residual primitive's region, then the surfel primitive's.
     regions: Vec<[Option<Region>; 2]>,
-    bin_len: u64,
-    layout: VertexLayout,
+    pub bin_len: u64,
+    pub layout: VertexLayout,
 }
 
 /// Which of the two materials the entries use, and their indices: the splat material for
@@ -174,13 +174,11 @@ struct Materials {
 }
 
 impl Materials {
-    fn of(entries: &[MeshEntry<'_>]) -> Self {
-        let any_residual = entries.iter().any(|e| !e.mesher.is_empty());
+    fn of(entries: &[EntryInfo]) -> Self {
+        let any_residual = entries.iter().any(|e| e.residual_used);
         Materials {
             any_residual,
-            any_surfels: entries
-                .iter()
-                .any(|e| e.surfels.as_ref().is_some_and(|s| !s.is_empty())),
+            any_surfels: entries.iter().any(|e| e.surfels_used),
             splat: 0,
             surfel: usize::from(any_residual),
         }
@@ -242,25 +240,94 @@ struct FrameVisibility {
     outputs: Vec<usize>,
 }
 
+/// The vertex layout the options ask for.
+pub(crate) fn layout_for(opts: &ConvertOptions) -> VertexLayout {
+    VertexLayout {
+        ids: opts.gaussian_ids,
+        uv: opts.profile == Profile::Texture,
+        normals: opts.normals,
+    }
+}
+
+/// What the plan needs of one entry's meshes: counts and exact bounds of each primitive, taken
+/// from the classified entry ([`EntryInfo::of`]) before the data is generated, or while it is
+/// (the streamed per-frame writer, `frames_gltf.rs`), so both writers plan the same document.
+#[derive(Clone, Debug)]
+pub(crate) struct EntryInfo {
+    pub role: Role,
+    /// The residual mesh's counts (name, ids, Gaussians in, vertices, triangles).
+    pub counts: crate::MeshCounts,
+    /// The residual mesh has triangles (it uses the splat material).
+    pub residual_used: bool,
+    pub residual_bounds: Option<([f32; 3], [f32; 3])>,
+    /// The surfel primitive, when the entry has surfels: vertices, triangles, surfels kept.
+    pub surfels: Option<(u64, u64, u64)>,
+    pub surfels_used: bool,
+    pub surfel_bounds: Option<([f32; 3], [f32; 3])>,
+}
+
+impl EntryInfo {
+    /// The summary of a classified entry (a bounds pass over each non-empty primitive).
+    pub(crate) fn of(e: &MeshEntry<'_>) -> Self {
+        use crate::chunked::ChunkedMesh;
+        let m = &e.mesher;
+        let residual_used = !m.is_empty();
+        let surfels_used = e.surfels.as_ref().is_some_and(|s| !s.is_empty());
+        EntryInfo {
+            role: e.role,
+            counts: m.counts.clone(),
+            residual_used,
+            residual_bounds: if residual_used { m.bounds() } else { None },
+            surfels: e.surfels.as_ref().map(|s| {
+                (
+                    s.counts.vertices,
+                    s.counts.triangles,
+                    s.counts.surfels - s.counts.dropped_overflow,
+                )
+            }),
+            surfels_used,
+            surfel_bounds: match &e.surfels {
+                Some(s) if surfels_used => s.bounds(),
+                _ => None,
+            },
+        }
+    }
+}
+
 fn plan(
-    entries: &[MeshEntry<'_>],
+    entries: &[EntryInfo],
     scene: &DynamicScene,
     frames: Option<&FrameClouds>,
     opts: &ConvertOptions,
     report: &ConvertReport,
     bin_uri: Option<String>,
 ) -> io::Result<Plan> {
-    let layout = VertexLayout {
-        ids: opts.gaussian_ids,
-        uv: opts.profile == Profile::Texture,
-        normals: opts.normals,
-    };
+    plan_at(
+        entries,
+        scene,
+        frames.map(|f| &f.times[..]),
+        opts,
+        report,
+        bin_uri,
+    )
+}
+
+/// [`plan`] with the per-frame content given by its times alone (what the plan needs of it).
+pub(crate) fn plan_at(
+    entries: &[EntryInfo],
+    scene: &DynamicScene,
+    frame_times: Option<&[f64]>,
+    opts: &ConvertOptions,
+    report: &ConvertReport,
+    bin_uri: Option<String>,
+) -> io::Result<Plan> {
+    let layout = layout_for(opts);
     let materials = Materials::of(entries);
     // Small data first: the texture and the animation keys.
     let mut d = DocBuilder::new();
     let images = falloff_image(&mut d, layout, materials);
     let tracks = object_tracks(&mut d, scene);
-    let visibility = frame_visibility(&mut d, frames)?;
+    let visibility = frame_visibility(&mut d, frame_times)?;
     d.align();
 
     let mut g = Graph {
@@ -341,20 +408,26 @@ fn f32_at_or_before(t: f64) -> f32 {
     }
 }
 
-fn frame_visibility(
-    d: &mut DocBuilder,
-    frames: Option<&FrameClouds>,
-) -> io::Result<Option<FrameVisibility>> {
-    let Some(fr) = frames.filter(|f| !f.times.is_empty()) else {
-        return Ok(None);
-    };
-    let times: Vec<f32> = fr.times.iter().map(|&t| f32_at_or_before(t)).collect();
+/// The frame times as key times, refused when two collapse to one f32.
+pub(crate) fn frame_key_times(times: &[f64]) -> io::Result<Vec<f32>> {
+    let times: Vec<f32> = times.iter().map(|&t| f32_at_or_before(t)).collect();
     if times.windows(2).any(|w| !(w[1] > w[0])) {
         return Err(io::Error::new(
             io::ErrorKind::InvalidInput,
             "frame times collapse in f32 seconds",
         ));
     }
+    Ok(times)
+}
+
+fn frame_visibility(
+    d: &mut DocBuilder,
+    frame_times: Option<&[f64]>,
+) -> io::Result<Option<FrameVisibility>> {
+    let Some(times) = frame_times.filter(|t| !t.is_empty()) else {
+        return Ok(None);
+    };
+    let times = frame_key_times(times)?;
     let input = d.floats(&times, "SCALAR", 1, true);
     let outputs = (0..times.len())
         .map(|i| {
@@ -375,16 +448,12 @@ fn mesh_node(
     d: &mut DocBuilder,
     g: &mut Graph,
     offset: &mut u64,
-    e: &MeshEntry<'_>,
+    e: &EntryInfo,
     ctx: &EntryContext<'_>,
 ) -> Option<[Option<Region>; 2]> {
     let (layout, materials) = (ctx.layout, ctx.materials);
-    let m = &e.mesher;
-    let residual_bounds = if m.is_empty() { None } else { m.bounds() };
-    let surfel_bounds = e
-        .surfels
-        .as_ref()
-        .and_then(|s| if s.is_empty() { None } else { s.bounds() });
+    let counts = &e.counts;
+    let (residual_bounds, surfel_bounds) = (e.residual_bounds, e.surfel_bounds);
     if residual_bounds.is_none() && surfel_bounds.is_none() {
         return None;
     }
@@ -397,15 +466,15 @@ fn mesh_node(
         (
             residual_bounds,
             layout,
-            m.counts.vertices,
-            m.counts.triangles,
+            counts.vertices,
+            counts.triangles,
             materials.splat,
         ),
         (
             surfel_bounds,
             surfel_layout,
-            e.surfels.as_ref().map_or(0, |s| s.counts.vertices),
-            e.surfels.as_ref().map_or(0, |s| s.counts.triangles),
+            e.surfels.map_or(0, |s| s.0),
+            e.surfels.map_or(0, |s| s.1),
             materials.surfel,
         ),
     ];
@@ -423,14 +492,14 @@ fn mesh_node(
         pair[slot] = Some(region);
     }
     let (role, name) = match e.role {
-        Role::Static => ("static", m.counts.name.clone()),
+        Role::Static => ("static", counts.name.clone()),
         Role::Object(k) => ("object", ctx.scene.objects[k].name.clone()),
         Role::Frame(k) => ("frame", format!("frame_{k:04}")),
     };
     let mut extras =
-        json!({"role": role, "idOffset": m.counts.id_offset, "gaussians": m.counts.gaussians_in});
-    if let Some(s) = &e.surfels {
-        extras["surfels"] = json!(s.counts.surfels - s.counts.dropped_overflow);
+        json!({"role": role, "idOffset": counts.id_offset, "gaussians": counts.gaussians_in});
+    if let Some(s) = e.surfels {
+        extras["surfels"] = json!(s.2);
         extras["primitives"] = json!(match (&pair[0], &pair[1]) {
             (Some(_), Some(_)) => vec!["gaussians", "surfels"],
             (Some(_), None) => vec!["gaussians"],
@@ -545,52 +614,92 @@ fn stream_bin<W: Write>(w: &mut W, plan: &Plan, entries: &[MeshEntry<'_>]) -> io
     w.write_all(&plan.small)?;
     let mut written = plan.small.len() as u64;
     for (e, pair) in entries.iter().zip(&plan.regions) {
-        if let Some(r) = &pair[0] {
-            debug_assert_eq!(written, r.vertex_offset);
-            let layout = plan.layout;
-            let mut vb = 0u64;
-            e.mesher.map_chunks_with(
-                |n| Interleaved::new(n, layout),
-                |s| s.bytes,
-                |b| {
-                    vb += b.len() as u64;
-                    w.write_all(&b)
-                },
-            )?;
-            let mut ib = 0u64;
-            e.mesher.map_index_chunks(0, index_bytes, |b| {
-                ib += b.len() as u64;
-                w.write_all(&b)
-            })?;
-            check_region(&e.mesher.counts.name, vb, ib, r)?;
-            written += vb + ib;
-        }
-        if let (Some(r), Some(s)) = (&pair[1], &e.surfels) {
-            debug_assert_eq!(written, r.vertex_offset);
-            let layout = VertexLayout {
-                ids: plan.layout.ids,
-                uv: false,
-                normals: plan.layout.normals,
-            };
-            let mut vb = 0u64;
-            s.map_chunks_with(
-                |n| Interleaved::new(n, layout),
-                |s| s.bytes,
-                |b| {
-                    vb += b.len() as u64;
-                    w.write_all(&b)
-                },
-            )?;
-            let mut ib = 0u64;
-            s.map_index_chunks(0, index_bytes, |b| {
-                ib += b.len() as u64;
-                w.write_all(&b)
-            })?;
-            check_region(&s.counts.name, vb, ib, r)?;
-            written += vb + ib;
-        }
+        debug_assert!(pair.iter().flatten().all(|r| r.vertex_offset >= written));
+        written += stream_entry(w, e, plan.layout, pair.each_ref().map(|r| r.as_ref()))?;
     }
     Ok(written)
+}
+
+/// The region sizes of an entry's primitives as [`plan`] lays them out (residual, surfels).
+pub(crate) fn entry_regions(e: &EntryInfo, layout: VertexLayout) -> [Option<(u64, u64)>; 2] {
+    let surfel_stride = VertexLayout {
+        uv: false,
+        ..layout
+    }
+    .stride() as u64;
+    [
+        e.residual_bounds.map(|_| {
+            (
+                e.counts.vertices * layout.stride() as u64,
+                e.counts.triangles * 12,
+            )
+        }),
+        e.surfel_bounds
+            .and(e.surfels)
+            .map(|s| (s.0 * surfel_stride, s.1 * 12)),
+    ]
+}
+
+/// Stream one entry's primitives (the regions planned for it: vertices, then indices, of the
+/// residual mesh and then of the surfels); returns the bytes written.
+pub(crate) fn stream_entry<W: Write>(
+    w: &mut W,
+    e: &MeshEntry<'_>,
+    layout: VertexLayout,
+    regions: [Option<&Region>; 2],
+) -> io::Result<u64> {
+    let mut written = 0;
+    if let Some(r) = regions[0] {
+        let mut vb = 0u64;
+        e.mesher.map_chunks_with(
+            |n| Interleaved::new(n, layout),
+            |s| s.bytes,
+            |b| {
+                vb += b.len() as u64;
+                w.write_all(&b)
+            },
+        )?;
+        let mut ib = 0u64;
+        e.mesher.map_index_chunks(0, index_bytes, |b| {
+            ib += b.len() as u64;
+            w.write_all(&b)
+        })?;
+        check_region(&e.mesher.counts.name, vb, ib, r)?;
+        written += vb + ib;
+    }
+    if let (Some(r), Some(s)) = (regions[1], &e.surfels) {
+        let layout = VertexLayout {
+            ids: layout.ids,
+            uv: false,
+            normals: layout.normals,
+        };
+        let mut vb = 0u64;
+        s.map_chunks_with(
+            |n| Interleaved::new(n, layout),
+            |s| s.bytes,
+            |b| {
+                vb += b.len() as u64;
+                w.write_all(&b)
+            },
+        )?;
+        let mut ib = 0u64;
+        s.map_index_chunks(0, index_bytes, |b| {
+            ib += b.len() as u64;
+            w.write_all(&b)
+        })?;
+        check_region(&s.counts.name, vb, ib, r)?;
+        written += vb + ib;
+    }
+    Ok(written)
+}
+
+/// A region as the streamed writer knows it before the offsets are planned: its lengths.
+pub(crate) fn region_of(vertex_len: u64, index_len: u64) -> Region {
+    Region {
+        vertex_offset: 0,
+        vertex_len,
+        index_len,
+    }
 }
 
 fn check_region(name: &str, vb: u64, ib: u64, r: &Region) -> io::Result<()> {
@@ -612,7 +721,8 @@ pub fn write_glb<W: Write>(
     opts: &ConvertOptions,
     report: &ConvertReport,
 ) -> io::Result<u64> {
-    let plan = plan(entries, scene, frames, opts, report, None)?;
+    let infos: Vec<EntryInfo> = entries.iter().map(EntryInfo::of).collect();
+    let plan = plan(&infos, scene, frames, opts, report, None)?;
     glb_container(w, &plan.json, plan.bin_len, |w| {
         stream_bin(w, &plan, entries)
     })
@@ -688,8 +798,9 @@ pub fn write_file(
                 .file_name()
                 .map(|n| n.to_string_lossy().into_owned())
                 .unwrap_or_default();
+            let infos: Vec<EntryInfo> = entries.iter().map(EntryInfo::of).collect();
             let plan =
-                plan(entries, scene, frames, opts, report, Some(uri)).map_err(io_err(path))?;
+                plan(&infos, scene, frames, opts, report, Some(uri)).map_err(io_err(path))?;
             let mut n = 0;
             // The .gltf and its .bin appear together or not at all.
             let mut set = splatbridge_scene::output::OutputSet::new();

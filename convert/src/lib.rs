@@ -42,6 +42,7 @@
 
 pub mod chunked;
 pub mod classify;
+pub mod frames_gltf;
 pub mod gltf_doc;
 pub mod gltf_writer;
 pub mod mesh;
@@ -198,22 +199,33 @@ fn check_frames(frames: Option<&FrameClouds>) -> Result<()> {
 
 /// One cloud to mesh: a whole part of the scene, or a chunk of one with its global ids and
 /// facing (`order.rs`).
-struct Piece<'a> {
-    role: Role,
-    name: String,
-    cloud: &'a GaussianCloud,
-    ids: Option<&'a [u32]>,
-    facing: order::Facing,
+pub(crate) struct Piece<'a> {
+    pub role: Role,
+    pub name: String,
+    pub cloud: &'a GaussianCloud,
+    pub ids: Option<&'a [u32]>,
+    pub facing: order::Facing,
 }
 
 impl<'a> Piece<'a> {
-    fn whole(role: Role, name: &str, cloud: &'a GaussianCloud) -> Self {
+    pub(crate) fn whole(role: Role, name: &str, cloud: &'a GaussianCloud) -> Self {
         Piece {
             role,
             name: name.into(),
             cloud,
             ids: None,
             facing: order::Facing::Template,
+        }
+    }
+
+    /// A chunk of an arranged part.
+    pub(crate) fn of_part(p: &'a order::Part) -> Self {
+        Piece {
+            role: p.role,
+            name: p.name.clone(),
+            cloud: &p.cloud,
+            ids: Some(&p.ids),
+            facing: p.facing,
         }
     }
 }
@@ -227,16 +239,7 @@ pub fn prepare_arranged<'a>(
     report: &mut ConvertReport,
 ) -> Result<Vec<MeshEntry<'a>>> {
     opts.validate()?;
-    let pieces = parts
-        .iter()
-        .map(|p| Piece {
-            role: p.role,
-            name: p.name.clone(),
-            cloud: &p.cloud,
-            ids: Some(&p.ids),
-            facing: p.facing,
-        })
-        .collect();
+    let pieces = parts.iter().map(Piece::of_part).collect();
     prepare_pieces(pieces, scene, opts, shape, report)
 }
 
@@ -249,38 +252,8 @@ fn prepare_pieces<'a>(
 ) -> Result<Vec<MeshEntry<'a>>> {
     let mut offset = 0u64;
     let mut entries = Vec::with_capacity(clouds.len());
-    for Piece {
-        role,
-        name,
-        cloud,
-        ids,
-        facing,
-    } in clouds
-    {
-        cloud.check_shape()?;
-        let mut mesher = Mesher::new(cloud, shape, opts, &name, offset);
-        if let Some(ids) = ids {
-            let first = ids.iter().copied().min().unwrap_or(0) as u64;
-            mesher.set_id_map(ids, first)?;
-            offset = offset.max(ids.iter().copied().max().map_or(0, |m| m as u64 + 1));
-        } else {
-            offset += cloud.len() as u64;
-        }
-        mesher.set_facing(facing);
-        if let Role::Object(k) = role {
-            let reach = scene.objects[k]
-                .track
-                .keys
-                .iter()
-                .map(|k| k.pose.translation.abs().max_element())
-                .fold(0.0f32, f32::max);
-            mesher.set_frame_reach(reach);
-        }
-        entries.push(MeshEntry {
-            role,
-            mesher,
-            surfels: None,
-        });
+    for piece in clouds {
+        entries.push(piece_entry(piece, scene, opts, shape, &mut offset)?);
     }
     if opts.gaussian_ids && offset > 1 << 24 {
         return Err(ConvertError::Invalid(format!(
@@ -292,15 +265,63 @@ fn prepare_pieces<'a>(
         mesh::apply_budget(&mut ms, max);
     }
     for e in &entries {
-        if e.mesher.counts.vertices >= u32::MAX as u64 {
-            return Err(ConvertError::Invalid(format!(
-                "{}: {} vertices do not fit u32 indices (4294967295 is reserved)",
-                e.mesher.counts.name, e.mesher.counts.vertices
-            )));
-        }
-        report.add(e.mesher.counts.clone());
+        check_entry(e, report)?;
     }
     Ok(entries)
+}
+
+/// Classify one piece: its mesher, with `_GAUSSIAN_ID`s from `offset` for a whole part (or its
+/// own id map), and `offset` advanced past its Gaussians.
+pub(crate) fn piece_entry<'a>(
+    piece: Piece<'a>,
+    scene: &DynamicScene,
+    opts: &ConvertOptions,
+    shape: &'a ProfileShape,
+    offset: &mut u64,
+) -> Result<MeshEntry<'a>> {
+    let Piece {
+        role,
+        name,
+        cloud,
+        ids,
+        facing,
+    } = piece;
+    cloud.check_shape()?;
+    let mut mesher = Mesher::new(cloud, shape, opts, &name, *offset);
+    if let Some(ids) = ids {
+        let first = ids.iter().copied().min().unwrap_or(0) as u64;
+        mesher.set_id_map(ids, first)?;
+        *offset = (*offset).max(ids.iter().copied().max().map_or(0, |m| m as u64 + 1));
+    } else {
+        *offset += cloud.len() as u64;
+    }
+    mesher.set_facing(facing);
+    if let Role::Object(k) = role {
+        let reach = scene.objects[k]
+            .track
+            .keys
+            .iter()
+            .map(|k| k.pose.translation.abs().max_element())
+            .fold(0.0f32, f32::max);
+        mesher.set_frame_reach(reach);
+    }
+    Ok(MeshEntry {
+        role,
+        mesher,
+        surfels: None,
+    })
+}
+
+/// A classified entry's vertices fit u32 indices; its counts go into the report.
+pub(crate) fn check_entry(e: &MeshEntry<'_>, report: &mut ConvertReport) -> Result<()> {
+    if e.mesher.counts.vertices >= u32::MAX as u64 {
+        return Err(ConvertError::Invalid(format!(
+            "{}: {} vertices do not fit u32 indices (4294967295 is reserved)",
+            e.mesher.counts.name, e.mesher.counts.vertices
+        )));
+    }
+    report.add(e.mesher.counts.clone());
+    Ok(())
 }
 
 /// [`prepare`] for a scene split into surfels and residual Gaussians: the residual parts are

@@ -74,48 +74,63 @@ pub fn arrange_for(
     let mut parts = Vec::new();
     let mut offset = 0u64;
     for (role, name, cloud, max) in wholes {
-        cloud.check_shape()?;
-        let in_world = !matches!(role, Role::Object(_));
-        let chunks = match &opts.view_order {
-            Some(cam) if in_world => vec![view_chunk(cloud, cam)],
-            _ => spatial_chunks(&cloud.means, max)
-                .into_iter()
-                .map(|mut indices| {
-                    let n = dominant_normal(cloud, &indices);
-                    if opts.chunk_order == ChunkOrder::Normal {
-                        sort_by_key(&mut indices, |i| n.dot(cloud.means[i as usize]) as f64);
-                    }
-                    let facing = if opts.both_windings {
-                        Facing::Axis(n)
-                    } else {
-                        Facing::Template
-                    };
-                    Chunk { indices, facing }
-                })
-                .collect(),
-        };
-        let many = chunks.len() > 1;
-        for (k, c) in chunks.into_iter().enumerate() {
-            let ids = c
-                .indices
-                .iter()
-                .map(|&i| u32::try_from(offset + i as u64).unwrap_or(u32::MAX))
-                .collect();
-            parts.push(Part {
-                role,
-                name: if many {
-                    format!("{name}_{k:04}")
-                } else {
-                    name.clone()
-                },
-                cloud: subset(cloud, &c.indices),
-                ids,
-                facing: c.facing,
-            });
-        }
+        arrange_part(role, &name, cloud, max, offset, opts, &mut parts)?;
         offset += cloud.len() as u64;
     }
     Ok(Some(parts))
+}
+
+/// Arrange one part of a scene (its Gaussians' global ids start at `offset`; `max` Gaussians
+/// per spatial chunk, 0 for one chunk) as [`arrange_for`] does, appending its chunks to `parts`.
+pub(crate) fn arrange_part(
+    role: Role,
+    name: &str,
+    cloud: &GaussianCloud,
+    max: usize,
+    offset: u64,
+    opts: &ConvertOptions,
+    parts: &mut Vec<Part>,
+) -> Result<()> {
+    cloud.check_shape()?;
+    let in_world = !matches!(role, Role::Object(_));
+    let chunks = match &opts.view_order {
+        Some(cam) if in_world => vec![view_chunk(cloud, cam)],
+        _ => spatial_chunks(&cloud.means, max)
+            .into_iter()
+            .map(|mut indices| {
+                let n = dominant_normal(cloud, &indices);
+                if opts.chunk_order == ChunkOrder::Normal {
+                    sort_by_key(&mut indices, |i| n.dot(cloud.means[i as usize]) as f64);
+                }
+                let facing = if opts.both_windings {
+                    Facing::Axis(n)
+                } else {
+                    Facing::Template
+                };
+                Chunk { indices, facing }
+            })
+            .collect(),
+    };
+    let many = chunks.len() > 1;
+    for (k, c) in chunks.into_iter().enumerate() {
+        let ids = c
+            .indices
+            .iter()
+            .map(|&i| u32::try_from(offset + i as u64).unwrap_or(u32::MAX))
+            .collect();
+        parts.push(Part {
+            role,
+            name: if many {
+                format!("{name}_{k:04}")
+            } else {
+                name.to_string()
+            },
+            cloud: subset(cloud, &c.indices),
+            ids,
+            facing: c.facing,
+        });
+    }
+    Ok(())
 }
 
 /// Which way the first copy of each fan faces (the second, when written, faces away).

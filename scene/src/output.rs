@@ -165,6 +165,8 @@ pub struct OutputSet {
     staged: Vec<Staged>,
     /// Staging directories ([`OutputSet::stage_dir`]): (the directory, its target).
     dirs: Vec<(PathBuf, PathBuf)>,
+    /// Scratch files ([`OutputSet::scratch`]): removed with the set, never committed.
+    scratch: Vec<PathBuf>,
     cleaned: HashSet<PathBuf>,
 }
 
@@ -233,6 +235,30 @@ impl OutputSet {
         Ok(())
     }
 
+    /// A scratch file next to `target` (a writer's spool: data that is copied into an output
+    /// before the set is committed), opened for reading and writing. It carries a temporary's
+    /// name, so a run that is killed leaves nothing [`clean_stale`] does not remove, and it is
+    /// deleted when the set is committed or dropped; it never becomes an output.
+    pub fn scratch(&mut self, target: &Path) -> Result<(PathBuf, File)> {
+        let dir = parent_dir(target);
+        if self.cleaned.insert(dir.clone()) {
+            clean_stale(&dir);
+        }
+        let name = target
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let tmp = temp_name(&dir.join(format!("{name}.spool")), Kind::Tmp);
+        let file = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create_new(true)
+            .open(&tmp)
+            .map_err(|e| SceneError::io(target, e))?;
+        self.scratch.push(tmp.clone());
+        Ok((tmp, file))
+    }
+
     /// A fresh staging directory for `target_dir` (created with its parents): a command whose
     /// library code writes into a directory writes there instead, and [`OutputSet::commit`]
     /// moves every file in it into `target_dir` with the rest of the set. Other files already
@@ -291,6 +317,9 @@ impl OutputSet {
     /// put back as they were, every temporary is removed, and the error names the file whose
     /// rename failed.
     pub fn commit(mut self) -> Result<()> {
+        for s in std::mem::take(&mut self.scratch) {
+            let _ = std::fs::remove_file(s);
+        }
         self.adopt_dirs()?;
         let staged = std::mem::take(&mut self.staged);
         // (target, backup of the previous file) for each rename done.
@@ -348,6 +377,9 @@ impl OutputSet {
 
 impl Drop for OutputSet {
     fn drop(&mut self) {
+        for s in &self.scratch {
+            let _ = std::fs::remove_file(s);
+        }
         for s in &self.staged {
             let _ = std::fs::remove_file(&s.tmp);
         }

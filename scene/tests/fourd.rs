@@ -425,7 +425,15 @@ fn splatv_sizes_are_checked_against_the_file() {
 
 // ---------- params.npz ----------
 
+#[path = "fourd/npz_frames.rs"]
+mod npz_frames;
+
 fn npy(shape: &[usize], data: &[f32]) -> Vec<u8> {
+    npy_with(shape, data, "<f4")
+}
+
+/// A `.npy` of `data` as `descr` (`<f4`, `>f8`, `<f2`, …), padded as NumPy pads it.
+fn npy_with(shape: &[usize], data: &[f32], descr: &str) -> Vec<u8> {
     let shape_txt = match shape.len() {
         1 => format!("({},)", shape[0]),
         _ => format!(
@@ -437,7 +445,7 @@ fn npy(shape: &[usize], data: &[f32]) -> Vec<u8> {
                 .join(", ")
         ),
     };
-    let mut h = format!("{{'descr': '<f4', 'fortran_order': False, 'shape': {shape_txt}, }}");
+    let mut h = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape_txt}, }}");
     while (10 + h.len() + 1) % 64 != 0 {
         h.push(' ');
     }
@@ -445,13 +453,27 @@ fn npy(shape: &[usize], data: &[f32]) -> Vec<u8> {
     let mut out = b"\x93NUMPY\x01\x00".to_vec();
     out.extend((h.len() as u16).to_le_bytes());
     out.extend(h.as_bytes());
-    for v in data {
-        out.extend(v.to_le_bytes());
+    for &v in data {
+        match descr {
+            "<f4" => out.extend(v.to_le_bytes()),
+            ">f8" => out.extend((v as f64).to_be_bytes()),
+            "<f2" => out.extend(half::f16::from_f32(v).to_le_bytes()),
+            other => panic!("descr {other}"),
+        }
     }
     out
 }
 
 fn write_npz(path: &Path, arrays: &[(&str, Vec<usize>, Vec<f32>)], deflate: bool) {
+    let members: Vec<(String, Vec<u8>)> = arrays
+        .iter()
+        .map(|(name, shape, data)| (format!("{name}.npy"), npy(shape, data)))
+        .collect();
+    write_npz_members(path, &members, deflate);
+}
+
+/// A zip of named members, stored (`np.savez`) or deflated (`np.savez_compressed`).
+fn write_npz_members(path: &Path, members: &[(String, Vec<u8>)], deflate: bool) {
     let f = std::fs::File::create(path).unwrap();
     let mut z = zip::ZipWriter::new(f);
     let method = if deflate {
@@ -460,9 +482,9 @@ fn write_npz(path: &Path, arrays: &[(&str, Vec<usize>, Vec<f32>)], deflate: bool
         zip::CompressionMethod::Stored
     };
     let opts = zip::write::SimpleFileOptions::default().compression_method(method);
-    for (name, shape, data) in arrays {
-        z.start_file(format!("{name}.npy"), opts).unwrap();
-        z.write_all(&npy(shape, data)).unwrap();
+    for (name, bytes) in members {
+        z.start_file(name.as_str(), opts).unwrap();
+        z.write_all(bytes).unwrap();
     }
     z.finish().unwrap();
 }

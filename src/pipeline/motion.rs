@@ -1,7 +1,8 @@
 //! Sequences of Gaussian frames (4D captures) to scenes: what `convert --objects` and
 //! `convert --frames` run on a sequence. [`decompose_scene`] finds what moves
 //! (`splatbridge_convert::motion`: static background, rigid objects with tracks, per-frame
-//! content) and [`frames_scene`] keeps every frame whole; both give a `DynamicScene`, so a
+//! content) and [`frames_scene`] keeps every frame whole (in memory; [`export_frames`] writes
+//! every frame whole one frame at a time); both give a `DynamicScene`, so a
 //! manifest, a glTF export (objects as animated nodes, per-frame content as nodes switched
 //! by stepped scale keys) and every other command take the result.
 //!
@@ -20,8 +21,12 @@ use std::path::Path;
 
 use anyhow::bail;
 use serde::Serialize;
+use splatbridge_convert::frames_gltf::{
+    write_frames_dir, write_frames_file, FramesIndex, FramesLimits,
+};
 use splatbridge_convert::motion::stream::{decompose_streamed, FrameSource};
 use splatbridge_convert::motion::{subset, DecomposeOptions, Decomposition};
+use splatbridge_convert::{ConvertOptions, ConvertReport};
 use splatbridge_hybrid::native::{render, RenderOptions};
 use splatbridge_scene::camera::OrbitRig;
 use splatbridge_scene::dynamic::{DynamicScene, FrameContent, TimeRange};
@@ -102,6 +107,58 @@ impl FrameSource for ModelFrames<'_> {
     fn frame(&self, f: usize) -> splatbridge_convert::Result<Cow<'_, GaussianCloud>> {
         Ok(Cow::Owned(self.model.sample(self.times[f])?))
     }
+}
+
+/// What `convert --frames` wrote.
+pub enum FramesWritten {
+    /// One animated glTF (`.glb`, or `.gltf` + `.bin`).
+    File(ConvertReport),
+    /// One GLB per frame and the index (`DIR/frames.json`); the report sums the frames.
+    Dir(FramesIndex, ConvertReport),
+}
+
+/// Gaussians over every frame of a model, from what it knows without reading the frames.
+pub fn total_gaussians(model: &FourD, frames: usize) -> u64 {
+    match &model.motion {
+        Motion::Sequence(s) => s.counts.iter().map(|&c| c as u64).sum(),
+        _ => frames as u64 * model.max_count() as u64,
+    }
+}
+
+/// `convert --frames`: every frame of `model` (at `times`) meshed whole with `opts`, one frame
+/// in memory at a time, into one animated glTF at `output` or, with `dir`, one GLB per frame
+/// in the folder `output` (`splatbridge_convert::frames_gltf`). Surfels and a triangle budget
+/// split or budget every frame together, so with those the frames are held and the in-memory
+/// writer writes the file.
+pub fn export_frames(
+    model: &FourD,
+    times: &[f64],
+    fps: f64,
+    output: &Path,
+    opts: &ConvertOptions,
+    dir: bool,
+) -> anyhow::Result<FramesWritten> {
+    let src = ModelFrames { model, times };
+    if dir {
+        let (index, report) = write_frames_dir(output, &src, times, fps, opts)?;
+        return Ok(FramesWritten::Dir(index, report));
+    }
+    if opts.surfels.is_some() || opts.max_triangles.is_some() {
+        let frames = times
+            .iter()
+            .map(|&t| model.sample(t))
+            .collect::<Result<Vec<_>, _>>()?;
+        let scene = frames_scene(frames, times, fps)?;
+        let report = splatbridge_convert::convert_to_file(output, &scene, None, opts, true)?;
+        return Ok(FramesWritten::File(report));
+    }
+    let limits = FramesLimits {
+        total_gaussians: Some(total_gaussians(model, times.len())),
+        ..FramesLimits::default()
+    };
+    Ok(FramesWritten::File(write_frames_file(
+        output, &src, times, opts, &limits,
+    )?))
 }
 
 /// Every frame whole, as per-frame content (no static part, no objects).

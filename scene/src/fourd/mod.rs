@@ -13,7 +13,8 @@
 //! samples it ([`FourD::sample`]), so every command that takes a time takes these files. Code
 //! that needs every frame (decomposition, per-frame export) walks [`FourD::frame_times`] and
 //! calls [`FourD::sample`] per time: a numbered sequence reads one frame file per call and keeps
-//! only the last frame read, so a long sequence is streamed, never held whole.
+//! only the last frame read, and a `params.npz` reads that timestep's slice of its arrays
+//! ([`npz_frames`]), so a long sequence is streamed, never held whole.
 //!
 //! Sampled clouds keep the crate's stored-value convention: log-scales, opacity logits
 //! (`logit(0) = −∞` for a Gaussian the model hides at that time), raw w,x,y,z quaternions, and
@@ -22,6 +23,7 @@
 //! [`DynamicScene::composite`]: crate::dynamic::DynamicScene::composite
 
 pub mod npz;
+pub mod npz_frames;
 pub mod sequence;
 pub mod spacetime;
 pub mod splatv;
@@ -84,8 +86,9 @@ impl FourDForm {
 pub enum Motion {
     /// Continuous time: polynomial motion, rotation velocity, temporal RBF opacity.
     Spacetime(SpacetimeModel),
-    /// Per-frame arrays held in memory (a `params.npz`).
-    Frames(npz::FrameArrays),
+    /// Per-frame arrays read per frame from a `params.npz` (stored members at their offsets,
+    /// deflated ones decompressed in order).
+    Frames(Box<npz_frames::NpzFrames>),
     /// One file per frame, read when sampled.
     Sequence(Sequence),
 }
@@ -165,7 +168,7 @@ impl FourD {
     pub fn sample(&self, t: f64) -> Result<GaussianCloud> {
         match &self.motion {
             Motion::Spacetime(m) => Ok(m.sample(t as f32)),
-            Motion::Frames(f) => Ok(f.frame(frame_index(t, self.fps, f.frames))),
+            Motion::Frames(f) => f.frame(frame_index(t, self.fps, f.frames)),
             Motion::Sequence(s) => s
                 .frame(frame_index(t, self.fps, s.len()))
                 .map(|c| (*c).clone()),
@@ -290,7 +293,7 @@ pub fn load(path: &Path, form: FourDForm, fps: f64) -> Result<FourD> {
     let motion = match form {
         FourDForm::SpacetimeLite => Motion::Spacetime(spacetime::read_spacetime_ply(path)?),
         FourDForm::Splatv => Motion::Spacetime(splatv::read_splatv(path)?),
-        FourDForm::Npz => Motion::Frames(npz::read_params_npz(path)?),
+        FourDForm::Npz => Motion::Frames(Box::new(npz_frames::NpzFrames::open(path)?)),
         FourDForm::Sequence => Motion::Sequence(Sequence::open(path)?),
     };
     Ok(FourD { form, motion, fps })

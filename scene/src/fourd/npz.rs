@@ -80,12 +80,14 @@ pub fn plausible(head: &[u8]) -> bool {
 }
 
 /// An array read from a `.npy` entry: shape and values as f32.
-struct Array {
-    shape: Vec<u64>,
-    data: Vec<f32>,
+pub(crate) struct Array {
+    pub shape: Vec<u64>,
+    pub data: Vec<f32>,
 }
 
-/// Read a Dynamic3DGaussians `params.npz`.
+/// Read a Dynamic3DGaussians `params.npz` whole (every timestep held: T×N×7 f32 and more).
+/// [`super::load`] reads per frame instead ([`super::npz_frames::NpzFrames`]); this reader is
+/// kept as the reference the per-frame reader is tested against.
 pub fn read_params_npz(path: &Path) -> Result<FrameArrays> {
     let err = |what: String| SceneError::format(path, what);
     super::super::formats::regular_file_len(path)?;
@@ -185,7 +187,7 @@ pub fn read_params_npz(path: &Path) -> Result<FrameArrays> {
     })
 }
 
-fn shape_err(path: &Path, name: &str, shape: &[u64], want: &str) -> SceneError {
+pub(crate) fn shape_err(path: &Path, name: &str, shape: &[u64], want: &str) -> SceneError {
     let got: Vec<String> = shape.iter().map(|d| d.to_string()).collect();
     SceneError::format(
         path,
@@ -195,9 +197,9 @@ fn shape_err(path: &Path, name: &str, shape: &[u64], want: &str) -> SceneError {
 
 /// Deflate's largest expansion (a 258-byte match in about two bits): a declared inflated size
 /// beyond this ratio to the stored size is a lie.
-const DEFLATE_MAX_RATIO: u64 = 1032;
+pub(crate) const DEFLATE_MAX_RATIO: u64 = 1032;
 
-fn read_array(
+pub(crate) fn read_array(
     zip: &mut zip::ZipArchive<BufReader<File>>,
     path: &Path,
     name: &str,
@@ -233,8 +235,37 @@ fn read_array(
     parse_npy(&bytes).map_err(err)
 }
 
-/// Parse a whole `.npy` (header and data) into f32 values.
-fn parse_npy(b: &[u8]) -> std::result::Result<Array, String> {
+/// A `.npy` header: the shape, the value type and where the values start.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct NpyHeader {
+    pub shape: Vec<u64>,
+    pub dtype: Dtype,
+    /// Bytes before the values (magic, version, length, dict).
+    pub data_start: usize,
+}
+
+/// A float value type of a `.npy` (`f2`, `f4`, `f8`, either byte order).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Dtype {
+    pub size: u64,
+    pub little: bool,
+}
+
+impl NpyHeader {
+    /// Values in the array (the product of the shape; `None` on overflow).
+    pub fn count(&self) -> Option<u64> {
+        self.shape.iter().try_fold(1u64, |a, &d| a.checked_mul(d))
+    }
+}
+
+/// The most header bytes a `.npy` can need before its values: version 1's 10-byte preamble
+/// with a u16 length, or 12 bytes with a u32 length (versions 2–3). A header longer than
+/// this is refused (NumPy's are a few hundred bytes; this bounds what a reader buffers).
+pub(crate) const MAX_NPY_HEADER: usize = 1 << 16;
+
+/// Parse a `.npy` header from the first bytes of an entry (`b` may hold more or, for a
+/// streamed entry, only the first [`MAX_NPY_HEADER`] bytes).
+pub(crate) fn parse_npy_header(b: &[u8]) -> std::result::Result<NpyHeader, String> {
     if b.len() < 10 || &b[..6] != b"\x93NUMPY" {
         return Err("not a .npy array (no \\x93NUMPY magic)".into());
     }
@@ -270,54 +301,78 @@ fn parse_npy(b: &[u8]) -> std::result::Result<Array, String> {
                 .map_err(|_| format!("shape entry '{s}' is not a size"))
         })
         .collect::<std::result::Result<_, _>>()?;
-    let (size, le, kind) = match descr {
-        "<f4" | "=f4" => (4, true, 'f'),
-        ">f4" => (4, false, 'f'),
-        "<f8" | "=f8" => (8, true, 'd'),
-        ">f8" => (8, false, 'd'),
-        "<f2" | "=f2" => (2, true, 'h'),
-        ">f2" => (2, false, 'h'),
+    let (size, little) = match descr {
+        "<f4" | "=f4" => (4, true),
+        ">f4" => (4, false),
+        "<f8" | "=f8" => (8, true),
+        ">f8" => (8, false),
+        "<f2" | "=f2" => (2, true),
+        ">f2" => (2, false),
         other => return Err(format!("dtype '{other}' is not a float array")),
     };
-    let data = &b[start + hlen..];
-    let count = shape
-        .iter()
-        .try_fold(1u64, |a, &d| a.checked_mul(d))
-        .ok_or("shape overflows")?;
-    if count.checked_mul(size) != Some(data.len() as u64) {
+    Ok(NpyHeader {
+        shape,
+        dtype: Dtype { size, little },
+        data_start: start + hlen,
+    })
+}
+
+/// The check every reader makes: the shape's values fill exactly the `data_len` bytes after
+/// the header.
+pub(crate) fn check_npy_len(h: &NpyHeader, data_len: u64) -> std::result::Result<(), String> {
+    let count = h.count().ok_or("shape overflows")?;
+    let size = h.dtype.size;
+    if count.checked_mul(size) != Some(data_len) {
         return Err(format!(
-            "shape {shape:?} of {size}-byte values needs {} bytes, the entry holds {}",
+            "shape {:?} of {size}-byte values needs {} bytes, the entry holds {data_len}",
+            h.shape,
             count.saturating_mul(size),
-            data.len()
         ));
     }
-    let data: Vec<f32> = match (kind, le) {
-        ('f', true) => data
-            .chunks_exact(4)
-            .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
-            .collect(),
-        ('f', false) => data
-            .chunks_exact(4)
-            .map(|c| f32::from_be_bytes(c.try_into().unwrap()))
-            .collect(),
-        ('d', true) => data
-            .chunks_exact(8)
-            .map(|c| f64::from_le_bytes(c.try_into().unwrap()) as f32)
-            .collect(),
-        ('d', false) => data
-            .chunks_exact(8)
-            .map(|c| f64::from_be_bytes(c.try_into().unwrap()) as f32)
-            .collect(),
-        (_, true) => data
-            .chunks_exact(2)
-            .map(|c| half::f16::from_le_bytes([c[0], c[1]]).to_f32())
-            .collect(),
-        (_, false) => data
-            .chunks_exact(2)
-            .map(|c| half::f16::from_be_bytes([c[0], c[1]]).to_f32())
-            .collect(),
-    };
-    Ok(Array { shape, data })
+    Ok(())
+}
+
+/// Decode values of `dtype` to f32 (appended to `out`).
+pub(crate) fn decode_values(data: &[u8], dtype: Dtype, out: &mut Vec<f32>) {
+    match (dtype.size, dtype.little) {
+        (4, true) => out.extend(
+            data.chunks_exact(4)
+                .map(|c| f32::from_le_bytes(c.try_into().unwrap())),
+        ),
+        (4, false) => out.extend(
+            data.chunks_exact(4)
+                .map(|c| f32::from_be_bytes(c.try_into().unwrap())),
+        ),
+        (8, true) => out.extend(
+            data.chunks_exact(8)
+                .map(|c| f64::from_le_bytes(c.try_into().unwrap()) as f32),
+        ),
+        (8, false) => out.extend(
+            data.chunks_exact(8)
+                .map(|c| f64::from_be_bytes(c.try_into().unwrap()) as f32),
+        ),
+        (_, true) => out.extend(
+            data.chunks_exact(2)
+                .map(|c| half::f16::from_le_bytes([c[0], c[1]]).to_f32()),
+        ),
+        (_, false) => out.extend(
+            data.chunks_exact(2)
+                .map(|c| half::f16::from_be_bytes([c[0], c[1]]).to_f32()),
+        ),
+    }
+}
+
+/// Parse a whole `.npy` (header and data) into f32 values.
+fn parse_npy(b: &[u8]) -> std::result::Result<Array, String> {
+    let h = parse_npy_header(b)?;
+    let data = &b[h.data_start..];
+    check_npy_len(&h, data.len() as u64)?;
+    let mut values = Vec::with_capacity(data.len() / h.dtype.size as usize);
+    decode_values(data, h.dtype, &mut values);
+    Ok(Array {
+        shape: h.shape,
+        data: values,
+    })
 }
 
 /// The text of a key's value in the header's dict literal: up to the next top-level comma

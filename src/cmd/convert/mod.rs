@@ -77,8 +77,9 @@ pub struct Args {
     /// The input's up axis; a root node rotates it onto glTF's +Y (vertices untouched).
     #[arg(long, value_enum, default_value = "-y", allow_hyphen_values = true)]
     pub up: UpArg,
-    /// OBJ: write one OBJ per frame of a dynamic scene (OUT_0000.obj, …). glTF of a frame
-    /// sequence: one glTF whose per-frame nodes are switched by stepped scale keys.
+    /// OBJ: write one OBJ per frame of a dynamic scene (OUT_0000.obj, …). A 4D input: one
+    /// glTF whose per-frame nodes are switched by stepped scale keys (-o OUT.glb), or one GLB
+    /// per frame and DIR/frames.json (-o DIR/); frames read one at a time.
     #[arg(long)]
     pub frames: bool,
     /// Find what moves in a 4D input (numbered frames, SpacetimeGaussians PLY, .splatv, params.npz): `auto` splits it

@@ -7,7 +7,9 @@ use std::time::Instant;
 use anyhow::bail;
 use clap::ValueEnum;
 use splatbridge::pipeline::export::is_gltf;
-use splatbridge::pipeline::motion::{decompose_path, frames_scene, read_frames, MotionReport};
+use splatbridge::pipeline::motion::{
+    decompose_path, export_frames, frames_scene, open_model, FramesWritten, MotionReport,
+};
 use splatbridge_convert::motion::DecomposeOptions;
 
 use super::Args;
@@ -27,12 +29,6 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         }
     }
     let gltf = is_gltf(&args.output);
-    if args.objects.is_none() && !(gltf && args.frames) {
-        bail!(
-            "{}: a frame sequence converts with --objects auto|none (-o DIR or a .glb/.gltf) or with --frames and a .glb/.gltf output",
-            args.scene.display()
-        );
-    }
     if args.objects.is_some() && args.frames {
         bail!("--frames keeps every frame whole; --objects decomposes them: give one");
     }
@@ -41,23 +37,24 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     }
     let t0 = Instant::now();
     let fps = splatbridge_scene::fourd::frame_rate();
-    let (scene, report) = match args.objects {
-        Some(mode) => {
-            let opts = DecomposeOptions {
-                objects: mode == ObjectsArg::Auto,
-                tolerance: args.motion_tolerance,
-                min_group: args.min_group.max(1),
-                ..DecomposeOptions::default()
-            };
-            // Frames streamed: read one at a time, a few passes over them.
-            let (scene, report) = decompose_path(&args.scene, fps, &opts)?;
-            (scene, Some(report))
+    let Some(mode) = args.objects else {
+        if !args.frames {
+            bail!(
+                "{}: a frame sequence converts with --objects auto|none (-o DIR or a .glb/.gltf) or with --frames (-o OUT.glb, or -o DIR/ for one GLB per frame)",
+                args.scene.display()
+            );
         }
-        None => {
-            let (frames, times) = read_frames(&args.scene, fps, false)?;
-            (frames_scene(frames, &times, fps)?, None)
-        }
+        return run_frames(args, t0, fps);
     };
+    let opts = DecomposeOptions {
+        objects: mode == ObjectsArg::Auto,
+        tolerance: args.motion_tolerance,
+        min_group: args.min_group.max(1),
+        ..DecomposeOptions::default()
+    };
+    // Frames streamed: read one at a time, a few passes over them.
+    let (scene, report) = decompose_path(&args.scene, fps, &opts)?;
+    let report = Some(report);
     if let Some(r) = &report {
         print_motion(args, r, gltf);
     }
@@ -97,6 +94,68 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         println!("{}", serde_json::to_string_pretty(&conv)?);
     } else {
         super::print::print_summary(args, &conv);
+    }
+    Ok(())
+}
+
+/// `--frames`: one animated glTF (`-o OUT.glb|.gltf`) or one GLB per frame and an index
+/// (`-o DIR/`), the frames read one at a time.
+fn run_frames(args: &Args, t0: Instant, fps: f64) -> anyhow::Result<()> {
+    let out = &args.output;
+    let dir = !is_gltf(out)
+        && (out.extension().is_none()
+            || out.is_dir()
+            || out.as_os_str().to_string_lossy().ends_with('/'));
+    if !is_gltf(out) && !dir {
+        bail!(
+            "{}: --frames writes one animated .glb/.gltf, or one GLB per frame into a folder (-o DIR/)",
+            out.display()
+        );
+    }
+    if args.shard.is_some() {
+        bail!("--shard: a frame sequence's --frames is written whole (one frame at a time)");
+    }
+    let (model, times) = open_model(&args.scene, fps, false)?;
+    let mut req = args.request()?;
+    if dir {
+        // Each frame is a GLB: the options a .glb output gets.
+        req.output = out.join("frame.glb");
+        if args.profile.is_none() {
+            req.mesh.options.profile =
+                splatbridge::pipeline::export_request::default_profile(&req.output);
+        }
+    }
+    // The options are resolved against the first frame (what orbit cameras frame).
+    let first = frames_scene(vec![model.sample(times[0])?], &times[..1], fps)?;
+    let opts = req.mesh_options(&first, splatbridge_scene::ply::GaussianKind::default())?;
+    drop(first);
+    match export_frames(&model, &times, fps, out, &opts, dir)? {
+        FramesWritten::File(mut conv) => {
+            conv.seconds = t0.elapsed().as_secs_f64();
+            if args.json {
+                println!("{}", serde_json::to_string_pretty(&conv)?);
+            } else {
+                super::print::print_summary(args, &conv);
+            }
+        }
+        FramesWritten::Dir(index, mut conv) => {
+            conv.seconds = t0.elapsed().as_secs_f64();
+            if args.json {
+                let mut v = serde_json::to_value(&conv)?;
+                v["index"] = serde_json::to_value(&index)?;
+                println!("{}", serde_json::to_string_pretty(&v)?);
+            } else {
+                super::print::print_summary(args, &conv);
+                println!(
+                    "wrote {} frame GLBs and {} ({} bytes) in {:.2} s",
+                    index.frames.len(),
+                    out.join(splatbridge_convert::frames_gltf::FRAMES_INDEX)
+                        .display(),
+                    conv.bytes,
+                    conv.seconds
+                );
+            }
+        }
     }
     Ok(())
 }
