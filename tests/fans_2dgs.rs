@@ -3,8 +3,10 @@
 //! `flatten_to_surfels`, the scene `examples/flatten_2dgs.rs` writes): the path of
 //! `splatbridge compare SURFELS.ply --profiles rings` (reference `native-2dgs`), with the
 //! exported GLB read back and traced, and the same surfels through 3DGS splatting beside them.
-//! The goal for fans, 40 dB, is not met (28.3 / 25.9 dB): docs/formats.md#2dgs-surfels says
-//! why (2DGS's screen-space low-pass, which no fixed geometry carries).
+//! Against 2DGS itself fans score 28.3 / 25.9 dB; the gap is measured term by term against 2DGS
+//! with its named departures (DC colours, no screen-space low-pass, per-pixel hit order): the
+//! low-pass is 12 dB of it, the colours' view dependence 1–2.6 dB, the blending order 0.3 dB,
+//! and with colours and low-pass matched fans reach the 40 dB goal (docs/formats.md#2dgs-surfels).
 
 use std::path::PathBuf;
 
@@ -12,6 +14,7 @@ use splatbridge::measure::parity;
 use splatbridge_convert::options::VolumetricMode;
 use splatbridge_convert::{ConvertOptions, Profile};
 use splatbridge_hybrid::native::RenderOptions as NativeOptions;
+use splatbridge_hybrid::surfel2d::{LowPassCentre, SurfelOrder, SurfelRenderer};
 use splatbridge_raytrace::{BackendKind, BuildPreset};
 use splatbridge_scene::camera::OrbitRig;
 use splatbridge_scene::dynamic::DynamicScene;
@@ -64,6 +67,9 @@ fn fans_from_flattened_fourth_st_against_the_2dgs_rasterizer() {
     )
     .unwrap();
     let (mut fans, mut splat3) = (Vec::new(), Vec::new());
+    // Fans against 2DGS with its named departures, one at a time (docs/formats.md#2dgs-surfels):
+    // DC colours (fans carry no view dependence), then no low-pass, then per-pixel hit order.
+    let (mut dc, mut dc_off, mut dc_off_hit) = (Vec::new(), Vec::new(), Vec::new());
     for cam in &cams {
         let native = NativeOptions::default();
         let r2 = parity::render_reference(&scene.static_gaussians, cam, &native, true).unwrap();
@@ -71,11 +77,32 @@ fn fans_from_flattened_fourth_st_against_the_2dgs_rasterizer() {
         splat3.push(metrics::psnr(&r2.frame, &r3.frame).unwrap());
         let (t, _) = m.tracer.render_traced(cam, 0.0).unwrap();
         fans.push(metrics::psnr(&r2.frame, &t).unwrap());
+        let dc_opts = NativeOptions {
+            sh_degree_cap: 0,
+            ..native
+        };
+        for (low_pass, order, out) in [
+            (LowPassCentre::Code, SurfelOrder::CentreDepth, &mut dc),
+            (LowPassCentre::Off, SurfelOrder::CentreDepth, &mut dc_off),
+            (LowPassCentre::Off, SurfelOrder::HitDepth, &mut dc_off_hit),
+        ] {
+            let mut r = SurfelRenderer::new();
+            r.low_pass = low_pass;
+            r.blend_order = order;
+            let (f, _) = r.render(&scene.static_gaussians, cam, &dc_opts).unwrap();
+            out.push(metrics::psnr(&f, &t).unwrap());
+        }
     }
     eprintln!("against 2DGS: fans {fans:?}, 3DGS splatting {splat3:?}");
+    eprintln!(
+        "fans against 2DGS with DC colours {dc:?}, and no low-pass {dc_off:?}, and hit order {dc_off_hit:?}"
+    );
     // Floors: the means measured when they were set minus 0.5 dB (docs/formats.md#2dgs-surfels):
     // fans 28.26 / 25.85 dB (mean 27.05), the same surfels through 3DGS splatting 41.53 /
-    // 39.04 dB (mean 40.29). The goal for fans, 40 dB, is not met: see the docs for why.
+    // 39.04 dB (mean 40.29); fans against 2DGS with DC colours 29.27 / 28.49 (mean 28.88), and
+    // without the low-pass 41.26 / 41.18 (mean 41.22), and in hit order 41.55 / 41.58 (mean
+    // 41.57). The goal, 40 dB, is asserted on every view where it is reached: with the colours
+    // and the low-pass matched.
     assert!(
         mean(&fans) >= FANS_FLOOR,
         "fans {fans:?} below {FANS_FLOOR} dB"
@@ -84,8 +111,28 @@ fn fans_from_flattened_fourth_st_against_the_2dgs_rasterizer() {
         mean(&splat3) >= SPLAT3_FLOOR,
         "3DGS splatting {splat3:?} below {SPLAT3_FLOOR} dB"
     );
+    assert!(
+        mean(&dc) >= DC_FLOOR,
+        "DC colours {dc:?} below {DC_FLOOR} dB"
+    );
+    assert!(
+        mean(&dc_off) >= NO_LOW_PASS_FLOOR && dc_off.iter().all(|&p| p >= GOAL),
+        "no low-pass {dc_off:?}: below {NO_LOW_PASS_FLOOR} dB, or a view below {GOAL} dB"
+    );
+    assert!(
+        mean(&dc_off_hit) >= HIT_ORDER_FLOOR && dc_off_hit.iter().all(|&p| p >= GOAL),
+        "hit order {dc_off_hit:?}: below {HIT_ORDER_FLOOR} dB, or a view below {GOAL} dB"
+    );
 }
 
+/// The project's goal for meshes against their native renderer, dB.
+const GOAL: f64 = 40.0;
+/// Fans against 2DGS with DC colours (module test), dB.
+const DC_FLOOR: f64 = 28.38;
+/// … and without 2DGS's screen-space low-pass, dB.
+const NO_LOW_PASS_FLOOR: f64 = 40.72;
+/// … and blended in per-pixel hit order, dB.
+const HIT_ORDER_FLOOR: f64 = 41.07;
 /// Fans of the rings profile against 2DGS (module test), dB.
 const FANS_FLOOR: f64 = 26.5;
 /// The surfels through 3DGS splatting against 2DGS, dB.

@@ -392,7 +392,10 @@ fn cloud_bits(c: &GaussianCloud) -> Vec<u32> {
 #[test]
 fn binary_variant_path_matches_the_per_property_reference() {
     let tmp = tempfile::tempdir().unwrap();
-    let n = 257;
+    // Records of about 100 bytes: the binary reader's 64 KiB chunks then hold about 700, so
+    // 3001 records make several chunks, each decoded in two parallel tasks of at most 512
+    // records (`append_parallel`) with a short last one.
+    let n = 3001;
     let rng = std::cell::RefCell::new(splatbridge_scene::rng::Rng::new(7));
     // Values exactly representable in f32 (the binary files store float32), one in 16 a −0.0.
     let mut floats = |lo: f64, hi: f64| -> Vec<f64> {

@@ -48,6 +48,12 @@
 //! `k_x·l_y − k_y·l_x` of a surfel seen nearly edge-on cancels); the principal point is the
 //! camera's own (`cx`, `cy`) where the reference fixes it at the image centre.
 //!
+//! Named departures, off by default, for measuring what meshes of surfels can carry
+//! (docs/formats.md#2dgs-surfels): [`LowPassCentre::Off`] drops the low-pass (`ρ = ρ3d`) and
+//! [`SurfelOrder::HitDepth`] blends each pixel's surfels in the order of their ray–plane hits
+//! instead of centre depth; both are checked against the per-pixel formulas with the same
+//! change (`tests/surfel2d.rs`).
+//!
 //! [`RenderOptions::extent`] is ignored: the footprint is always 2DGS's own.
 
 pub mod project;
@@ -63,12 +69,15 @@ use crate::native::{RenderError, RenderOptions, RenderStats, MAX_PAIRS};
 use crate::project::Culled;
 pub use project::LowPassCentre;
 use project::{project_surfel, SurfelSplat, View};
+pub use raster::SurfelOrder;
 
 /// The renderer with its working buffers, kept between frames.
 #[derive(Default)]
 pub struct SurfelRenderer {
     /// Where the low-pass filter is centred (default: as 2DGS's rasterizer).
     pub low_pass: LowPassCentre,
+    /// The blending order (default: 2DGS's centre-depth order).
+    pub blend_order: SurfelOrder,
     all: Vec<Result<(SurfelSplat, [u32; 4]), Culled>>,
     keys: Vec<u64>,
     order: Vec<u32>,
@@ -150,6 +159,7 @@ impl SurfelRenderer {
             camera.height,
             opts.alpha_clamp as f64,
             opts.background,
+            self.blend_order,
         );
         let t4 = Instant::now();
         stats.blends = blends;

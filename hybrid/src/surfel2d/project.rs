@@ -21,6 +21,11 @@ pub enum LowPassCentre {
     Code,
     /// The paper's Eq. 11: the projection of the surfel's centre.
     Projected,
+    /// No low-pass at all (`ρ = ρ3d`, `G = G(u, v)`): not the reference but a named
+    /// approximation of it, the footprint a fixed mesh of the surfel can carry, for measuring
+    /// what the filter adds (docs/formats.md#2dgs-surfels). The centre is put at infinity, so
+    /// `ρ2d = ∞` at every pixel.
+    Off,
 }
 
 /// The camera as the per-surfel setup needs it.
@@ -66,7 +71,7 @@ pub struct SurfelSplat {
     pub tu: DVec3,
     pub tv: DVec3,
     pub tw: DVec3,
-    /// Where the low-pass is centred ([`LowPassCentre`]).
+    /// Where the low-pass is centred ([`LowPassCentre`]; infinite when it is off).
     pub centre: [f64; 2],
     pub opacity: f32,
     pub color: [f32; 3],
@@ -164,6 +169,7 @@ pub fn project_surfel(
     let centre = match view.low_pass {
         LowPassCentre::Code => centre,
         LowPassCentre::Projected => [view.fx * c.x / c.z + view.cx, view.fy * c.y / c.z + view.cy],
+        LowPassCentre::Off => [f64::INFINITY; 2],
     };
     Ok((
         SurfelSplat {

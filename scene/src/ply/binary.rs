@@ -159,20 +159,30 @@ fn load_any(rec: &[u8], off: usize, ty: ScalarType, le: bool) -> f64 {
     }
 }
 
-/// Where one canonical slot of a non-standard layout comes from, resolved to the record's
-/// bytes: the per-record form of `super::variant::Source`.
+/// Where canonical slots of a non-standard layout come from, resolved to the record's bytes:
+/// the per-record form of `super::variant::Source`.
 #[derive(Clone, Copy)]
 enum Op {
-    /// A float32 property taken as is (`mul` 1, `add` 0): the standard path's load.
-    F32(usize),
+    /// `len` float32 properties taken as is (`mul` 1, `add` 0: the standard path's load) into
+    /// the consecutive slots from `slot`, from consecutive bytes at `off` (a run of the file's
+    /// properties in slot order, as `f_rest_*` are).
+    F32Run {
+        slot: usize,
+        off: usize,
+        len: usize,
+    },
     /// Any scalar at this offset, `raw · mul + add` in f64.
     Any {
+        slot: usize,
         off: usize,
         ty: ScalarType,
         mul: f64,
         add: f64,
     },
-    Const(f32),
+    Const {
+        slot: usize,
+        value: f32,
+    },
 }
 
 /// Non-standard layouts (see `super::variant`): each slot's source resolved once to an [`Op`]
@@ -214,27 +224,48 @@ fn read_variant(
     Ok((cloud, suspect))
 }
 
-/// Each slot's [`Op`].
+/// The [`Op`]s that fill every slot, consecutive float32 loads merged into runs.
 fn variant_ops(header: &Header, var: &super::variant::Variant) -> Vec<Op> {
     use super::variant::Source;
-    var.slots
-        .iter()
-        .map(|s| match *s {
+    let mut ops: Vec<Op> = Vec::new();
+    for (slot, s) in var.slots.iter().enumerate() {
+        let op = match *s {
             Source::Prop { pi, mul, add } => {
                 let (off, ty) = (header.properties[pi].offset, header.properties[pi].ty);
                 if ty == ScalarType::F32 && mul == 1.0 && add == 0.0 {
-                    Op::F32(off)
+                    if let Some(Op::F32Run {
+                        slot: s0,
+                        off: o0,
+                        len,
+                    }) = ops.last_mut()
+                    {
+                        if *s0 + *len == slot && *o0 + 4 * *len == off {
+                            *len += 1;
+                            continue;
+                        }
+                    }
+                    Op::F32Run { slot, off, len: 1 }
                 } else {
-                    Op::Any { off, ty, mul, add }
+                    Op::Any {
+                        slot,
+                        off,
+                        ty,
+                        mul,
+                        add,
+                    }
                 }
             }
-            Source::Const(c) => Op::Const(c),
+            Source::Const(value) => Op::Const { slot, value },
             // Derived after the other slots (`finish`).
-            Source::ThinAxis => Op::Const(0.0),
-        })
-        .collect()
+            Source::ThinAxis => Op::Const { slot, value: 0.0 },
+        };
+        ops.push(op);
+    }
+    ops
 }
 
+/// Decode one chunk of records on all cores ([`super::append_parallel`]; the per-record work of
+/// the filter fold and the widening loads is what dominates these layouts).
 #[allow(clippy::too_many_arguments)]
 fn decode_variant<const LE: bool>(
     bytes: &[u8],
@@ -245,18 +276,32 @@ fn decode_variant<const LE: bool>(
     n_rest: usize,
     cloud: &mut GaussianCloud,
 ) -> bool {
-    let mut suspect = false;
-    let mut v = [0f32; MAX_SLOTS];
-    for rec in bytes.chunks_exact(stride) {
-        for (dst, op) in v.iter_mut().zip(ops) {
-            *dst = match *op {
-                Op::F32(off) => load_f32::<LE>(rec, off),
-                Op::Any { off, ty, mul, add } => (load_any(rec, off, ty, LE) * mul + add) as f32,
-                Op::Const(c) => c,
-            };
+    let m = bytes.len() / stride;
+    super::append_parallel(cloud, m, n_rest, |j, v| {
+        let rec = &bytes[j * stride..(j + 1) * stride];
+        for op in ops {
+            match *op {
+                Op::F32Run { slot, off, len } => {
+                    let src = rec[off..off + 4 * len].chunks_exact(4);
+                    for (dst, b) in v[slot..slot + len].iter_mut().zip(src) {
+                        let b: [u8; 4] = b.try_into().expect("4 bytes");
+                        *dst = if LE {
+                            f32::from_le_bytes(b)
+                        } else {
+                            f32::from_be_bytes(b)
+                        };
+                    }
+                }
+                Op::Any {
+                    slot,
+                    off,
+                    ty,
+                    mul,
+                    add,
+                } => v[slot] = (load_any(rec, off, ty, LE) * mul + add) as f32,
+                Op::Const { slot, value } => v[slot] = value,
+            }
         }
-        var.finish(&mut v, filter.map(|(off, ty)| load_any(rec, off, ty, LE)));
-        suspect |= push_slots(cloud, &v, n_rest);
-    }
-    suspect
+        var.finish(v, filter.map(|(off, ty)| load_any(rec, off, ty, LE)));
+    })
 }

@@ -283,13 +283,18 @@ fn describe_invalid(cloud: &GaussianCloud, i: usize, reason: &str) -> String {
     found.unwrap_or_else(|| reason.to_string())
 }
 
-/// Append one decoded record (values in canonical slot order, see `header`) to the cloud,
-/// reordering channel-major `f_rest` to coefficient-major. Returns true when the record may be
-/// invalid: a conservative test (any non-finite value other than the opacity, a NaN opacity, or
-/// a quaternion whose squared length is 0) done while the values are in cache, so the full
-/// [`GaussianCloud::invalid_reason`] pass only runs on files that need it.
+/// One decoded record (values in canonical slot order, see `header`) as the cloud stores it,
+/// `f_rest` reordered from channel-major to coefficient-major into `rest`. Returns the fixed
+/// attributes and true when the record may be invalid: a conservative test (any non-finite
+/// value other than the opacity, a NaN opacity, or a quaternion whose squared length is 0) done
+/// while the values are in cache, so the full [`GaussianCloud::invalid_reason`] pass only runs
+/// on files that need it.
 #[inline(always)]
-fn push_slots(cloud: &mut GaussianCloud, v: &[f32; header::MAX_SLOTS], n_rest: usize) -> bool {
+fn record_parts(
+    v: &[f32; header::MAX_SLOTS],
+    n_rest: usize,
+    mut rest_out: impl FnMut(usize, Vec3),
+) -> ((Vec3, Vec3, Quat, f32, Vec3), bool) {
     // x·0 is NaN exactly when x is ±inf or NaN (±0 otherwise). The opacity is left out of
     // the sum (its ±inf is valid) and tested for NaN on its own.
     let mut acc = 0.0f32;
@@ -307,26 +312,109 @@ fn push_slots(cloud: &mut GaussianCloud, v: &[f32; header::MAX_SLOTS], n_rest: u
         v[SLOT_ROT + 3],
         v[SLOT_ROT],
     );
-    cloud
-        .means
-        .push(Vec3::new(v[SLOT_X], v[SLOT_X + 1], v[SLOT_X + 2]));
-    cloud.log_scales.push(Vec3::new(
-        v[SLOT_SCALE],
-        v[SLOT_SCALE + 1],
-        v[SLOT_SCALE + 2],
-    ));
-    cloud.rotations.push(q);
-    cloud.opacity_logits.push(opacity);
-    cloud
-        .sh
-        .push(Vec3::new(v[SLOT_DC], v[SLOT_DC + 1], v[SLOT_DC + 2]));
     let kr = n_rest / 3;
     let rest = &v[SLOT_REST..SLOT_REST + n_rest];
-    // One capacity check for the whole record (a Range-based iterator has an exact length).
-    cloud
-        .sh
-        .extend((0..kr).map(|c| Vec3::new(rest[c], rest[kr + c], rest[2 * kr + c])));
-    acc.is_nan() || opacity.is_nan() || q.length_squared() == 0.0
+    for c in 0..kr {
+        rest_out(c, Vec3::new(rest[c], rest[kr + c], rest[2 * kr + c]));
+    }
+    let parts = (
+        Vec3::new(v[SLOT_X], v[SLOT_X + 1], v[SLOT_X + 2]),
+        Vec3::new(v[SLOT_SCALE], v[SLOT_SCALE + 1], v[SLOT_SCALE + 2]),
+        q,
+        opacity,
+        Vec3::new(v[SLOT_DC], v[SLOT_DC + 1], v[SLOT_DC + 2]),
+    );
+    (
+        parts,
+        acc.is_nan() || opacity.is_nan() || q.length_squared() == 0.0,
+    )
+}
+
+/// Append one decoded record (values in canonical slot order, see `header`) to the cloud,
+/// reordering channel-major `f_rest` to coefficient-major. Returns true when the record may be
+/// invalid (see [`record_parts`]).
+#[inline(always)]
+fn push_slots(cloud: &mut GaussianCloud, v: &[f32; header::MAX_SLOTS], n_rest: usize) -> bool {
+    let kr = n_rest / 3;
+    let mut rest = [Vec3::ZERO; 15];
+    let ((mean, scales, q, opacity, dc), suspect) = record_parts(v, n_rest, |c, x| rest[c] = x);
+    cloud.means.push(mean);
+    cloud.log_scales.push(scales);
+    cloud.rotations.push(q);
+    cloud.opacity_logits.push(opacity);
+    cloud.sh.push(dc);
+    cloud.sh.extend_from_slice(&rest[..kr]);
+    suspect
+}
+
+/// Records per task of [`append_parallel`]: a few hundred kilobytes of records, so a 2 MB chunk
+/// gives both cores several tasks and a small file stays on one.
+const APPEND_TASK_RECORDS: usize = 512;
+
+/// Append `m` records to `cloud` on all cores: record `j` (0-based within this call) is the
+/// canonical slots `fill(j, &mut v)` writes, stored as [`push_slots`] stores it, in order, each
+/// task writing its own range of the cloud's reserved capacity. Returns true when some record
+/// may be invalid. The same cloud, bit for bit, as `push_slots` on each record in turn (tested
+/// in `tests/ply_variants.rs` against the ASCII reader, which pushes record by record).
+pub(crate) fn append_parallel(
+    cloud: &mut GaussianCloud,
+    m: usize,
+    n_rest: usize,
+    fill: impl Fn(usize, &mut [f32; header::MAX_SLOTS]) + Sync,
+) -> bool {
+    use rayon::prelude::*;
+    use std::mem::MaybeUninit;
+    let k = cloud.coeffs();
+    debug_assert_eq!(k, 1 + n_rest / 3);
+    cloud.means.reserve(m);
+    cloud.log_scales.reserve(m);
+    cloud.rotations.reserve(m);
+    cloud.opacity_logits.reserve(m);
+    cloud.sh.reserve(m * k);
+    let t = APPEND_TASK_RECORDS;
+    let suspect = (
+        cloud.means.spare_capacity_mut()[..m].par_chunks_mut(t),
+        cloud.log_scales.spare_capacity_mut()[..m].par_chunks_mut(t),
+        cloud.rotations.spare_capacity_mut()[..m].par_chunks_mut(t),
+        cloud.opacity_logits.spare_capacity_mut()[..m].par_chunks_mut(t),
+        cloud.sh.spare_capacity_mut()[..m * k].par_chunks_mut(t * k),
+    )
+        .into_par_iter()
+        .enumerate()
+        .map(|(task, (means, scales, rots, opac, sh))| {
+            let mut v = [0f32; header::MAX_SLOTS];
+            let mut suspect = false;
+            for j in 0..means.len() {
+                fill(task * t + j, &mut v);
+                let sh = &mut sh[j * k..(j + 1) * k];
+                let ((mean, s, q, o, dc), bad) = record_parts(&v, n_rest, |c, x| {
+                    sh[1 + c] = MaybeUninit::new(x);
+                });
+                means[j] = MaybeUninit::new(mean);
+                scales[j] = MaybeUninit::new(s);
+                rots[j] = MaybeUninit::new(q);
+                opac[j] = MaybeUninit::new(o);
+                sh[0] = MaybeUninit::new(dc);
+                suspect |= bad;
+            }
+            suspect
+        })
+        .reduce(|| false, |a, b| a || b);
+    // SAFETY: the five chunked slices are the first `m` (SH: `m·k`) spare slots of their
+    // vectors, split into the same number of tasks (`t` records, `t·k` coefficients each; the
+    // last task shorter by the same count in each). Each task writes every record of its
+    // range: `means`, `log_scales`, `rotations`, `opacity_logits` at `j` and all `k`
+    // coefficients `sh[j·k]` (DC) and `sh[j·k + 1..j·k + k]` (`record_parts` calls its sink
+    // for each of the `k − 1 = n_rest/3` rest coefficients). A panic in a task propagates out
+    // of the reduce above, before any length is changed.
+    unsafe {
+        cloud.means.set_len(cloud.means.len() + m);
+        cloud.log_scales.set_len(cloud.log_scales.len() + m);
+        cloud.rotations.set_len(cloud.rotations.len() + m);
+        cloud.opacity_logits.set_len(cloud.opacity_logits.len() + m);
+        cloud.sh.set_len(cloud.sh.len() + m * k);
+    }
+    suspect
 }
 
 /// Write a 3DGS PLY file (atomically: a temporary file renamed on success) in the standard

@@ -12,6 +12,7 @@ use std::path::Path;
 use glam::{Mat3, Quat, Vec3};
 
 use super::variant::SURFEL_THICKNESS;
+use super::write::{write_records_le, Scales};
 use crate::error::{Result, SceneError};
 use crate::GaussianCloud;
 
@@ -40,7 +41,16 @@ fn header(n: usize, n_rest: usize) -> String {
     h
 }
 
+/// The whole file: the writer's block-parallel little-endian path with two scales.
 fn write_all(w: &mut impl Write, cloud: &GaussianCloud) -> io::Result<()> {
+    let n_rest = 3 * (cloud.coeffs() - 1);
+    w.write_all(header(cloud.len(), n_rest).as_bytes())?;
+    write_records_le(w, cloud, n_rest, Scales::Two)
+}
+
+/// The per-record writer: the reference [`write_all`] is checked against.
+#[cfg(test)]
+fn write_all_per_record(w: &mut impl Write, cloud: &GaussianCloud) -> io::Result<()> {
     let n_rest = 3 * (cloud.coeffs() - 1);
     w.write_all(header(cloud.len(), n_rest).as_bytes())?;
     let mut rec: Vec<u8> = Vec::with_capacity(4 * (16 + n_rest));
@@ -105,4 +115,28 @@ pub fn flatten_to_surfels(cloud: &GaussianCloud) -> GaussianCloud {
         out.rotations[i] = q;
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ply::write::{block_records, tests::distinct_cloud, TASK_RECORDS};
+
+    #[test]
+    fn block_writer_matches_the_per_record_writer() {
+        // Counts around the block and task sizes, every SH degree; every stored float distinct
+        // (some ±inf, NaN, −0.0), so a value in the wrong slot or a stray `scale_2` shows.
+        for degree in 0..=3u8 {
+            let rec = 4 * (16 + 3 * (crate::gaussians::sh_coeffs(degree) - 1));
+            let per_block = block_records(rec);
+            for n in [0, 1, TASK_RECORDS + 3, per_block + TASK_RECORDS + 1] {
+                let c = distinct_cloud(n, degree);
+                let (mut fast, mut slow) = (Vec::new(), Vec::new());
+                write_all(&mut fast, &c).unwrap();
+                write_all_per_record(&mut slow, &c).unwrap();
+                assert_eq!(fast.len(), slow.len(), "degree {degree}, {n} surfels");
+                assert!(fast == slow, "degree {degree}, {n} surfels");
+            }
+        }
+    }
 }

@@ -10,7 +10,8 @@
 //! Binary little endian (what every tool writes and the format converters emit) has a fast
 //! path: records are laid out straight into one block buffer, blocks filled on all cores,
 //! and written with one call each; it is checked byte for byte against the per-record path
-//! ([`record`]), which the other encodings use.
+//! ([`record`]), which the other encodings use. The same path writes 2DGS's layout (two
+//! scales, [`Scales::Two`]) for `super::surfels2d`, checked there against its per-record writer.
 
 use std::io::{self, Write};
 
@@ -81,16 +82,33 @@ fn write_f32(w: &mut impl Write, v: f32) -> io::Result<()> {
 /// hand-off, small next to a cloud (a 100k-Gaussian SH-0 cloud is 6 MB).
 const BLOCK_BYTES: usize = 256 << 10;
 /// Records per parallel task within a block.
-const TASK_RECORDS: usize = 1 << 10;
+pub(crate) const TASK_RECORDS: usize = 1 << 10;
 
 /// Records per block for records of `rec` bytes: whole tasks, at least two of them.
-fn block_records(rec: usize) -> usize {
+pub(crate) fn block_records(rec: usize) -> usize {
     (BLOCK_BYTES / rec / TASK_RECORDS).max(2) * TASK_RECORDS
 }
 
+/// How many log-scales a record carries: 3DGS's three, or 2DGS's two (`scale_0 scale_1`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Scales {
+    Three,
+    Two,
+}
+
+impl Scales {
+    fn count(self) -> usize {
+        match self {
+            Scales::Three => 3,
+            Scales::Two => 2,
+        }
+    }
+}
+
 /// Lay Gaussian `i` out as little-endian float32 in file order into `out` (exactly one
-/// record's bytes); the same values in the same order as [`record`].
-fn record_le(cloud: &GaussianCloud, i: usize, out: &mut [u8]) {
+/// record's bytes); the same values in the same order as [`record`] (without `scale_2` for
+/// [`Scales::Two`]).
+fn record_le(cloud: &GaussianCloud, i: usize, scales: Scales, out: &mut [u8]) {
     let mut at = 0;
     let mut put = |v: f32| {
         out[at..at + 4].copy_from_slice(&v.to_le_bytes());
@@ -111,8 +129,8 @@ fn record_le(cloud: &GaussianCloud, i: usize, out: &mut [u8]) {
     }
     put(cloud.opacity_logits[i]);
     let s = cloud.log_scales[i];
-    for v in [s.x, s.y, s.z] {
-        put(v);
+    for v in &[s.x, s.y, s.z][..scales.count()] {
+        put(*v);
     }
     let q = cloud.rotations[i];
     for v in [q.w, q.x, q.y, q.z] {
@@ -121,8 +139,13 @@ fn record_le(cloud: &GaussianCloud, i: usize, out: &mut [u8]) {
 }
 
 /// The binary little-endian records of the whole cloud, block by block.
-fn write_records_le(w: &mut impl Write, cloud: &GaussianCloud, n_rest: usize) -> io::Result<()> {
-    let rec = 4 * (17 + n_rest);
+pub(crate) fn write_records_le(
+    w: &mut impl Write,
+    cloud: &GaussianCloud,
+    n_rest: usize,
+    scales: Scales,
+) -> io::Result<()> {
+    let rec = 4 * (14 + scales.count() + n_rest);
     let n = cloud.len();
     let per_block = block_records(rec);
     let mut buf = vec![0u8; per_block.min(n) * rec];
@@ -135,7 +158,7 @@ fn write_records_le(w: &mut impl Write, cloud: &GaussianCloud, n_rest: usize) ->
             .for_each(|(t, task)| {
                 let first = start + t * TASK_RECORDS;
                 for (j, out) in task.chunks_exact_mut(rec).enumerate() {
-                    record_le(cloud, first + j, out);
+                    record_le(cloud, first + j, scales, out);
                 }
             });
         w.write_all(block)?;
@@ -152,7 +175,7 @@ pub(crate) fn write_cloud(
     let n_rest = 3 * (cloud.coeffs() - 1);
     w.write_all(header(cloud.len(), n_rest, format).as_bytes())?;
     if let PlyFormat::BinaryLittleEndian = format {
-        return write_records_le(w, cloud, n_rest);
+        return write_records_le(w, cloud, n_rest, Scales::Three);
     }
     write_records(w, cloud, format, n_rest)
 }
@@ -194,14 +217,14 @@ fn write_records(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::gaussians::sh_coeffs;
     use glam::{Quat, Vec3};
 
     /// A cloud whose every stored float is distinct (and some are ±inf, NaN, −0.0), so a
     /// value written to the wrong slot shows.
-    fn cloud(n: usize, degree: u8) -> GaussianCloud {
+    pub(crate) fn distinct_cloud(n: usize, degree: u8) -> GaussianCloud {
         let mut c = GaussianCloud::new(degree);
         let k = c.coeffs();
         let mut x = 0.0f32;
@@ -234,7 +257,7 @@ mod tests {
         for degree in 0..=3u8 {
             let per_block = block_records(4 * (17 + 3 * (sh_coeffs(degree) - 1)));
             for n in [0, 1, TASK_RECORDS + 3, per_block + TASK_RECORDS + 1] {
-                let c = cloud(n, degree);
+                let c = distinct_cloud(n, degree);
                 let mut fast = Vec::new();
                 write_cloud(&mut fast, &c, PlyFormat::BinaryLittleEndian).unwrap();
                 let n_rest = 3 * (c.coeffs() - 1);
