@@ -44,6 +44,7 @@ pub mod chunked;
 pub mod classify;
 pub mod frames_gltf;
 pub mod gltf_doc;
+mod gltf_vertex;
 pub mod gltf_writer;
 pub mod mesh;
 pub mod motion;
