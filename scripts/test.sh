@@ -19,7 +19,7 @@ cargo test --workspace $features
 # `cargo test` just built (cargo test's libraries are reused: only PyO3 and the bindings crate
 # compile), installed into target/py-venv; its pytest suite compares it with the CLI `cargo
 # test` built. The Blender extension's tests run in the same environment with the `bpy` wheel
-# from PyPI (Cycles; EEVEE only with SPLATBRIDGE_EEVEE_TESTS=1, see blender/tests). Skip the
+# from PyPI (Cycles and EEVEE, see blender/tests), and the legacy add-on in Debian's Blender. Skip the
 # whole Python part with SPLATBRIDGE_PYTHON_TESTS=0.
 if [ "${SPLATBRIDGE_PYTHON_TESTS:-1}" = 1 ]; then
   SPLATBRIDGE_WHEEL_ARGS="--profile dev $features --auditwheel skip --strip" scripts/python-wheel.sh >/dev/null
