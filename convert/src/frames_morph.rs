@@ -32,7 +32,7 @@ use std::path::Path;
 use serde_json::{json, Value};
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::output::OutputSet;
-use splatbridge_scene::GaussianCloud;
+use splatbridge_scene::{Camera, GaussianCloud};
 
 use crate::frames_gltf::{check_times, FramesLimits};
 use crate::gltf_doc::{typed_json, ARRAY_BUFFER, FLOAT};
@@ -211,13 +211,15 @@ fn mesh_frame(
 /// frame 0. Refuses frames whose meshes differ from frame 0's in anything but vertex
 /// positions and normals, and the options that split or reorder a frame (`--surfels`,
 /// `--max-triangles`, chunking and orderings). The report counts the base mesh (frame 0) and
-/// the file's bytes.
+/// the file's bytes. `cameras` become the file's glTF cameras, as a scene's cameras do in
+/// `convert`.
 pub fn write_frames_morph(
     path: &Path,
     src: &(impl FrameSource + ?Sized),
     times: &[f64],
     opts: &ConvertOptions,
     limits: &FramesLimits,
+    cameras: &[Camera],
 ) -> Result<ConvertReport> {
     let t0 = std::time::Instant::now();
     let glb = match crate::Format::from_path(path)? {
@@ -248,7 +250,8 @@ pub fn write_frames_morph(
         what,
     };
     let shape = shape_for(opts);
-    let scene = DynamicScene::from_static(GaussianCloud::new(0));
+    let mut scene = DynamicScene::from_static(GaussianCloud::new(0));
+    scene.cameras = cameras.to_vec();
     let layout = layout_for(opts);
     let stride = layout.stride();
     let mut report = ConvertReport::new(if glb { "glb" } else { "gltf" }, opts);

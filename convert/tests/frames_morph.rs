@@ -176,6 +176,7 @@ fn every_frame_of_the_morph_file_is_the_per_frame_node() {
                     &times,
                     &opts,
                     &FramesLimits::default(),
+                    &[],
                 )
                 .unwrap();
                 let (a, b) = (open(&nodes), open(&morph));
@@ -296,14 +297,14 @@ fn changing_topology_or_colours_is_refused_and_leaves_nothing() {
     // A frame with fewer Gaussians.
     let (mut clouds, times) = capture(60, 20, 4);
     clouds[2] = frame(2, 50, 20);
-    let e = write_frames_morph(&out, &clouds[..], &times, &opts, &lim)
+    let e = write_frames_morph(&out, &clouds[..], &times, &opts, &lim, &[])
         .unwrap_err()
         .to_string();
     assert!(e.contains("frame 2") && e.contains("topology"), "{e}");
     // A Gaussian flattened in one frame: same count, another fan.
     let (mut clouds, times) = capture(60, 20, 4);
     clouds[3].log_scales[1] = Vec3::new(0.04f32.ln(), 0.03f32.ln(), 0.0001f32.ln());
-    let e = write_frames_morph(&out, &clouds[..], &times, &opts, &lim)
+    let e = write_frames_morph(&out, &clouds[..], &times, &opts, &lim, &[])
         .unwrap_err()
         .to_string();
     assert!(e.contains("frame 3") && e.contains("topology"), "{e}");
@@ -314,14 +315,14 @@ fn changing_topology_or_colours_is_refused_and_leaves_nothing() {
         c.sh[4].x += 0.5;
         c
     };
-    let e = write_frames_morph(&out, &clouds[..], &times, &opts, &lim)
+    let e = write_frames_morph(&out, &clouds[..], &times, &opts, &lim, &[])
         .unwrap_err()
         .to_string();
     assert!(e.contains("frame 1") && e.contains("colour"), "{e}");
     // Chunked layouts reorder each frame.
     let (clouds, times) = capture(60, 20, 4);
     let viewers = ConvertOptions::default().for_viewers();
-    assert!(write_frames_morph(&out, &clouds[..], &times, &viewers, &lim).is_err());
+    assert!(write_frames_morph(&out, &clouds[..], &times, &viewers, &lim, &[]).is_err());
     let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
     assert!(left.is_empty(), "{left:?}");
 }
@@ -337,6 +338,7 @@ fn one_frame_is_a_plain_mesh() {
         &times,
         &ConvertOptions::default(),
         &FramesLimits::default(),
+        &[],
     )
     .unwrap();
     let r = open(&out);
@@ -364,8 +366,15 @@ fn morph_files_are_validator_clean() {
             for ext in ["glb", "gltf"] {
                 let slug = name.replace([' ', ','], "_");
                 let p = dir.path().join(format!("m-{moving}-{n}-{slug}.{ext}"));
-                write_frames_morph(&p, &clouds[..], &times, &opts, &FramesLimits::default())
-                    .unwrap();
+                write_frames_morph(
+                    &p,
+                    &clouds[..],
+                    &times,
+                    &opts,
+                    &FramesLimits::default(),
+                    &[],
+                )
+                .unwrap();
                 files.push(p);
             }
         }
