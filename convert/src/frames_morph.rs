@@ -233,11 +233,12 @@ pub fn write_frames_morph(
         }
     };
     if opts.surfels.is_some() || opts.max_triangles.is_some() || opts.arranged() {
-        return Err(ConvertError::Invalid(
-            "morph targets keep each frame whole in input order: no surfels, triangle budget, \
-             chunks or orderings"
+        return Err(ConvertError::Format {
+            path: path.into(),
+            what: "morph targets keep each frame whole in input order: surfels, a triangle \
+                   budget and the viewer layout (chunks, orderings, both windings) do not apply"
                 .into(),
-        ));
+        });
     }
     opts.validate()?;
     check_times(path, src.len(), times)?;

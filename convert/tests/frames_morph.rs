@@ -322,7 +322,10 @@ fn changing_topology_or_colours_is_refused_and_leaves_nothing() {
     // Chunked layouts reorder each frame.
     let (clouds, times) = capture(60, 20, 4);
     let viewers = ConvertOptions::default().for_viewers();
-    assert!(write_frames_morph(&out, &clouds[..], &times, &viewers, &lim, &[]).is_err());
+    let e = write_frames_morph(&out, &clouds[..], &times, &viewers, &lim, &[])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("m.glb") && e.contains("viewer layout"), "{e}");
     let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
     assert!(left.is_empty(), "{left:?}");
 }
