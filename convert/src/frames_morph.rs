@@ -6,9 +6,9 @@
 //! The mesh's base is frame 0, meshed and laid out exactly as the per-frame writer lays out a
 //! frame (same classification, vertex layout, material, root node); frame `f > 0` is target
 //! `f - 1`, holding POSITION deltas and, when the frame's normals differ from frame 0's, NORMAL
-//! deltas, as `frame f - frame 0` in f32. A target whose frame moves fewer than about three
-//! quarters of the vertices is a sparse accessor (indices of the vertices that move, their
-//! deltas; zeros elsewhere); one that moves none is an accessor with neither buffer view nor
+//! deltas, as `frame f - frame 0` in f32. A target is a sparse accessor (indices of the vertices
+//! that move, their deltas; zeros elsewhere) when that is smaller than a dense one — when fewer
+//! than 75–86 % of the vertices move, by index width and attributes; one that moves none is an accessor with neither buffer view nor
 //! sparse part (all zeros). One animation, `frames`, keys the mesh's weights with STEP
 //! interpolation at the frame times so exactly one target is fully on from its frame's time
 //! to the next (none at frame 0's).
