@@ -9,9 +9,9 @@
 //! deltas, as `frame f - frame 0` in f32. A target is a sparse accessor (indices of the vertices
 //! that move, their deltas; zeros elsewhere) when that is smaller than a dense one — when fewer
 //! than 75–86 % of the vertices move, by index width and attributes; one that moves none is an
-//! accessor with neither buffer view nor sparse part (all zeros). One animation, `frames`, keys the mesh's weights with STEP
-//! interpolation at the frame times so exactly one target is fully on from its frame's time
-//! to the next (none at frame 0's).
+//! accessor with neither buffer view nor sparse part (all zeros). One animation, `frames`,
+//! keys the mesh's weights with STEP interpolation at the frame times so exactly one target is
+//! fully on from its frame's time to the next (none at frame 0's).
 //!
 //! A morph target has the base's vertices and triangles, so every frame must mesh to frame 0's
 //! topology: the same Gaussians in the same order, each classified the same way (a Gaussian
