@@ -14,8 +14,8 @@
 //! need each frame in input order). `--camera WxH` adds a glTF camera (orbit camera 1 of 4 around
 //! frame 0, `OrbitRig` at W×H), for rendering in viewers; the per-frame nodes are then written
 //! by the in-memory writer, which writes the streamed writer's file byte for byte plus the
-//! camera (convert/tests/frames_stream.rs), so hold the frames. Prints the writer's bytes and seconds as JSON. Exit status
-//! 2 on bad arguments or an input the writer refuses.
+//! camera (convert/tests/frames_stream.rs), so hold the frames. Prints the writer's bytes and
+//! seconds as JSON. Exit status 2 on bad arguments or an input the writer refuses.
 //!
 //! An example rather than a `convert` option: our tracer does not evaluate morph targets, so
 //! the morph file is an instrument of the measurement, not a product output.

@@ -2,9 +2,10 @@
 //! (`frames_gltf`, the references): at every frame, base + that frame's target equals that
 //! frame as `convert` writes it alone (the per-frame folder's GLB, `_GAUSSIAN_ID`s from 0) and,
 //! without `--coplanar-offset` (which moves each Gaussian by an amount keyed by its global id,
-//! and a per-frame node's ids start after the earlier frames'), the per-frame node's vertices; the weights animation turns exactly that target on at the
-//! frame's key time (the nodes' key time); sparse targets where few vertices move; sequences
-//! whose topology or colours change are refused, leaving nothing behind.
+//! and a per-frame node's ids start after the earlier frames'), the per-frame node's vertices;
+//! the weights animation turns exactly that target on at the frame's key time (the nodes' key
+//! time); sparse targets where few vertices move; sequences whose topology or colours change
+//! are refused, leaving nothing behind; the files are validator-clean.
 
 use std::path::Path;
 
