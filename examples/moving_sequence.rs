@@ -5,7 +5,12 @@
 //! SH degree 0).
 //!
 //! `cargo run --release --example moving_sequence -- OUT [--count N] [--frames T] [--distinct K]
-//! [--objects B] [--radius R] [--seed S]`
+//! [--objects B] [--radius R] [--seed S] [--input PLY [--every E]] [--noise F]`
+//!
+//! `--input PLY` takes a real capture as the background instead of the synthetic one (every
+//! E-th Gaussian of it; `--count` is then ignored); `--noise F` sets the per-frame jitter of
+//! every mean (σ per axis as a fraction of the robust diagonal; default 1e-4, so every Gaussian
+//! moves a little in every frame; 0 leaves the background still).
 //!
 //! `--distinct K` writes K distinct frames (default: all T) and hard-links frame i to distinct
 //! frame i mod K, so a long sequence costs K frames of disk (the motion then repeats every K
@@ -36,6 +41,8 @@ fn run() -> Result<(), String> {
     let mut out: Option<PathBuf> = None;
     let (mut count, mut frames, mut distinct, mut objects, mut radius, mut seed) =
         (500_000usize, 300usize, None, 3usize, 0.05f64, 1u64);
+    let (mut input, mut every, mut noise): (Option<PathBuf>, usize, f64) =
+        (None, 1, MovingParams::default().noise);
     while let Some(a) = args.next() {
         let mut value = |name: &str| {
             args.next()
@@ -47,6 +54,16 @@ fn run() -> Result<(), String> {
             "--distinct" => distinct = Some(num(&value("--distinct")?, "--distinct")?),
             "--objects" => objects = num(&value("--objects")?, "--objects")?,
             "--seed" => seed = num(&value("--seed")?, "--seed")? as u64,
+            "--input" => input = Some(PathBuf::from(value("--input")?)),
+            "--every" => every = num(&value("--every")?, "--every")?.max(1),
+            "--noise" => {
+                let v = value("--noise")?;
+                noise = v
+                    .parse()
+                    .ok()
+                    .filter(|r: &f64| (0.0..0.1).contains(r))
+                    .ok_or(format!("--noise: '{v}' is not in [0, 0.1)"))?;
+            }
             "--radius" => {
                 let v = value("--radius")?;
                 radius = v
@@ -56,7 +73,7 @@ fn run() -> Result<(), String> {
                     .ok_or(format!("--radius: '{v}' is not in (0, 0.5)"))?;
             }
             _ if out.is_none() && !a.starts_with("--") => out = Some(PathBuf::from(a)),
-            _ => return Err(format!("unexpected argument '{a}' (usage: moving_sequence OUT [--count N] [--frames T] [--distinct K] [--objects B] [--radius R] [--seed S])")),
+            _ => return Err(format!("unexpected argument '{a}' (usage: moving_sequence OUT [--count N] [--frames T] [--distinct K] [--objects B] [--radius R] [--seed S] [--input PLY [--every E]] [--noise F])")),
         }
     }
     let out = out.ok_or("usage: moving_sequence OUT [--count N] [--frames T] [--distinct K]")?;
@@ -65,13 +82,25 @@ fn run() -> Result<(), String> {
     }
     let distinct = distinct.unwrap_or(frames).clamp(1, frames);
     std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
-    let base = splatbridge_scene::fixtures::large(count, seed);
+    let base = match &input {
+        Some(p) => {
+            let opts = splatbridge_scene::ply::ReadOptions { drop_invalid: true };
+            let (c, _) = splatbridge_scene::formats::load_cloud(p, &opts)
+                .map_err(|e| format!("{}: {e}", p.display()))?;
+            let mut c = c;
+            c.retain_indices(|i| i % every == 0);
+            count = c.len();
+            c
+        }
+        None => splatbridge_scene::fixtures::large(count, seed),
+    };
     let params = MovingParams {
         objects,
         frames: distinct,
         fps: 30.0,
         radius,
         seed,
+        noise,
         ..MovingParams::default()
     };
     let (clouds, _, truth) = moving_cutouts(&base, &params);

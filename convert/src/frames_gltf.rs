@@ -72,7 +72,7 @@ fn human(bytes: u64) -> String {
 }
 
 /// Check the frame times: one per frame, finite, strictly increasing, distinct in f32.
-fn check_times(path: &Path, frames: usize, times: &[f64]) -> Result<()> {
+pub(crate) fn check_times(path: &Path, frames: usize, times: &[f64]) -> Result<()> {
     let err = |what: String| ConvertError::Format {
         path: path.into(),
         what,

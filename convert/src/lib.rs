@@ -43,6 +43,7 @@
 pub mod chunked;
 pub mod classify;
 pub mod frames_gltf;
+pub mod frames_morph;
 pub mod gltf_doc;
 mod gltf_vertex;
 pub mod gltf_writer;
