@@ -161,6 +161,58 @@ pub(crate) struct Cand {
     pub mirror: u32,
 }
 
+/// The part of a [`Cand`] every ray of a cell reads: key, rectangle, edges (56 bytes).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Hot {
+    pub zmin: f32,
+    pub rect: [f32; 4],
+    pub edges: Edges,
+}
+
+/// The part of a [`Cand`] only the triangles a ray tests read.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Cold {
+    pub verts: [Vec3; 3],
+    pub inst: u32,
+    pub tri: u32,
+    pub group: u32,
+    pub mirror: u32,
+}
+
+impl Cand {
+    /// A placeholder (never walked: every slot of a tile's cells is overwritten).
+    pub(crate) const BLANK: Cand = Cand {
+        zmin: 0.0,
+        rect: [0.0; 4],
+        edges: Edges::ALL,
+        verts: [Vec3::ZERO; 3],
+        inst: 0,
+        tri: 0,
+        group: 0,
+        mirror: u32::MAX,
+    };
+
+    #[inline]
+    pub(crate) fn hot(&self) -> Hot {
+        Hot {
+            zmin: self.zmin,
+            rect: self.rect,
+            edges: self.edges,
+        }
+    }
+
+    #[inline]
+    pub(crate) fn cold(&self) -> Cold {
+        Cold {
+            verts: self.verts,
+            inst: self.inst,
+            tri: self.tri,
+            group: self.group,
+            mirror: self.mirror,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -44,10 +44,11 @@ use crate::error::Result;
 use crate::geom::ray_box;
 use crate::hit_record::{HitLists, RecordedHit};
 use crate::kbuffer::{Accum, KBuffer};
-use crate::mesh_cands::{mirror_pairs, Cand, Edges};
+use crate::mesh_cands::{mirror_pairs, Cand, Cold, Edges, Hot};
 use crate::mesh_hit::{Compositor, LocalRay, Query, Tested};
 use crate::mesh_tracer::{MeshTracer, PreparedInstance, TrianglePayload};
 use crate::render::{camera_ray, render_frame_tiles, RenderOptions, Stats};
+use crate::screen_cells::cell_span;
 
 /// Tile edge in pixels (native's `BLOCK_X = BLOCK_Y`).
 pub const TILE: u32 = 16;
@@ -314,12 +315,16 @@ fn everywhere() -> ([f32; 4], Edges) {
 }
 
 /// A tile's rays' shared state: its list split into [`CELL`]×[`CELL`]-pixel cells (each in
-/// the tile's order), each instance's local ray for the current ray (made on first use), and
-/// the buffer.
+/// the tile's order; cell `c` is `cell_start[c]..cell_start[c + 1]` of the records, whose part
+/// every entry's walk reads, `hot`, is apart from the part only tested triangles read,
+/// `cold`), each instance's local ray for the current ray (made on first use), and the
+/// buffer.
 pub(crate) struct TileCtx {
     x0: u32,
     y0: u32,
-    cells: Vec<Vec<Cand>>,
+    cell_start: Vec<u32>,
+    hot: Vec<Hot>,
+    cold: Vec<Cold>,
     /// `(ray number, local ray)` per instance; None: the ray misses the instance's bounds.
     rays: Vec<(u32, Option<LocalRay>)>,
     ray: u32,
@@ -329,15 +334,50 @@ pub(crate) struct TileCtx {
 impl TileCtx {
     pub(crate) fn new(lists: &TileLists, tx: u32, ty: u32, instances: usize) -> Self {
         let list = lists.tile(tx, ty);
-        let rect = |&i: &u32| lists.cands[i as usize].rect;
-        let cells = crate::screen_cells::split_cells(list, rect, (tx, ty), TILE, CELL)
-            .into_iter()
-            .map(|c| c.iter().map(|&i| lists.cands[i as usize]).collect())
+        let n = (TILE / CELL) as usize;
+        let (x0, y0) = ((tx * TILE) as f64, (ty * TILE) as f64);
+        let spans: Vec<[u8; 4]> = list
+            .iter()
+            .map(|&i| {
+                let r = lists.cands[i as usize].rect;
+                let (a, b) = cell_span(r[0], r[2], x0, CELL, n);
+                let (c, d) = cell_span(r[1], r[3], y0, CELL, n);
+                [a as u8, b as u8, c as u8, d as u8]
+            })
             .collect();
+        let mut cell_start = vec![0u32; n * n + 1];
+        for s in &spans {
+            for cy in s[2]..=s[3] {
+                for cx in s[0]..=s[1] {
+                    cell_start[cy as usize * n + cx as usize + 1] += 1;
+                }
+            }
+        }
+        for k in 1..cell_start.len() {
+            cell_start[k] += cell_start[k - 1];
+        }
+        let total = cell_start[n * n] as usize;
+        let mut next = cell_start.clone();
+        let blank = Cand::BLANK;
+        let mut hot = vec![blank.hot(); total];
+        let mut cold = vec![blank.cold(); total];
+        for (&i, s) in list.iter().zip(&spans) {
+            let c = &lists.cands[i as usize];
+            for cy in s[2]..=s[3] {
+                for cx in s[0]..=s[1] {
+                    let k = &mut next[cy as usize * n + cx as usize];
+                    hot[*k as usize] = c.hot();
+                    cold[*k as usize] = c.cold();
+                    *k += 1;
+                }
+            }
+        }
         TileCtx {
             x0: tx * TILE,
             y0: ty * TILE,
-            cells,
+            cell_start,
+            hot,
+            cold,
             rays: Vec::new(),
             ray: 0,
             buf: KBuffer::unbounded(),
@@ -447,14 +487,16 @@ impl MeshTracer {
         let mut cull = f32::INFINITY;
         let ray = ctx.ray;
         let rays = &mut ctx.rays;
-        for e in ctx_cell(ctx.x0, ctx.y0, &ctx.cells, uv) {
-            if e.zmin > cull {
+        let cell = cell_of(ctx.x0, ctx.y0, uv);
+        let range = ctx.cell_start[cell] as usize..ctx.cell_start[cell + 1] as usize;
+        for (h, e) in ctx.hot[range.clone()].iter().zip(&ctx.cold[range]) {
+            if h.zmin > cull {
                 break;
             }
-            if !(u >= e.rect[0] && u <= e.rect[2] && v >= e.rect[1] && v <= e.rect[3]) {
+            if !(u >= h.rect[0] && u <= h.rect[2] && v >= h.rect[1] && v <= h.rect[3]) {
                 continue;
             }
-            if !e.edges.admit(u, v) {
+            if !h.edges.admit(u, v) {
                 continue;
             }
             let ii = e.inst as usize;
@@ -486,8 +528,8 @@ impl MeshTracer {
     }
 }
 
-/// The cell list of `uv` (see [`TileCtx::cell`]).
-fn ctx_cell(x0: u32, y0: u32, cells: &[Vec<Cand>], uv: (f64, f64)) -> &[Cand] {
+/// The cell of the tile at `(x0, y0)` that holds image coordinate `uv`.
+fn cell_of(x0: u32, y0: u32, uv: (f64, f64)) -> usize {
     let n = TILE / CELL;
     let c = |x: f64, origin: u32| {
         ((x - origin as f64) / CELL as f64)
@@ -495,7 +537,7 @@ fn ctx_cell(x0: u32, y0: u32, cells: &[Vec<Cand>], uv: (f64, f64)) -> &[Cand] {
             .clamp(0.0, (n - 1) as f64) as u32
     };
     let (cx, cy) = (c(uv.0, x0), c(uv.1, y0));
-    &cells[(cy * n + cx) as usize]
+    (cy * n + cx) as usize
 }
 
 /// The world ray carried into `inst`'s frame, as [`MeshTracer::collect`] carries it: None when
