@@ -163,9 +163,20 @@ impl<P: Payload> KBuffer<P> {
     /// building the hit.
     #[inline]
     pub fn holds(&self, key: Key, rank: u32) -> bool {
-        self.hits
-            .binary_search_by(|x| x.key().cmp(&key))
-            .is_ok_and(|i| self.hits[i].payload.rank() <= rank)
+        self.holds_at(self.search(key), rank)
+    }
+
+    /// Where `key` is among the buffered hits (`Ok`: held; `Err`: where it would go), for
+    /// [`KBuffer::holds_at`] and [`KBuffer::insert_at`] to share one search.
+    #[inline]
+    pub fn search(&self, key: Key) -> Result<usize, usize> {
+        self.hits.binary_search_by(|x| x.key().cmp(&key))
+    }
+
+    /// [`KBuffer::holds`] at the position [`KBuffer::search`] found.
+    #[inline]
+    pub fn holds_at(&self, pos: Result<usize, usize>, rank: u32) -> bool {
+        pos.is_ok_and(|i| self.hits[i].payload.rank() <= rank)
     }
 
     /// Insert; returns the cull distance to use afterwards (with a relative margin of 2⁻²⁰ so
@@ -176,7 +187,15 @@ impl<P: Payload> KBuffer<P> {
         if self.rejects(key) {
             return self.cull(tmax);
         }
-        match self.hits.binary_search_by(|x| x.key().cmp(&key)) {
+        self.insert_at(h, self.search(key), tmax)
+    }
+
+    /// [`KBuffer::insert`] of a hit the buffer does not reject, at the position
+    /// [`KBuffer::search`] found for its key in the buffer as it is.
+    #[inline]
+    pub fn insert_at(&mut self, h: Hit<P>, pos: Result<usize, usize>, tmax: f32) -> f32 {
+        debug_assert!(!self.rejects(h.key()) && pos == self.search(h.key()));
+        match pos {
             Ok(i) => {
                 if h.payload.rank() < self.hits[i].payload.rank() {
                     self.hits[i] = h;

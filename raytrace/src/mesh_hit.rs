@@ -123,7 +123,11 @@ impl MeshTracer {
             return decided;
         }
         let key = (t.to_bits(), m.tri_gaussian[prim as usize], ii as u32, g);
-        if q.after.is_some_and(|a| key <= a) || buf.rejects(key) || buf.holds(key, prim) {
+        if q.after.is_some_and(|a| key <= a) || buf.rejects(key) {
+            return decided;
+        }
+        let pos = buf.search(key);
+        if buf.holds_at(pos, prim) {
             return decided;
         }
         // Only hits that enter the buffer pay for the f64 barycentrics.
@@ -160,7 +164,8 @@ impl MeshTracer {
                 rgba,
             },
         };
-        *cull = buf.insert(hit, q.tmax);
+        // The buffer is as it was searched: one search serves both.
+        *cull = buf.insert_at(hit, pos, q.tmax);
         decided
     }
 }
