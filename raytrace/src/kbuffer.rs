@@ -68,6 +68,11 @@ pub struct KBuffer<P> {
     pub stop: Option<(f32, f32)>,
     /// The key of that stopping hit among the buffered hits.
     stop_key: Option<Key>,
+    /// The transmittance before each buffered hit up to the stopping one, for the `stop` it
+    /// was computed with (`trs_for`): an insertion recomputes from its own position on, with
+    /// the same products in the same order as a pass from the first hit.
+    trs: Vec<f32>,
+    trs_for: Option<(f32, f32)>,
 }
 
 impl<P: Payload> KBuffer<P> {
@@ -79,6 +84,8 @@ impl<P: Payload> KBuffer<P> {
             shade_on_insert: false,
             stop: None,
             stop_key: None,
+            trs: Vec::new(),
+            trs_for: None,
         }
     }
 
@@ -92,22 +99,41 @@ impl<P: Payload> KBuffer<P> {
             shade_on_insert: false,
             stop: None,
             stop_key: None,
+            trs: Vec::new(),
+            trs_for: None,
         }
     }
 
     pub fn clear(&mut self) {
         self.hits.clear();
         self.stop_key = None;
+        self.trs.clear();
+        self.trs_for = None;
     }
 
-    /// Recompute [`KBuffer::stop`]'s hit after the buffer changed.
+    /// Recompute [`KBuffer::stop`]'s hit after the hit at `from` changed (inserted or
+    /// replaced): the transmittances before it are unchanged, so the pass resumes there. The
+    /// changed hit is never beyond the stopping one (such keys are rejected), so the
+    /// transmittances it resumes from were computed.
     #[inline]
-    fn update_stop(&mut self) {
-        let Some((mut tr, threshold)) = self.stop else {
+    fn update_stop(&mut self, from: usize) {
+        let Some((t0, threshold)) = self.stop else {
+            self.trs_for = None;
             return;
         };
+        let mut from = from.min(self.hits.len());
+        if self.trs_for != self.stop {
+            self.trs_for = self.stop;
+            from = 0;
+        }
+        self.trs.resize(self.hits.len(), 0.0);
+        let mut tr = match from {
+            0 => t0,
+            i => self.trs[i - 1] * (1.0 - self.hits[i - 1].payload.opacity()),
+        };
         self.stop_key = None;
-        for h in &self.hits {
+        for (h, slot) in self.hits[from..].iter().zip(&mut self.trs[from..]) {
+            *slot = tr;
             let a = h.payload.opacity();
             // `Accum::after`, then `Accum::add`: the same operations in the same order.
             if tr * (1.0 - a) < threshold {
@@ -137,9 +163,20 @@ impl<P: Payload> KBuffer<P> {
     /// building the hit.
     #[inline]
     pub fn holds(&self, key: Key, rank: u32) -> bool {
-        self.hits
-            .binary_search_by(|x| x.key().cmp(&key))
-            .is_ok_and(|i| self.hits[i].payload.rank() <= rank)
+        self.holds_at(self.search(key), rank)
+    }
+
+    /// Where `key` is among the buffered hits (`Ok`: held; `Err`: where it would go), for
+    /// [`KBuffer::holds_at`] and [`KBuffer::insert_at`] to share one search.
+    #[inline]
+    pub fn search(&self, key: Key) -> Result<usize, usize> {
+        self.hits.binary_search_by(|x| x.key().cmp(&key))
+    }
+
+    /// [`KBuffer::holds`] at the position [`KBuffer::search`] found.
+    #[inline]
+    pub fn holds_at(&self, pos: Result<usize, usize>, rank: u32) -> bool {
+        pos.is_ok_and(|i| self.hits[i].payload.rank() <= rank)
     }
 
     /// Insert; returns the cull distance to use afterwards (with a relative margin of 2⁻²⁰ so
@@ -150,18 +187,34 @@ impl<P: Payload> KBuffer<P> {
         if self.rejects(key) {
             return self.cull(tmax);
         }
-        match self.hits.binary_search_by(|x| x.key().cmp(&key)) {
+        self.insert_at(h, self.search(key), tmax)
+    }
+
+    /// [`KBuffer::insert`] of a hit the buffer does not reject, at the position
+    /// [`KBuffer::search`] found for its key in the buffer as it is.
+    #[inline]
+    pub fn insert_at(&mut self, h: Hit<P>, pos: Result<usize, usize>, tmax: f32) -> f32 {
+        debug_assert!(!self.rejects(h.key()) && pos == self.search(h.key()));
+        match pos {
             Ok(i) => {
                 if h.payload.rank() < self.hits[i].payload.rank() {
                     self.hits[i] = h;
+                    self.update_stop(i);
+                } else if self.trs_for != self.stop {
+                    // The stop was set since the last pass: one from the first hit.
+                    self.update_stop(0);
                 }
             }
             Err(i) => {
                 self.hits.insert(i, h);
+                if self.stop.is_some() {
+                    self.trs.insert(i.min(self.trs.len()), 0.0);
+                }
                 self.hits.truncate(self.k);
+                self.trs.truncate(self.k);
+                self.update_stop(i);
             }
         }
-        self.update_stop();
         self.cull(tmax)
     }
 
@@ -505,6 +558,65 @@ mod tests {
             stopped_early > 50,
             "the stop never cut a collection ({stopped_early})"
         );
+    }
+
+    /// The stopping hit recomputed from the first buffered hit (what [`KBuffer::stop`]'s hit
+    /// is defined as), against the buffer's resumed pass, after every insertion: random hits
+    /// with equal keys whose lower rank carries another opacity (a replaced hit), bounded and
+    /// unbounded buffers, a stop set before or after the first insertion.
+    #[test]
+    fn resumed_stop_equals_a_pass_from_the_first_hit() {
+        let from_scratch = |buf: &KBuffer<Opaque>| {
+            let (mut tr, threshold) = buf.stop?;
+            for h in &buf.hits {
+                if tr * (1.0 - h.payload.1) < threshold {
+                    return Some(h.key());
+                }
+                tr *= 1.0 - h.payload.1;
+            }
+            None
+        };
+        let mut seed = 0x0dd1_b1a5_e5c3_7f21_u64;
+        let mut stops = 0;
+        for round in 0..400 {
+            let n = (rng(&mut seed) % 60) as usize;
+            let alphas = [0.0, 0.2, 0.5, 0.8, 0.95, 1.0];
+            let hits: Vec<Hit<Opaque>> = random_hits(&mut seed, n)
+                .into_iter()
+                .map(|h| Hit {
+                    t: h.t,
+                    gaussian: h.gaussian,
+                    instance: h.instance,
+                    group: h.group,
+                    payload: Opaque(h.payload.0, alphas[(h.payload.0 % 6) as usize]),
+                })
+                .collect();
+            let k = [4, 16, usize::MAX][round % 3];
+            let mut buf = if k == usize::MAX {
+                KBuffer::unbounded()
+            } else {
+                KBuffer::new(k)
+            };
+            let t0 = [1.0, 0.5, 0.01][(round / 3) % 3];
+            let late = round % 2 == 0;
+            if !late {
+                buf.stop = Some((t0, 1e-2));
+            }
+            for (i, h) in hits.iter().enumerate() {
+                if late && i == n / 2 {
+                    buf.stop = Some((t0, 1e-2));
+                }
+                // A rejected hit changes nothing (not even a stop set since the last
+                // insertion, as before the pass resumed).
+                if buf.rejects(h.key()) {
+                    continue;
+                }
+                buf.insert(*h, f32::INFINITY);
+                assert_eq!(buf.stop_key, from_scratch(&buf), "round {round}, hit {i}");
+                stops += buf.stop_key.is_some() as usize;
+            }
+        }
+        assert!(stops > 1000, "the stop was rarely set ({stops})");
     }
 
     #[test]

@@ -8,6 +8,7 @@
 //! renders a `GaussianCloud`; [`secondary`] answers transmittance and closest-opaque queries.
 
 pub mod backend;
+mod mesh_cands;
 pub(crate) mod mesh_hit;
 #[cfg(test)]
 mod mesh_tile_tests;

@@ -11,7 +11,7 @@ use crate::kbuffer::{Accum, Hit, KBuffer, Key};
 use crate::mesh_tracer::{MeshTracer, TrianglePayload};
 use crate::model::{linear_to_srgb, srgb_to_linear};
 use crate::render::{Compositing, PixelOut, RenderOptions};
-use crate::tri::WRay;
+use crate::tri::{Miss, WRay};
 
 /// A world ray carried into an instance's frame: origin relative to the mesh's anchor and
 /// direction in f64 (plane distances, barycentrics) and the f32 watertight ray.
@@ -86,39 +86,56 @@ impl MeshTracer {
         q: &Query,
         buf: &mut KBuffer<TrianglePayload>,
         cull: &mut f32,
-    ) {
+    ) -> Tested {
         let blas = &self.blas[mesh];
         let m = &self.scene.meshes[mesh];
         buf.candidates = buf.candidates.wrapping_add(1);
         // Coverage from the watertight f32 test (or the backend's own report, whose edge rule
         // may pick the neighbouring triangle); distance and barycentrics of accepted hits are
         // refined in f64 (f32 loses ~ulp(|o − v|)/size on small far triangles).
-        let wt = r.wray.intersect(a, b, c, f32::NEG_INFINITY, f32::INFINITY);
-        if wt.is_none() && !reported {
-            return;
+        let wt = r
+            .wray
+            .intersect_or(a, b, c, f32::NEG_INFINITY, f32::INFINITY);
+        match wt {
+            Err(Miss::Outside) if !reported => return Tested::Outside,
+            Err(_) if !reported => return Tested::Open,
+            _ => {}
         }
+        let wt = wt.ok();
         let (pn, pw) = blas.planes[g as usize];
         let tp = (pw - pn.dot(r.lo64)) / pn.dot(r.ld64);
+        // From here on, with the group plane's distance the key is the group's: the other
+        // winding of this triangle (same group, same Gaussian) would get the same key, and
+        // where it is decided by the key alone it is [`Tested::Decided`].
+        let decided = if tp.is_finite() {
+            Tested::Decided
+        } else {
+            Tested::Open
+        };
         let t = match wt {
             _ if tp.is_finite() => tp as f32,
             Some(h) => h.t,
-            None => return,
+            None => return Tested::Open,
         };
         // +0.0 normalises −0.0 so the bit pattern orders like the value.
         let t = t + 0.0;
         if !(t >= q.tmin && t <= q.tmax) {
-            return;
+            return decided;
         }
         let key = (t.to_bits(), m.tri_gaussian[prim as usize], ii as u32, g);
-        if q.after.is_some_and(|a| key <= a) || buf.rejects(key) || buf.holds(key, prim) {
-            return;
+        if q.after.is_some_and(|a| key <= a) || buf.rejects(key) {
+            return decided;
+        }
+        let pos = buf.search(key);
+        if buf.holds_at(pos, prim) {
+            return decided;
         }
         // Only hits that enter the buffer pay for the f64 barycentrics.
         let refined = refine_bary(a.as_dvec3(), b.as_dvec3(), c.as_dvec3(), r.lo64, r.ld64);
         let bary = match (wt, refined) {
             (_, Some(bary)) => bary,
             (Some(h), None) => h.bary,
-            (None, None) => return,
+            (None, None) => return Tested::Open,
         };
         let rgba = if buf.shade_on_insert {
             let c = m.shade(
@@ -127,8 +144,10 @@ impl MeshTracer {
                 &self.scene.materials,
                 &self.scene.textures,
             );
+            // The other winding's barycentrics are the same numbers computed in another order:
+            // its shade may differ in the last bits, so its α is not decided here.
             if !(c.w > 0.0) {
-                return;
+                return Tested::Open;
             }
             c
         } else {
@@ -145,8 +164,27 @@ impl MeshTracer {
                 rgba,
             },
         };
-        *cull = buf.insert(hit, q.tmax);
+        // The buffer is as it was searched: one search serves both.
+        *cull = buf.insert_at(hit, pos, q.tmax);
+        decided
     }
+}
+
+/// What [`MeshTracer::test_triangle`] found, for the triangle's other winding (the same three
+/// vertices in the opposite order, same group and Gaussian, higher index), which would find
+/// nothing more where this says so.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Tested {
+    /// The ray is outside the triangle by the watertight test's edge signs (the same for
+    /// the other winding, [`WRay::intersect_or`]).
+    Outside,
+    /// The hit's key (the group plane's distance, the Gaussian, instance and group) decided
+    /// it: inserted, or rejected by the range, the buffer's stop or an equal key of lower
+    /// rank. The other winding has the same key and a higher rank: it would be rejected.
+    Decided,
+    /// Anything else (shading, a degenerate or in-plane case, a distance not from the plane):
+    /// the other winding must be tested itself.
+    Open,
 }
 
 /// Front-to-back compositing of one ray's shaded hits, in key order, as a viewer with an unlit

@@ -6,7 +6,9 @@
 //! viewer layout writes them), instanced meshes under static transforms with scales, triangles
 //! reaching behind the camera and around it, a scene far from the origin, images whose sides
 //! are not multiples of a tile, at 1 and 4 samples a pixel; equal at 1, 2 and 3 threads; and
-//! the per-ray BVH path within the tie rule of its k-buffer.
+//! the per-ray BVH path within the tie rule of its k-buffer. Grids whose vertices project onto
+//! pixel centres, in the viewer layout's order of windings, put rays through vertices and shared
+//! edges, where the screen-space pre-test and the winding pairs (`mesh_cands`) are decided.
 
 use glam::{DAffine3, DQuat, DVec3, Quat, Vec3, Vec4};
 use splatbridge_scene::{Camera, Frame};
@@ -407,4 +409,123 @@ fn skewed_instance_matches_reference() {
     let opts = RenderOptions::default();
     let (got, _) = tracer.render(cam, 0.0, &opts).unwrap();
     assert_eq!(bits(&got), bits(&reference_image(&tracer, cam, &opts)));
+}
+
+/// A grid of quads (two triangles over a shared diagonal) whose vertices project onto pixel
+/// centres and whose edges run along pixel rows, columns and diagonals, in the viewer layout's
+/// order (every triangle, then every triangle again in the other winding, in reverse order):
+/// rays through vertices and shared edges, where the pre-test's margin and the winding pairs'
+/// rule meet the exact test's edge cases. Colours reach α = 0 at some vertices, so hits on
+/// those edges shade to 0 and the other winding is tested itself.
+fn pixel_grid(cam: &Camera, depth: f64, step: u32, gid0: u32, alpha0: bool) -> Mesh {
+    let mut m = Mesh {
+        has_gaussian_ids: true,
+        ..Mesh::default()
+    };
+    let (nx, ny) = (cam.width.div_ceil(step) + 1, cam.height.div_ceil(step) + 1);
+    for j in 0..ny {
+        for i in 0..nx {
+            let (u, v) = ((i * step) as f64 + 0.5, (j * step) as f64 + 0.5);
+            let d = cam.ray_dir(u, v);
+            let p = cam.centre + d * (depth / d.dot(cam.ray_dir(cam.cx, cam.cy)));
+            m.positions.push(p.as_vec3());
+            let a = if alpha0 && (i + j) % 3 == 0 {
+                0.0
+            } else {
+                0.45
+            };
+            m.colors.push(Vec4::new(
+                i as f32 / nx as f32,
+                j as f32 / ny as f32,
+                0.5,
+                a,
+            ));
+        }
+    }
+    let mut first = Vec::new();
+    for j in 0..ny - 1 {
+        for i in 0..nx - 1 {
+            let k = j * nx + i;
+            let (a, b, c, d) = (k, k + 1, k + nx + 1, k + nx);
+            // Alternate diagonals, so edges run both ways.
+            let quad = if (i + j) % 2 == 0 {
+                [[a, b, c], [a, c, d]]
+            } else {
+                [[a, b, d], [b, c, d]]
+            };
+            let gid = gid0 + j * nx + i;
+            first.extend(quad.map(|t| (t, gid)));
+        }
+    }
+    let second: Vec<_> = first
+        .iter()
+        .rev()
+        .map(|&([a, b, c], g)| ([a, c, b], g))
+        .collect();
+    for (t, g) in first.into_iter().chain(second) {
+        m.tris.push(t);
+        m.tri_material.push(0);
+        m.tri_gaussian.push(g);
+    }
+    m
+}
+
+#[test]
+fn pixel_aligned_grids_equal_brute_force() {
+    let cam = Camera::look_at(
+        DVec3::new(0.3, -0.2, -3.0),
+        DVec3::new(0.3, -0.2, 0.0),
+        DVec3::NEG_Y,
+        45.0,
+        41,
+        23,
+    )
+    .unwrap();
+    // Three grids at three depths (steps of 2, 3 and 5 pixels, two with α = 0 vertices), each
+    // its own node, and a random fan mesh through them.
+    let mut meshes = vec![
+        pixel_grid(&cam, 1.0, 2, 0, true),
+        pixel_grid(&cam, 1.5, 3, 5000, false),
+        pixel_grid(&cam, 2.0, 5, 9000, true),
+    ];
+    meshes.push(random_mesh(11, 60, 0.6, Vec3::new(0.3, -0.2, -1.5), true));
+    let nodes = (0..meshes.len())
+        .map(|i| Node {
+            mesh: Some(i),
+            ..Node::default()
+        })
+        .collect();
+    let tracer = tracer(TriScene {
+        meshes,
+        materials: blend(),
+        nodes,
+        ..TriScene::default()
+    });
+    let insts = tracer.prepare_list(0.0);
+    let lists = TileLists::build(&tracer, &insts, &cam);
+    let mut compared = 0usize;
+    for ty in 0..cam.height.div_ceil(TILE) {
+        for tx in 0..cam.width.div_ceil(TILE) {
+            let mut ctx = TileCtx::new(&lists, tx, ty, insts.len());
+            for j in ty * TILE..((ty + 1) * TILE).min(cam.height) {
+                for i in tx * TILE..((tx + 1) * TILE).min(cam.width) {
+                    let uv = (i as f64 + 0.5, j as f64 + 0.5);
+                    let (o, d) = camera_ray(&cam, uv.0, uv.1);
+                    let want = reference(&tracer, 0.0, o, d, 1e-4);
+                    tracer.tile_hits(&insts, &mut ctx, o, d, uv, 1e-4);
+                    let got = &ctx.buffer().hits;
+                    assert!(got.len() >= want.len(), "pixel ({i}, {j}) lost hits");
+                    for (g, w) in got.iter().zip(&want) {
+                        assert_eq!(hit_bits(g), hit_bits(w), "pixel ({i}, {j})");
+                    }
+                    compared += want.len();
+                }
+            }
+        }
+    }
+    // Every ray crosses the three grids (hits of α = 0 at a vertex are not kept).
+    assert!(compared >= 2 * 41 * 23, "{compared} hits compared");
+    let opts = RenderOptions::default();
+    let (got, _) = tracer.render(&cam, 0.0, &opts).unwrap();
+    assert_eq!(bits(&got), bits(&reference_image(&tracer, &cam, &opts)));
 }

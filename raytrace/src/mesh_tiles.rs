@@ -13,6 +13,13 @@
 //! the triangle is nearer than its key, and a ray can stop walking at the first entry keyed
 //! beyond its k-buffer's cull distance.
 //!
+//! Once a frame each binned triangle gets a record (`mesh_cands::Cand`): its rectangle, its
+//! projected edges as a conservative screen-space pre-test with the rectangle's margin, and its
+//! vertices as the exact test reads them (no index buffer on the ray's path); a tile copies its
+//! records into its cells. A triangle the viewer layout writes twice (both windings) is binned
+//! once and its other winding tested only where the first's outcome leaves it open
+//! (`mesh_hit::Tested`).
+//!
 //! A ray collects all its hits up to compositing's stop in one unbounded buffer
 //! ([`KBuffer::unbounded`]), ordered by the full key (distance, Gaussian, instance, group)
 //! with the lowest triangle index kept among equal keys: exactly the brute-force reference
@@ -37,9 +44,11 @@ use crate::error::Result;
 use crate::geom::ray_box;
 use crate::hit_record::{HitLists, RecordedHit};
 use crate::kbuffer::{Accum, KBuffer};
-use crate::mesh_hit::{Compositor, LocalRay, Query};
+use crate::mesh_cands::{mirror_pairs, Cand, Cold, Edges, Hot};
+use crate::mesh_hit::{Compositor, LocalRay, Query, Tested};
 use crate::mesh_tracer::{MeshTracer, PreparedInstance, TrianglePayload};
 use crate::render::{camera_ray, render_frame_tiles, RenderOptions, Stats};
+use crate::screen_cells::cell_span;
 
 /// Tile edge in pixels (native's `BLOCK_X = BLOCK_Y`).
 pub const TILE: u32 = 16;
@@ -60,24 +69,13 @@ const RECT_MARGIN: f64 = 0.05;
 /// focal length `f`. 1e-6 (about 17 ulps) of it widens each rectangle.
 const ORIGIN_MARGIN: f64 = 1e-6;
 
-/// One triangle in a tile's list.
-#[derive(Clone, Copy, Debug)]
-struct Entry {
-    /// `[u0, v0, u1, v1]`: the continuous image coordinates whose rays can cross the triangle
-    /// (infinite for a triangle reaching the camera plane).
-    rect: [f32; 4],
-    /// No hit of the triangle is nearer than this (see the module documentation).
-    zmin: f32,
-    inst: u32,
-    tri: u32,
-    group: u32,
-}
-
-/// Every tile's triangles, each list in key order.
+/// Every tile's triangles, each list in key order: per tile, indices into `cands` (one record
+/// per binned triangle, in key order).
 pub(crate) struct TileLists {
     tw: usize,
     starts: Vec<usize>,
-    entries: Vec<Entry>,
+    entries: Vec<u32>,
+    cands: Vec<Cand>,
 }
 
 /// A total order on f32 as u32 (negative values below positive ones).
@@ -126,7 +124,7 @@ impl TileLists {
         let tw = cam.width.div_ceil(TILE) as usize;
         let th = cam.height.div_ceil(TILE) as usize;
         let focal = cam.fx.max(cam.fy);
-        let mut items: Vec<(u128, Entry, [u32; 4])> = Vec::new();
+        let mut cands: Vec<Cand> = Vec::new();
         for (ii, inst) in insts.iter().enumerate() {
             let blas = &tracer.blas[inst.mesh];
             let mesh = &tracer.scene.meshes[inst.mesh];
@@ -181,10 +179,19 @@ impl TileLists {
                 gz[g] = gz[g].min(z - 2e-3 * scale * ext);
             }
             let slack = 1e-6 * reach;
+            let mirror = blas
+                .mirror
+                .get_or_init(|| mirror_pairs(&mesh.tris, &mesh.tri_gaussian, &group));
             let tris = &mesh.tris;
-            let mut part: Vec<(u128, Entry, [u32; 4])> = (0..tris.len())
+            let extent = w.max(h) + 1.0;
+            let mut part: Vec<Cand> = (0..tris.len())
                 .into_par_iter()
                 .filter_map(|t| {
+                    // The higher-indexed triangle of a winding pair goes with the lower one.
+                    let pair = mirror[t];
+                    if pair < t as u32 {
+                        return None;
+                    }
                     let v = tris[t].map(|i| proj[i as usize]);
                     let zmax = v[0].z.max(v[1].z).max(v[2].z);
                     // Wholly behind the camera: a hit at t ≥ 0 has view depth ≥ 0.
@@ -195,7 +202,7 @@ impl TileLists {
                     let zg = gz[g as usize];
                     let zmin = down(zg - 1e-5 * zg.abs() - slack);
                     let zfront = v[0].z.min(v[1].z).min(v[2].z);
-                    let (rect, tiles) = if zfront > slack {
+                    let (rect, edges) = if zfront > slack {
                         let m = |x: f64| {
                             RECT_MARGIN + 1e-5 * x.abs() + ORIGIN_MARGIN * focal * reach / zfront
                         };
@@ -208,57 +215,55 @@ impl TileLists {
                         for p in &v {
                             r = [r[0].min(p.u), r[1].min(p.v), r[2].max(p.u), r[3].max(p.v)];
                         }
-                        let r = [
-                            r[0] - m(r[0]),
-                            r[1] - m(r[1]),
-                            r[2] + m(r[2]),
-                            r[3] + m(r[3]),
-                        ];
+                        let ms = r.map(m);
+                        let r = [r[0] - ms[0], r[1] - ms[1], r[2] + ms[2], r[3] + ms[3]];
                         if !r.iter().all(|x| x.is_finite()) {
-                            everywhere(tw, th)
+                            everywhere()
                         } else {
                             if r[2] < 0.0 || r[3] < 0.0 || r[0] > w || r[1] > h {
                                 return None;
                             }
-                            let tile = |x: f64, n: usize| {
-                                (x / TILE as f64).floor().clamp(0.0, (n - 1) as f64) as u32
-                            };
+                            // The rectangle's margin bounds how far along each axis the test's
+                            // rounding moves a crossing; twice the largest bounds its distance.
+                            let margin = 2.0 * ms.iter().fold(0.0f64, |a, &b| a.max(b));
                             (
                                 [down(r[0]), down(r[1]), up(r[2]), up(r[3])],
-                                [
-                                    tile(r[0], tw),
-                                    tile(r[1], th),
-                                    tile(r[2], tw),
-                                    tile(r[3], th),
-                                ],
+                                Edges::new(v.map(|p| (p.u, p.v)), margin, extent),
                             )
                         }
                     } else {
-                        everywhere(tw, th)
+                        everywhere()
                     };
-                    let key = ((order_bits(zmin) as u128) << 64) | ((ii as u128) << 32) | t as u128;
-                    Some((
-                        key,
-                        Entry {
-                            rect,
-                            zmin,
-                            inst: ii as u32,
-                            tri: t as u32,
-                            group: g,
-                        },
-                        tiles,
-                    ))
+                    Some(Cand {
+                        zmin,
+                        rect,
+                        edges,
+                        verts: tris[t].map(|i| blas.relative(mesh.positions[i as usize])),
+                        inst: ii as u32,
+                        tri: t as u32,
+                        group: g,
+                        mirror: pair,
+                    })
                 })
                 .collect();
-            items.append(&mut part);
+            cands.append(&mut part);
         }
         // Keys are unique (instance and triangle are in them), so the order is total.
-        items.par_sort_unstable_by_key(|x| x.0);
+        cands.par_sort_unstable_by_key(|c| (order_bits(c.zmin), c.inst, c.tri));
+        // Tiles a rectangle touches (an infinite one touches every tile).
+        let span = |lo: f32, hi: f32, n: usize| {
+            let tile = |x: f32| (x as f64 / TILE as f64).floor().clamp(0.0, (n - 1) as f64);
+            (tile(lo) as usize, tile(hi) as usize)
+        };
         let mut count = vec![0usize; tw * th + 1];
-        for (_, _, r) in &items {
-            for ty in r[1]..=r[3] {
-                for tx in r[0]..=r[2] {
-                    count[ty as usize * tw + tx as usize + 1] += 1;
+        for c in &cands {
+            let ((x0, x1), (y0, y1)) = (
+                span(c.rect[0], c.rect[2], tw),
+                span(c.rect[1], c.rect[3], th),
+            );
+            for ty in y0..=y1 {
+                for tx in x0..=x1 {
+                    count[ty * tw + tx + 1] += 1;
                 }
             }
         }
@@ -267,19 +272,16 @@ impl TileLists {
         }
         let starts = count.clone();
         let mut next = count;
-        let blank = Entry {
-            rect: [0.0; 4],
-            zmin: 0.0,
-            inst: 0,
-            tri: 0,
-            group: 0,
-        };
-        let mut entries = vec![blank; *starts.last().unwrap_or(&0)];
-        for (_, e, r) in &items {
-            for ty in r[1]..=r[3] {
-                for tx in r[0]..=r[2] {
-                    let k = ty as usize * tw + tx as usize;
-                    entries[next[k]] = *e;
+        let mut entries = vec![0u32; *starts.last().unwrap_or(&0)];
+        for (i, c) in cands.iter().enumerate() {
+            let ((x0, x1), (y0, y1)) = (
+                span(c.rect[0], c.rect[2], tw),
+                span(c.rect[1], c.rect[3], th),
+            );
+            for ty in y0..=y1 {
+                for tx in x0..=x1 {
+                    let k = ty * tw + tx;
+                    entries[next[k]] = i as u32;
                     next[k] += 1;
                 }
             }
@@ -288,18 +290,19 @@ impl TileLists {
             tw,
             starts,
             entries,
+            cands,
         }
     }
 
     /// Tile `(tx, ty)`'s list.
-    fn tile(&self, tx: u32, ty: u32) -> &[Entry] {
+    fn tile(&self, tx: u32, ty: u32) -> &[u32] {
         let k = ty as usize * self.tw + tx as usize;
         &self.entries[self.starts[k]..self.starts[k + 1]]
     }
 }
 
-/// The rectangle and tile range of a triangle every ray may cross.
-fn everywhere(tw: usize, th: usize) -> ([f32; 4], [u32; 4]) {
+/// The rectangle and edge functions of a triangle every ray may cross.
+fn everywhere() -> ([f32; 4], Edges) {
     (
         [
             f32::NEG_INFINITY,
@@ -307,17 +310,21 @@ fn everywhere(tw: usize, th: usize) -> ([f32; 4], [u32; 4]) {
             f32::INFINITY,
             f32::INFINITY,
         ],
-        [0, 0, tw as u32 - 1, th as u32 - 1],
+        Edges::ALL,
     )
 }
 
 /// A tile's rays' shared state: its list split into [`CELL`]×[`CELL`]-pixel cells (each in
-/// the tile's order), each instance's local ray for the current ray (made on first use), and
-/// the buffer.
+/// the tile's order; cell `c` is `cell_start[c]..cell_start[c + 1]` of the records, whose part
+/// every entry's walk reads, `hot`, is apart from the part only tested triangles read,
+/// `cold`), each instance's local ray for the current ray (made on first use), and the
+/// buffer.
 pub(crate) struct TileCtx {
     x0: u32,
     y0: u32,
-    cells: Vec<Vec<Entry>>,
+    cell_start: Vec<u32>,
+    hot: Vec<Hot>,
+    cold: Vec<Cold>,
     /// `(ray number, local ray)` per instance; None: the ray misses the instance's bounds.
     rays: Vec<(u32, Option<LocalRay>)>,
     ray: u32,
@@ -327,11 +334,50 @@ pub(crate) struct TileCtx {
 impl TileCtx {
     pub(crate) fn new(lists: &TileLists, tx: u32, ty: u32, instances: usize) -> Self {
         let list = lists.tile(tx, ty);
-        let cells = crate::screen_cells::split_cells(list, |e| e.rect, (tx, ty), TILE, CELL);
+        let n = (TILE / CELL) as usize;
+        let (x0, y0) = ((tx * TILE) as f64, (ty * TILE) as f64);
+        let spans: Vec<[u8; 4]> = list
+            .iter()
+            .map(|&i| {
+                let r = lists.cands[i as usize].rect;
+                let (a, b) = cell_span(r[0], r[2], x0, CELL, n);
+                let (c, d) = cell_span(r[1], r[3], y0, CELL, n);
+                [a as u8, b as u8, c as u8, d as u8]
+            })
+            .collect();
+        let mut cell_start = vec![0u32; n * n + 1];
+        for s in &spans {
+            for cy in s[2]..=s[3] {
+                for cx in s[0]..=s[1] {
+                    cell_start[cy as usize * n + cx as usize + 1] += 1;
+                }
+            }
+        }
+        for k in 1..cell_start.len() {
+            cell_start[k] += cell_start[k - 1];
+        }
+        let total = cell_start[n * n] as usize;
+        let mut next = cell_start.clone();
+        let blank = Cand::BLANK;
+        let mut hot = vec![blank.hot(); total];
+        let mut cold = vec![blank.cold(); total];
+        for (&i, s) in list.iter().zip(&spans) {
+            let c = &lists.cands[i as usize];
+            for cy in s[2]..=s[3] {
+                for cx in s[0]..=s[1] {
+                    let k = &mut next[cy as usize * n + cx as usize];
+                    hot[*k as usize] = c.hot();
+                    cold[*k as usize] = c.cold();
+                    *k += 1;
+                }
+            }
+        }
         TileCtx {
             x0: tx * TILE,
             y0: ty * TILE,
-            cells,
+            cell_start,
+            hot,
+            cold,
             rays: Vec::new(),
             ray: 0,
             buf: KBuffer::unbounded(),
@@ -441,11 +487,16 @@ impl MeshTracer {
         let mut cull = f32::INFINITY;
         let ray = ctx.ray;
         let rays = &mut ctx.rays;
-        for e in ctx_cell(ctx.x0, ctx.y0, &ctx.cells, uv) {
-            if e.zmin > cull {
+        let cell = cell_of(ctx.x0, ctx.y0, uv);
+        let range = ctx.cell_start[cell] as usize..ctx.cell_start[cell + 1] as usize;
+        for (h, e) in ctx.hot[range.clone()].iter().zip(&ctx.cold[range]) {
+            if h.zmin > cull {
                 break;
             }
-            if !(u >= e.rect[0] && u <= e.rect[2] && v >= e.rect[1] && v <= e.rect[3]) {
+            if !(u >= h.rect[0] && u <= h.rect[2] && v >= h.rect[1] && v <= h.rect[3]) {
+                continue;
+            }
+            if !h.edges.admit(u, v) {
                 continue;
             }
             let ii = e.inst as usize;
@@ -457,12 +508,19 @@ impl MeshTracer {
             let Some(r) = slot.1 else {
                 continue;
             };
-            let blas = &self.blas[inst.mesh];
-            let mesh = &self.scene.meshes[inst.mesh];
-            let tri = mesh.tris[e.tri as usize].map(|i| blas.relative(mesh.positions[i as usize]));
-            self.test_triangle(
-                ii, inst.mesh, &r, tri, e.group, e.tri, false, &q, &mut buf, &mut cull,
+            let tested = self.test_triangle(
+                ii, inst.mesh, &r, e.verts, e.group, e.tri, false, &q, &mut buf, &mut cull,
             );
+            // The other winding, where the first's outcome leaves it open (`Tested`).
+            if e.mirror != u32::MAX && tested == Tested::Open {
+                let blas = &self.blas[inst.mesh];
+                let mesh = &self.scene.meshes[inst.mesh];
+                let m = e.mirror;
+                let tri = mesh.tris[m as usize].map(|i| blas.relative(mesh.positions[i as usize]));
+                self.test_triangle(
+                    ii, inst.mesh, &r, tri, e.group, m, false, &q, &mut buf, &mut cull,
+                );
+            }
         }
         buf.shade_on_insert = false;
         buf.stop = None;
@@ -470,8 +528,8 @@ impl MeshTracer {
     }
 }
 
-/// The cell list of `uv` (see [`TileCtx::cell`]).
-fn ctx_cell(x0: u32, y0: u32, cells: &[Vec<Entry>], uv: (f64, f64)) -> &[Entry] {
+/// The cell of the tile at `(x0, y0)` that holds image coordinate `uv`.
+fn cell_of(x0: u32, y0: u32, uv: (f64, f64)) -> usize {
     let n = TILE / CELL;
     let c = |x: f64, origin: u32| {
         ((x - origin as f64) / CELL as f64)
@@ -479,7 +537,7 @@ fn ctx_cell(x0: u32, y0: u32, cells: &[Vec<Entry>], uv: (f64, f64)) -> &[Entry] 
             .clamp(0.0, (n - 1) as f64) as u32
     };
     let (cx, cy) = (c(uv.0, x0), c(uv.1, y0));
-    &cells[(cy * n + cx) as usize]
+    (cy * n + cx) as usize
 }
 
 /// The world ray carried into `inst`'s frame, as [`MeshTracer::collect`] carries it: None when

@@ -132,6 +132,9 @@ pub struct Blas {
     /// reads stay local, and no copy of the positions is kept (12 bytes a vertex; laying
     /// triangles out per slot would copy every vertex three times, 36 bytes a triangle).
     pub group: GroupIds,
+    /// Each triangle's other winding (`mesh_cands::mirror_pairs`), found on the first render
+    /// through screen tiles (4 bytes a triangle, kept for later frames).
+    pub(crate) mirror: std::sync::OnceLock<Vec<u32>>,
 }
 
 /// Each triangle's planar group over runs of triangles. Runs never cross Gaussians, and a
@@ -377,6 +380,7 @@ impl MeshTracer {
                 slot_group,
                 run_start,
                 group,
+                mirror: std::sync::OnceLock::new(),
             });
         }
         Ok(MeshTracer {

@@ -3,7 +3,9 @@
 //! then scans only the entries whose screen rectangles reach its cell, in the tile's order.
 
 /// Tile `(tx, ty)`'s `list` (tiles of `tile` pixels) split into its cells, row-major, each in
-/// the list's order; `rect(e)` is an entry's `[x0, y0, x1, y1]` in image coordinates.
+/// the list's order; `rect(e)` is an entry's `[x0, y0, x1, y1]` in image coordinates. Both
+/// tile paths lay their cells out flat with [`cell_span`]; this is their tests' reference.
+#[cfg(test)]
 pub(crate) fn split_cells<E: Copy>(
     list: &[E],
     rect: impl Fn(&E) -> [f32; 4],

@@ -23,6 +23,16 @@ pub struct WRay {
     sz: f32,
 }
 
+/// Why [`WRay::intersect_or`] found no hit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Miss {
+    /// The edge functions' signs put the ray outside the triangle.
+    Outside,
+    /// The ray lies in the triangle's plane, the triangle is degenerate, or `t` is outside
+    /// the accepted range.
+    Other,
+}
+
 /// A hit: the ray parameter and the barycentric weights of the triangle's vertices 0, 1, 2.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TriHit {
@@ -63,6 +73,24 @@ impl WRay {
     /// Intersect the triangle (a, b, c), both faces, accepting `tmin ≤ t ≤ tmax`.
     #[inline]
     pub fn intersect(&self, a: Vec3, b: Vec3, c: Vec3, tmin: f32, tmax: f32) -> Option<TriHit> {
+        self.intersect_or(a, b, c, tmin, tmax).ok()
+    }
+
+    /// [`WRay::intersect`], saying why a ray misses: [`Miss::Outside`] when the edge
+    /// functions' signs decide it. Those are the same numbers, permuted (and negated for the
+    /// other winding), for the triangle with its vertices in any other order: each edge
+    /// function is one product less another, and exchanging two vertices exchanges the two
+    /// products, which f32 (and the f64 recomputation) round alike; so a ray outside a
+    /// triangle is outside it in the other winding too.
+    #[inline]
+    pub fn intersect_or(
+        &self,
+        a: Vec3,
+        b: Vec3,
+        c: Vec3,
+        tmin: f32,
+        tmax: f32,
+    ) -> Result<TriHit, Miss> {
         let (kx, ky, kz) = (self.kx, self.ky, self.kz);
         let a = a - self.origin;
         let b = b - self.origin;
@@ -85,22 +113,22 @@ impl WRay {
             w = (bx * ay - by * ax) as f32;
         }
         if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
-            return None;
+            return Err(Miss::Outside);
         }
         let det = u + v + w;
         // det == 0: the ray lies in the triangle's plane (or the triangle is degenerate).
         if det == 0.0 || !det.is_finite() {
-            return None;
+            return Err(Miss::Other);
         }
         let az = self.sz * a[kz];
         let bz = self.sz * b[kz];
         let cz = self.sz * c[kz];
         let t = (u * az + v * bz + w * cz) / det;
         if !(t >= tmin && t <= tmax) {
-            return None;
+            return Err(Miss::Other);
         }
         let inv = 1.0 / det;
-        Some(TriHit {
+        Ok(TriHit {
             t,
             bary: [u * inv, v * inv, w * inv],
         })

@@ -1,0 +1,281 @@
+//! What the screen-tile path of mode `mesh` (`mesh_tiles`) prepares per triangle once a frame,
+//! so that a ray rejects most of its cell's triangles without the exact test and tests the
+//! rest without reading the index buffer:
+//!
+//! - [`Edges`], a conservative screen-space pre-test: the triangle's projected edges as three
+//!   normalised edge functions (signed distances in pixels), each moved outwards by the margin
+//!   that already widens the triangle's screen rectangle (covering the f32 watertight test's
+//!   rounding) and by a bound on the pre-test's own f32 rounding. A ray whose pixel is outside
+//!   one of them cannot be reported by the watertight test (Pineda, "A Parallel Algorithm for
+//!   Polygon Rasterization", SIGGRAPH 1988, for the edge functions; the margin argument is the
+//!   rectangle's, `mesh_tiles`).
+//! - [`mirror_pairs`]: the viewer layout writes every triangle twice, once per winding (the
+//!   same three vertex indices in the opposite order, same Gaussian and planar group). Such a
+//!   pair is binned once: the ray tests the lower-indexed triangle and tests the other only
+//!   where the first's outcome leaves it open (`mesh_hit::Tested`), which gives the
+//!   brute-force reference's hits exactly.
+
+use glam::Vec3;
+
+/// A vertex index triple up to rotation, and whether it was in the canonical winding.
+#[inline]
+fn canonical([a, b, c]: [u32; 3]) -> Option<([u32; 3], bool)> {
+    if a == b || b == c || a == c {
+        return None;
+    }
+    // Rotate the smallest index first (a rotation keeps the winding).
+    let r = if a < b && a < c {
+        [a, b, c]
+    } else if b < c {
+        [b, c, a]
+    } else {
+        [c, a, b]
+    };
+    Some(if r[1] < r[2] {
+        (r, true)
+    } else {
+        ([r[0], r[2], r[1]], false)
+    })
+}
+
+/// For each triangle, its other winding's index where its planar group (`group`) holds
+/// exactly two triangles over the same three vertex indices with the same Gaussian, in
+/// opposite windings; `u32::MAX` otherwise. Pairs are found within groups (a few triangles
+/// each in exports); a copy in another group is another key, tested on its own.
+pub(crate) fn mirror_pairs(tris: &[[u32; 3]], gaussian: &[u32], group: &[u32]) -> Vec<u32> {
+    let n = tris.len();
+    let mut partner = vec![u32::MAX; n];
+    let groups = group.iter().map(|&g| g as usize + 1).max().unwrap_or(0);
+    // Triangles by group (counting sort).
+    let mut start = vec![0u32; groups + 1];
+    for &g in group {
+        start[g as usize + 1] += 1;
+    }
+    for k in 1..start.len() {
+        start[k] += start[k - 1];
+    }
+    let mut next = start.clone();
+    let mut order = vec![0u32; n];
+    for (t, &g) in group.iter().enumerate() {
+        order[next[g as usize] as usize] = t as u32;
+        next[g as usize] += 1;
+    }
+    drop(next);
+    let mut keyed: Vec<([u32; 3], u32, bool, u32)> = Vec::new();
+    for w in start.windows(2) {
+        let members = &order[w[0] as usize..w[1] as usize];
+        if members.len() < 2 {
+            continue;
+        }
+        keyed.clear();
+        keyed.extend(members.iter().filter_map(|&t| {
+            let (k, same) = canonical(tris[t as usize])?;
+            Some((k, gaussian[t as usize], same, t))
+        }));
+        keyed.sort_unstable();
+        let mut i = 0;
+        while i < keyed.len() {
+            let mut j = i + 1;
+            while j < keyed.len() && keyed[j].0 == keyed[i].0 && keyed[j].1 == keyed[i].1 {
+                j += 1;
+            }
+            // Exactly two triangles over these indices, in opposite windings.
+            if j - i == 2 && keyed[i].2 != keyed[i + 1].2 {
+                let (a, b) = (keyed[i].3, keyed[i + 1].3);
+                partner[a as usize] = b;
+                partner[b as usize] = a;
+            }
+            i = j;
+        }
+    }
+    partner
+}
+
+/// The pre-test's data: `[a, b, c]` per edge, `a·u + b·v + c ≥ 0` for every pixel whose ray
+/// the watertight test may report; `[0, 0, +∞]` where no edge can be formed (a triangle
+/// reaching the camera plane, a degenerate edge).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Edges(pub [[f32; 3]; 3]);
+
+/// Relative bound on the pre-test's own rounding: the coefficients are rounded to f32 (2⁻²⁴
+/// each) and `a·u + b·v + c` takes three f32 roundings of terms no larger than the sum of
+/// their magnitudes; 2⁻¹⁸ of that sum is 64 times the two together.
+const EVAL_SLACK: f64 = 1.0 / 262_144.0;
+
+impl Edges {
+    /// Every pixel passes.
+    pub(crate) const ALL: Edges = Edges([[0.0, 0.0, f32::INFINITY]; 3]);
+
+    /// The edge functions of the projected triangle `p` (image coordinates), each moved out
+    /// by `margin` pixels, for pixels within `[0, extent]` in both coordinates.
+    pub(crate) fn new(p: [(f64, f64); 3], margin: f64, extent: f64) -> Self {
+        let mut out = [[0.0f32, 0.0, f32::INFINITY]; 3];
+        for (i, e) in out.iter_mut().enumerate() {
+            let (pj, pk, pi) = (p[(i + 1) % 3], p[(i + 2) % 3], p[i]);
+            let (dx, dy) = (pk.0 - pj.0, pk.1 - pj.1);
+            let len = dx.hypot(dy);
+            if !(len > 0.0 && len.is_finite()) {
+                continue;
+            }
+            let (mut a, mut b) = (-dy / len, dx / len);
+            let mut c = -(a * pj.0 + b * pj.1);
+            // Oriented so the opposite vertex is inside; a vertex on the line (a sliver)
+            // leaves either orientation valid, since the triangle lies on the line.
+            if a * pi.0 + b * pi.1 + c < 0.0 {
+                (a, b, c) = (-a, -b, -c);
+            }
+            let slack = EVAL_SLACK * (a.abs() * extent + b.abs() * extent + c.abs() + margin);
+            let c = c + margin + slack;
+            if !c.is_finite() {
+                continue;
+            }
+            let cu = c as f32;
+            let cu = if (cu as f64) < c { cu.next_up() } else { cu };
+            *e = [a as f32, b as f32, cu];
+        }
+        Edges(out)
+    }
+
+    /// Whether the pixel `(u, v)` may be reported by the watertight test.
+    #[inline]
+    pub(crate) fn admit(&self, u: f32, v: f32) -> bool {
+        let e = &self.0;
+        (e[0][0] * u + e[0][1] * v + e[0][2] >= 0.0)
+            & (e[1][0] * u + e[1][1] * v + e[1][2] >= 0.0)
+            & (e[2][0] * u + e[2][1] * v + e[2][2] >= 0.0)
+    }
+}
+
+/// A triangle of a tile's cell, as a ray tests it: the list key, screen rectangle and edge
+/// functions, then the anchor-relative vertices the exact test reads, its instance, index,
+/// group, and its other winding's index (`u32::MAX`: none binned with it).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Cand {
+    pub zmin: f32,
+    pub rect: [f32; 4],
+    pub edges: Edges,
+    pub verts: [Vec3; 3],
+    pub inst: u32,
+    pub tri: u32,
+    pub group: u32,
+    pub mirror: u32,
+}
+
+/// The part of a [`Cand`] every ray of a cell reads: key, rectangle, edges (56 bytes).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Hot {
+    pub zmin: f32,
+    pub rect: [f32; 4],
+    pub edges: Edges,
+}
+
+/// The part of a [`Cand`] only the triangles a ray tests read.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Cold {
+    pub verts: [Vec3; 3],
+    pub inst: u32,
+    pub tri: u32,
+    pub group: u32,
+    pub mirror: u32,
+}
+
+impl Cand {
+    /// A placeholder (never walked: every slot of a tile's cells is overwritten).
+    pub(crate) const BLANK: Cand = Cand {
+        zmin: 0.0,
+        rect: [0.0; 4],
+        edges: Edges::ALL,
+        verts: [Vec3::ZERO; 3],
+        inst: 0,
+        tri: 0,
+        group: 0,
+        mirror: u32::MAX,
+    };
+
+    #[inline]
+    pub(crate) fn hot(&self) -> Hot {
+        Hot {
+            zmin: self.zmin,
+            rect: self.rect,
+            edges: self.edges,
+        }
+    }
+
+    #[inline]
+    pub(crate) fn cold(&self) -> Cold {
+        Cold {
+            verts: self.verts,
+            inst: self.inst,
+            tri: self.tri,
+            group: self.group,
+            mirror: self.mirror,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn canonical_keeps_winding_and_rejects_repeats() {
+        // The three rotations of one winding, then of the other.
+        assert_eq!(canonical([2, 5, 9]), Some(([2, 5, 9], true)));
+        assert_eq!(canonical([5, 9, 2]), Some(([2, 5, 9], true)));
+        assert_eq!(canonical([9, 2, 5]), Some(([2, 5, 9], true)));
+        assert_eq!(canonical([2, 9, 5]), Some(([2, 5, 9], false)));
+        assert_eq!(canonical([9, 5, 2]), Some(([2, 5, 9], false)));
+        assert_eq!(canonical([5, 2, 9]), Some(([2, 5, 9], false)));
+        assert_eq!(canonical([2, 2, 9]), None);
+    }
+
+    #[test]
+    fn pairs_only_opposite_windings_alone_on_their_indices() {
+        let tris = [
+            [0, 1, 2],
+            [3, 4, 5],
+            [1, 0, 2], // the other winding of 0
+            [4, 5, 3], // a rotation of 1: same winding, not a pair
+            [6, 7, 8],
+            [8, 7, 6], // the other winding of 4...
+            [7, 6, 8], // ...twice: three triangles over one triple, no pair
+            [0, 2, 1], // the other winding of 0 in another group: not a pair
+        ];
+        let gaussian = [0, 0, 0, 0, 1, 1, 1, 0];
+        let group = [0, 0, 0, 0, 1, 1, 1, 2];
+        let p = mirror_pairs(&tris, &gaussian, &group);
+        assert_eq!(
+            p,
+            vec![
+                2,
+                u32::MAX,
+                0,
+                u32::MAX,
+                u32::MAX,
+                u32::MAX,
+                u32::MAX,
+                u32::MAX
+            ]
+        );
+    }
+
+    #[test]
+    fn edges_admit_the_inside_and_reject_beyond_the_margin() {
+        let p = [(10.0, 10.0), (20.0, 10.0), (10.0, 20.0)];
+        for q in [p, [p[0], p[2], p[1]]] {
+            let e = Edges::new(q, 0.5, 64.0);
+            assert!(e.admit(12.0, 12.0));
+            // On the hypotenuse and 0.4 px beyond it (inside the margin).
+            assert!(e.admit(15.0, 15.0));
+            assert!(e.admit(15.0 + 0.28, 15.0 + 0.28));
+            // 0.6 px beyond it, and beyond the other edges.
+            assert!(!e.admit(15.0 + 0.43, 15.0 + 0.43));
+            assert!(!e.admit(9.4, 12.0));
+            assert!(!e.admit(12.0, 9.4));
+        }
+        assert!(Edges::ALL.admit(-1e6, 1e6));
+        // A degenerate triangle (all three at one point) keeps only what its edges can say.
+        let e = Edges::new([(5.0, 5.0); 3], 0.5, 64.0);
+        assert!(e.admit(40.0, 40.0));
+    }
+}
