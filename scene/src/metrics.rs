@@ -84,19 +84,31 @@ fn check_same_size(a: &Frame, b: &Frame) -> Result<()> {
     Ok(())
 }
 
+/// Values a parallel reduction sums in one piece (any fixed size keeps results independent of
+/// the thread pool; this one is large enough that the partials cost nothing).
+const SUM_CHUNK: usize = 1 << 14;
+
 /// Mean squared error over all RGB values (clamped to [0, 1]).
 pub fn mse(a: &Frame, b: &Frame) -> Result<f64> {
     check_same_size(a, b)?;
-    let sum: f64 = a
+    // Partial sums over fixed chunks, added in order: a parallel `sum` associates its partials
+    // as the pool happens to split the work, and the last bits of a PSNR then changed from
+    // run to run of the same images.
+    let partial: Vec<f64> = a
         .rgb
-        .par_iter()
-        .zip(&b.rgb)
-        .map(|(&x, &y)| {
-            let d = clamp01(x) - clamp01(y);
-            d * d
+        .par_chunks(SUM_CHUNK)
+        .zip(b.rgb.par_chunks(SUM_CHUNK))
+        .map(|(xa, xb)| {
+            xa.iter()
+                .zip(xb)
+                .map(|(&x, &y)| {
+                    let d = clamp01(x) - clamp01(y);
+                    d * d
+                })
+                .sum::<f64>()
         })
-        .sum();
-    Ok(sum / a.rgb.len() as f64)
+        .collect();
+    Ok(partial.iter().sum::<f64>() / a.rgb.len() as f64)
 }
 
 /// PSNR in dB for data range 1; `f64::INFINITY` for identical (after clamping) images.
@@ -203,6 +215,9 @@ fn ssim_plane(x: &[f64], y: &[f64], w: usize, h: usize, window: SsimWindow) -> f
             }
             s
         })
+        .collect::<Vec<f64>>()
+        // Rows added in order, whatever the pool's split (as in `mse`).
+        .iter()
         .sum();
     sum / count as f64
 }

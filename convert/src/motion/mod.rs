@@ -262,6 +262,10 @@ pub fn decompose(
                 .map(|&f| (tr.pos[f][i] - mean).length_squared())
                 .sum::<f64>()
         })
+        .collect::<Vec<f64>>()
+        // Added in order: a parallel `sum` would associate as the pool splits the work, and
+        // the report's RMS would change in its last bits from run to run.
+        .iter()
         .sum();
     let per_frame_idx: Vec<usize> = (0..n).filter(|&i| labels[i] == Label::PerFrame).collect();
     let per_frame_sq: f64 = per_frame_idx
@@ -271,6 +275,8 @@ pub fn decompose(
                 .map(|&f| (tr.pos[f][i] - tr.pos[0][i]).length_squared())
                 .sum::<f64>()
         })
+        .collect::<Vec<f64>>()
+        .iter()
         .sum();
     Ok(Decomposition {
         per_frame: per_frame_idx.len(),
