@@ -49,7 +49,10 @@ fn emit_shared_cfgs(workspace: &str) {
     println!("cargo::rustc-check-cfg=cfg(web_clients)");
     println!("cargo::rerun-if-env-changed=SPLATBRIDGE_WEB_DIR");
     println!("cargo::rerun-if-changed=build.rs");
-    let workspace = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(workspace);
+    // Read when the script runs, not baked in when it is compiled: a build script compiled in
+    // one checkout and reused from a copied target folder must look beside its own checkout.
+    let manifest = std::env::var_os("CARGO_MANIFEST_DIR").unwrap_or_default();
+    let workspace = std::path::Path::new(&manifest).join(workspace);
     println!(
         "cargo::rerun-if-changed={}",
         workspace.join("build/shared_cfg.rs").display()
