@@ -273,31 +273,22 @@ pub fn write_frames_file(
         }
         Ok(plan.small.len() as u64 + n)
     };
-    let bytes = if glb {
-        let mut total = 0;
-        if 12 + 8 + plan.json.len() as u64 + 3 + 8 + plan.bin_len + 3 > limits.max_bytes {
-            return Err(too_big(format!(
-                "--frames would write {}, more than the {} a GLB holds: write one GLB per frame with -o DIR/, or decompose with --objects auto",
-                human(20 + plan.json.len() as u64 + 8 + plan.bin_len),
-                human(limits.max_bytes)
-            )));
-        }
-        set.write_with(path, |w| {
-            total = crate::gltf_writer::glb_container(w, &plan.json, plan.bin_len, &mut body)?;
-            Ok(())
-        })
-        .map_err(crate::scene_err)?;
-        total
-    } else {
-        let mut n = 0;
-        set.write_with(&bin_path, |w| {
-            n = body(w)?;
-            Ok(())
-        })
-        .map_err(crate::scene_err)?;
-        set.write(path, &plan.json).map_err(crate::scene_err)?;
-        n + plan.json.len() as u64
-    };
+    if glb && 12 + 8 + plan.json.len() as u64 + 3 + 8 + plan.bin_len + 3 > limits.max_bytes {
+        return Err(too_big(format!(
+            "--frames would write {}, more than the {} a GLB holds: write one GLB per frame with -o DIR/, or decompose with --objects auto",
+            human(20 + plan.json.len() as u64 + 8 + plan.bin_len),
+            human(limits.max_bytes)
+        )));
+    }
+    let bytes = write_staged(
+        &mut set,
+        path,
+        &bin_path,
+        glb,
+        &plan.json,
+        plan.bin_len,
+        &mut body,
+    )?;
     set.commit().map_err(crate::scene_err)?;
     r.bytes = bytes;
     r.seconds = t0.elapsed().as_secs_f64();
@@ -393,6 +384,35 @@ pub fn write_frames_dir(
     set.commit().map_err(crate::scene_err)?;
     total.seconds = t0.elapsed().as_secs_f64();
     Ok((index, total))
+}
+
+/// Stage a document whose buffer `body` streams: one GLB at `path`, or `path` (.gltf) with
+/// its buffer in `bin_path`; nothing is committed here. Returns the bytes written.
+pub(crate) fn write_staged(
+    set: &mut OutputSet,
+    path: &Path,
+    bin_path: &Path,
+    glb: bool,
+    json: &[u8],
+    bin_len: u64,
+    body: &mut impl FnMut(&mut BufWriter<std::fs::File>) -> io::Result<u64>,
+) -> Result<u64> {
+    let mut n = 0;
+    if glb {
+        set.write_with(path, |w| {
+            n = crate::gltf_writer::glb_container(w, json, bin_len, body)?;
+            Ok(())
+        })
+        .map_err(crate::scene_err)?;
+        return Ok(n);
+    }
+    set.write_with(bin_path, |w| {
+        n = body(w)?;
+        Ok(())
+    })
+    .map_err(crate::scene_err)?;
+    set.write(path, json).map_err(crate::scene_err)?;
+    Ok(n + json.len() as u64)
 }
 
 /// Read a per-frame folder's index (`DIR/frames.json`, or `DIR`), checked: the format name,

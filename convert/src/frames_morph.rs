@@ -34,11 +34,10 @@ use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::output::OutputSet;
 use splatbridge_scene::{Camera, GaussianCloud};
 
-use crate::frames_gltf::{check_times, FramesLimits};
+use crate::frames_gltf::{check_times, write_staged, FramesLimits};
 use crate::gltf_doc::{typed_json, ARRAY_BUFFER, FLOAT};
 use crate::gltf_writer::{
-    entry_regions, frame_key_times, glb_container, layout_for, plan_at, region_of, stream_entry,
-    EntryInfo,
+    entry_regions, frame_key_times, layout_for, plan_at, region_of, stream_entry, EntryInfo,
 };
 use crate::motion::stream::FrameSource;
 use crate::options::{ConvertOptions, ConvertReport};
@@ -366,31 +365,14 @@ pub fn write_frames_morph(
         w.write_all(&tail)?;
         Ok(plan.small.len() as u64 + base.len() as u64 + n + tail.len() as u64)
     };
-    let bytes = if glb {
-        if 28 + json.len() as u64 + bin_len + 6 > limits.max_bytes {
-            return Err(refuse(format!(
-                "morph targets would write {} bytes, more than the {} a GLB holds",
-                28 + json.len() as u64 + bin_len,
-                limits.max_bytes
-            )));
-        }
-        let mut total = 0;
-        set.write_with(path, |w| {
-            total = glb_container(w, &json, bin_len, &mut body)?;
-            Ok(())
-        })
-        .map_err(crate::scene_err)?;
-        total
-    } else {
-        let mut n = 0;
-        set.write_with(&bin_path, |w| {
-            n = body(w)?;
-            Ok(())
-        })
-        .map_err(crate::scene_err)?;
-        set.write(path, &json).map_err(crate::scene_err)?;
-        n + json.len() as u64
-    };
+    if glb && 28 + json.len() as u64 + bin_len + 6 > limits.max_bytes {
+        return Err(refuse(format!(
+            "morph targets would write {} bytes, more than the {} a GLB holds",
+            28 + json.len() as u64 + bin_len,
+            limits.max_bytes
+        )));
+    }
+    let bytes = write_staged(&mut set, path, &bin_path, glb, &json, bin_len, &mut body)?;
     set.commit().map_err(crate::scene_err)?;
     report.bytes = bytes;
     report.seconds = t0.elapsed().as_secs_f64();
