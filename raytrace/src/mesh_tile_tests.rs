@@ -17,7 +17,7 @@ use super::footprint::sample_offsets;
 use super::kbuffer::KBuffer;
 use super::mesh_hit::{Compositor, Query};
 use super::mesh_tiles::{local_ray, TileCtx, TileLists, TILE};
-use super::mesh_tracer::{MeshHit, MeshTracer};
+use super::mesh_tracer::{MeshHit, MeshTracer, PreparedInstance};
 use super::model::{AlphaMode, Material, Mesh, Node, TriScene};
 use super::render::{camera_ray, RenderOptions};
 use crate::backend::{BackendKind, BuildPreset};
@@ -235,6 +235,29 @@ fn reference(tracer: &MeshTracer, time: f64, o: DVec3, d: DVec3, min_t: f32) -> 
     out
 }
 
+/// Trace sample `uv` through the tile path (stop at transmittance 1e-4) and require its hits
+/// to be the reference's (stopped at `min_t`) bit for bit, as far as the reference goes;
+/// returns the reference's hits.
+fn check_sample(
+    tracer: &MeshTracer,
+    insts: &[PreparedInstance],
+    ctx: &mut TileCtx,
+    cam: &Camera,
+    uv: (f64, f64),
+    min_t: f32,
+) -> Vec<MeshHit> {
+    let (i, j) = (uv.0 as u32, uv.1 as u32);
+    let (o, d) = camera_ray(cam, uv.0, uv.1);
+    let want = reference(tracer, 0.0, o, d, min_t);
+    tracer.tile_hits(insts, ctx, o, d, uv, 1e-4);
+    let got = &ctx.buffer().hits;
+    assert!(got.len() >= want.len(), "pixel ({i}, {j}) lost hits");
+    for (g, w) in got.iter().zip(&want) {
+        assert_eq!(hit_bits(g), hit_bits(w), "pixel ({i}, {j})");
+    }
+    want
+}
+
 /// Hits as bits (distance, key, triangle, barycentrics, colour).
 fn hit_bits(h: &MeshHit) -> Vec<u32> {
     let mut v = vec![
@@ -298,15 +321,14 @@ fn tile_hits_equal_brute_force() {
                                 for &(du, dv) in &offsets {
                                     let (du, dv) = if spp == 1 { (0.5, 0.5) } else { (du, dv) };
                                     let uv = (i as f64 + du, j as f64 + dv);
-                                    let (o, d) = camera_ray(&cam, uv.0, uv.1);
-                                    let want =
-                                        reference(&tracer, 0.0, o, d, opts.min_transmittance);
-                                    tracer.tile_hits(&insts, &mut ctx, o, d, uv, 1e-4);
-                                    let got = &ctx.buffer().hits;
-                                    assert!(got.len() >= want.len(), "pixel ({i}, {j}) lost hits");
-                                    for (g, w) in got.iter().zip(&want) {
-                                        assert_eq!(hit_bits(g), hit_bits(w), "pixel ({i}, {j})");
-                                    }
+                                    let want = check_sample(
+                                        &tracer,
+                                        &insts,
+                                        &mut ctx,
+                                        &cam,
+                                        uv,
+                                        opts.min_transmittance,
+                                    );
                                     compared += want.len();
                                     let opaque = want
                                         .iter()
@@ -510,15 +532,7 @@ fn pixel_aligned_grids_equal_brute_force() {
             for j in ty * TILE..((ty + 1) * TILE).min(cam.height) {
                 for i in tx * TILE..((tx + 1) * TILE).min(cam.width) {
                     let uv = (i as f64 + 0.5, j as f64 + 0.5);
-                    let (o, d) = camera_ray(&cam, uv.0, uv.1);
-                    let want = reference(&tracer, 0.0, o, d, 1e-4);
-                    tracer.tile_hits(&insts, &mut ctx, o, d, uv, 1e-4);
-                    let got = &ctx.buffer().hits;
-                    assert!(got.len() >= want.len(), "pixel ({i}, {j}) lost hits");
-                    for (g, w) in got.iter().zip(&want) {
-                        assert_eq!(hit_bits(g), hit_bits(w), "pixel ({i}, {j})");
-                    }
-                    compared += want.len();
+                    compared += check_sample(&tracer, &insts, &mut ctx, &cam, uv, 1e-4).len();
                 }
             }
         }
