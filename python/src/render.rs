@@ -281,7 +281,7 @@ fn trace<'py>(
         compositing: Compositing::Display,
         footprint,
         order,
-        sh_direction: ShDirection::Ray,
+        sh_direction: ShDirection::for_footprint(footprint),
         ..splatbridge_raytrace::RenderOptions::default()
     };
     let (input, held) = match &scene {

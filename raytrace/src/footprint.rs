@@ -82,6 +82,18 @@ pub enum ShDirection {
     Mean,
 }
 
+impl ShDirection {
+    /// `trace`'s default: native's direction whenever a footprint is on (the parity mode,
+    /// which takes native's hit order too; it also lets a frame evaluate each Gaussian's
+    /// colour once instead of once per hit), the ray's with the footprint off (3DGRT's model).
+    pub fn for_footprint(footprint: Footprint) -> Self {
+        match footprint {
+            Footprint::Off => ShDirection::Ray,
+            Footprint::On | Footprint::Projected => ShDirection::Mean,
+        }
+    }
+}
+
 /// Which footprint a sub-pixel sample carries when `spp > 1`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum SampleFootprint {

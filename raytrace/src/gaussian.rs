@@ -493,15 +493,30 @@ impl GaussianTracer {
     /// Colour of a hit seen from world point `o` toward the Gaussian's mean (native's SH
     /// direction; an object's SH in its local frame).
     pub fn hit_color_toward_mean(&self, h: &GaussianHit, o: DVec3) -> Vec3 {
-        let i = h.instance as usize;
+        self.color_toward_mean(h.instance as usize, h.payload.index as usize, o)
+    }
+
+    /// Colour of Gaussian `g` of part `i` seen from world point `o` toward its mean.
+    fn color_toward_mean(&self, i: usize, g: usize, o: DVec3) -> Vec3 {
         let part = &self.parts[i];
-        let g = h.payload.index as usize;
         let from = match &self.placed[i] {
             None => o,
             Some(p) => p.to_local.transform_point3(o) + part.anchor,
         };
         let dir = (part.cloud.means[g].as_dvec3() - from).normalize_or_zero();
         sh::eval_color(part.cloud.sh_degree, part.cloud.sh_of(g), dir.as_vec3())
+    }
+
+    /// Every Gaussian's colour of part 0 seen from `o` toward its mean, for a frame whose
+    /// rays all start at `o`: with native's SH direction a Gaussian has one colour per
+    /// camera, as native evaluates it once per splat, so the tile path looks it up instead of
+    /// evaluating it per hit. Each entry is [`GaussianTracer::hit_color_toward_mean`]'s value.
+    fn colors_toward_mean(&self, o: DVec3) -> Vec<Vec3> {
+        use rayon::prelude::*;
+        (0..self.parts[0].cloud.len())
+            .into_par_iter()
+            .map(|g| self.color_toward_mean(0, g, o))
+            .collect()
     }
 
     /// World normal of a hit Gaussian: its shortest axis.
@@ -653,6 +668,10 @@ impl GaussianTracer {
             None => self.parts[0].boxes.as_slice(),
         };
         let lists = tiles::TileLists::build(self, cam, boxes, padded.as_ref(), opts.near);
+        // Every primary ray starts at the camera's centre (`render::camera_ray`).
+        let mean_colors = (opts.sh_direction == ShDirection::Mean)
+            .then(|| (cam.centre, self.colors_toward_mean(cam.centre)));
+        let mean_colors = mean_colors.as_ref().map(|(o, c)| (*o, c.as_slice()));
         let prepare = start.elapsed().as_secs_f64();
         let (frame, mut stats) = crate::render::render_frame_tiles(
             cam,
@@ -675,10 +694,20 @@ impl GaussianTracer {
                     Some((None, _)) => with_thread_buffer(opts.k, |b| {
                         self.trace_fp(o, d, Some(forward), None, opts, b)
                     }),
-                    Some((Some(f), p)) => {
-                        self.trace_tile(list, o, d, uv, forward, Some((&f, p)), opts, scratch)
+                    Some((Some(f), p)) => self.trace_tile(
+                        list,
+                        o,
+                        d,
+                        uv,
+                        forward,
+                        Some((&f, p)),
+                        mean_colors,
+                        opts,
+                        scratch,
+                    ),
+                    None => {
+                        self.trace_tile(list, o, d, uv, forward, None, mean_colors, opts, scratch)
                     }
-                    None => self.trace_tile(list, o, d, uv, forward, None, opts, scratch),
                 }
             },
         )?;

@@ -183,18 +183,18 @@ pub fn settings(only: &[String]) -> Vec<(&'static str, String, Setting, bool)> {
     if want("footprint-causes") {
         footprint_rows(&mut v, FOOTPRINT_CAUSES);
     }
-    // `trace`'s default for mode gaussian alone (footprint on, mean-depth order), only when
-    // named: the one row to measure on large scenes and at large sizes.
+    // `trace`'s default for mode gaussian alone (footprint on, mean-depth order, SH toward the
+    // mean), only when named: the one row to measure on large scenes and at large sizes.
     if only.iter().any(|o| o == "footprint-default") {
         footprint_rows(
             &mut v,
             &[(
-                "on + mean-depth order",
+                "on + both (trace's default)",
                 Footprint::On,
                 1,
                 SUB,
                 HitOrder::MeanDepth,
-                ShDirection::Ray,
+                ShDirection::Mean,
             )],
         );
     }

@@ -224,13 +224,16 @@ pub fn render_mesh_with(
 }
 
 /// Ray-trace the Gaussians themselves (3DGRT-style) with a tracer built once and posed at
-/// each time (`Renderer::set_time`), with the pixel footprint on and native's hit order (the
-/// parity mode, as `trace --mode gaussian` defaults to).
+/// each time (`Renderer::set_time`), with the pixel footprint on, native's hit order and
+/// native's SH direction (the parity mode, as `trace --mode gaussian` defaults to).
 pub fn render_gaussians(tracer: &mut Renderer, cam: &Camera, k: usize) -> anyhow::Result<Rendered> {
     let opts = TraceOptions {
         k,
         footprint: splatbridge_raytrace::Footprint::On,
         order: splatbridge_raytrace::HitOrder::MeanDepth,
+        sh_direction: splatbridge_raytrace::ShDirection::for_footprint(
+            splatbridge_raytrace::Footprint::On,
+        ),
         ..TraceOptions::default()
     };
     render_traced_with(tracer, cam, 0.0, opts)

@@ -14,7 +14,7 @@ use super::camera::Bucket;
 use super::cull_tests::{bits, random_rotation_and_sh};
 use super::GaussianTracer;
 use crate::backend::{Accel, BackendKind, BuildPreset, EMBREE_AVAILABLE};
-use crate::footprint::{Footprint, HitOrder};
+use crate::footprint::{Footprint, HitOrder, ShDirection};
 use crate::geom::ray_box;
 use crate::render::{RenderOptions, Stats};
 
@@ -131,15 +131,22 @@ fn tiles_match_per_ray_and_brute_force() {
             (Footprint::Projected, 1),
             (Footprint::Off, 1),
         ] {
-            for k in [1, 16] {
+            // The SH direction `mean` is looked up in the frame's colour table on the tile
+            // path and evaluated per hit on the others.
+            for (k, sh_direction) in [
+                (1, ShDirection::Ray),
+                (16, ShDirection::Ray),
+                (16, ShDirection::Mean),
+            ] {
                 let opts = RenderOptions {
                     k,
                     spp,
                     footprint,
                     order: HitOrder::MeanDepth,
+                    sh_direction,
                     ..RenderOptions::default()
                 };
-                let what = format!("{b} {footprint:?} spp {spp} k {k}");
+                let what = format!("{b} {footprint:?} spp {spp} k {k} {sh_direction:?}");
                 let [(tiled, ts), (per_ray, ps), (brute, bs)] = renders(&tracer, &cam, &opts);
                 assert!(bs.hits > 0, "{what}: nothing drawn");
                 assert_eq!(bits(&tiled), bits(&brute), "{what}: tiles vs brute force");
@@ -189,10 +196,15 @@ fn tile_render_does_not_depend_on_threads() {
     let tracer =
         GaussianTracer::new(scene(12, 1000), BackendKind::Obvhs, BuildPreset::Medium).unwrap();
     let cam = camera(50, 35);
-    for footprint in [Footprint::On, Footprint::Projected] {
+    for (footprint, sh_direction) in [
+        (Footprint::On, ShDirection::Ray),
+        (Footprint::On, ShDirection::Mean),
+        (Footprint::Projected, ShDirection::Mean),
+    ] {
         let opts = RenderOptions {
             footprint,
             order: HitOrder::MeanDepth,
+            sh_direction,
             ..RenderOptions::default()
         };
         let frames: Vec<Vec<u32>> = [1, 2, 3]

@@ -380,8 +380,10 @@ impl GaussianTracer {
     /// One primary ray through the cell list `list`: what [`GaussianTracer::trace_fp`]
     /// returns for it (its statistics aside: one traversal, and the candidates its rectangle
     /// and ellipse tests passed). `uv` is the ray's continuous image coordinate, `fp` its
-    /// footprint (None with the footprint off), `padded` the camera's grown boxes, `scratch`
-    /// the tile's scratch space.
+    /// footprint (None with the footprint off), `padded` the camera's grown boxes,
+    /// `mean_colors` the colours toward the means seen from the frame's origin (with
+    /// [`ShDirection::Mean`]; a ray from elsewhere evaluates its own), `scratch` the tile's
+    /// scratch space.
     ///
     /// Hits are composited as they come (transmittance, depth and where the ray stops need no
     /// colour); their colours are evaluated together at the end and added in the hits' order,
@@ -395,6 +397,7 @@ impl GaussianTracer {
         uv: (f64, f64),
         forward: DVec3,
         fp: Option<(&RayFootprint, &Padded)>,
+        mean_colors: Option<(DVec3, &[Vec3])>,
         opts: &RenderOptions,
         scratch: &mut Scratch,
     ) -> PixelOut {
@@ -416,6 +419,9 @@ impl GaussianTracer {
             products,
         } = scratch;
         let by_ray = opts.sh_direction == ShDirection::Ray;
+        // The frame's table holds this ray's colours only when it starts where the table was
+        // made.
+        let table = mean_colors.and_then(|(at, c)| (at == o).then_some(c));
         composited.clear();
         colors.clear();
         // Composite `pending` (hits of one key distance) in Gaussian order, as `Accum::add`
@@ -436,7 +442,10 @@ impl GaussianTracer {
                 acc.wsum += w;
                 acc.tr *= 1.0 - a;
                 if opts.sh_direction == ShDirection::Mean {
-                    colors.push(self.hit_color_toward_mean(h, o));
+                    colors.push(match table {
+                        Some(c) => c[h.payload.index as usize],
+                        None => self.hit_color_toward_mean(h, o),
+                    });
                 }
                 composited.push((h.payload.index, w));
             }

@@ -147,8 +147,8 @@ pub struct TraceInput {
     /// the default with a footprint, hit with --footprint off).
     #[arg(long, value_enum)]
     pub order: Option<OrderArg>,
-    /// Mode gaussian: SH direction of a primary ray's hits (default: ray; mean with
-    /// --footprint projected).
+    /// Mode gaussian: SH direction of a primary ray's hits: ray (3DGRT's) or mean (camera
+    /// toward the mean, native's; the default with a footprint, ray with --footprint off).
     #[arg(long, value_enum)]
     pub sh_direction: Option<ShDirectionArg>,
     /// Samples per pixel (both modes): a fixed stratified pattern (k×k grid when N = k²),
@@ -204,8 +204,7 @@ impl TraceInput {
                 sh_direction: match self.sh_direction {
                     Some(ShDirectionArg::Ray) => ShDirection::Ray,
                     Some(ShDirectionArg::Mean) => ShDirection::Mean,
-                    None if self.footprint() == Footprint::Projected => ShDirection::Mean,
-                    None => ShDirection::Ray,
+                    None => ShDirection::for_footprint(self.footprint()),
                 },
                 spp: self.spp,
                 sample_footprint: match self.sample_footprint {
