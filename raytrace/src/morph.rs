@@ -528,11 +528,12 @@ fn weights_channels(
             }
             let what = format!("animation {} channel {ci}", a.index());
             let node = ch.target().node();
+            // Targets as the document declares them (every primitive has as many, checked by
+            // `mesh_targets`), whether or not a primitive is a triangle one.
             let targets = node
                 .mesh()
-                .and_then(|m| prims.get(m.index()).cloned().flatten())
-                .and_then(|p| p.first().map(|p| p.targets.len()))
-                .unwrap_or(0);
+                .and_then(|m| m.primitives().next())
+                .map_or(0, |p| p.morph_targets().count());
             if targets == 0 {
                 return Err(TraceError::format(
                     path,
@@ -596,6 +597,13 @@ fn weights_channels(
                     path,
                     format!("{what}: weights are not finite"),
                 ));
+            }
+            let traced = node
+                .mesh()
+                .is_some_and(|m| prims.get(m.index()).is_some_and(Option::is_some));
+            if !traced {
+                // Morphs of primitives without surface (points): nothing to pose.
+                continue;
             }
             out.push((
                 node.index(),

@@ -518,6 +518,17 @@ fn malformed_morphs_are_clear_errors() {
 }
 
 #[test]
+fn morphed_points_load_with_nothing_to_pose() {
+    // POINTS carry no surface: their targets and weights channel are valid glTF, not traced.
+    let (mut doc, data, _) = build(23, "STEP", &[Store::Dense, Store::Zero]);
+    doc["meshes"][0]["primitives"][0]["mode"] = json!(0);
+    let mut scene = load_glb_bytes(&glb(&doc, &data), "points.glb".as_ref()).unwrap();
+    assert!(scene.morphs.is_empty());
+    assert_eq!(scene.triangle_count(), 0);
+    assert!(scene.pose_morphs(1.0).unwrap().is_empty());
+}
+
+#[test]
 fn a_scene_without_morphs_is_untouched_by_set_time() {
     let mut mesh = Mesh::default();
     common::push_fan(

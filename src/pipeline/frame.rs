@@ -230,7 +230,7 @@ fn render_traced_frame(r: &mut Renderer, req: &FrameRequest) -> anyhow::Result<R
     let frame = blend(frames, &weights)?;
 
     let lidar = match &req.lidar {
-        Some(l) => run_lidar(r, req, l)?,
+        Some(l) => run_lidar(&mut *r, req, l)?,
         None => None,
     };
     if let (Some(run), Some(w), Renderer::Gaussian { .. }, Some(l)) =
@@ -281,7 +281,7 @@ fn frame_index(times: &[f64], t: f64) -> usize {
 /// Cast the declared LiDAR: the traced frame through the tracer (frozen at the frame time), or
 /// every frame of the scene.
 fn run_lidar(
-    r: &Renderer,
+    r: &mut Renderer,
     req: &FrameRequest,
     l: &LidarRequest,
 ) -> anyhow::Result<Option<LidarRun>> {
