@@ -3,7 +3,7 @@
 //! Gaussians of `fourth_st`) with part of it moving, written both ways in the input layout
 //! and traced by `trace --time` at several times: the two files show the same frames. Then the
 //! refusals: a frame of another topology (named), the default viewer layout (the option to
-//! use named), a folder output, a input that is not 4D; each exit 2, nothing written.
+//! use named), a folder output, an input that is not 4D; each exit 2, nothing written.
 
 mod cli_common;
 
