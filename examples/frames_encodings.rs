@@ -17,8 +17,9 @@
 //! camera (convert/tests/frames_stream.rs), so hold the frames. Prints the writer's bytes and
 //! seconds as JSON. Exit status 2 on bad arguments or an input the writer refuses.
 //!
-//! An example rather than a `convert` option: our tracer does not evaluate morph targets, so
-//! the morph file is an instrument of the measurement, not a product output.
+//! `convert --frames --frames-encoding nodes|morph` writes both encodings from the CLI (input
+//! layout for morph targets); this example keeps the measurement's fixed options, the viewer
+//! layout for the nodes and the optional glTF camera.
 
 use std::path::PathBuf;
 use std::process::ExitCode;

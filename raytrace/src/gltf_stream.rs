@@ -228,12 +228,7 @@ fn stream(
     bin_start: u64,
 ) -> Result<StreamedImport> {
     let (root, spans) = rewrite(root, bin_start);
-    let doc = gltf::Document::from_json(root).map_err(|e| {
-        bad(
-            path,
-            format!("not a valid glTF: {}", input::clip_to(&e.to_string(), 400)),
-        )
-    })?;
+    let doc = gltf_check::document(root, path)?;
     let mut buffers = Buffers {
         data: (0..spans.len())
             .map(|_| gltf::buffer::Data(Vec::new()))

@@ -31,6 +31,7 @@ pub mod instances;
 pub mod kbuffer;
 pub mod lidar;
 pub mod model;
+pub mod morph;
 pub mod obj_frame;
 pub mod obj_read;
 pub mod obvhs_backend;

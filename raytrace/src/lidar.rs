@@ -358,9 +358,10 @@ pub fn scan_scene_gaussian_selected(
 
 /// Scan a triangle scene (an export, mode mesh) at each of `times` with `lidar`, writing one
 /// PLY per time into `dir`; `cameras` serve a camera mount. Animated objects are instanced at
-/// each time ([`MeshTracer::at`]), not rebuilt.
+/// each time ([`MeshTracer::at`]), not rebuilt; morphed meshes are posed at each time
+/// ([`MeshTracer::set_time`]), so the tracer is left posed at the last.
 pub fn scan_mesh_frames(
-    tracer: &MeshTracer,
+    tracer: &mut MeshTracer,
     lidar: &Lidar,
     cameras: &[Camera],
     times: &[f64],
@@ -371,7 +372,7 @@ pub fn scan_mesh_frames(
 
 /// [`scan_mesh_frames`] of only the times `keep(index, time)` selects (a shard's).
 pub fn scan_mesh_frames_selected(
-    tracer: &MeshTracer,
+    tracer: &mut MeshTracer,
     lidar: &Lidar,
     cameras: &[Camera],
     times: &[f64],
@@ -390,6 +391,7 @@ pub fn scan_mesh_frames_selected(
         if !keep(i, t) {
             continue;
         }
+        tracer.set_time(t)?;
         let s = scan(&tracer.at(t), &sensor, t);
         let path = frame_file(dir, i);
         stage_ply(&mut set, &path, &s)?;

@@ -30,7 +30,8 @@
 //!
 //! Geometry: one BVH per mesh in the mesh's local frame, relative to an anchor (the centre of
 //! its bounds) so f32 keeps precision far from the origin; at time t each visible node is an
-//! instance and the ray is carried into its frame in f64 (instancing, no per-frame rebuild).
+//! instance and the ray is carried into its frame in f64 (instancing, no per-frame rebuild;
+//! only a mesh whose morph weights change is posed and rebuilt, [`MeshTracer::set_time`]).
 
 use std::ops::ControlFlow;
 use std::time::Instant;
@@ -44,7 +45,7 @@ pub use crate::instances::Instances;
 pub use crate::kbuffer::Key;
 use crate::kbuffer::{self, Hit, KBuffer, Payload};
 use crate::mesh_hit::{Compositor, LocalRay, Query};
-use crate::model::TriScene;
+use crate::model::{Mesh, TriScene};
 use crate::render::{render_frame_spp, PixelOut, RenderOptions, Stats};
 use splatbridge_scene::{Camera, Frame};
 
@@ -254,6 +255,9 @@ pub struct MeshTracer {
     pub scene: TriScene,
     pub blas: Vec<Blas>,
     pub backend: BackendKind,
+    preset: BuildPreset,
+    /// Each mesh's triangles per box (`None`: single triangles), to rebuild a posed mesh's BVH.
+    per_box: Vec<Option<usize>>,
     /// Seconds spent building all BVHs (including the planar grouping).
     pub build_seconds: f64,
 }
@@ -301,93 +305,127 @@ impl MeshTracer {
     ) -> Result<Self> {
         let start = Instant::now();
         let mut blas = Vec::with_capacity(scene.meshes.len());
+        let mut per_boxes = Vec::with_capacity(scene.meshes.len());
         for m in &scene.meshes {
             let per_box = runs.map(|f| f(m.tris.len()).max(1));
-            let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-            for p in &m.positions {
-                lo = lo.min(p.as_dvec3());
-                hi = hi.max(p.as_dvec3());
-            }
-            if m.positions.is_empty() {
-                (lo, hi) = (DVec3::ZERO, DVec3::ZERO);
-            }
-            // An f32-representable anchor keeps `p − anchor` as exact as f32 allows.
-            let anchor = (0.5 * (lo + hi)).as_vec3().as_dvec3();
-            // Vertices relative to the anchor are computed where they are used (as the hit
-            // test does, `Blas::relative`); only the single-triangle structure keeps a copy.
-            let rel_of = |i: u32| (m.positions[i as usize].as_dvec3() - anchor).as_vec3();
-            let (group, ngroups) = m.planar_groups();
-            // Each group's plane from its largest triangle (best conditioned normal).
-            let mut best = vec![(0.0f64, (DVec3::ZERO, 0.0)); ngroups as usize];
-            for (t, tri) in m.tris.iter().enumerate() {
-                let [a, b, c] = tri.map(|i| rel_of(i).as_dvec3());
-                let n = (b - a).cross(c - a);
-                let area = n.length();
-                let g = group[t] as usize;
-                if area > best[g].0 {
-                    let n = n / area;
-                    best[g] = (area, (n, n.dot(a)));
-                }
-            }
-            let planes = best.into_iter().map(|(_, p)| p).collect();
-            let run_start = match per_box {
-                Some(n) => run_starts(&m.tri_gaussian, m.tris.len(), n),
-                None => Vec::new(),
-            };
-            let (accel, group) = match per_box {
-                Some(_) => {
-                    let boxes = run_boxes(m.positions.len(), &rel_of, &m.tris, &run_start)?;
-                    // Compacted before the build, whose scratch is the stage's peak.
-                    let group = GroupIds::over_runs(group, &run_start);
-                    (build_boxes(backend, preset, &boxes)?, group)
-                }
-                None => {
-                    let rel: Vec<Vec3> = (0..m.positions.len() as u32).map(rel_of).collect();
-                    (
-                        build_triangles(backend, preset, &rel, &m.tris)?,
-                        GroupIds::Full(group),
-                    )
-                }
-            };
-            let prims = m.tris.len();
-            let (mut slot_verts, mut slot_tri, mut slot_group) =
-                (Vec::new(), Vec::new(), Vec::new());
-            if per_box.is_none() {
-                slot_tri = match accel.slots() {
-                    Some(s) => s.to_vec(),
-                    None => (0..prims as u32).collect(),
-                };
-                slot_verts = slot_tri
-                    .iter()
-                    .map(|&t| m.tris[t as usize].map(rel_of))
-                    .collect();
-                slot_group = slot_tri.iter().map(|&t| group.get(0, t as usize)).collect();
-            }
-            // Over single triangles the slots carry their groups.
-            let group = if per_box.is_some() {
-                group
-            } else {
-                GroupIds::Full(Vec::new())
-            };
-            blas.push(Blas {
-                anchor,
-                planes,
-                lo,
-                hi,
-                accel,
-                slot_verts,
-                slot_tri,
-                slot_group,
-                run_start,
-                group,
-                mirror: std::sync::OnceLock::new(),
-            });
+            per_boxes.push(per_box);
+            blas.push(Self::build_blas(m, backend, preset, per_box)?);
         }
         Ok(MeshTracer {
             scene,
             blas,
             backend,
+            preset,
+            per_box: per_boxes,
             build_seconds: start.elapsed().as_secs_f64(),
+        })
+    }
+
+    /// Pose the scene at `t` for the next renders: the meshes morph weights move are posed
+    /// (`TriScene::pose_morphs`) and their BVHs rebuilt (the rebuild time is added to
+    /// `build_seconds`). A scene without morph targets is unchanged: its animation is
+    /// instancing, taken per render.
+    pub fn set_time(&mut self, t: f64) -> Result<()> {
+        if self.scene.morphs.is_empty() {
+            return Ok(());
+        }
+        let start = Instant::now();
+        for m in self.scene.pose_morphs(t)? {
+            self.blas[m] = Self::build_blas(
+                &self.scene.meshes[m],
+                self.backend,
+                self.preset,
+                self.per_box[m],
+            )?;
+        }
+        self.build_seconds += start.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    /// One mesh's BVH over runs of `per_box` triangles (`None`: single triangles).
+    fn build_blas(
+        m: &Mesh,
+        backend: BackendKind,
+        preset: BuildPreset,
+        per_box: Option<usize>,
+    ) -> Result<Blas> {
+        let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+        for p in &m.positions {
+            lo = lo.min(p.as_dvec3());
+            hi = hi.max(p.as_dvec3());
+        }
+        if m.positions.is_empty() {
+            (lo, hi) = (DVec3::ZERO, DVec3::ZERO);
+        }
+        // An f32-representable anchor keeps `p − anchor` as exact as f32 allows.
+        let anchor = (0.5 * (lo + hi)).as_vec3().as_dvec3();
+        // Vertices relative to the anchor are computed where they are used (as the hit
+        // test does, `Blas::relative`); only the single-triangle structure keeps a copy.
+        let rel_of = |i: u32| (m.positions[i as usize].as_dvec3() - anchor).as_vec3();
+        let (group, ngroups) = m.planar_groups();
+        // Each group's plane from its largest triangle (best conditioned normal).
+        let mut best = vec![(0.0f64, (DVec3::ZERO, 0.0)); ngroups as usize];
+        for (t, tri) in m.tris.iter().enumerate() {
+            let [a, b, c] = tri.map(|i| rel_of(i).as_dvec3());
+            let n = (b - a).cross(c - a);
+            let area = n.length();
+            let g = group[t] as usize;
+            if area > best[g].0 {
+                let n = n / area;
+                best[g] = (area, (n, n.dot(a)));
+            }
+        }
+        let planes = best.into_iter().map(|(_, p)| p).collect();
+        let run_start = match per_box {
+            Some(n) => run_starts(&m.tri_gaussian, m.tris.len(), n),
+            None => Vec::new(),
+        };
+        let (accel, group) = match per_box {
+            Some(_) => {
+                let boxes = run_boxes(m.positions.len(), &rel_of, &m.tris, &run_start)?;
+                // Compacted before the build, whose scratch is the stage's peak.
+                let group = GroupIds::over_runs(group, &run_start);
+                (build_boxes(backend, preset, &boxes)?, group)
+            }
+            None => {
+                let rel: Vec<Vec3> = (0..m.positions.len() as u32).map(rel_of).collect();
+                (
+                    build_triangles(backend, preset, &rel, &m.tris)?,
+                    GroupIds::Full(group),
+                )
+            }
+        };
+        let prims = m.tris.len();
+        let (mut slot_verts, mut slot_tri, mut slot_group) = (Vec::new(), Vec::new(), Vec::new());
+        if per_box.is_none() {
+            slot_tri = match accel.slots() {
+                Some(s) => s.to_vec(),
+                None => (0..prims as u32).collect(),
+            };
+            slot_verts = slot_tri
+                .iter()
+                .map(|&t| m.tris[t as usize].map(rel_of))
+                .collect();
+            slot_group = slot_tri.iter().map(|&t| group.get(0, t as usize)).collect();
+        }
+        // Over single triangles the slots carry their groups.
+        let group = if per_box.is_some() {
+            group
+        } else {
+            GroupIds::Full(Vec::new())
+        };
+        Ok(Blas {
+            anchor,
+            planes,
+            lo,
+            hi,
+            accel,
+            slot_verts,
+            slot_tri,
+            slot_group,
+            run_start,
+            group,
+            mirror: std::sync::OnceLock::new(),
         })
     }
 

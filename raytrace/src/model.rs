@@ -6,7 +6,8 @@
 //!
 //! Loading (see `scene_load`) fills this model from the exported file only, so a writer bug
 //! shows up in renders. Geometry stays in each mesh's local frame: animated objects are
-//! rendered as instances under their node's world transform at t, never rebuilt.
+//! rendered as instances under their node's world transform at t, never rebuilt; only meshes
+//! with morph targets change shape, posed per time by `morph`.
 
 use glam::{DAffine3, DMat3, DQuat, DVec3, Vec2, Vec3, Vec4};
 use splatbridge_scene::Camera;
@@ -238,6 +239,8 @@ pub struct TriScene {
     pub textures: Vec<Texture>,
     pub nodes: Vec<Node>,
     pub channels: Vec<Channel>,
+    /// Meshes posed by morph target weights ([`TriScene::pose_morphs`]).
+    pub morphs: crate::morph::Morphs,
     /// Vertex colours are linear (glTF's rule; splatbridge writes sRGB-decoded 3DGS colours)
     /// rather than display values (OBJ, or a glTF whose splatbridge metadata says `display`).
     pub colors_linear: bool,
@@ -259,8 +262,15 @@ impl TriScene {
                 ..Node::default()
             }],
             channels: Vec::new(),
+            morphs: Default::default(),
             colors_linear: false,
         }
+    }
+
+    /// Pose the morphed meshes at time `t` (see `morph`); returns the meshes whose positions
+    /// changed, whose BVHs are then stale.
+    pub fn pose_morphs(&mut self, t: f64) -> crate::error::Result<Vec<usize>> {
+        self.morphs.pose(&mut self.meshes, t)
     }
 
     /// Undo the axis-convention root of a splatbridge export: files written by the converter
@@ -315,6 +325,10 @@ impl TriScene {
                 lo = lo.min(*a);
                 hi = hi.max(*b);
             }
+        }
+        if let Some((a, b)) = self.morphs.time_range() {
+            lo = lo.min(a);
+            hi = hi.max(b);
         }
         if lo <= hi {
             (lo, hi)

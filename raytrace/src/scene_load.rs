@@ -7,7 +7,7 @@
 //! vertex attribute (any scalar component type; a triangle takes its first vertex's id), the
 //! material's base colour factor and texture (decoded by the `gltf` importer, RGB sRGB-decoded)
 //! and alpha mode; nodes of the default scene with TRS or matrix, animation channels
-//! (translation/rotation/scale; morph weights are ignored) and perspective cameras.
+//! (translation/rotation/scale; morph target weights, see `morph`) and perspective cameras.
 //! POINTS primitives (e.g. `KHR_gaussian_splatting`) carry no surface and are skipped.
 //!
 //! OBJ: positions, `v x y z r g b` vertex colours (OBJ has no per-vertex alpha: alpha is 1,
@@ -38,8 +38,8 @@ pub fn load_path(path: &Path) -> Result<TriScene> {
     match ext.as_str() {
         "glb" | "gltf" => {
             // A GLB file is streamed: one accessor's bytes at a time beside the scene.
-            let (doc, mut buffers, images) = crate::gltf_stream::import_path(path)?;
-            from_gltf(path, &doc, &mut buffers, &images)
+            let (doc, buffers, images) = crate::gltf_stream::import_path(path)?;
+            from_gltf(path, &doc, buffers, &images)
         }
         "obj" => load_obj(path),
         _ => Err(TraceError::format(
@@ -52,13 +52,13 @@ pub fn load_path(path: &Path) -> Result<TriScene> {
 /// [`load_glb_bytes`] taking the bytes over, so the GLB's blob is not copied.
 pub fn load_glb_vec(bytes: Vec<u8>, name: &Path) -> Result<TriScene> {
     let (doc, buffers, images) = crate::gltf_check::import_vec(bytes, None, name)?;
-    from_gltf(name, &doc, &mut Buffers::whole(buffers), &images)
+    from_gltf(name, &doc, Buffers::whole(buffers), &images)
 }
 
 /// Load a GLB (or self-contained glTF JSON) from memory; `name` is used in error messages.
 pub fn load_glb_bytes(bytes: &[u8], name: &Path) -> Result<TriScene> {
     let (doc, buffers, images) = crate::gltf_check::import(bytes, None, name)?;
-    from_gltf(name, &doc, &mut Buffers::whole(buffers), &images)
+    from_gltf(name, &doc, Buffers::whole(buffers), &images)
 }
 
 fn texture_from(path: &Path, tex: &gltf::Texture, images: &[gltf::image::Data]) -> Result<Texture> {
@@ -186,13 +186,15 @@ fn read_scalar_u32(
 }
 
 /// A checked glTF document (see `gltf_check`, which runs first) to a triangle scene, step by
-/// step: textures, materials, meshes, the node forest, animation channels, colour encoding.
+/// step: textures, materials, meshes, the node forest, animation channels, morph targets
+/// (which keep the buffers to read targets from when posed), colour encoding.
 fn from_gltf(
     path: &Path,
     doc: &gltf::Document,
-    buffers: &mut Buffers,
+    mut buffers: Buffers,
     images: &[gltf::image::Data],
 ) -> Result<TriScene> {
+    let buffers = &mut buffers;
     let textures = doc
         .textures()
         .map(|t| texture_from(path, &t, images))
@@ -200,20 +202,27 @@ fn from_gltf(
     let materials = gltf_materials(doc);
     // Primitives without a material use glTF's default material, appended last.
     let default_material = materials.len() as u32 - 1;
-    let meshes = doc
+    let mut meshes = doc
         .meshes()
         .map(|m| gltf_mesh(path, &m, &mut *buffers, default_material))
         .collect::<Result<Vec<_>>>()?;
-    let nodes = gltf_nodes(path, doc)?;
+    let mut nodes = gltf_nodes(path, doc)?;
     let channels = gltf_channels(path, doc, buffers)?;
-    Ok(TriScene {
+    let morphed = crate::morph::load_morphs(path, doc, buffers, &mut meshes, &mut nodes)?;
+    let buffers = std::mem::replace(buffers, Buffers::whole(Vec::new()));
+    let morphs = crate::morph::Morphs::new(path, doc, buffers, morphed);
+    let mut scene = TriScene {
         meshes,
         materials,
         textures,
         nodes,
         channels,
+        morphs,
         colors_linear: colors_linear(doc),
-    })
+    };
+    // Loaded posed at t = 0, as a viewer shows the file before playing it.
+    scene.pose_morphs(0.0)?;
+    Ok(scene)
 }
 
 /// The document's materials, then glTF's default material (for primitives without one).
@@ -577,7 +586,7 @@ fn gltf_camera(path: &Path, c: &gltf::Camera) -> Result<Option<Perspective>> {
     }))
 }
 
-/// Every animation channel on translation, rotation or scale (morph weights are ignored),
+/// Every animation channel on translation, rotation or scale (morph weights: `morph`),
 /// with finite, strictly increasing key times and finite values of the sampler's count.
 fn gltf_channels(path: &Path, doc: &gltf::Document, buffers: &mut Buffers) -> Result<Vec<Channel>> {
     let mut channels = Vec::new();
@@ -592,7 +601,8 @@ fn gltf_channels(path: &Path, doc: &gltf::Document, buffers: &mut Buffers) -> Re
     Ok(channels)
 }
 
-/// One animation channel (`what` names it in errors); `None` for morph weights.
+/// One animation channel (`what` names it in errors); `None` for morph weights (read by
+/// `morph`).
 fn gltf_channel(
     path: &Path,
     ch: &gltf::animation::Channel,

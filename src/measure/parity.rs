@@ -195,6 +195,10 @@ fn render_traced_with(
     if let Some(o) = r.trace_options_mut() {
         *o = opts;
     }
+    if let Renderer::Mesh { tracer, .. } = r {
+        // A morphed mesh takes its shape at `time` (a no-op without morph targets).
+        tracer.set_time(time)?;
+    }
     let t0 = Instant::now();
     let (frame, _) = r.render_traced(cam, time)?;
     Ok(Rendered {
@@ -622,7 +626,7 @@ pub fn compare_selected(
         };
         let traced = (|| -> anyhow::Result<()> {
             for &(ti, ci) in &items {
-                tracer.set_time(times[ti]);
+                tracer.set_time(times[ti])?;
                 let tag = tag(ti, ci);
                 progress(&format!("trace gaussians {tag}"));
                 let g = render_gaussians(&mut tracer, &cams[ci], cfg.k)?;

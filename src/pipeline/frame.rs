@@ -201,13 +201,13 @@ fn render_traced_frame(r: &mut Renderer, req: &FrameRequest) -> anyhow::Result<R
     let mut blur_ms = 0.0;
     for (i, &(ts, _)) in samples.iter().enumerate() {
         let start = Instant::now();
-        r.set_time(ts);
+        r.set_time(ts)?;
         traced.push(trace_sample(r, req.camera, ts, req.effects)?);
         if i > 0 {
             blur_ms += start.elapsed().as_secs_f64() * 1e3;
         }
     }
-    r.set_time(req.time);
+    r.set_time(req.time)?;
     if req.effects.motion_blur.is_some() && !counters.simulated.iter().any(|n| n == "motion_blur") {
         counters.extra_time_samples += samples.len() as u64 - 1;
         counters.simulated.push("motion_blur".into());
@@ -230,7 +230,7 @@ fn render_traced_frame(r: &mut Renderer, req: &FrameRequest) -> anyhow::Result<R
     let frame = blend(frames, &weights)?;
 
     let lidar = match &req.lidar {
-        Some(l) => run_lidar(r, req, l)?,
+        Some(l) => run_lidar(&mut *r, req, l)?,
         None => None,
     };
     if let (Some(run), Some(w), Renderer::Gaussian { .. }, Some(l)) =
@@ -281,7 +281,7 @@ fn frame_index(times: &[f64], t: f64) -> usize {
 /// Cast the declared LiDAR: the traced frame through the tracer (frozen at the frame time), or
 /// every frame of the scene.
 fn run_lidar(
-    r: &Renderer,
+    r: &mut Renderer,
     req: &FrameRequest,
     l: &LidarRequest,
 ) -> anyhow::Result<Option<LidarRun>> {

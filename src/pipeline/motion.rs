@@ -24,6 +24,7 @@ use serde::Serialize;
 use splatbridge_convert::frames_gltf::{
     write_frames_dir, write_frames_file, FramesIndex, FramesLimits,
 };
+use splatbridge_convert::frames_morph::write_frames_morph;
 use splatbridge_convert::motion::stream::{decompose_streamed, FrameSource};
 use splatbridge_convert::motion::{subset, DecomposeOptions, Decomposition};
 use splatbridge_convert::{ConvertOptions, ConvertReport};
@@ -125,11 +126,27 @@ pub fn total_gaussians(model: &FourD, frames: usize) -> u64 {
     }
 }
 
+/// How one animated glTF of `convert --frames` holds the frames (measured in docs/motion.md,
+/// "Per-frame nodes or morph targets").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum FramesEncoding {
+    /// A node per frame switched by stepped scale keys (`frames_gltf`): takes every 4D input
+    /// and every layout.
+    #[default]
+    Nodes,
+    /// One mesh, frame 0 as its base and a morph target per later frame, STEP weights
+    /// (`frames_morph`): only frames that mesh to frame 0's topology, in the input layout.
+    Morph,
+}
+
 /// `convert --frames`: every frame of `model` (at `times`) meshed whole with `opts`, one frame
-/// in memory at a time, into one animated glTF at `output` or, with `dir`, one GLB per frame
-/// in the folder `output` (`splatbridge_convert::frames_gltf`). Surfels and a triangle budget
-/// split or budget every frame together, so with those the frames are held and the in-memory
-/// writer writes the file.
+/// in memory at a time, into one animated glTF at `output` encoded as `encoding` or, with
+/// `dir`, one GLB per frame in the folder `output` (`splatbridge_convert::frames_gltf`).
+/// Surfels and a triangle budget split or budget every frame together, so with those the
+/// frames are held and the in-memory writer writes the file (per-frame nodes only). Morph
+/// targets are refused for a folder, and by their writer for options they cannot carry and
+/// for frames whose topology differs from frame 0's (naming the first).
+#[allow(clippy::too_many_arguments)]
 pub fn export_frames(
     model: &FourD,
     times: &[f64],
@@ -137,8 +154,23 @@ pub fn export_frames(
     output: &Path,
     opts: &ConvertOptions,
     dir: bool,
+    encoding: FramesEncoding,
 ) -> anyhow::Result<FramesWritten> {
     let src = ModelFrames { model, times };
+    let limits = FramesLimits {
+        total_gaussians: Some(total_gaussians(model, times.len())),
+        ..FramesLimits::default()
+    };
+    if encoding == FramesEncoding::Morph {
+        if dir {
+            bail!(
+                "{}: morph targets are written to one .glb or .gltf, not one GLB per frame",
+                output.display()
+            );
+        }
+        let report = write_frames_morph(output, &src, times, opts, &limits, &[])?;
+        return Ok(FramesWritten::File(report));
+    }
     if dir {
         let (index, report) = write_frames_dir(output, &src, times, fps, opts)?;
         return Ok(FramesWritten::Dir(index, report));
@@ -152,10 +184,6 @@ pub fn export_frames(
         let report = splatbridge_convert::convert_to_file(output, &scene, None, opts, true)?;
         return Ok(FramesWritten::File(report));
     }
-    let limits = FramesLimits {
-        total_gaussians: Some(total_gaussians(model, times.len())),
-        ..FramesLimits::default()
-    };
     Ok(FramesWritten::File(write_frames_file(
         output, &src, times, opts, &limits,
     )?))

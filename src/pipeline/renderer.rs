@@ -269,11 +269,15 @@ impl Renderer {
     }
 
     /// Pose the tracers' scene at `t` for the next render (mode gaussian re-poses its
-    /// objects; mode mesh takes the time per render).
-    pub fn set_time(&mut self, t: f64) {
-        if let Renderer::Gaussian { tracer, .. } = self {
-            tracer.set_time(t);
+    /// objects; mode mesh poses its morphed meshes, reading their targets from the file, and
+    /// takes the node transforms per render).
+    pub fn set_time(&mut self, t: f64) -> anyhow::Result<()> {
+        match self {
+            Renderer::Gaussian { tracer, .. } => tracer.set_time(t),
+            Renderer::Mesh { tracer, .. } => tracer.set_time(t)?,
+            _ => {}
         }
+        Ok(())
     }
 
     /// Draw `cloud` (native, hybrid) at `cam`.

@@ -231,6 +231,8 @@ impl TraceSource {
         if !self.gltf_frame {
             scene.to_capture_frame();
         }
+        // Morphed meshes take their shape at the traced time (framing and camera included).
+        scene.pose_morphs(self.time)?;
         let (effects_scene, effects) = match &self.effects_from {
             Some(m) => {
                 let s = load_scene_warn(m, false, warn)?;

@@ -82,6 +82,18 @@ pub struct Args {
     /// per frame and DIR/frames.json (-o DIR/); frames read one at a time.
     #[arg(long)]
     pub frames: bool,
+    /// With --frames -o OUT.glb|.gltf: `nodes` writes a node per frame switched by stepped
+    /// scale keys (any 4D input, any layout); `morph` one mesh, frame 0 as its base and a morph
+    /// target per later frame (1/3 to 1/20 of the size, docs/motion.md), for frames that mesh
+    /// to frame 0's topology, with --layout input.
+    #[arg(
+        long,
+        value_enum,
+        default_value = "nodes",
+        value_name = "ENCODING",
+        requires = "frames"
+    )]
+    pub frames_encoding: motion::FramesEncodingArg,
     /// Find what moves in a 4D input (numbered frames, SpacetimeGaussians PLY, .splatv, params.npz): `auto` splits it
     /// into a static background, rigid objects with one pose per frame and per-frame content
     /// for the rest; `none` keeps everything that moves per frame. With -o DIR (no glTF
@@ -200,6 +212,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     if args.objects.is_some() || (four_d && (args.frames || args.scene.is_dir())) {
         return motion::run(&args);
+    }
+    if args.frames_encoding == motion::FramesEncodingArg::Morph {
+        anyhow::bail!(
+            "{}: --frames-encoding morph takes a 4D input (numbered frames, SpacetimeGaussians PLY, .splatv, params.npz)",
+            args.scene.display()
+        );
     }
     let req = args.request()?;
     let t0 = Instant::now();

@@ -8,7 +8,8 @@ use anyhow::bail;
 use clap::ValueEnum;
 use splatbridge::pipeline::export::is_gltf;
 use splatbridge::pipeline::motion::{
-    decompose_path, export_frames, frames_scene, open_model, FramesWritten, MotionReport,
+    decompose_path, export_frames, frames_scene, open_model, FramesEncoding, FramesWritten,
+    MotionReport,
 };
 use splatbridge_convert::motion::DecomposeOptions;
 
@@ -20,6 +21,14 @@ pub enum ObjectsArg {
     Auto,
     /// Static background and per-frame content (no rigid objects).
     None,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum FramesEncodingArg {
+    /// A node per frame, switched by stepped scale keys.
+    Nodes,
+    /// One mesh with a morph target per frame after the first, stepped weights.
+    Morph,
 }
 
 pub fn run(args: &Args) -> anyhow::Result<()> {
@@ -129,7 +138,16 @@ fn run_frames(args: &Args, t0: Instant, fps: f64) -> anyhow::Result<()> {
     let first = frames_scene(vec![model.sample(times[0])?], &times[..1], fps)?;
     let opts = req.mesh_options(&first, splatbridge_scene::ply::GaussianKind::default())?;
     drop(first);
-    match export_frames(&model, &times, fps, out, &opts, dir)? {
+    let encoding = match args.frames_encoding {
+        FramesEncodingArg::Nodes => FramesEncoding::Nodes,
+        FramesEncodingArg::Morph => FramesEncoding::Morph,
+    };
+    if encoding == FramesEncoding::Morph && opts.arranged() {
+        bail!(
+            "--frames-encoding morph keeps each frame whole in input order: give --layout input (the default viewer layout arranges chunks, orders and both windings), and no --chunk-size, --chunk-order normal, --windings both or --view-order"
+        );
+    }
+    match export_frames(&model, &times, fps, out, &opts, dir, encoding)? {
         FramesWritten::File(mut conv) => {
             conv.seconds = t0.elapsed().as_secs_f64();
             if args.json {
