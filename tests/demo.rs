@@ -119,7 +119,8 @@ fn demo_on_a_cut_writes_the_picture_and_leads_with_the_decision_table() {
         }
     };
     // Ranges around what this cut gives at 96×72 (measured: default GLB 19.8–20.2 dB,
-    // distilled 31.9–33.0, hybrid 42.5–44.2, traced Gaussians 67.3–68.9, KHR 165.5–166.0,
+    // distilled 31.9–33.0, hybrid 42.5–44.2, traced Gaussians 72.0–76.2 (67.3–68.9 with the
+    // SH along the ray, before native's direction became the parity mode's), KHR 165.5–166.0,
     // SPZ 91.2–93.7), about 3 dB wide on each side so the tracer's and the fit's numerics can
     // move without the test passing a broken export (losing alpha alone costs 8 dB on
     // `fourth_st`; docs/meshes.md).
@@ -127,8 +128,10 @@ fn demo_on_a_cut_writes_the_picture_and_leads_with_the_decision_table() {
     plausible("distilled", 28.0, 37.0);
     // The floor in docs/README.md for the sorted hybrid on every shared capture is 37.9 dB.
     plausible("hybrid", 38.0, 50.0);
-    // docs/parity.md: the traced Gaussians reach 65–67 dB on `fourth_st` at 240×180.
-    plausible("trace-gaussian", 60.0, 75.0);
+    // docs/parity.md: the traced Gaussians reach 65–68 dB on `fourth_st` at 240×180; this
+    // cut at 96×72 measured 72.0–76.2 dB. The ceiling catches a trace row that is native's
+    // image itself (+inf).
+    plausible("trace-gaussian", 62.0, 80.0);
     // Float32 KHR splats round-trip within 2e-6 (docs/formats.md): far above any mesh.
     plausible("khr", 120.0, f64::INFINITY);
     // SPZ v3's quantisation (docs/formats.md), invisible at this size.
