@@ -566,22 +566,8 @@ fn weights_channels(
                 };
                 Ok((times, values))
             })?;
-            if times.windows(2).any(|w| !(w[1] > w[0])) || times.iter().any(|t| !t.is_finite()) {
-                return Err(TraceError::format(
-                    path,
-                    format!("{what}: key times are not finite and strictly increasing"),
-                ));
-            }
-            let interpolation = match ch.sampler().interpolation() {
-                gltf::animation::Interpolation::Step => Interpolation::Step,
-                gltf::animation::Interpolation::Linear => Interpolation::Linear,
-                gltf::animation::Interpolation::CubicSpline => Interpolation::CubicSpline,
-            };
-            let per = if interpolation == Interpolation::CubicSpline {
-                3
-            } else {
-                1
-            };
+            crate::scene_load::check_key_times(path, &what, &times)?;
+            let (interpolation, per) = crate::scene_load::interpolation_of(&ch);
             if values.len() != per * targets * times.len() {
                 return Err(TraceError::format(
                     path,

@@ -642,12 +642,7 @@ fn channel_values(
         .ok_or_else(|| TraceError::format(path, format!("{what}: sampler input cannot be read")))?
         .map(|t| t as f64)
         .collect();
-    if times.windows(2).any(|w| !(w[1] > w[0])) || times.iter().any(|t| !t.is_finite()) {
-        return Err(TraceError::format(
-            path,
-            format!("{what}: key times are not finite and strictly increasing"),
-        ));
-    }
+    check_key_times(path, what, &times)?;
     let values: Vec<[f64; 4]> = match r
         .read_outputs()
         .ok_or_else(|| TraceError::format(path, format!("{what}: sampler output cannot be read")))?
@@ -661,6 +656,27 @@ fn channel_values(
     Ok(Some((times, values)))
 }
 
+/// An animation sampler's key times must be finite and strictly increasing (glTF 2.0 §3.11).
+pub(crate) fn check_key_times(path: &Path, what: &str, times: &[f64]) -> Result<()> {
+    if times.windows(2).any(|w| !(w[1] > w[0])) || times.iter().any(|t| !t.is_finite()) {
+        return Err(TraceError::format(
+            path,
+            format!("{what}: key times are not finite and strictly increasing"),
+        ));
+    }
+    Ok(())
+}
+
+/// A channel's interpolation and how many output values it stores a key: three for a cubic
+/// spline (in-tangent, value, out-tangent), else one.
+pub(crate) fn interpolation_of(ch: &gltf::animation::Channel) -> (Interpolation, usize) {
+    match ch.sampler().interpolation() {
+        gltf::animation::Interpolation::Step => (Interpolation::Step, 1),
+        gltf::animation::Interpolation::Linear => (Interpolation::Linear, 1),
+        gltf::animation::Interpolation::CubicSpline => (Interpolation::CubicSpline, 3),
+    }
+}
+
 /// A channel from its key times and values, checked against its interpolation.
 fn channel_from(
     path: &Path,
@@ -670,16 +686,7 @@ fn channel_from(
     times: Vec<f64>,
     values: Vec<[f64; 4]>,
 ) -> Result<Option<Channel>> {
-    let interpolation = match ch.sampler().interpolation() {
-        gltf::animation::Interpolation::Step => Interpolation::Step,
-        gltf::animation::Interpolation::Linear => Interpolation::Linear,
-        gltf::animation::Interpolation::CubicSpline => Interpolation::CubicSpline,
-    };
-    let per = if interpolation == Interpolation::CubicSpline {
-        3
-    } else {
-        1
-    };
+    let (interpolation, per) = interpolation_of(ch);
     if values.len() != per * times.len() {
         return Err(TraceError::format(
             path,
