@@ -10,21 +10,16 @@ mod cli_common;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use cli_common::{ok, path, temp_dir};
+use cli_common::{cut300, cut300_eye, ok, path, temp_dir};
 use glam::Vec3;
 use splatbridge_scene::fourd::{self, FourDForm};
 use splatbridge_scene::image_io::load_png;
-use splatbridge_scene::ply::{read_ply, write_ply, ReadOptions};
+use splatbridge_scene::ply::write_ply;
 use splatbridge_scene::sh::SH_C0;
 use splatbridge_scene::GaussianCloud;
 
 /// Velocity of every Gaussian (world units per unit time).
 const V: Vec3 = Vec3::new(0.5, 0.0, -0.25);
-
-fn cut300() -> GaussianCloud {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/formats/cut300.ply");
-    read_ply(&p, &ReadOptions::default()).unwrap().0
-}
 
 /// The cut as a SpacetimeGaussians lite model: velocity `V` about centre 0.5, a temporal RBF
 /// wide enough (exp(3) ≈ 20) that opacity barely changes, colour the DC colour.
@@ -95,29 +90,11 @@ fn write_stg(path: &Path, c: &GaussianCloud) {
     }
 }
 
-/// One fixed camera for every render of these tests: a generated camera is framed on the
-/// scene it renders, and a still PLY of the model at time t is another scene than the model
-/// (framed at its start), so the comparisons give both the same explicit eye: looking at the
-/// cut's centre from 2 diagonals away along −z, up −y as 3DGS captures are.
+/// One fixed camera for every render of these tests: a still PLY of the model at time t is
+/// another scene than the model (framed at its start), so the comparisons give both the same
+/// explicit eye, 2 diagonals from the cut.
 fn fixed_eye() -> [String; 8] {
-    let c = cut300();
-    let (lo, hi) = c.means.iter().fold(
-        (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
-        |(lo, hi), &m| (lo.min(m), hi.max(m)),
-    );
-    let centre = (lo + hi) * 0.5;
-    let eye = centre - Vec3::Z * 2.0 * (hi - lo).length();
-    let v = |v: Vec3| format!("{},{},{}", v.x, v.y, v.z);
-    [
-        "--eye".into(),
-        v(eye),
-        "--target".into(),
-        v(centre),
-        "--up".into(),
-        "0,-1,0".into(),
-        "--fov".into(),
-        "50".into(),
-    ]
+    cut300_eye(2.0)
 }
 
 /// Render `scene` at `t` (the fixed eye, 64×48) and return the PNG's bytes.

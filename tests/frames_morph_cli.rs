@@ -9,25 +9,16 @@ mod cli_common;
 
 use std::path::{Path, PathBuf};
 
-use cli_common::{ok, path, run, temp_dir};
+use cli_common::{cut300, cut300_eye, mean_bounds, ok, path, run, temp_dir};
 use glam::Vec3;
 use splatbridge_scene::image_io::load_png;
-use splatbridge_scene::ply::{read_ply, write_ply, ReadOptions};
-use splatbridge_scene::GaussianCloud;
-
-fn cut300() -> GaussianCloud {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/formats/cut300.ply");
-    read_ply(&p, &ReadOptions::default()).unwrap().0
-}
+use splatbridge_scene::ply::write_ply;
 
 /// Six frames (at i/30 s): the first 100 Gaussians drive along +x, the rest stay; with `drop`
 /// frame 3 loses its last Gaussian.
 fn sequence(dir: &Path, drop: bool) -> PathBuf {
     let c = cut300();
-    let (lo, hi) = c.means.iter().fold(
-        (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
-        |(lo, hi), &m| (lo.min(m), hi.max(m)),
-    );
+    let (lo, hi) = mean_bounds(&c);
     let step = 0.04 * (hi - lo).length();
     let seq = dir.join(if drop { "dropped" } else { "frames" });
     std::fs::create_dir_all(&seq).unwrap();
@@ -52,16 +43,9 @@ fn sequence(dir: &Path, drop: bool) -> PathBuf {
 /// Trace `file` at `t` from a fixed eye (64×48; an orbit camera would frame each file's
 /// bounds, which differ by the vertices' rounding) and return the decoded image.
 fn trace(file: &Path, t: f64, out: &Path) -> Vec<f32> {
-    let c = cut300();
-    let (lo, hi) = c.means.iter().fold(
-        (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
-        |(lo, hi), &m| (lo.min(m), hi.max(m)),
-    );
-    let centre = (lo + hi) * 0.5;
-    let eye = centre - Vec3::Z * 1.5 * (hi - lo).length();
-    let v = |v: Vec3| format!("{},{},{}", v.x, v.y, v.z);
-    let (ts, e, c) = (t.to_string(), v(eye), v(centre));
-    ok(&[
+    let ts = t.to_string();
+    let eye = cut300_eye(1.5);
+    let mut args = vec![
         "trace",
         path(file),
         "--time",
@@ -70,17 +54,10 @@ fn trace(file: &Path, t: f64, out: &Path) -> Vec<f32> {
         "64",
         "--height",
         "48",
-        "--eye",
-        &e,
-        "--target",
-        &c,
-        "--up",
-        "0,-1,0",
-        "--fov",
-        "50",
-        "-o",
-        path(out),
-    ]);
+    ];
+    args.extend(eye.iter().map(String::as_str));
+    args.extend(["-o", path(out)]);
+    ok(&args);
     load_png(out).unwrap().rgb
 }
 
@@ -140,6 +117,22 @@ fn both_encodings_trace_alike_at_several_times() {
     );
 }
 
+/// `convert INPUT --frames --frames-encoding morph [--layout input] -o OUT`.
+fn morph_args<'a>(input: &'a Path, input_layout: bool, out: &'a Path) -> Vec<&'a str> {
+    let mut a = vec![
+        "convert",
+        path(input),
+        "--frames",
+        "--frames-encoding",
+        "morph",
+    ];
+    if input_layout {
+        a.extend(["--layout", "input"]);
+    }
+    a.extend(["-o", path(out)]);
+    a
+}
+
 fn refused(args: &[&str], want: &str, out: &Path) {
     let r = run(args);
     let err = String::from_utf8_lossy(&r.stderr);
@@ -154,64 +147,15 @@ fn morph_refusals_name_the_frame_or_the_option() {
     let seq = sequence(&dir, false);
     let dropped = sequence(&dir, true);
     let out = dir.join("out.glb");
-    let o = path(&out);
-    refused(
-        &[
-            "convert",
-            path(&dropped),
-            "--frames",
-            "--frames-encoding",
-            "morph",
-            "--layout",
-            "input",
-            "-o",
-            o,
-        ],
-        "frame 3 meshes to",
-        &out,
-    );
-    refused(
-        &[
-            "convert",
-            path(&seq),
-            "--frames",
-            "--frames-encoding",
-            "morph",
-            "-o",
-            o,
-        ],
-        "give --layout input",
-        &out,
-    );
+    refused(&morph_args(&dropped, true, &out), "frame 3 meshes to", &out);
+    refused(&morph_args(&seq, false, &out), "give --layout input", &out);
     let folder = dir.join("per-frame/");
     refused(
-        &[
-            "convert",
-            path(&seq),
-            "--frames",
-            "--frames-encoding",
-            "morph",
-            "--layout",
-            "input",
-            "-o",
-            path(&folder),
-        ],
+        &morph_args(&seq, true, &folder),
         "not one GLB per frame",
         &folder,
     );
     let still = dir.join("still.ply");
     write_ply(&still, &cut300(), Default::default()).unwrap();
-    refused(
-        &[
-            "convert",
-            path(&still),
-            "--frames",
-            "--frames-encoding",
-            "morph",
-            "-o",
-            o,
-        ],
-        "takes a 4D input",
-        &out,
-    );
+    refused(&morph_args(&still, false, &out), "takes a 4D input", &out);
 }

@@ -473,9 +473,48 @@ impl TriScene {
     }
 }
 
+/// Where time `t` falls among an animation sampler's strictly increasing key times.
+pub(crate) enum KeyAt {
+    /// At key `k`'s value: a single key, `t` outside the keyed range (clamped, glTF 2.0
+    /// §3.11) or NaN.
+    Key(usize),
+    /// Between key `k` and `k + 1`, at fraction `s` of the segment of duration `dt`.
+    Segment { k: usize, s: f64, dt: f64 },
+}
+
+/// [`KeyAt`] of `t` among `times`; `None` without keys.
+pub(crate) fn key_at(times: &[f64], t: f64) -> Option<KeyAt> {
+    let n = times.len();
+    if n == 0 {
+        return None;
+    }
+    if n == 1 || t.is_nan() || t <= times[0] {
+        return Some(KeyAt::Key(0));
+    }
+    if t >= times[n - 1] {
+        return Some(KeyAt::Key(n - 1));
+    }
+    // Last key with time ≤ t.
+    let k = times.partition_point(|&x| x <= t) - 1;
+    let (t0, t1) = (times[k], times[k + 1]);
+    let s = ((t - t0) / (t1 - t0)).clamp(0.0, 1.0);
+    Some(KeyAt::Segment { k, s, dt: t1 - t0 })
+}
+
+/// The cubic Hermite basis `[h00, h10, h01, h11]` at fraction `s` (glTF 2.0 Appendix C,
+/// CUBICSPLINE): `h00·v_k + h10·dt·out_k + h01·v_{k+1} + h11·dt·in_{k+1}`.
+pub(crate) fn hermite(s: f64) -> [f64; 4] {
+    let (s2, s3) = (s * s, s * s * s);
+    [
+        2.0 * s3 - 3.0 * s2 + 1.0,
+        s3 - 2.0 * s2 + s,
+        -2.0 * s3 + 3.0 * s2,
+        s3 - s2,
+    ]
+}
+
 /// Sample a channel at time `t`, clamped to its first/last key outside the keyed range.
 pub fn sample_channel(c: &Channel, t: f64) -> [f64; 4] {
-    let n = c.times.len();
     let cubic = c.interpolation == Interpolation::CubicSpline;
     let value = |k: usize| {
         if cubic {
@@ -484,19 +523,11 @@ pub fn sample_channel(c: &Channel, t: f64) -> [f64; 4] {
             c.values[k]
         }
     };
-    if n == 0 {
-        return [0.0, 0.0, 0.0, 1.0];
-    }
-    if n == 1 || t.is_nan() || t <= c.times[0] {
-        return value(0);
-    }
-    if t >= c.times[n - 1] {
-        return value(n - 1);
-    }
-    // Last key with time ≤ t.
-    let k = c.times.partition_point(|&x| x <= t) - 1;
-    let (t0, t1) = (c.times[k], c.times[k + 1]);
-    let s = ((t - t0) / (t1 - t0)).clamp(0.0, 1.0);
+    let (k, s, dt) = match key_at(&c.times, t) {
+        None => return [0.0, 0.0, 0.0, 1.0],
+        Some(KeyAt::Key(k)) => return value(k),
+        Some(KeyAt::Segment { k, s, dt }) => (k, s, dt),
+    };
     let (a, b) = (value(k), value(k + 1));
     match c.interpolation {
         Interpolation::Step => a,
@@ -514,14 +545,9 @@ pub fn sample_channel(c: &Channel, t: f64) -> [f64; 4] {
             }
         }
         Interpolation::CubicSpline => {
-            let dt = t1 - t0;
             let out_a = c.values[3 * k + 2];
             let in_b = c.values[3 * (k + 1)];
-            let (s2, s3) = (s * s, s * s * s);
-            let h00 = 2.0 * s3 - 3.0 * s2 + 1.0;
-            let h10 = s3 - 2.0 * s2 + s;
-            let h01 = -2.0 * s3 + 3.0 * s2;
-            let h11 = s3 - s2;
+            let [h00, h10, h01, h11] = hermite(s);
             let mut v: [f64; 4] = std::array::from_fn(|j| {
                 h00 * a[j] + h10 * dt * out_a[j] + h01 * b[j] + h11 * dt * in_b[j]
             });

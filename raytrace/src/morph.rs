@@ -23,7 +23,7 @@ use glam::{DVec3, Vec3};
 use crate::backend::{fits_bvh, MAX_BVH_COORD};
 use crate::error::{Result, TraceError};
 use crate::gltf_stream::Buffers;
-use crate::model::{Interpolation, Mesh, Node};
+use crate::model::{hermite, key_at, Interpolation, KeyAt, Mesh, Node};
 
 /// The document and buffers targets are read from when posing (a streamed GLB keeps only its
 /// open file; any other glTF its buffers as loaded).
@@ -100,36 +100,23 @@ impl MorphMesh {
 /// Sample a weights channel of `n` targets at `t`, clamped to the first/last key outside the
 /// keyed range (as `model::sample_channel` does for the other paths).
 pub fn sample_weights(c: &WeightsChannel, n: usize, t: f64) -> Vec<f64> {
-    let keys = c.times.len();
     let cubic = c.interpolation == Interpolation::CubicSpline;
     let block = |k: usize, part: usize| -> &[f64] {
         let at = if cubic { (3 * k + part) * n } else { k * n };
         &c.values[at..at + n]
     };
-    if keys == 0 {
-        return vec![0.0; n];
-    }
-    if keys == 1 || t.is_nan() || t <= c.times[0] {
-        return block(0, 1).to_vec();
-    }
-    if t >= c.times[keys - 1] {
-        return block(keys - 1, 1).to_vec();
-    }
-    let k = c.times.partition_point(|&x| x <= t) - 1;
-    let (t0, t1) = (c.times[k], c.times[k + 1]);
-    let s = ((t - t0) / (t1 - t0)).clamp(0.0, 1.0);
+    let (k, s, dt) = match key_at(&c.times, t) {
+        None => return vec![0.0; n],
+        Some(KeyAt::Key(k)) => return block(k, 1).to_vec(),
+        Some(KeyAt::Segment { k, s, dt }) => (k, s, dt),
+    };
     let (a, b) = (block(k, 1), block(k + 1, 1));
     match c.interpolation {
         Interpolation::Step => a.to_vec(),
         Interpolation::Linear => (0..n).map(|i| a[i] + (b[i] - a[i]) * s).collect(),
         Interpolation::CubicSpline => {
-            let dt = t1 - t0;
             let (out_a, in_b) = (block(k, 2), block(k + 1, 0));
-            let (s2, s3) = (s * s, s * s * s);
-            let h00 = 2.0 * s3 - 3.0 * s2 + 1.0;
-            let h10 = s3 - 2.0 * s2 + s;
-            let h01 = -2.0 * s3 + 3.0 * s2;
-            let h11 = s3 - s2;
+            let [h00, h10, h01, h11] = hermite(s);
             (0..n)
                 .map(|i| h00 * a[i] + h10 * dt * out_a[i] + h01 * b[i] + h11 * dt * in_b[i])
                 .collect()

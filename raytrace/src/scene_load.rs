@@ -194,7 +194,6 @@ fn from_gltf(
     mut buffers: Buffers,
     images: &[gltf::image::Data],
 ) -> Result<TriScene> {
-    let buffers = &mut buffers;
     let textures = doc
         .textures()
         .map(|t| texture_from(path, &t, images))
@@ -204,12 +203,11 @@ fn from_gltf(
     let default_material = materials.len() as u32 - 1;
     let mut meshes = doc
         .meshes()
-        .map(|m| gltf_mesh(path, &m, &mut *buffers, default_material))
+        .map(|m| gltf_mesh(path, &m, &mut buffers, default_material))
         .collect::<Result<Vec<_>>>()?;
     let mut nodes = gltf_nodes(path, doc)?;
-    let channels = gltf_channels(path, doc, buffers)?;
-    let morphed = crate::morph::load_morphs(path, doc, buffers, &mut meshes, &mut nodes)?;
-    let buffers = std::mem::replace(buffers, Buffers::whole(Vec::new()));
+    let channels = gltf_channels(path, doc, &mut buffers)?;
+    let morphed = crate::morph::load_morphs(path, doc, &mut buffers, &mut meshes, &mut nodes)?;
     let morphs = crate::morph::Morphs::new(path, doc, buffers, morphed);
     let mut scene = TriScene {
         meshes,

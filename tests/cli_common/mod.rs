@@ -1,5 +1,6 @@
-//! What the command-line tests share: the binary, the street fixture, running and checking a
-//! command, a temporary folder removed after the test, and `hybrid`'s JSON report.
+//! What the command-line tests share: the binary, the street fixture, the committed cut of a
+//! real capture and a fixed camera on it, running and checking a command, a temporary folder
+//! removed after the test, and `hybrid`'s JSON report.
 
 #![allow(dead_code)]
 
@@ -9,6 +10,43 @@ use std::process::{Command, Output};
 use serde_json::Value;
 
 pub const BIN: &str = env!("CARGO_BIN_EXE_splatbridge");
+
+/// The committed cut of a real capture (`fixtures/formats/cut300.ply`: 300 Gaussians of
+/// `fourth_st`).
+pub fn cut300() -> splatbridge_scene::GaussianCloud {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/formats/cut300.ply");
+    let opts = splatbridge_scene::ply::ReadOptions::default();
+    splatbridge_scene::ply::read_ply(&p, &opts).unwrap().0
+}
+
+/// The bounds of `c`'s means.
+pub fn mean_bounds(c: &splatbridge_scene::GaussianCloud) -> (glam::Vec3, glam::Vec3) {
+    c.means.iter().fold(
+        (glam::Vec3::splat(f32::MAX), glam::Vec3::splat(f32::MIN)),
+        |(lo, hi), &m| (lo.min(m), hi.max(m)),
+    )
+}
+
+/// Camera options for one fixed view of [`cut300`]: its centre seen from `diagonals` of its
+/// bounds' diagonal away along −z, up −y as 3DGS captures are, 50° field of view. A generated
+/// camera is framed on the scene it renders, so tests comparing different files of one scene
+/// give them this one instead.
+pub fn cut300_eye(diagonals: f32) -> [String; 8] {
+    let (lo, hi) = mean_bounds(&cut300());
+    let centre = (lo + hi) * 0.5;
+    let eye = centre - glam::Vec3::Z * diagonals * (hi - lo).length();
+    let v = |v: glam::Vec3| format!("{},{},{}", v.x, v.y, v.z);
+    [
+        "--eye".into(),
+        v(eye),
+        "--target".into(),
+        v(centre),
+        "--up".into(),
+        "0,-1,0".into(),
+        "--fov".into(),
+        "50".into(),
+    ]
+}
 
 /// The street fixture's manifest.
 pub fn street() -> String {
