@@ -139,7 +139,7 @@ pub fn resolve_views(scene: &DynamicScene, time: f64, req: &ViewRequest) -> Resu
         };
         // About the default count of windows in all, at most four per view.
         let per = (super::DEFAULT_VIEWS / cams.len().max(1)).clamp(1, 4);
-        views::windows_of(&cams, per, window)
+        views::windows_of(&cloud, &cams, per, window)
     };
     let n = fit.windows.len();
     let validation = views::sphere_range(&cloud, n..n + req.validation, &sizes, window)?;

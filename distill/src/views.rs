@@ -8,7 +8,10 @@
 //! evenly. A view larger than the fitting window is fitted through a window of it
 //! ([`window_of`]): the same focal length and principal point, a smaller pixel grid. Its
 //! pixels are the big view's pixels exactly, so a 1080p view's footprint is fitted at the
-//! cost of a 240×180 image.
+//! cost of a 240×180 image. Each window is placed over the view's content
+//! ([`content_point`]): its centre is a projected Gaussian drawn by opacity × area on
+//! screen, so on a small object the windows of the large sizes fit the object, not the
+//! background around it.
 //!
 //! Held-back views ([`held_back_classes`]) are drawn apart from the fitting ones: other
 //! elevations and distances, named by class, at the measured sizes, each nudged in azimuth
@@ -119,9 +122,11 @@ fn r_sequence<const D: usize>(i: usize) -> [f64; D] {
 
 /// Point `i` of the fitting distribution: a camera at an elevation in [`FIT_ELEVATIONS`]
 /// (uniform in sin, so uniform in area over the band), any azimuth, a distance in
-/// [`FIT_DISTANCES`], the size `sizes[i mod len]`, seen through a `window`-sized window at a
-/// place in the image the sequence picks. Returns the window and the whole view.
+/// [`FIT_DISTANCES`], the size `sizes[i mod len]`, seen through a `window`-sized window over
+/// the view's content ([`content_window`], the sequence's fourth and fifth coordinates
+/// pick the place). Returns the window and the whole view.
 fn sphere_view(
+    cloud: &GaussianCloud,
     f: &Frame,
     i: usize,
     sizes: &[(u32, u32)],
@@ -137,7 +142,7 @@ fn sphere_view(
     let (w, h) = sizes[i % sizes.len()];
     let mut cam = f.camera(f.direction(el, 360.0 * b), factor, w, h)?;
     cam.name = format!("sphere {i}: {el:.0}°, {factor:.2}×, {w}×{h}");
-    Ok((window_of(&cam, window, u, v), cam))
+    Ok((content_window(cloud, &cam, window, u, v), cam))
 }
 
 /// Fitting views and the whole views they are windows of.
@@ -173,7 +178,7 @@ pub fn sphere_range(
     let f = Frame::around(cloud)?;
     let mut out = Windows::default();
     for i in range {
-        let (w, c) = sphere_view(&f, i, sizes, window)?;
+        let (w, c) = sphere_view(cloud, &f, i, sizes, window)?;
         out.windows.push(w);
         out.frames.push(c);
     }
@@ -186,11 +191,26 @@ pub fn sphere_range(
 /// window is returned as it is.
 pub fn window_of(cam: &Camera, window: (u32, u32), u: f64, v: f64) -> Camera {
     let (w, h) = (window.0.min(cam.width), window.1.min(cam.height));
+    let x0 = (cam.width - w) as f64 * u.clamp(0.0, 1.0);
+    let y0 = (cam.height - h) as f64 * v.clamp(0.0, 1.0);
+    window_at(cam, window, x0, y0)
+}
+
+/// The window of `cam` of at most `window` pixels with its top-left corner at pixel
+/// (`x0`, `y0`), rounded down to whole pixels and kept inside the image.
+pub fn window_at(cam: &Camera, window: (u32, u32), x0: f64, y0: f64) -> Camera {
+    let (w, h) = (window.0.min(cam.width), window.1.min(cam.height));
     if (w, h) == (cam.width, cam.height) {
         return cam.clone();
     }
-    let x0 = ((cam.width - w) as f64 * u.clamp(0.0, 1.0)).floor();
-    let y0 = ((cam.height - h) as f64 * v.clamp(0.0, 1.0)).floor();
+    let fit = |x: f64, room: u32| {
+        if x.is_finite() {
+            x.floor().clamp(0.0, room as f64)
+        } else {
+            0.0
+        }
+    };
+    let (x0, y0) = (fit(x0, cam.width - w), fit(y0, cam.height - h));
     Camera {
         width: w,
         height: h,
@@ -198,6 +218,90 @@ pub fn window_of(cam: &Camera, window: (u32, u32), u: f64, v: f64) -> Camera {
         cy: cam.cy - y0,
         name: format!("{} [window {w}×{h} at {x0},{y0}]", cam.name),
         ..cam.clone()
+    }
+}
+
+/// Where `cam` sees Gaussian `i` of `cloud` and how much of its image the Gaussian takes:
+/// its centre's pixel, and its opacity × its area on screen (π·σ₁σ₂ of its two largest
+/// axes at its centre's depth, plus native's 0.3 px² low-pass), capped at `cap` pixels so
+/// that one huge Gaussian cannot outweigh the scene. `None` when its centre is behind the
+/// camera or outside the image, or the weight is not a positive number.
+fn on_screen(cloud: &GaussianCloud, cam: &Camera, i: usize, cap: f64) -> Option<(f64, f64, f64)> {
+    let q = cam.to_camera(cloud.means[i].as_dvec3());
+    if !(q.z > 0.0 && q.z.is_finite()) {
+        return None;
+    }
+    let (x, y) = (cam.fx * q.x / q.z + cam.cx, cam.fy * q.y / q.z + cam.cy);
+    if !((0.0..cam.width as f64).contains(&x) && (0.0..cam.height as f64).contains(&y)) {
+        return None;
+    }
+    let s = cloud.scale(i).as_dvec3();
+    let (a, b) = if s.x >= s.y && s.x >= s.z {
+        (s.x, s.y.max(s.z))
+    } else if s.y >= s.z {
+        (s.y, s.x.max(s.z))
+    } else {
+        (s.z, s.x.max(s.y))
+    };
+    let sigma2 = a * b * cam.fx * cam.fy / (q.z * q.z);
+    let area = (std::f64::consts::PI * sigma2 + 0.3).min(cap);
+    let weight = cloud.opacity(i) as f64 * area;
+    (weight > 0.0 && weight.is_finite()).then_some((x, y, weight))
+}
+
+/// The pixel of `cam` where the content-weighted draw `t` ∈ [0, 1) lands: the Gaussians whose
+/// centres `cam` sees, each weighted by its opacity × area on screen ([`on_screen`]), laid
+/// end to end in the cloud's order; `t` picks the point at that fraction of the total
+/// weight. Deterministic (a low-discrepancy `t` spreads draws over the content) and
+/// allocation-free: one pass sums the weights, a second finds the drawn Gaussian. `None`
+/// when `cam` sees no Gaussian centre.
+pub fn content_point(
+    cloud: &GaussianCloud,
+    cam: &Camera,
+    window: (u32, u32),
+    t: f64,
+) -> Option<(f64, f64)> {
+    let cap = window.0 as f64 * window.1 as f64;
+    let total: f64 = (0..cloud.len())
+        .filter_map(|i| on_screen(cloud, cam, i, cap))
+        .map(|(_, _, w)| w)
+        .sum();
+    if !(total > 0.0 && total.is_finite()) {
+        return None;
+    }
+    let goal = t.clamp(0.0, 1.0) * total;
+    let mut sum = 0.0;
+    let mut last = None;
+    for i in 0..cloud.len() {
+        if let Some((x, y, w)) = on_screen(cloud, cam, i, cap) {
+            sum += w;
+            last = Some((x, y));
+            if sum >= goal {
+                break;
+            }
+        }
+    }
+    last
+}
+
+/// The window of `cam` centred, as far as the image allows, on the content point drawn by
+/// `t` ([`content_point`]); a view that sees no Gaussian centre is windowed at fraction
+/// (`t`, `s`) of its free room instead ([`window_of`]). A view that fits in the window is
+/// returned as it is.
+pub fn content_window(
+    cloud: &GaussianCloud,
+    cam: &Camera,
+    window: (u32, u32),
+    t: f64,
+    s: f64,
+) -> Camera {
+    let (w, h) = (window.0.min(cam.width), window.1.min(cam.height));
+    if (w, h) == (cam.width, cam.height) {
+        return cam.clone();
+    }
+    match content_point(cloud, cam, window, t) {
+        Some((x, y)) => window_at(cam, window, x - 0.5 * w as f64, y - 0.5 * h as f64),
+        None => window_of(cam, window, t, s),
     }
 }
 
@@ -237,8 +341,14 @@ pub fn sees(cam: &Camera, p: DVec3, margin: f64) -> bool {
 }
 
 /// Windows of given cameras (`--views` lists, the scene's own cameras): each camera larger
-/// than the window gives `per` windows at places the R-sequence spreads over it.
-pub fn windows_of(cams: &[Camera], per: usize, window: (u32, u32)) -> Windows {
+/// than the window gives `per` windows over its content ([`content_window`]), at places the
+/// R-sequence spreads over it.
+pub fn windows_of(
+    cloud: &GaussianCloud,
+    cams: &[Camera],
+    per: usize,
+    window: (u32, u32),
+) -> Windows {
     let mut out = Windows::default();
     let mut k = 0;
     for c in cams {
@@ -246,7 +356,7 @@ pub fn windows_of(cams: &[Camera], per: usize, window: (u32, u32)) -> Windows {
         for _ in 0..if fits { 1 } else { per.max(1) } {
             let [u, v] = r_sequence::<2>(k);
             k += 1;
-            out.windows.push(window_of(c, window, u, v));
+            out.windows.push(content_window(cloud, c, window, u, v));
             out.frames.push(c.clone());
         }
     }
@@ -413,6 +523,68 @@ mod tests {
             panic!("a centred camera is its own frame")
         };
         assert_eq!(same.width, 1920);
+    }
+
+    /// Two small objects far apart: most of a large view between and around them is empty.
+    fn two_objects() -> GaussianCloud {
+        let mut c = GaussianCloud::new(0);
+        for i in 0..64 {
+            let t = i as f32 / 63.0;
+            let x = if i % 2 == 0 { -1.0 } else { 1.0 };
+            c.push_activated(
+                Vec3::new(x + 0.04 * (9.0 * t).sin(), 0.04 * (5.0 * t).cos(), 0.04 * t),
+                Vec3::splat(0.01),
+                Quat::IDENTITY,
+                0.9,
+                Vec3::ONE,
+            );
+        }
+        c
+    }
+
+    /// Whether a Gaussian centre of `cloud` projects inside `cam`'s image.
+    fn holds_content(cloud: &GaussianCloud, cam: &Camera) -> bool {
+        (0..cloud.len()).any(|i| on_screen(cloud, cam, i, 1.0).is_some())
+    }
+
+    /// Fitting windows of large views land on the scene, not on the background around it:
+    /// every window of a 1080p or 720p view of two small objects holds one of them, where
+    /// windows spread evenly over the same views (the placement before) mostly miss both.
+    /// The placement is deterministic.
+    #[test]
+    fn windows_land_on_content() {
+        let c = two_objects();
+        let sizes = [(1920, 1080), (1280, 720)];
+        let set = sphere(&c, 48, &sizes, WINDOW).unwrap();
+        let mut even_empty = 0;
+        for (i, (w, frame)) in set.windows.iter().zip(&set.frames).enumerate() {
+            assert_eq!((w.width, w.height), WINDOW);
+            assert!(holds_content(&c, frame), "{}", frame.name);
+            assert!(holds_content(&c, w), "{} sees nothing", w.name);
+            let [_, _, _, u, v] = r_sequence::<5>(i);
+            even_empty += usize::from(!holds_content(&c, &window_of(frame, WINDOW, u, v)));
+        }
+        // The objects take a few percent of a 1080p view, so an evenly placed 240×180 window
+        // (2 % of it) misses both most of the time: at least half of the 48 here, else the
+        // scene would not tell the placements apart.
+        assert!(
+            even_empty >= 24,
+            "only {even_empty} of 48 even windows miss"
+        );
+        let again = sphere(&c, 48, &sizes, WINDOW).unwrap();
+        for (a, b) in set.windows.iter().zip(&again.windows) {
+            assert_eq!((a.cx, a.cy), (b.cx, b.cy));
+        }
+        // A view that sees no Gaussian centre falls back to the even placement.
+        let away = Frame::around(&c).unwrap();
+        let mut behind = away
+            .camera(away.direction(10.0, 0.0), 1.0, 1920, 1080)
+            .unwrap();
+        behind.world_to_cam = -behind.world_to_cam;
+        assert!(!holds_content(&c, &behind));
+        let w = content_window(&c, &behind, WINDOW, 0.3, 0.6);
+        let e = window_of(&behind, WINDOW, 0.3, 0.6);
+        assert_eq!((w.cx, w.cy), (e.cx, e.cy));
     }
 
     /// The fitting set spans the elevations, distances and sizes it names, and held-back
