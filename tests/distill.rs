@@ -440,3 +440,64 @@ fn target_sh_degree_caps_the_targets_sh() {
         assert_ne!(f.rgb, c.rgb, "the first band shows at the full degree");
     }
 }
+
+/// The guard keeps the admissible validation with the best mean, and a validation is
+/// admissible exactly when no view fell below its start by more than the tolerance; with a
+/// tolerance no loss reaches, every validation is admissible and the best mean is kept.
+/// The kept iteration's colours are the ones the fit ends with (its validation PSNRs are
+/// measured again after `run`).
+#[test]
+fn the_guard_keeps_the_best_admissible_validation_at_its_tolerance() {
+    let (scene, fit, _, _) = street_fit_and_held_back();
+    let cloud = scene.composite(0.0);
+    // Two fitting views and validation views of another orbit, so that the fit, made for
+    // two directions, makes some validation view worse (checked below).
+    let fit = &fit[..2];
+    let val = views::orbit(&cloud, 5, 0..5, 64, 48).unwrap();
+    let mut kept = Vec::new();
+    for tolerance in [splatbridge::distill::guard::TOLERANCE_DB, 1e9] {
+        let d_opts = DistillOptions {
+            iterations: 30,
+            params: ParamMode::Vertex,
+            guard_tolerance_db: tolerance,
+            ..DistillOptions::default()
+        };
+        let mut d = Distiller::new(&scene, &opts(Profile::MeshSplats), fit, &d_opts).unwrap();
+        d.add_validation(&scene, &val, &[0.0; 5]).unwrap();
+        d.run(|_| {}).unwrap();
+        let log = d.validation_log().to_vec();
+        assert_eq!(
+            log.iter().map(|v| v.iteration).collect::<Vec<_>>(),
+            vec![0, 10, 20, 30]
+        );
+        for v in &log {
+            assert_eq!(v.admissible, v.worst() >= -tolerance, "{v:?}");
+            assert_eq!(v.change.len(), 5);
+        }
+        assert!(log[0].admissible && log[0].change.iter().all(|&c| c == 0.0));
+        let best = log
+            .iter()
+            .filter(|v| v.admissible)
+            .max_by(|a, b| a.mean.total_cmp(&b.mean))
+            .unwrap();
+        let r = d.report();
+        assert_eq!(r.kept_iteration, best.iteration, "{log:?}");
+        // The colours in place are the kept iteration's: the same validation PSNRs.
+        let now = d.validation_psnr();
+        for (a, b) in now.iter().zip(&best.psnr) {
+            assert!((a - b).abs() < 1e-9, "{now:?} vs {:?}", best.psnr);
+        }
+        if tolerance > 1.0 {
+            assert!(log.iter().all(|v| v.admissible));
+        }
+        kept.push((tolerance, r.kept_iteration, log));
+    }
+    // Some validation was refused at the default tolerance, so the two runs test both sides.
+    assert!(kept[0].2.iter().any(|v| !v.admissible), "no view lost");
+    eprintln!(
+        "{:?}",
+        kept.iter()
+            .map(|(t, k, l)| (t, k, l.iter().map(|v| v.worst()).collect::<Vec<_>>()))
+            .collect::<Vec<_>>()
+    );
+}

@@ -146,6 +146,10 @@ fn bad_distillation_options_exit_2_naming_the_option() {
         "--distill-eps=inf",
         "--distill-sh-degree=4",
         "--distill-order=diagonal",
+        "--distill-footprint-quantile=1.5",
+        "--distill-footprint-quantile=nan",
+        "--distill-guard-tolerance=-1",
+        "--distill-guard-tolerance=inf",
     ] {
         let r = run(&[
             "convert",
@@ -261,6 +265,10 @@ fn accuracy_distill_sweep_fits_the_named_profiles() {
     assert!(!stdout.contains("rings it=") && !stdout.contains("texture it="));
     let md = std::fs::read_to_string(out.join("distill.md")).unwrap();
     assert!(md.contains("| meshsplats | all views | 6 |"), "{md}");
+    // The guard's log: the start, then every 10 steps and the end.
+    for it in [0, 10, 12] {
+        assert!(md.contains(&format!("| meshsplats | {it} | ")), "{md}");
+    }
     assert!(out.join("psnr_vs_distill_time.png").exists());
 
     let bad = dir.join("bad");

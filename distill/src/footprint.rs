@@ -57,9 +57,10 @@ pub fn footprint_variance(p: DVec3, cameras: &[Camera]) -> Option<f64> {
 
 /// As [`footprint_variance`], over the cameras whose image holds `p` (a tenth of the image's
 /// size of margin, for the Gaussian's own extent): each view sizes the footprint only of what
-/// it sees, so a close-up does not thin Gaussians it never shows.
-pub fn footprint_variance_seen(p: DVec3, cameras: &[Camera]) -> Option<f64> {
-    cameras
+/// it sees, so a close-up does not thin Gaussians it never shows. `quantile` picks among
+/// those views' footprints: 0 the smallest, 1 the largest, between them the nearest rank.
+pub fn footprint_variance_seen(p: DVec3, cameras: &[Camera], quantile: f64) -> Option<f64> {
+    let mut v: Vec<f64> = cameras
         .iter()
         .filter(|c| crate::views::sees(c, p, 0.1))
         .map(|c| {
@@ -67,7 +68,17 @@ pub fn footprint_variance_seen(p: DVec3, cameras: &[Camera]) -> Option<f64> {
             let f = c.fx.min(c.fy);
             LOW_PASS_PX2 * (z / f) * (z / f)
         })
-        .min_by(f64::total_cmp)
+        .collect();
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_by(f64::total_cmp);
+    let q = if quantile.is_finite() {
+        quantile.clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    Some(v[((v.len() - 1) as f64 * q).round() as usize])
 }
 
 /// Widen every Gaussian of `cloud` (its means mapped to the world by `to_world`) by the
@@ -166,9 +177,12 @@ pub fn widen_scene_with(
 pub fn widen_scene_seen(
     scene: &mut DynamicScene,
     cameras: &[Camera],
+    quantile: f64,
     flat: impl Fn(&GaussianCloud, usize) -> bool + Copy,
 ) -> Widened {
-    widen_scene_by(scene, flat, |p| footprint_variance_seen(p, cameras))
+    widen_scene_by(scene, flat, |p| {
+        footprint_variance_seen(p, cameras, quantile)
+    })
 }
 
 fn widen_scene_by(
@@ -232,6 +246,38 @@ mod tests {
         }
         assert_eq!(c.rotations[0], before.rotations[0]);
         assert_eq!(c.opacity_logits[0], before.opacity_logits[0]);
+    }
+
+    /// The quantile picks among the footprints of the views that see the point (nearest
+    /// rank), and views that do not see it take no part.
+    #[test]
+    fn the_quantile_picks_among_the_views_that_see_the_point() {
+        let p = DVec3::new(0.0, 0.0, 4.0);
+        // One view at each of five sizes: footprints 1, 1/4, 1/9, 1/16, 1/25 of the smallest
+        // size's, all looking at p.
+        let cams: Vec<Camera> = [5u32, 4, 3, 2, 1]
+            .iter()
+            .map(|&k| camera(100 * k, 75 * k))
+            .collect();
+        let each: Vec<f64> = cams
+            .iter()
+            .map(|c| footprint_variance(p, std::slice::from_ref(c)).unwrap())
+            .collect();
+        let seen = |q| footprint_variance_seen(p, &cams, q).unwrap();
+        assert_eq!(seen(0.0), each[0]);
+        assert_eq!(seen(1.0), each[4]);
+        assert_eq!(seen(0.5), each[2]);
+        assert_eq!(seen(0.25), each[1]);
+        assert_eq!(seen(f64::NAN), each[0]);
+        // A view looking away adds nothing, whatever the quantile.
+        let away = Camera::look_at(DVec3::ZERO, DVec3::NEG_Z, DVec3::NEG_Y, 50.0, 100, 75).unwrap();
+        let mut with_away = cams.clone();
+        with_away.push(away.clone());
+        assert_eq!(
+            footprint_variance_seen(p, &with_away, 1.0).unwrap(),
+            each[4]
+        );
+        assert!(footprint_variance_seen(p, &[away], 0.5).is_none());
     }
 
     /// Metamorphic: a camera at four times the resolution adds a sixteenth of the variance,

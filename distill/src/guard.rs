@@ -46,8 +46,30 @@ pub struct Guard {
     best: Option<Snapshot>,
     /// The iteration last validated.
     last: Option<usize>,
-    /// Every validation: iteration, mean PSNR, worst change from the start (dB).
-    pub log: Vec<(usize, f64, f64)>,
+    /// Every validation, in order.
+    pub log: Vec<Validation>,
+}
+
+/// One validation of the fit.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Validation {
+    pub iteration: usize,
+    /// Mean PSNR over the validation views, dB (each capped at [`CAP_DB`]).
+    pub mean: f64,
+    /// Each view's PSNR, dB (capped).
+    pub psnr: Vec<f64>,
+    /// Each view's change from the start, dB.
+    pub change: Vec<f64>,
+    /// Whether no view is below its start by more than the fit's tolerance
+    /// ([`DistillOptions::guard_tolerance_db`](crate::DistillOptions), default [`TOLERANCE_DB`]).
+    pub admissible: bool,
+}
+
+impl Validation {
+    /// The largest loss from the start (negative), or the smallest gain.
+    pub fn worst(&self) -> f64 {
+        self.change.iter().copied().fold(f64::INFINITY, f64::min)
+    }
 }
 
 impl Distiller {
@@ -116,17 +138,25 @@ impl Distiller {
             self.guard.start = now.clone();
         }
         let mean = now.iter().sum::<f64>() / now.len().max(1) as f64;
-        let worst = now
+        let change: Vec<f64> = now
             .iter()
             .zip(&self.guard.start)
             .map(|(a, b)| a - b)
-            .fold(f64::INFINITY, f64::min);
-        self.guard.log.push((it, mean, worst));
+            .collect();
+        let v = Validation {
+            iteration: it,
+            mean,
+            psnr: now.clone(),
+            change,
+            admissible: false,
+        };
+        let admissible = v.worst() >= -self.opts.guard_tolerance_db.max(0.0);
+        self.guard.log.push(Validation { admissible, ..v });
         if it == 0 {
             self.report.validation_start = mean;
         }
         let better = self.guard.best.as_ref().is_none_or(|b| mean > b.mean);
-        if worst >= -TOLERANCE_DB && better {
+        if admissible && better {
             self.guard.best = Some(Snapshot {
                 iteration: it,
                 mean,
@@ -150,8 +180,8 @@ impl Distiller {
         self.report.validation_kept = best.mean;
     }
 
-    /// Every validation so far: iteration, mean PSNR, worst change from the start.
-    pub fn validation_log(&self) -> &[(usize, f64, f64)] {
+    /// Every validation so far.
+    pub fn validation_log(&self) -> &[Validation] {
         &self.guard.log
     }
 }

@@ -263,9 +263,12 @@ pub fn distill_export(
         report.height,
         sizes_text(frames),
         if opts.footprint {
-            ", Gaussians widened by the low-pass of the views that see them"
+            format!(
+                ", Gaussians widened by the low-pass of the views that see them (quantile {})",
+                opts.footprint_quantile
+            )
         } else {
-            ""
+            String::new()
         },
         if opts.times.len() > 1 {
             format!(" over {} scene times", opts.times.len())

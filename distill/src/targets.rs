@@ -26,7 +26,7 @@ pub fn widen_for_fit(
     let ratio = convert.flat_ratio;
     opts.footprint.then(|| {
         let mut s = scene.clone();
-        crate::footprint::widen_scene_seen(&mut s, cameras, |c, i| {
+        crate::footprint::widen_scene_seen(&mut s, cameras, opts.footprint_quantile, |c, i| {
             classify(c, i, ratio, three, false) != Kind::Volumetric
         });
         s

@@ -66,6 +66,21 @@ pub struct Args {
     /// as they are (off).
     #[arg(long, value_enum, default_value = "on")]
     pub distill_footprint: super::distill_args::OnOff,
+    /// Which footprint of the views that see a Gaussian the distilled meshes widen it by
+    /// (0 the smallest, 1 the largest).
+    #[arg(long, value_name = "Q", default_value_t = splatbridge::distill::DistillOptions::default().footprint_quantile, value_parser = super::distill_args::parse_unit)]
+    pub distill_footprint_quantile: f64,
+    /// What the distill rows' fits move: per-vertex or per-Gaussian colour and opacity.
+    #[arg(long, value_enum, default_value = "vertex")]
+    pub distill_params: super::distill_args::ParamsArg,
+    /// Validation views of the distill rows' fits (the guard; 0: none, the last iteration
+    /// is kept).
+    #[arg(long, value_name = "N", default_value_t = splatbridge::distill::run::ViewRequest::default().validation)]
+    pub distill_validation: usize,
+    /// How far (dB) a validation view may fall below its start before the distill rows'
+    /// guard refuses an iteration.
+    #[arg(long, value_name = "DB", default_value_t = splatbridge::distill::DistillOptions::default().guard_tolerance_db, value_parser = super::distill_args::parse_non_negative)]
+    pub distill_guard_tolerance: f64,
     /// Iterations of the distill rows' fits.
     #[arg(long, value_name = "K", default_value_t = splatbridge::distill::DistillOptions::default().iterations)]
     pub distill_iterations: usize,
@@ -190,9 +205,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             sizes: args.distill_sizes.clone(),
             per_class: args.distill_per_class.max(1),
             checkpoints: vec![0, it / 3, it],
+            validation: args.distill_validation,
             options: splatbridge::distill::DistillOptions {
                 iterations: it,
                 footprint: args.distill_footprint == super::distill_args::OnOff::On,
+                footprint_quantile: args.distill_footprint_quantile,
+                params: args.distill_params.mode(),
+                guard_tolerance_db: args.distill_guard_tolerance,
                 ..Default::default()
             },
             ..Default::default()

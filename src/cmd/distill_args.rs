@@ -25,6 +25,16 @@ pub enum ParamsArg {
     Auto,
 }
 
+impl ParamsArg {
+    pub fn mode(self) -> ParamMode {
+        match self {
+            ParamsArg::Vertex => ParamMode::Vertex,
+            ParamsArg::Gaussian => ParamMode::Gaussian,
+            ParamsArg::Auto => ParamMode::Auto,
+        }
+    }
+}
+
 #[derive(clap::Args, Debug, Clone)]
 pub struct DistillArgs {
     /// Fit the mesh's vertex colours and opacities to native splatting before writing
@@ -94,6 +104,14 @@ pub struct DistillArgs {
     /// fit starts from fans that blur as native does at the fitting size.
     #[arg(long, value_enum, default_value = "on", requires = "distill")]
     pub distill_footprint: OnOff,
+    /// Which footprint of the views that see a Gaussian it is widened by: 0 the smallest
+    /// (the most detailed view's), 1 the largest, between them a quantile.
+    #[arg(long, value_name = "Q", default_value_t = DistillOptions::default().footprint_quantile, value_parser = parse_unit, requires = "distill")]
+    pub distill_footprint_quantile: f64,
+    /// How far (dB) a validation view may fall below its start before the guard refuses an
+    /// iteration; the default refuses any real loss.
+    #[arg(long, value_name = "DB", default_value_t = DistillOptions::default().guard_tolerance_db, value_parser = parse_non_negative, requires = "distill")]
+    pub distill_guard_tolerance: f64,
     /// Highest SH degree of the native targets (and held-back references); 0 fits and
     /// measures against view-independent colour, to see what view-dependence costs.
     #[arg(long, value_name = "D", default_value_t = 3, value_parser = clap::value_parser!(u8).range(0..=3), requires = "distill")]
@@ -148,15 +166,13 @@ impl DistillArgs {
                 LossArg::L1 => Loss::L1,
                 LossArg::L2 => Loss::L2,
             },
-            params: match self.distill_params {
-                ParamsArg::Vertex => ParamMode::Vertex,
-                ParamsArg::Gaussian => ParamMode::Gaussian,
-                ParamsArg::Auto => ParamMode::Auto,
-            },
+            params: self.distill_params.mode(),
             record_k: self.distill_record_k,
             batch: self.distill_batch,
             eps_pixels: self.distill_eps,
             footprint: self.distill_footprint == OnOff::On,
+            footprint_quantile: self.distill_footprint_quantile,
+            guard_tolerance_db: self.distill_guard_tolerance,
             target_sh_degree: self.distill_sh_degree,
             order: match self.distill_order {
                 OrderArg::Ray => HitOrder::Ray,
@@ -222,5 +238,21 @@ impl DistillArgs {
             );
         }
         Ok(())
+    }
+}
+
+/// A number in [0, 1].
+pub fn parse_unit(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if (0.0..=1.0).contains(&v) => Ok(v),
+        _ => Err(format!("{s:?} is not a number from 0 to 1")),
+    }
+}
+
+/// A finite number ≥ 0.
+pub fn parse_non_negative(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
+        _ => Err(format!("{s:?} is not a number ≥ 0")),
     }
 }

@@ -87,6 +87,8 @@ pub struct DistillRows {
     pub views: Vec<ViewResult>,
     /// Per profile: set-up seconds (targets, hit recording), fitting seconds, kept iteration.
     pub timing: Vec<(String, f64, f64, usize)>,
+    /// Per profile: every validation of the fit (the guard's log).
+    pub validation: Vec<(String, Vec<crate::distill::guard::Validation>)>,
     pub fit_description: String,
 }
 
@@ -140,6 +142,7 @@ pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<Distill
         curve: Vec::new(),
         views: Vec::new(),
         timing: Vec::new(),
+        validation: Vec::new(),
         fit_description: format!(
             "sphere:{} through {}×{} windows of views at {}, {} validation views; {} held-back views ({} per class and size)",
             cfg.views,
@@ -236,6 +239,8 @@ pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<Distill
         let r = d.report();
         out.timing
             .push((name.into(), r.setup_seconds, fit_seconds, r.kept_iteration));
+        out.validation
+            .push((name.into(), d.validation_log().to_vec()));
     }
     Ok(out)
 }
@@ -334,6 +339,23 @@ pub fn write_curve(out: &Path, what: &str, rows: &DistillRows) -> anyhow::Result
     md += "\n## Time\n\n| profile | set-up s (targets, hit recording) | fitting s (steps) | iteration kept |\n|---|---|---|---|\n";
     for (p, setup, fit, kept) in &rows.timing {
         md += &format!("| {p} | {setup:.1} | {fit:.1} | {kept} |\n");
+    }
+    md += "\n## Validation\n\nThe guard's views at every validation: mean PSNR, each view's PSNR at the start and its change from there (dB); an iteration is admissible when no view is below its start.\n\n| profile | iteration | mean | changes | admissible |\n|---|---|---|---|---|\n";
+    for (p, log) in &rows.validation {
+        for v in log {
+            let ch: Vec<String> = if v.iteration == 0 {
+                v.psnr.iter().map(|c| format!("{c:.2}")).collect()
+            } else {
+                v.change.iter().map(|c| format!("{c:+.3}")).collect()
+            };
+            md += &format!(
+                "| {p} | {} | {:.2} | {} | {} |\n",
+                v.iteration,
+                v.mean,
+                ch.join(" "),
+                if v.admissible { "yes" } else { "no" }
+            );
+        }
     }
     md += "\n## Every view\n\n| profile | view | default | plain | distilled |\n|---|---|---|---|---|\n";
     for v in &rows.views {
