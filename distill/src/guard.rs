@@ -5,8 +5,9 @@
 //! [`EVERY`] steps, and at the end, each is composited from its recorded hits with the
 //! current colours (quantised as the file stores them) and its PSNR against native is taken.
 //! An iteration is admissible when no validation view is below its PSNR at the start (the
-//! mesh as converted); the admissible iteration with the best mean is kept, the start itself
-//! when none is. Fitted positions change the hits every step, so they are not validated.
+//! mesh as converted) by more than a tolerance (`--distill-guard-tolerance`, 1e-3 dB); the
+//! admissible iteration with the best mean is kept, the start itself when none is. Fitted
+//! positions change the hits every step, so they are not validated.
 
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::Camera;
@@ -143,15 +144,15 @@ impl Distiller {
             .zip(&self.guard.start)
             .map(|(a, b)| a - b)
             .collect();
-        let v = Validation {
+        let worst = change.iter().copied().fold(f64::INFINITY, f64::min);
+        let admissible = worst >= -self.opts.guard_tolerance_db.max(0.0);
+        self.guard.log.push(Validation {
             iteration: it,
             mean,
             psnr: now.clone(),
             change,
-            admissible: false,
-        };
-        let admissible = v.worst() >= -self.opts.guard_tolerance_db.max(0.0);
-        self.guard.log.push(Validation { admissible, ..v });
+            admissible,
+        });
         if it == 0 {
             self.report.validation_start = mean;
         }
