@@ -9,7 +9,7 @@ mod cli_common;
 
 use std::path::{Path, PathBuf};
 
-use cli_common::{cut300, cut300_eye, mean_bounds, ok, path, run, temp_dir};
+use cli_common::{cut300, cut300_eye, ok, path, run, temp_dir};
 use glam::Vec3;
 use splatbridge_scene::image_io::load_png;
 use splatbridge_scene::ply::write_ply;
@@ -18,7 +18,7 @@ use splatbridge_scene::ply::write_ply;
 /// frame 3 loses its last Gaussian.
 fn sequence(dir: &Path, drop: bool) -> PathBuf {
     let c = cut300();
-    let (lo, hi) = mean_bounds(&c);
+    let (lo, hi) = c.bounds().expect("the cut has Gaussians");
     let step = 0.04 * (hi - lo).length();
     let seq = dir.join(if drop { "dropped" } else { "frames" });
     std::fs::create_dir_all(&seq).unwrap();

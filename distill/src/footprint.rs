@@ -72,13 +72,13 @@ pub fn footprint_variance_seen(p: DVec3, cameras: &[Camera], quantile: f64) -> O
     if v.is_empty() {
         return None;
     }
-    v.sort_by(f64::total_cmp);
     let q = if quantile.is_finite() {
         quantile.clamp(0.0, 1.0)
     } else {
         0.0
     };
-    Some(v[((v.len() - 1) as f64 * q).round() as usize])
+    let rank = ((v.len() - 1) as f64 * q).round() as usize;
+    Some(*v.select_nth_unstable_by(rank, f64::total_cmp).1)
 }
 
 /// Widen every Gaussian of `cloud` (its means mapped to the world by `to_world`) by the

@@ -340,7 +340,7 @@ pub fn write_curve(out: &Path, what: &str, rows: &DistillRows) -> anyhow::Result
     for (p, setup, fit, kept) in &rows.timing {
         md += &format!("| {p} | {setup:.1} | {fit:.1} | {kept} |\n");
     }
-    md += "\n## Validation\n\nThe guard's views at every validation: mean PSNR, each view's PSNR at the start and its change from there (dB); an iteration is admissible when no view is below its start.\n\n| profile | iteration | mean | changes | admissible |\n|---|---|---|---|---|\n";
+    md += "\n## Validation\n\nThe guard's views at every validation: mean PSNR, each view's PSNR at the start and its change from there (dB); an iteration is admissible when no view is below its start by more than the guard's tolerance.\n\n| profile | iteration | mean | changes | admissible |\n|---|---|---|---|---|\n";
     for (p, log) in &rows.validation {
         for v in log {
             let ch: Vec<String> = if v.iteration == 0 {

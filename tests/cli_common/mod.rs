@@ -19,20 +19,12 @@ pub fn cut300() -> splatbridge_scene::GaussianCloud {
     splatbridge_scene::ply::read_ply(&p, &opts).unwrap().0
 }
 
-/// The bounds of `c`'s means.
-pub fn mean_bounds(c: &splatbridge_scene::GaussianCloud) -> (glam::Vec3, glam::Vec3) {
-    c.means.iter().fold(
-        (glam::Vec3::splat(f32::MAX), glam::Vec3::splat(f32::MIN)),
-        |(lo, hi), &m| (lo.min(m), hi.max(m)),
-    )
-}
-
 /// Camera options for one fixed view of [`cut300`]: its centre seen from `diagonals` of its
 /// bounds' diagonal away along −z, up −y as 3DGS captures are, 50° field of view. A generated
 /// camera is framed on the scene it renders, so tests comparing different files of one scene
 /// give them this one instead.
 pub fn cut300_eye(diagonals: f32) -> [String; 8] {
-    let (lo, hi) = mean_bounds(&cut300());
+    let (lo, hi) = cut300().bounds().expect("the cut has Gaussians");
     let centre = (lo + hi) * 0.5;
     let eye = centre - glam::Vec3::Z * diagonals * (hi - lo).length();
     let v = |v: glam::Vec3| format!("{},{},{}", v.x, v.y, v.z);
