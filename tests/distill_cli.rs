@@ -150,6 +150,8 @@ fn bad_distillation_options_exit_2_naming_the_option() {
         "--distill-footprint-quantile=nan",
         "--distill-guard-tolerance=-1",
         "--distill-guard-tolerance=inf",
+        "--distill-memory=-1",
+        "--distill-memory=nan",
     ] {
         let r = run(&[
             "convert",
@@ -165,6 +167,21 @@ fn bad_distillation_options_exit_2_naming_the_option() {
         assert!(stderr.contains(flag), "{arg}: {stderr}");
         assert!(!out.exists(), "{arg}: an output was written");
     }
+}
+
+/// `--distill-memory 0` keeps no view's hits: every view is traced again in each step, and
+/// the set-up line says so; the default keeps them all.
+#[test]
+fn distill_memory_decides_which_views_are_kept() {
+    let dir = temp_dir("distill-cli", "memory");
+    let extra = ["--profile", "meshsplats", "--iterations", "2"];
+    let kept = distil_street(&dir.join("kept.glb"), &extra);
+    let streamed = distil_street(
+        &dir.join("streamed.glb"),
+        &[&extra[..], &["--distill-memory", "0"]].concat(),
+    );
+    assert!(kept.contains("(4 views kept, 0 streamed"), "{kept}");
+    assert!(streamed.contains("(0 views kept, 4 streamed"), "{streamed}");
 }
 
 #[test]

@@ -10,15 +10,23 @@
 //! Backward pass from the back: with `R_i` the colour behind hit i seen through nothing
 //! (`R_{n−1} = bg`, `R_{i−1} = c_i·α_i + (1 − α_i)·R_i`), `∂C/∂c_i = α_i·T_i` and
 //! `∂C/∂α_i = T_i·(c_i − R_i)`, which needs no division by `1 − α_i` (stable at α = 1).
+//!
+//! A hit is 20 bytes (the global triangle, its barycentrics and alpha factor; the triangle's
+//! vertices are looked up in the view's shared table), so a fit keeps its views' hits in
+//! memory rather than re-tracing them each step. A step shades each hit once: the forward
+//! pass keeps what it shaded ([`render_shaded`]) for the backward pass
+//! ([`hit_gradients_shaded`]), the same numbers [`hit_gradients`] computes again.
+
+use std::sync::Arc;
 
 use glam::Vec3;
 use rayon::prelude::*;
 use splatbridge_convert::mesh::linear_to_srgb;
 
-/// One recorded hit, resolved to global vertex indices.
+/// One recorded hit: the global triangle (an index into [`ViewHits::tris`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Rec {
-    pub v: [u32; 3],
+    pub tri: u32,
     pub bary: [f32; 3],
     /// Material × texture alpha at the hit.
     pub fa: f32,
@@ -31,11 +39,24 @@ pub struct ViewHits {
     pub height: u32,
     pub offsets: Vec<u64>,
     pub hits: Vec<Rec>,
+    /// Global vertex indices of every triangle of the mesh, shared by all views.
+    pub tris: Arc<Vec<[u32; 3]>>,
 }
 
 impl ViewHits {
+    /// Bytes of this view's own hit lists (the shared triangle table not counted).
     pub fn bytes(&self) -> u64 {
         (self.hits.len() * std::mem::size_of::<Rec>() + self.offsets.len() * 8) as u64
+    }
+
+    /// The global vertices of a hit's triangle.
+    #[inline]
+    pub fn verts(&self, h: &Rec) -> [u32; 3] {
+        self.tris[h.tri as usize]
+    }
+
+    fn pixel_hits(&self, p: usize) -> &[Rec] {
+        &self.hits[self.offsets[p] as usize..self.offsets[p + 1] as usize]
     }
 }
 
@@ -57,12 +78,21 @@ pub struct Shading {
     pub background: Vec3,
 }
 
-/// Colour (display), its slope per channel (∂c/∂x, 0 where clamped) and α of one hit, with
+/// One shaded hit: display colour, its slope per channel (∂c/∂x, 0 where clamped), α, and
 /// the unclamped α's slope `∂α/∂(Σ b·A)` (0 where clamped).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Shaded {
+    c: Vec3,
+    dc: Vec3,
+    a: f32,
+    da: f32,
+}
+
+/// Shade one hit whose triangle's vertices are `verts`.
 #[inline]
-fn shade(h: &Rec, params: &[[f32; 4]], s: &Shading) -> (Vec3, Vec3, f32, f32) {
+fn shade(h: &Rec, verts: [u32; 3], params: &[[f32; 4]], s: &Shading) -> Shaded {
     let mut x = [0.0f32; 4];
-    for (&v, &b) in h.v.iter().zip(&h.bary) {
+    for (&v, &b) in verts.iter().zip(&h.bary) {
         for (xc, pc) in x.iter_mut().zip(&params[v as usize]) {
             *xc += b * pc;
         }
@@ -88,50 +118,50 @@ fn shade(h: &Rec, params: &[[f32; 4]], s: &Shading) -> (Vec3, Vec3, f32, f32) {
             *dd = if inside { 1.0 } else { 0.0 };
         }
     }
-    let (c, dc) = (Vec3::from_array(c), Vec3::from_array(dc));
     let a = h.fa * x[3];
-    let da = if (0.0..=1.0).contains(&a) { h.fa } else { 0.0 };
-    (c, dc, a.clamp(0.0, 1.0), da)
+    Shaded {
+        c: Vec3::from_array(c),
+        dc: Vec3::from_array(dc),
+        a: a.clamp(0.0, 1.0),
+        da: if (0.0..=1.0).contains(&a) { h.fa } else { 0.0 },
+    }
 }
 
-/// The pixel colour of one hit list.
-pub fn pixel(hits: &[Rec], params: &[[f32; 4]], s: &Shading) -> Vec3 {
+/// The pixel colour of one pixel's shaded hits.
+fn pixel(hits: impl Iterator<Item = Shaded>, s: &Shading) -> Vec3 {
     let mut acc = Vec3::ZERO;
     let mut t = 1.0f32;
     for h in hits {
-        let (c, _, a, _) = shade(h, params, s);
-        acc += c * (a * t);
-        t *= 1.0 - a;
+        acc += h.c * (h.a * t);
+        t *= 1.0 - h.a;
     }
     acc + s.background * t
 }
 
-/// Per hit of one pixel, the loss gradient with respect to its interpolated linear RGB
-/// (through the clamp and encoding) and its interpolated vertex alpha `Σ b·A`, given
-/// `g = ∂L/∂C`; `tr` is scratch.
+/// Per hit of one pixel (shaded), the loss gradient with respect to its interpolated linear
+/// RGB (through the clamp and encoding) and its interpolated vertex alpha `Σ b·A`, given
+/// `g = ∂L/∂C`, appended to `out`; `tr` is scratch.
 fn pixel_backward(
-    hits: &[Rec],
-    params: &[[f32; 4]],
+    shaded: &[Shaded],
     s: &Shading,
     g: Vec3,
-    shaded: &mut Vec<(Vec3, Vec3, f32, f32, f32)>,
+    tr: &mut Vec<f32>,
     out: &mut Vec<[f32; 4]>,
 ) {
-    shaded.clear();
+    tr.clear();
     let mut t = 1.0f32;
-    for h in hits {
-        let (c, dc, a, da) = shade(h, params, s);
-        shaded.push((c, dc, a, da, t));
-        t *= 1.0 - a;
+    for h in shaded {
+        tr.push(t);
+        t *= 1.0 - h.a;
     }
     let base = out.len();
-    out.resize(base + hits.len(), [0.0; 4]);
+    out.resize(base + shaded.len(), [0.0; 4]);
     let mut behind = s.background;
-    for (i, &(c, dc, a, da, ti)) in shaded.iter().enumerate().rev() {
-        let dcol = g * (a * ti) * dc;
-        let dalpha = ti * g.dot(c - behind) * da;
+    for (i, (h, &ti)) in shaded.iter().zip(tr.iter()).enumerate().rev() {
+        let dcol = g * (h.a * ti) * h.dc;
+        let dalpha = ti * g.dot(h.c - behind) * h.da;
         out[base + i] = [dcol.x, dcol.y, dcol.z, dalpha];
-        behind = c * a + behind * (1.0 - a);
+        behind = h.c * h.a + behind * (1.0 - h.a);
     }
 }
 
@@ -144,13 +174,53 @@ pub fn render(view: &ViewHits, params: &[[f32; 4]], s: &Shading) -> Vec<f32> {
         .enumerate()
         .for_each(|(row, out)| {
             for col in 0..w {
-                let p = row * w + col;
-                let hits = &view.hits[view.offsets[p] as usize..view.offsets[p + 1] as usize];
-                let c = pixel(hits, params, s);
+                let hits = view.pixel_hits(row * w + col);
+                let c = pixel(hits.iter().map(|h| shade(h, view.verts(h), params, s)), s);
                 out[3 * col..3 * col + 3].copy_from_slice(&c.to_array());
             }
         });
     img
+}
+
+/// Views with more hits than this are shaded twice a step instead of keeping their shaded
+/// hits (32 bytes each) between the passes: 8 Mi hits, 256 MiB a view in flight, three
+/// times the 240×180 fitting windows of a deep street capture (`fourth_st`: 2.4 M hits).
+pub const MAX_SHADED_HITS: usize = 8 << 20;
+
+/// [`render`], also returning every hit shaded (in hit order) for [`hit_gradients_shaded`].
+pub fn render_shaded(view: &ViewHits, params: &[[f32; 4]], s: &Shading) -> (Vec<f32>, Vec<Shaded>) {
+    let w = view.width as usize;
+    let h = view.height as usize;
+    let mut img = vec![0.0f32; 3 * w * h];
+    let mut shaded = vec![Shaded::default(); view.hits.len()];
+    // Each row's hits are one contiguous range: hand each row its own slice.
+    let mut rows = Vec::with_capacity(h);
+    let mut rest = shaded.as_mut_slice();
+    for row in 0..h {
+        let (a, b) = (view.offsets[row * w], view.offsets[(row + 1) * w]);
+        let (mine, tail) = rest.split_at_mut((b - a) as usize);
+        rows.push(mine);
+        rest = tail;
+    }
+    img.par_chunks_mut(3 * w.max(1))
+        .zip(rows.into_par_iter())
+        .enumerate()
+        .for_each(|(row, (out, sh))| {
+            let first = view.offsets[row * w] as usize;
+            for col in 0..w {
+                let (a, b) = (
+                    view.offsets[row * w + col] as usize,
+                    view.offsets[row * w + col + 1] as usize,
+                );
+                let px = &mut sh[a - first..b - first];
+                for (slot, hit) in px.iter_mut().zip(&view.hits[a..b]) {
+                    *slot = shade(hit, view.verts(hit), params, s);
+                }
+                let c = pixel(px.iter().copied(), s);
+                out[3 * col..3 * col + 3].copy_from_slice(&c.to_array());
+            }
+        });
+    (img, shaded)
 }
 
 /// Per hit of a view, in hit order, the loss gradient with respect to its interpolated linear
@@ -162,18 +232,50 @@ pub fn hit_gradients(
     s: &Shading,
     dimg: &[f32],
 ) -> Vec<[f32; 4]> {
+    gradients_by_row(view, params, None, s, dimg)
+}
+
+/// [`hit_gradients`] from the hits [`render_shaded`] shaded with the same parameters.
+pub fn hit_gradients_shaded(
+    view: &ViewHits,
+    params: &[[f32; 4]],
+    shaded: &[Shaded],
+    s: &Shading,
+    dimg: &[f32],
+) -> Vec<[f32; 4]> {
+    gradients_by_row(view, params, Some(shaded), s, dimg)
+}
+
+/// Rows differentiated in parallel and joined in row order, each pixel's hits taken from
+/// `shaded` or shaded again.
+fn gradients_by_row(
+    view: &ViewHits,
+    params: &[[f32; 4]],
+    shaded: Option<&[Shaded]>,
+    s: &Shading,
+    dimg: &[f32],
+) -> Vec<[f32; 4]> {
     let w = view.width as usize;
     let h = view.height as usize;
     let rows: Vec<Vec<[f32; 4]>> = (0..h)
         .into_par_iter()
         .map(|row| {
             let mut out = Vec::new();
-            let mut tr = Vec::new();
+            let (mut tr, mut scratch) = (Vec::new(), Vec::new());
             for col in 0..w {
                 let p = row * w + col;
-                let hits = &view.hits[view.offsets[p] as usize..view.offsets[p + 1] as usize];
+                let (a, b) = (view.offsets[p] as usize, view.offsets[p + 1] as usize);
+                let px: &[Shaded] = match shaded {
+                    Some(sh) => &sh[a..b],
+                    None => {
+                        scratch.clear();
+                        let hits = &view.hits[a..b];
+                        scratch.extend(hits.iter().map(|h| shade(h, view.verts(h), params, s)));
+                        &scratch
+                    }
+                };
                 let g = Vec3::new(dimg[3 * p], dimg[3 * p + 1], dimg[3 * p + 2]);
-                pixel_backward(hits, params, s, g, &mut tr, &mut out);
+                pixel_backward(px, s, g, &mut tr, &mut out);
             }
             out
         })
@@ -186,7 +288,7 @@ pub fn hit_gradients(
 /// sum does not depend on the thread count.
 pub fn scatter(view: &ViewHits, dh: &[[f32; 4]], grad: &mut [[f32; 4]]) {
     for (hit, d) in view.hits.iter().zip(dh) {
-        for (&v, &b) in hit.v.iter().zip(&hit.bary) {
+        for (&v, &b) in view.verts(hit).iter().zip(&hit.bary) {
             for (gc, dc) in grad[v as usize].iter_mut().zip(d) {
                 *gc += b * dc;
             }
@@ -205,4 +307,147 @@ pub fn backward(
 ) {
     let dh = hit_gradients(view, params, s, dimg);
     scatter(view, &dh, grad);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A view of random hits over random triangles, with colours and alphas outside [0, 1]
+    /// (both clamps), empty pixels and pixels of one and many hits.
+    fn random_view(seed: u64) -> (ViewHits, Vec<[f32; 4]>) {
+        let mut state = seed;
+        let mut next = move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            ((state >> 33) as f64 / (1u64 << 31) as f64) as f32
+        };
+        let nv = 50;
+        let params: Vec<[f32; 4]> = (0..nv)
+            .map(|_| [0.0; 4].map(|_: f32| next() * 1.4 - 0.2))
+            .collect();
+        let tris: Vec<[u32; 3]> = (0..40)
+            .map(|_| [0u32; 3].map(|_| (next() * nv as f32) as u32 % nv as u32))
+            .collect();
+        let (w, h) = (7u32, 5u32);
+        let mut offsets = vec![0u64];
+        let mut hits = Vec::new();
+        for p in 0..(w * h) as usize {
+            let n = match p % 4 {
+                0 => 0,
+                1 => 1,
+                _ => (next() * 12.0) as usize,
+            };
+            for _ in 0..n {
+                let (b0, b1) = (next(), next());
+                let (b0, b1) = if b0 + b1 > 1.0 {
+                    (1.0 - b0, 1.0 - b1)
+                } else {
+                    (b0, b1)
+                };
+                hits.push(Rec {
+                    tri: (next() * tris.len() as f32) as u32 % tris.len() as u32,
+                    bary: [b0, b1, 1.0 - b0 - b1],
+                    fa: next() * 1.2,
+                });
+            }
+            offsets.push(hits.len() as u64);
+        }
+        let view = ViewHits {
+            width: w,
+            height: h,
+            offsets,
+            hits,
+            tris: Arc::new(tris),
+        };
+        (view, params)
+    }
+
+    /// The per-pixel formula, written out: C = Σ c_i·α_i·Π_{j<i}(1 − α_j) + bg·Π(1 − α_j).
+    fn reference_pixel(view: &ViewHits, p: usize, params: &[[f32; 4]], s: &Shading) -> [f64; 3] {
+        let mut out = [0.0f64; 3];
+        let hits = view.pixel_hits(p);
+        for (i, h) in hits.iter().enumerate() {
+            let alpha = |h: &Rec| {
+                let v = view.verts(h);
+                let x: f64 = (0..3)
+                    .map(|k| h.bary[k] as f64 * params[v[k] as usize][3] as f64)
+                    .sum();
+                (h.fa as f64 * x).clamp(0.0, 1.0)
+            };
+            let t: f64 = hits[..i].iter().map(|g| 1.0 - alpha(g)).product();
+            let v = view.verts(h);
+            for (c, o) in out.iter_mut().enumerate() {
+                let x: f64 = (0..3)
+                    .map(|k| h.bary[k] as f64 * params[v[k] as usize][c] as f64)
+                    .sum();
+                let x = x.clamp(0.0, 1.0);
+                let enc = if s.encode {
+                    linear_to_srgb(x as f32) as f64
+                } else {
+                    x
+                };
+                *o += enc * alpha(h) * t;
+            }
+        }
+        let t: f64 = hits
+            .iter()
+            .map(|h| {
+                let v = view.verts(h);
+                let x: f64 = (0..3)
+                    .map(|k| h.bary[k] as f64 * params[v[k] as usize][3] as f64)
+                    .sum();
+                1.0 - (h.fa as f64 * x).clamp(0.0, 1.0)
+            })
+            .product();
+        for (c, o) in out.iter_mut().enumerate() {
+            *o += s.background[c] as f64 * t;
+        }
+        out
+    }
+
+    /// The shaded forward pass and backward pass are bit for bit the passes that shade again,
+    /// and the image is the per-pixel formula's.
+    #[test]
+    fn shaded_passes_equal_the_plain_ones_and_the_formula() {
+        for (seed, encode) in [(1, true), (2, false), (3, true)] {
+            let (view, params) = random_view(seed);
+            let s = Shading {
+                encode,
+                background: Vec3::new(0.2, 0.5, 0.9),
+            };
+            let img = render(&view, &params, &s);
+            let (img2, shaded) = render_shaded(&view, &params, &s);
+            assert_eq!(shaded.len(), view.hits.len());
+            assert!(img
+                .iter()
+                .zip(&img2)
+                .all(|(a, b)| a.to_bits() == b.to_bits()));
+            for p in 0..(view.width * view.height) as usize {
+                let r = reference_pixel(&view, p, &params, &s);
+                for c in 0..3 {
+                    // f32 compositing of up to 12 hits against f64: a few ulps of 1.
+                    assert!(
+                        (img[3 * p + c] as f64 - r[c]).abs() < 1e-5,
+                        "seed {seed} pixel {p} channel {c}: {} vs {}",
+                        img[3 * p + c],
+                        r[c]
+                    );
+                }
+            }
+            let dimg: Vec<f32> = (0..img.len())
+                .map(|i| ((i * 37 % 11) as f32 - 5.0) / 7.0)
+                .collect();
+            let a = hit_gradients(&view, &params, &s, &dimg);
+            let b = hit_gradients_shaded(&view, &params, &shaded, &s, &dimg);
+            assert_eq!(a.len(), view.hits.len());
+            assert!(a
+                .iter()
+                .flatten()
+                .zip(b.iter().flatten())
+                .all(|(x, y)| x.to_bits() == y.to_bits()));
+            assert!(a.iter().flatten().any(|x| *x != 0.0));
+        }
+    }
 }

@@ -22,8 +22,10 @@
 //!    `_GAUSSIAN_ID` and template vertex, so the export is written by the same code as
 //!    any other (and is traced to the image the fit saw; tested).
 //!
-//! Memory: hit lists are kept while their total stays within `hit_budget` bytes; views
-//! beyond it are re-traced in every iteration (streamed: one view's hits at a time). The
+//! Memory: hit lists (20 bytes a hit, [`composite::Rec`]) are kept while their total stays
+//! within `hit_budget` bytes (`--distill-memory`); views beyond it are re-traced in every
+//! iteration (streamed: one view's hits at a time). A step keeps each of its views' hits
+//! shaded between the forward and backward pass (32 bytes a hit, one view per thread). The
 //! optimiser holds three RGBA arrays per vertex (values, Adam's two moments) and one for the
 //! gradient.
 //!
@@ -144,6 +146,10 @@ pub struct Distiller {
     tracer: MeshTracer,
     /// First global vertex of each mesh.
     base: Vec<usize>,
+    /// First global triangle of each mesh, and every triangle's global vertices (what a
+    /// recorded hit's triangle index refers to).
+    tri_base: Vec<u32>,
+    tris: std::sync::Arc<Vec<[u32; 3]>>,
     params: Vec<[f32; 4]>,
     /// Per-Gaussian parameters, when the fit moves those instead of `params`.
     tied: Option<Tied>,
@@ -232,6 +238,19 @@ impl Distiller {
             params.extend(m.colors.iter().map(|c| c.to_array()));
         }
         let n = params.len();
+        let mut tri_base = Vec::with_capacity(tri.meshes.len());
+        let mut tris = Vec::new();
+        for (m, &b) in tri.meshes.iter().zip(&base) {
+            tri_base.push(tris.len() as u32);
+            tris.extend(m.tris.iter().map(|t| t.map(|i| b as u32 + i)));
+        }
+        if n > u32::MAX as usize || tris.len() > u32::MAX as usize {
+            return Err(DistillError::Invalid(format!(
+                "distillation indexes vertices and triangles with 32 bits: this mesh has {n} \
+                 vertices and {} triangles",
+                tris.len()
+            )));
+        }
         let (w, h) = (cameras[0].width as u64, cameras[0].height as u64);
         let values = cameras.len() as u64 * w * h * 3;
         let per_gaussian = match opts.params {
@@ -256,6 +275,8 @@ impl Distiller {
         let mut d = Distiller {
             tracer,
             base,
+            tri_base,
+            tris: std::sync::Arc::new(tris),
             params,
             report: DistillReport {
                 views: cameras.len(),
@@ -372,15 +393,10 @@ impl Distiller {
         let hits = lists
             .hits
             .iter()
-            .map(|h| {
-                let mesh = &scene.meshes[h.mesh as usize];
-                let tri = mesh.tris[h.tri as usize];
-                let b = self.base[h.mesh as usize] as u32;
-                Rec {
-                    v: tri.map(|i| b + i),
-                    bary: h.bary,
-                    fa: hit_alpha_factor(scene, h.mesh as usize, h.tri as usize, h.bary),
-                }
+            .map(|h| Rec {
+                tri: self.tri_base[h.mesh as usize] + h.tri,
+                bary: h.bary,
+                fa: hit_alpha_factor(scene, h.mesh as usize, h.tri as usize, h.bary),
             })
             .collect();
         Ok(ViewHits {
@@ -388,6 +404,7 @@ impl Distiller {
             height: lists.height,
             offsets: lists.offsets,
             hits,
+            tris: self.tris.clone(),
         })
     }
 
@@ -439,33 +456,52 @@ impl Distiller {
         for group in which.chunks(chunk) {
             let (params, shading, kind) = (&self.params, &self.shading, self.opts.loss);
             let views = &self.views;
-            let losses: Vec<Option<(f64, Vec<f32>)>> = group
+            // Each stored view's loss and image gradient, with its hits as shaded when few
+            // enough to keep ([`composite::MAX_SHADED_HITS`]).
+            type Forward = (f64, Vec<f32>, Option<Vec<composite::Shaded>>);
+            let losses: Vec<Option<Forward>> = group
                 .par_iter()
                 .map(|&i| {
                     let v = &views[i];
                     v.hits.as_ref().map(|hits| {
                         let (w, h) = (hits.width as usize, hits.height as usize);
-                        let img = composite::render(hits, params, shading);
-                        loss::loss_and_grad(&img, &v.target, w, h, kind)
+                        let (img, shaded) = if hits.hits.len() <= composite::MAX_SHADED_HITS {
+                            let (img, sh) = composite::render_shaded(hits, params, shading);
+                            (img, Some(sh))
+                        } else {
+                            (composite::render(hits, params, shading), None)
+                        };
+                        let (l, dimg) = loss::loss_and_grad(&img, &v.target, w, h, kind);
+                        (l, dimg, shaded)
                     })
                 })
                 .collect();
             for (&i, stored) in group.iter().zip(losses) {
                 let owned;
-                let (hits, (l, mut dimg)) = match (&self.views[i].hits, stored) {
+                let (hits, (l, mut dimg, shaded)) = match (&self.views[i].hits, stored) {
                     (Some(h), Some(lg)) => (h, lg),
                     _ => {
                         owned = self.record(&self.views[i].camera, self.views[i].time)?;
                         let (w, h) = (owned.width as usize, owned.height as usize);
                         let img = composite::render(&owned, &self.params, &self.shading);
-                        let lg =
+                        let (l, dimg) =
                             loss::loss_and_grad(&img, &self.views[i].target, w, h, self.opts.loss);
-                        (&owned, lg)
+                        (&owned, (l, dimg, None))
                     }
                 };
                 total += l / nviews;
                 dimg.iter_mut().for_each(|g| *g *= s);
-                let dh = composite::hit_gradients(hits, &self.params, &self.shading, &dimg);
+                let dh = match &shaded {
+                    Some(sh) => composite::hit_gradients_shaded(
+                        hits,
+                        &self.params,
+                        sh,
+                        &self.shading,
+                        &dimg,
+                    ),
+                    None => composite::hit_gradients(hits, &self.params, &self.shading, &dimg),
+                };
+                drop(shaded);
                 composite::scatter(hits, &dh, &mut grad);
                 if self.positions.is_some() {
                     let view = &self.views[i];

@@ -20,7 +20,8 @@ pub struct DistillOptions {
     pub lr_alpha: f32,
     /// The tracer's k-buffer size.
     pub k: usize,
-    /// Bytes of hit lists kept between iterations; views beyond are re-traced each time.
+    /// Bytes of hit lists kept between iterations; views beyond are re-traced each time
+    /// (`--distill-memory`).
     pub hit_budget: u64,
     /// Hits are recorded until the transmittance falls below this.
     pub record_transmittance: f32,
@@ -82,7 +83,10 @@ impl Default for DistillOptions {
             lr_colour: 0.02,
             lr_alpha: 0.02,
             k: 16,
-            hit_budget: 2 << 30,
+            // All 48 default views of a deep street capture (`fourth_st`: 113.7 M hits of 20
+            // bytes, 2.29 GB) stay in memory: re-tracing the views beyond the budget took
+            // half of each step (docs/distill.md, "Time").
+            hit_budget: 3_000_000_000,
             record_transmittance: 1e-6,
             params: ParamMode::Vertex,
             record_k: 64,

@@ -152,21 +152,22 @@ pub fn gradient(
                 }
                 let (_, d) = camera_ray(rays.camera, col as f64 + 0.5, row as f64 + 0.5);
                 for (hit, dhh) in view.hits[a..b].iter().zip(&dh[a..b]) {
-                    let v0 = hit.v[0] as usize;
+                    let hv = view.verts(hit);
+                    let v0 = hv[0] as usize;
                     let mi = rays.base.partition_point(|&s| s <= v0).saturating_sub(1);
                     let Some(t) = rays.to_local.get(mi).copied().flatten() else {
                         continue;
                     };
                     let mesh = &rays.scene.meshes[mi];
                     let local = |v: u32| mesh.positions[v as usize - rays.base[mi]].as_dvec3();
-                    let p = hit.v.map(local);
-                    let g = hit.v.map(|v| {
+                    let p = hv.map(local);
+                    let g = hv.map(|v| {
                         let q = params[v as usize];
                         (0..4).map(|c| dhh[c] as f64 * q[c] as f64).sum::<f64>()
                     });
                     if let Some(gp) = hit_position_gradient(t.transform_vector3(d), p, hit.bary, g)
                     {
-                        for (k, &v) in hit.v.iter().enumerate() {
+                        for (k, &v) in hv.iter().enumerate() {
                             out.push((v, gp[k].as_vec3().to_array()));
                         }
                     }

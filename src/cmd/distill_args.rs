@@ -92,6 +92,10 @@ pub struct DistillArgs {
     /// pixel's BVH fewer times).
     #[arg(long, value_name = "K", default_value_t = DistillOptions::default().record_k, requires = "distill")]
     pub distill_record_k: usize,
+    /// Memory (GB) for the views' recorded hits, kept between steps; views beyond it are
+    /// traced again in every step they are used (slower, same result).
+    #[arg(long, value_name = "GB", default_value_t = DistillOptions::default().hit_budget as f64 / 1e9, value_parser = parse_non_negative, requires = "distill")]
+    pub distill_memory: f64,
     /// Views per Adam step, spread around the rig and taken in turn (0: every view).
     #[arg(long, value_name = "B", default_value_t = DistillOptions::default().batch, requires = "distill")]
     pub distill_batch: usize,
@@ -168,6 +172,7 @@ impl DistillArgs {
             },
             params: self.distill_params.mode(),
             record_k: self.distill_record_k,
+            hit_budget: (self.distill_memory * 1e9).min(u64::MAX as f64) as u64,
             batch: self.distill_batch,
             eps_pixels: self.distill_eps,
             footprint: self.distill_footprint == OnOff::On,
