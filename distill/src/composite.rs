@@ -140,13 +140,13 @@ fn pixel(hits: impl Iterator<Item = Shaded>, s: &Shading) -> Vec3 {
 
 /// Per hit of one pixel (shaded), the loss gradient with respect to its interpolated linear
 /// RGB (through the clamp and encoding) and its interpolated vertex alpha `Σ b·A`, given
-/// `g = ∂L/∂C`, appended to `out`; `tr` is scratch.
+/// `g = ∂L/∂C`, into `out` (one entry per hit); `tr` is scratch.
 fn pixel_backward(
     shaded: &[Shaded],
     s: &Shading,
     g: Vec3,
     tr: &mut Vec<f32>,
-    out: &mut Vec<[f32; 4]>,
+    out: &mut [[f32; 4]],
 ) {
     tr.clear();
     let mut t = 1.0f32;
@@ -154,13 +154,11 @@ fn pixel_backward(
         tr.push(t);
         t *= 1.0 - h.a;
     }
-    let base = out.len();
-    out.resize(base + shaded.len(), [0.0; 4]);
     let mut behind = s.background;
-    for (i, (h, &ti)) in shaded.iter().zip(tr.iter()).enumerate().rev() {
+    for ((h, &ti), o) in shaded.iter().zip(tr.iter()).zip(out.iter_mut()).rev() {
         let dcol = g * (h.a * ti) * h.dc;
         let dalpha = ti * g.dot(h.c - behind) * h.da;
-        out[base + i] = [dcol.x, dcol.y, dcol.z, dalpha];
+        *o = [dcol.x, dcol.y, dcol.z, dalpha];
         behind = h.c * h.a + behind * (1.0 - h.a);
     }
 }
@@ -187,23 +185,43 @@ pub fn render(view: &ViewHits, params: &[[f32; 4]], s: &Shading) -> Vec<f32> {
 /// times the 240×180 fitting windows of a deep street capture (`fourth_st`: 2.4 M hits).
 pub const MAX_SHADED_HITS: usize = 8 << 20;
 
-/// [`render`], also returning every hit shaded (in hit order) for [`hit_gradients_shaded`].
-pub fn render_shaded(view: &ViewHits, params: &[[f32; 4]], s: &Shading) -> (Vec<f32>, Vec<Shaded>) {
-    let w = view.width as usize;
-    let h = view.height as usize;
-    let mut img = vec![0.0f32; 3 * w * h];
-    let mut shaded = vec![Shaded::default(); view.hits.len()];
-    // Each row's hits are one contiguous range: hand each row its own slice.
+/// Split `buf` (one entry per hit of `view`) into the ranges of its rows: a row's hits are
+/// contiguous.
+fn row_slices<'a, T>(view: &ViewHits, buf: &'a mut [T]) -> Vec<&'a mut [T]> {
+    let (w, h) = (view.width as usize, view.height as usize);
     let mut rows = Vec::with_capacity(h);
-    let mut rest = shaded.as_mut_slice();
+    let mut rest = buf;
     for row in 0..h {
         let (a, b) = (view.offsets[row * w], view.offsets[(row + 1) * w]);
         let (mine, tail) = rest.split_at_mut((b - a) as usize);
         rows.push(mine);
         rest = tail;
     }
+    rows
+}
+
+/// [`render`], also returning every hit shaded (in hit order) for [`hit_gradients_shaded`].
+pub fn render_shaded(view: &ViewHits, params: &[[f32; 4]], s: &Shading) -> (Vec<f32>, Vec<Shaded>) {
+    let mut shaded = Vec::new();
+    let img = render_shaded_into(view, params, s, &mut shaded);
+    (img, shaded)
+}
+
+/// [`render_shaded`] into `shaded`, whose allocation is reused (a fit's steps would otherwise
+/// fault in a fresh buffer for every view).
+pub fn render_shaded_into(
+    view: &ViewHits,
+    params: &[[f32; 4]],
+    s: &Shading,
+    shaded: &mut Vec<Shaded>,
+) -> Vec<f32> {
+    let w = view.width as usize;
+    let h = view.height as usize;
+    let mut img = vec![0.0f32; 3 * w * h];
+    shaded.clear();
+    shaded.resize(view.hits.len(), Shaded::default());
     img.par_chunks_mut(3 * w.max(1))
-        .zip(rows.into_par_iter())
+        .zip(row_slices(view, shaded).into_par_iter())
         .enumerate()
         .for_each(|(row, (out, sh))| {
             let first = view.offsets[row * w] as usize;
@@ -220,19 +238,21 @@ pub fn render_shaded(view: &ViewHits, params: &[[f32; 4]], s: &Shading) -> (Vec<
                 out[3 * col..3 * col + 3].copy_from_slice(&c.to_array());
             }
         });
-    (img, shaded)
+    img
 }
 
 /// Per hit of a view, in hit order, the loss gradient with respect to its interpolated linear
 /// RGB and vertex alpha, given `dimg = ∂L/∂image` (interleaved RGB). Rows are differentiated
-/// in parallel and joined in row order.
+/// in parallel, each into its own range of the output.
 pub fn hit_gradients(
     view: &ViewHits,
     params: &[[f32; 4]],
     s: &Shading,
     dimg: &[f32],
 ) -> Vec<[f32; 4]> {
-    gradients_by_row(view, params, None, s, dimg)
+    let mut out = Vec::new();
+    hit_gradients_into(view, params, None, s, dimg, &mut out);
+    out
 }
 
 /// [`hit_gradients`] from the hits [`render_shaded`] shaded with the same parameters.
@@ -243,24 +263,29 @@ pub fn hit_gradients_shaded(
     s: &Shading,
     dimg: &[f32],
 ) -> Vec<[f32; 4]> {
-    gradients_by_row(view, params, Some(shaded), s, dimg)
+    let mut out = Vec::new();
+    hit_gradients_into(view, params, Some(shaded), s, dimg, &mut out);
+    out
 }
 
-/// Rows differentiated in parallel and joined in row order, each pixel's hits taken from
-/// `shaded` or shaded again.
-fn gradients_by_row(
+/// [`hit_gradients`] into `out` (its allocation reused), each pixel's hits taken from
+/// `shaded` ([`render_shaded`] with the same parameters) or shaded again.
+pub fn hit_gradients_into(
     view: &ViewHits,
     params: &[[f32; 4]],
     shaded: Option<&[Shaded]>,
     s: &Shading,
     dimg: &[f32],
-) -> Vec<[f32; 4]> {
+    out: &mut Vec<[f32; 4]>,
+) {
     let w = view.width as usize;
-    let h = view.height as usize;
-    let rows: Vec<Vec<[f32; 4]>> = (0..h)
+    out.clear();
+    out.resize(view.hits.len(), [0.0; 4]);
+    row_slices(view, out)
         .into_par_iter()
-        .map(|row| {
-            let mut out = Vec::new();
+        .enumerate()
+        .for_each(|(row, dst)| {
+            let first = view.offsets[row * w] as usize;
             let (mut tr, mut scratch) = (Vec::new(), Vec::new());
             for col in 0..w {
                 let p = row * w + col;
@@ -275,12 +300,9 @@ fn gradients_by_row(
                     }
                 };
                 let g = Vec3::new(dimg[3 * p], dimg[3 * p + 1], dimg[3 * p + 2]);
-                pixel_backward(px, s, g, &mut tr, &mut out);
+                pixel_backward(px, s, g, &mut tr, &mut dst[a - first..b - first]);
             }
-            out
-        })
-        .collect();
-    rows.concat()
+        });
 }
 
 /// Add the gradient of the loss with respect to every vertex's RGBA to `grad`, given the

@@ -169,6 +169,9 @@ pub struct Distiller {
     positions: Option<positions::Positions>,
     /// Validation views and the best iteration they have seen ([`guard`]).
     guard: guard::Guard,
+    /// Buffers a step reuses ([`Distiller::loss_and_gradient_over`]).
+    shaded_bufs: Vec<Vec<composite::Shaded>>,
+    dh_buf: Vec<[f32; 4]>,
 }
 
 impl Distiller {
@@ -302,6 +305,8 @@ impl Distiller {
             centres,
             positions: fitted_positions,
             guard: guard::Guard::default(),
+            shaded_bufs: Vec::new(),
+            dh_buf: Vec::new(),
         };
         let mut stored = 0u64;
         let times = opts.view_times(cameras.len());
@@ -453,32 +458,37 @@ impl Distiller {
         // work per view), then the backward passes in view order, so the sums do not depend
         // on the thread count. A chunk holds one image gradient per thread.
         let chunk = rayon::current_num_threads().max(1);
+        // Buffers reused over the groups and steps: each view of a group its shaded hits, and
+        // the per-hit gradients of the view being scattered.
+        let mut shaded_bufs = std::mem::take(&mut self.shaded_bufs);
+        shaded_bufs.resize_with(chunk, Vec::new);
+        let mut dh = std::mem::take(&mut self.dh_buf);
         for group in which.chunks(chunk) {
             let (params, shading, kind) = (&self.params, &self.shading, self.opts.loss);
             let views = &self.views;
-            // Each stored view's loss and image gradient, with its hits as shaded when few
-            // enough to keep ([`composite::MAX_SHADED_HITS`]).
-            type Forward = (f64, Vec<f32>, Option<Vec<composite::Shaded>>);
-            let losses: Vec<Option<Forward>> = group
+            // Each stored view's loss and image gradient, and whether its hits as shaded are
+            // in its buffer (when few enough to keep, [`composite::MAX_SHADED_HITS`]).
+            let losses: Vec<Option<(f64, Vec<f32>, bool)>> = group
                 .par_iter()
-                .map(|&i| {
+                .zip(shaded_bufs.par_iter_mut())
+                .map(|(&i, buf)| {
                     let v = &views[i];
                     v.hits.as_ref().map(|hits| {
                         let (w, h) = (hits.width as usize, hits.height as usize);
-                        let (img, shaded) = if hits.hits.len() <= composite::MAX_SHADED_HITS {
-                            let (img, sh) = composite::render_shaded(hits, params, shading);
-                            (img, Some(sh))
+                        let keep = hits.hits.len() <= composite::MAX_SHADED_HITS;
+                        let img = if keep {
+                            composite::render_shaded_into(hits, params, shading, buf)
                         } else {
-                            (composite::render(hits, params, shading), None)
+                            composite::render(hits, params, shading)
                         };
                         let (l, dimg) = loss::loss_and_grad(&img, &v.target, w, h, kind);
-                        (l, dimg, shaded)
+                        (l, dimg, keep)
                     })
                 })
                 .collect();
-            for (&i, stored) in group.iter().zip(losses) {
+            for ((&i, stored), buf) in group.iter().zip(losses).zip(&shaded_bufs) {
                 let owned;
-                let (hits, (l, mut dimg, shaded)) = match (&self.views[i].hits, stored) {
+                let (hits, (l, mut dimg, kept)) = match (&self.views[i].hits, stored) {
                     (Some(h), Some(lg)) => (h, lg),
                     _ => {
                         owned = self.record(&self.views[i].camera, self.views[i].time)?;
@@ -486,22 +496,20 @@ impl Distiller {
                         let img = composite::render(&owned, &self.params, &self.shading);
                         let (l, dimg) =
                             loss::loss_and_grad(&img, &self.views[i].target, w, h, self.opts.loss);
-                        (&owned, (l, dimg, None))
+                        (&owned, (l, dimg, false))
                     }
                 };
                 total += l / nviews;
                 dimg.iter_mut().for_each(|g| *g *= s);
-                let dh = match &shaded {
-                    Some(sh) => composite::hit_gradients_shaded(
-                        hits,
-                        &self.params,
-                        sh,
-                        &self.shading,
-                        &dimg,
-                    ),
-                    None => composite::hit_gradients(hits, &self.params, &self.shading, &dimg),
-                };
-                drop(shaded);
+                let cached = kept.then_some(buf.as_slice());
+                composite::hit_gradients_into(
+                    hits,
+                    &self.params,
+                    cached,
+                    &self.shading,
+                    &dimg,
+                    &mut dh,
+                );
                 composite::scatter(hits, &dh, &mut grad);
                 if self.positions.is_some() {
                     let view = &self.views[i];
@@ -519,6 +527,8 @@ impl Distiller {
                 }
             }
         }
+        self.shaded_bufs = shaded_bufs;
+        self.dh_buf = dh;
         if let Some(p) = &mut self.positions {
             p.grad = pos_grad;
         }
