@@ -39,6 +39,7 @@ pub mod render;
 pub mod scene_load;
 pub mod secondary;
 pub mod shadows;
+mod texture;
 pub mod tri;
 
 pub use backend::{BackendKind, BuildPreset};

@@ -12,6 +12,8 @@
 use glam::{DAffine3, DMat3, DQuat, DVec3, Vec2, Vec3, Vec4};
 use splatbridge_scene::Camera;
 
+pub use crate::texture::{Texture, Wrap};
+
 /// glTF `alphaMode`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum AlphaMode {
@@ -19,26 +21,6 @@ pub enum AlphaMode {
     /// Alpha ≥ cutoff renders opaque, anything below is discarded.
     Mask(f32),
     Blend,
-}
-
-/// Texture coordinate wrap mode (glTF sampler).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Wrap {
-    Repeat,
-    Clamp,
-    Mirror,
-}
-
-/// A decoded texture: RGB decoded from sRGB to linear (glTF base-colour textures are sRGB
-/// encoded), alpha linear as stored; row 0 is the top of the image (UV v = 0).
-#[derive(Clone, Debug)]
-pub struct Texture {
-    pub width: u32,
-    pub height: u32,
-    pub texels: Vec<Vec4>,
-    pub wrap: [Wrap; 2],
-    /// Nearest-neighbour magnification/minification (sampler filter NEAREST); bilinear otherwise.
-    pub nearest: bool,
 }
 
 /// A material reduced to what an unlit BLEND viewer uses.
@@ -560,47 +542,6 @@ pub fn sample_channel(c: &Channel, t: f64) -> [f64; 4] {
             }
             v
         }
-    }
-}
-
-impl Texture {
-    fn texel(&self, x: i64, y: i64) -> Vec4 {
-        let wrap = |i: i64, n: u32, m: Wrap| -> usize {
-            let n = n as i64;
-            (match m {
-                Wrap::Clamp => i.clamp(0, n - 1),
-                Wrap::Repeat => i.rem_euclid(n),
-                Wrap::Mirror => {
-                    let p = i.rem_euclid(2 * n);
-                    if p < n {
-                        p
-                    } else {
-                        2 * n - 1 - p
-                    }
-                }
-            }) as usize
-        };
-        let xi = wrap(x, self.width, self.wrap[0]);
-        let yi = wrap(y, self.height, self.wrap[1]);
-        self.texels[yi * self.width as usize + xi]
-    }
-
-    /// Sample at texture coordinate `uv` (texel centres at (i + 0.5)/size).
-    pub fn sample(&self, uv: Vec2) -> Vec4 {
-        if self.texels.is_empty() || !uv.is_finite() {
-            return Vec4::ONE;
-        }
-        let x = uv.x as f64 * self.width as f64 - 0.5;
-        let y = uv.y as f64 * self.height as f64 - 0.5;
-        if self.nearest {
-            return self.texel(x.round() as i64, y.round() as i64);
-        }
-        let (x0, y0) = (x.floor(), y.floor());
-        let (fx, fy) = ((x - x0) as f32, (y - y0) as f32);
-        let (x0, y0) = (x0 as i64, y0 as i64);
-        let a = self.texel(x0, y0).lerp(self.texel(x0 + 1, y0), fx);
-        let b = self.texel(x0, y0 + 1).lerp(self.texel(x0 + 1, y0 + 1), fx);
-        a.lerp(b, fy)
     }
 }
 

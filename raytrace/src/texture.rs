@@ -1,0 +1,181 @@
+//! Decoded glTF textures and their sampling as a viewer's texture unit does it: texel centres
+//! at `(i + ½)/size`, bilinear (or nearest, for a NEAREST sampler) filtering, and the
+//! sampler's wrap mode per axis (glTF 2.0 §5.26: REPEAT, CLAMP_TO_EDGE, MIRRORED_REPEAT).
+
+use glam::{Vec2, Vec4};
+
+/// Texture coordinate wrap mode (glTF sampler).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Wrap {
+    Repeat,
+    Clamp,
+    Mirror,
+}
+
+/// A decoded texture: RGB decoded from sRGB to linear (glTF base-colour textures are sRGB
+/// encoded), alpha linear as stored; row 0 is the top of the image (UV v = 0).
+#[derive(Clone, Debug)]
+pub struct Texture {
+    pub width: u32,
+    pub height: u32,
+    pub texels: Vec<Vec4>,
+    pub wrap: [Wrap; 2],
+    /// Nearest-neighbour magnification/minification (sampler filter NEAREST); bilinear otherwise.
+    pub nearest: bool,
+}
+
+impl Texture {
+    fn texel(&self, x: i64, y: i64) -> Vec4 {
+        let wrap = |i: i64, n: u32, m: Wrap| -> usize {
+            let n = n as i64;
+            (match m {
+                Wrap::Clamp => i.clamp(0, n - 1),
+                Wrap::Repeat => i.rem_euclid(n),
+                Wrap::Mirror => {
+                    let p = i.rem_euclid(2 * n);
+                    if p < n {
+                        p
+                    } else {
+                        2 * n - 1 - p
+                    }
+                }
+            }) as usize
+        };
+        let xi = wrap(x, self.width, self.wrap[0]);
+        let yi = wrap(y, self.height, self.wrap[1]);
+        self.texels[yi * self.width as usize + xi]
+    }
+
+    /// Sample at texture coordinate `uv` (texel centres at (i + 0.5)/size).
+    pub fn sample(&self, uv: Vec2) -> Vec4 {
+        if self.texels.is_empty() || !uv.is_finite() {
+            return Vec4::ONE;
+        }
+        let x = uv.x as f64 * self.width as f64 - 0.5;
+        let y = uv.y as f64 * self.height as f64 - 0.5;
+        if self.nearest {
+            return self.texel(x.round() as i64, y.round() as i64);
+        }
+        let (x0, y0) = (floor(x), floor(y));
+        let (fx, fy) = ((x - x0) as f32, (y - y0) as f32);
+        let (x0, y0) = (x0 as i64, y0 as i64);
+        let (w, h) = (self.width as i64, self.height as i64);
+        let (a0, a1, b0, b1) = if (0..w - 1).contains(&x0) && (0..h - 1).contains(&y0) {
+            // All four texels inside: no wrap mode moves them (the tests check this path
+            // against `texel` on every mode).
+            let i = (y0 * w + x0) as usize;
+            let row = w as usize;
+            (
+                self.texels[i],
+                self.texels[i + 1],
+                self.texels[i + row],
+                self.texels[i + row + 1],
+            )
+        } else {
+            // Saturating: a coordinate beyond i64's texels (an f32 UV of 1e30) stays at the
+            // last one instead of wrapping to the first.
+            let (x1, y1) = (x0.saturating_add(1), y0.saturating_add(1));
+            (
+                self.texel(x0, y0),
+                self.texel(x1, y0),
+                self.texel(x0, y1),
+                self.texel(x1, y1),
+            )
+        };
+        a0.lerp(a1, fx).lerp(b0.lerp(b1, fx), fy)
+    }
+}
+
+/// `x.floor()` without the library call where the target has no rounding instruction: the
+/// integer part, one less for a negative non-integer, exact while `|x| < 2⁵²` (every such
+/// f64 integer converts to i64 and back exactly); `f64::floor` beyond.
+#[inline]
+fn floor(x: f64) -> f64 {
+    if x.abs() < 4_503_599_627_370_496.0 {
+        let t = x as i64 as f64;
+        if t > x {
+            t - 1.0
+        } else {
+            // floor(−0) is −0.
+            t.copysign(x)
+        }
+    } else {
+        x.floor()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Bilinear filtering as written in the definition: four texels through `texel` (which
+    /// applies the wrap mode to each), weights from `f64::floor`.
+    fn sample_reference(t: &Texture, uv: Vec2) -> Vec4 {
+        let x = uv.x as f64 * t.width as f64 - 0.5;
+        let y = uv.y as f64 * t.height as f64 - 0.5;
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = ((x - x0) as f32, (y - y0) as f32);
+        let (x0, y0) = (x0 as i64, y0 as i64);
+        let (x1, y1) = (x0.saturating_add(1), y0.saturating_add(1));
+        let a = t.texel(x0, y0).lerp(t.texel(x1, y0), fx);
+        let b = t.texel(x0, y1).lerp(t.texel(x1, y1), fx);
+        a.lerp(b, fy)
+    }
+
+    /// The interior path and the inline floor give the definition's samples bit for bit: on
+    /// every wrap mode, at random coordinates inside and outside [0, 1], on texel centres and
+    /// edges (integer and half-integer x), at −0 and at huge coordinates, on textures of one
+    /// texel row or column too.
+    #[test]
+    fn sampling_equals_the_definition() {
+        let mut state = 7u64;
+        let mut next = move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        for (w, h) in [(5u32, 4u32), (1, 6), (7, 1), (16, 16)] {
+            let texels: Vec<Vec4> = (0..w * h)
+                .map(|_| Vec4::new(next(), next(), next(), next()))
+                .collect();
+            for wrap in [Wrap::Clamp, Wrap::Repeat, Wrap::Mirror] {
+                let t = Texture {
+                    width: w,
+                    height: h,
+                    texels: texels.clone(),
+                    wrap: [wrap, Wrap::Clamp],
+                    nearest: false,
+                };
+                let mut uvs: Vec<Vec2> = (0..2000)
+                    .map(|_| Vec2::new(next() * 3.0 - 1.0, next() * 3.0 - 1.0))
+                    .collect();
+                for i in -3..=(2 * w as i32 + 3) {
+                    for j in -3..=(2 * h as i32 + 3) {
+                        // Texel centres and edges: x = i/2 + ½ texel.
+                        uvs.push(Vec2::new(
+                            (i as f32 * 0.5 + 0.5) / w as f32,
+                            (j as f32 * 0.5 + 0.5) / h as f32,
+                        ));
+                    }
+                }
+                uvs.extend([
+                    Vec2::new(-0.0, 0.5),
+                    Vec2::new(0.5 / w as f32, -0.0),
+                    Vec2::new(1e30, 0.5),
+                    Vec2::new(-1e30, 3e20),
+                ]);
+                for uv in uvs {
+                    let (a, b) = (t.sample(uv), sample_reference(&t, uv));
+                    assert!(
+                        a.to_array()
+                            .iter()
+                            .zip(b.to_array())
+                            .all(|(p, q)| p.to_bits() == q.to_bits()),
+                        "{w}×{h} {wrap:?} at {uv}: {a} vs {b}"
+                    );
+                }
+            }
+        }
+    }
+}
