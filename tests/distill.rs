@@ -455,6 +455,7 @@ fn the_guard_keeps_the_best_admissible_validation_at_its_tolerance() {
     let fit = &fit[..2];
     let val = views::orbit(&cloud, 5, 0..5, 64, 48).unwrap();
     let mut kept = Vec::new();
+    let mut refused = None;
     for tolerance in [splatbridge::distill::guard::TOLERANCE_DB, 1e9] {
         let d_opts = DistillOptions {
             iterations: 30,
@@ -489,9 +490,26 @@ fn the_guard_keeps_the_best_admissible_validation_at_its_tolerance() {
         }
         if tolerance > 1.0 {
             assert!(log.iter().all(|v| v.admissible));
+            assert_eq!(d.best_refused(), None);
+        } else {
+            refused = d.best_refused().cloned();
         }
         kept.push((tolerance, r.kept_iteration, log));
     }
+    // The refused validation of the highest mean is what its own largest loss as the
+    // tolerance keeps (what `convert --distill` tells the user to pass).
+    let refused = refused.expect("a refused validation above the kept one");
+    assert!(!refused.admissible && refused.mean > kept[0].2[0].mean);
+    let d_opts = DistillOptions {
+        iterations: 30,
+        params: ParamMode::Vertex,
+        guard_tolerance_db: -refused.worst() + 1e-9,
+        ..DistillOptions::default()
+    };
+    let mut d = Distiller::new(&scene, &opts(Profile::MeshSplats), fit, &d_opts).unwrap();
+    d.add_validation(&scene, &val, &[0.0; 5]).unwrap();
+    d.run(|_| {}).unwrap();
+    assert_eq!(d.report().kept_iteration, refused.iteration);
     // Some validation was refused at the default tolerance, so the two runs test both sides.
     assert!(kept[0].2.iter().any(|v| !v.admissible), "no view lost");
     eprintln!(

@@ -52,7 +52,7 @@ pub struct Guard {
 }
 
 /// One validation of the fit.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct Validation {
     pub iteration: usize,
     /// Mean PSNR over the validation views, dB (each capped at [`CAP_DB`]).
@@ -184,5 +184,19 @@ impl Distiller {
     /// Every validation so far.
     pub fn validation_log(&self) -> &[Validation] {
         &self.guard.log
+    }
+
+    /// The refused validation of the highest mean, when it is above the kept one's: what a
+    /// tolerance of its largest loss (`-worst()`) would have kept instead.
+    pub fn best_refused(&self) -> Option<&Validation> {
+        let log = &self.guard.log;
+        let kept = log
+            .iter()
+            .filter(|v| v.admissible)
+            .map(|v| v.mean)
+            .fold(f64::NEG_INFINITY, f64::max);
+        log.iter()
+            .filter(|v| !v.admissible && v.mean > kept)
+            .max_by(|a, b| a.mean.total_cmp(&b.mean))
     }
 }

@@ -193,6 +193,8 @@ pub struct Outcome {
     pub held_back_change: Option<(f64, f64)>,
     pub held_back_views: usize,
     pub description: String,
+    /// The refused validation of the highest mean, above the kept one ([`Distiller::best_refused`]).
+    pub best_refused: Option<super::guard::Validation>,
 }
 
 /// The worst (smallest) and the median of `x`.
@@ -309,6 +311,7 @@ pub fn distill_export(
         held_back_change: worst_and_median(&change),
         held_back_views: held.len(),
         description,
+        best_refused: d.best_refused().cloned(),
     })
 }
 

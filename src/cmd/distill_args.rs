@@ -236,6 +236,26 @@ impl DistillArgs {
                 r.iterations
             );
         }
+        if let Some(v) = &out.best_refused {
+            // Rounded up, so the tolerance named does admit the iteration.
+            let loss = (-v.worst() * 100.0).ceil() / 100.0;
+            let (view, _) = v
+                .change
+                .iter()
+                .enumerate()
+                .fold(
+                    (0, f64::INFINITY),
+                    |m, (i, &c)| if c < m.1 { (i, c) } else { m },
+                );
+            eprintln!(
+                "  the guard refused iteration {} (validation mean {:.2} dB, {:+.2}): validation view {} lost {:.2} dB; --distill-guard-tolerance {loss:.2} keeps it",
+                v.iteration,
+                v.mean,
+                v.mean - r.validation_kept,
+                view + 1,
+                -v.worst(),
+            );
+        }
         if let (Some((a, b)), Some((worst, median))) = (out.held_back, out.held_back_change) {
             eprintln!(
                 "  held-back PSNR against native ({} views): {a:.2} dB → {b:.2} dB (change: worst {worst:+.2}, median {median:+.2} dB)",
