@@ -176,44 +176,33 @@ mod tests {
     use super::*;
 
     /// The blur of the definition: every output element its own weighted sum over the window,
-    /// rows then columns.
+    /// rows then columns (terms outside the plane are zero, and skipped).
     fn blur_reference(x: &[f64], w: usize, h: usize) -> Vec<f64> {
         let g = ssim_kernel();
-        let r = g.len() / 2;
-        let at = |v: &[f64], i: isize, n: usize, f: &dyn Fn(usize) -> usize| {
-            if i < 0 || i as usize >= n {
-                0.0
-            } else {
-                v[f(i as usize)]
+        let r = g.len() as isize / 2;
+        // One pass along an axis: `(row, col, k) -> Some(index)` of the k-th tap, if inside.
+        let pass = |v: &[f64], tap: &dyn Fn(usize, usize, isize) -> Option<usize>| {
+            let mut out = vec![0.0; w * h];
+            for row in 0..h {
+                for col in 0..w {
+                    let mut a = 0.0;
+                    for (j, gj) in g.iter().enumerate() {
+                        if let Some(i) = tap(row, col, j as isize - r) {
+                            a += gj * v[i];
+                        }
+                    }
+                    out[row * w + col] = a;
+                }
             }
+            out
         };
-        let mut tmp = vec![0.0; w * h];
-        for row in 0..h {
-            for col in 0..w {
-                let mut a = 0.0;
-                for (j, gj) in g.iter().enumerate() {
-                    let k = col as isize + j as isize - r as isize;
-                    if k >= 0 && (k as usize) < w {
-                        a += gj * at(x, k, w, &|k| row * w + k);
-                    }
-                }
-                tmp[row * w + col] = a;
-            }
-        }
-        let mut out = vec![0.0; w * h];
-        for row in 0..h {
-            for col in 0..w {
-                let mut a = 0.0;
-                for (j, gj) in g.iter().enumerate() {
-                    let k = row as isize + j as isize - r as isize;
-                    if k >= 0 && (k as usize) < h {
-                        a += gj * at(&tmp, k, h, &|k| k * w + col);
-                    }
-                }
-                out[row * w + col] = a;
-            }
-        }
-        out
+        let inside = |i: isize, n: usize| (i >= 0 && (i as usize) < n).then_some(i as usize);
+        let tmp = pass(x, &|row, col, k| {
+            inside(col as isize + k, w).map(|c| row * w + c)
+        });
+        pass(&tmp, &|row, col, k| {
+            inside(row as isize + k, h).map(|r| r * w + col)
+        })
     }
 
     /// The row-accumulating blur sums each element's terms in the definition's order: equal
