@@ -37,6 +37,8 @@ pub struct Rec {
 pub struct ViewHits {
     pub width: u32,
     pub height: u32,
+    /// Pixel p's hits are `hits[offsets[p]..offsets[p + 1]]`, from `offsets[0] = 0` to
+    /// `hits.len()` (what the passes' per-hit buffers are indexed by).
     pub offsets: Vec<u64>,
     pub hits: Vec<Rec>,
     /// Global vertex indices of every triangle of the mesh, shared by all views.
