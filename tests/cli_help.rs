@@ -56,6 +56,7 @@ fn every_scene_reading_command_names_every_format() {
         &["bench", "convert"],
         &["bench", "hybrid"],
         &["bench", "effects"],
+        &["bench", "distill"],
     ];
     for c in commands {
         let text = help(c);

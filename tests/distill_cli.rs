@@ -169,6 +169,62 @@ fn bad_distillation_options_exit_2_naming_the_option() {
     }
 }
 
+/// `bench distill` times the set-up and the steps of the fit `convert --distill` would make,
+/// with its counters; hit memory 0 streams every view (the same hits, counted the same);
+/// a bad option or input exits 2 naming it.
+#[test]
+fn bench_distill_reports_set_up_steps_and_views_kept() {
+    let scene = street();
+    let bench = |extra: &[&str]| {
+        let mut args = vec![
+            "bench",
+            "distill",
+            scene.as_str(),
+            "--views",
+            "orbit:4",
+            "--width",
+            "32",
+            "--height",
+            "24",
+            "--steps",
+            "2",
+        ];
+        args.extend_from_slice(extra);
+        String::from_utf8_lossy(&ok(&args).stdout).into_owned()
+    };
+    let kept = bench(&["--profile", "meshsplats"]);
+    let streamed = bench(&["--profile", "meshsplats", "--memory", "0"]);
+    assert!(kept.contains("4 fitting windows 32×24"), "{kept}");
+    assert!(kept.contains("set-up"), "{kept}");
+    assert!(kept.contains("4 views kept, 0 streamed"), "{kept}");
+    assert!(streamed.contains("0 views kept, 4 streamed"), "{streamed}");
+    assert!(
+        kept.contains("median") && kept.contains("over 2 steps"),
+        "{kept}"
+    );
+    // The same hits either way: the count on the line is the recording's, not the budget's.
+    let hits = |t: &str| {
+        t.lines()
+            .find(|l| l.starts_with("hits"))
+            .map(|l| l.split(' ').nth(1).unwrap().to_string())
+    };
+    assert_eq!(hits(&kept), hits(&streamed));
+    for (arg, name) in [
+        (&["--profile", "cubes"][..], "--profile"),
+        (&["--memory=-1"][..], "--memory"),
+    ] {
+        let mut args = vec!["bench", "distill", scene.as_str()];
+        args.extend_from_slice(arg);
+        let r = run(&args);
+        let stderr = String::from_utf8_lossy(&r.stderr);
+        assert_eq!(r.status.code(), Some(2), "{arg:?}: {stderr}");
+        assert!(stderr.contains(name), "{arg:?}: {stderr}");
+    }
+    let r = run(&["bench", "distill", "no-such-scene.ply"]);
+    assert_eq!(r.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&r.stderr).contains("error: no-such-scene.ply"));
+}
+
 /// `--distill-memory 0` keeps no view's hits: every view is traced again in each step, and
 /// the set-up line says so; the default keeps them all.
 #[test]

@@ -9,6 +9,7 @@
 //! `bench hybrid` against 249 ms alone; 256 ms with this setting).
 
 pub mod convert;
+pub mod distill;
 pub mod effects;
 pub mod hybrid;
 pub mod ply;
@@ -35,6 +36,8 @@ pub enum Target {
     Hybrid(hybrid::Args),
     /// Cost of each effect per frame (weather, motion blur, shadows, LiDAR) with counters.
     Effects(effects::Args),
+    /// Mesh distillation: set-up and step time, hits a pixel, views kept and streamed.
+    Distill(distill::Args),
 }
 
 /// Keep freed memory in the process (see the module docs). Only glibc has these knobs; elsewhere
@@ -54,7 +57,11 @@ fn steady_state_allocator() {
 pub fn run(args: Args) -> anyhow::Result<()> {
     if matches!(
         args.target,
-        Target::Render(_) | Target::Trace(_) | Target::Hybrid(_) | Target::Effects(_)
+        Target::Render(_)
+            | Target::Trace(_)
+            | Target::Hybrid(_)
+            | Target::Effects(_)
+            | Target::Distill(_)
     ) {
         steady_state_allocator();
     }
@@ -65,6 +72,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Target::Trace(a) => trace::run(a),
         Target::Hybrid(a) => hybrid::run(a),
         Target::Effects(a) => effects::run(a),
+        Target::Distill(a) => distill::run(a),
     };
     // On stderr, so a `--json` report on stdout stays one JSON document.
     if let Some(peak) = splatbridge::measure::memory::peak_bytes() {
