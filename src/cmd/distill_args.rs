@@ -187,13 +187,7 @@ impl DistillArgs {
             lr_position: self.distill_position_step,
             ..DistillOptions::default()
         };
-        let beside = input.with_file_name("cameras.json");
-        let cameras = if self.views == "auto" && scene.cameras.is_empty() && beside.is_file() {
-            splatbridge_scene::camera::load_cameras_json(&beside)
-                .with_context(|| format!("--views auto: {}", beside.display()))?
-        } else {
-            Vec::new()
-        };
+        let cameras = cameras_beside(&self.views, scene, input)?;
         let req = ViewRequest {
             spec: self.views.clone(),
             width: self.distill_width,
@@ -263,6 +257,22 @@ impl DistillArgs {
             );
         }
         Ok(())
+    }
+}
+
+/// For `--views auto` on a scene without cameras of its own: the cameras of a 3DGS
+/// `cameras.json` beside the input, if there is one (none otherwise).
+pub fn cameras_beside(
+    views: &str,
+    scene: &DynamicScene,
+    input: &std::path::Path,
+) -> anyhow::Result<Vec<splatbridge_scene::Camera>> {
+    let beside = input.with_file_name("cameras.json");
+    if views == "auto" && scene.cameras.is_empty() && beside.is_file() {
+        splatbridge_scene::camera::load_cameras_json(&beside)
+            .with_context(|| format!("--views auto: {}", beside.display()))
+    } else {
+        Ok(Vec::new())
     }
 }
 

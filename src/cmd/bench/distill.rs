@@ -64,13 +64,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let scene = input.scene;
     let convert = req.mesh_options(&scene, input.kind)?;
     // As `convert --views auto`: a 3DGS `cameras.json` beside the input when the scene has none.
-    let beside = args.scene.with_file_name("cameras.json");
-    let cameras = if args.views == "auto" && scene.cameras.is_empty() && beside.is_file() {
-        splatbridge_scene::camera::load_cameras_json(&beside)
-            .map_err(|e| anyhow::anyhow!("--views auto: {}: {e}", beside.display()))?
-    } else {
-        Vec::new()
-    };
+    let cameras = crate::cmd::distill_args::cameras_beside(&args.views, &scene, &args.scene)?;
     let req = ViewRequest {
         spec: args.views.clone(),
         width: args.width,
