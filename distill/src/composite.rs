@@ -14,8 +14,8 @@
 //! A hit is 20 bytes (the global triangle, its barycentrics and alpha factor; the triangle's
 //! vertices are looked up in the view's shared table), so a fit keeps its views' hits in
 //! memory rather than re-tracing them each step. A step shades each hit once: the forward
-//! pass keeps what it shaded ([`render_shaded`]) for the backward pass
-//! ([`hit_gradients_shaded`]), the same numbers [`hit_gradients`] computes again.
+//! pass keeps what it shaded ([`render_shaded_into`]) for the backward pass
+//! ([`hit_gradients_into`]), the same numbers [`hit_gradients`] computes again.
 
 use std::sync::Arc;
 
@@ -57,8 +57,9 @@ impl ViewHits {
         self.tris[h.tri as usize]
     }
 
-    fn pixel_hits(&self, p: usize) -> &[Rec] {
-        &self.hits[self.offsets[p] as usize..self.offsets[p + 1] as usize]
+    /// Pixel p's hits' indices.
+    fn range(&self, p: usize) -> std::ops::Range<usize> {
+        self.offsets[p] as usize..self.offsets[p + 1] as usize
     }
 }
 
@@ -167,19 +168,7 @@ fn pixel_backward(
 
 /// The image of a view (interleaved RGB).
 pub fn render(view: &ViewHits, params: &[[f32; 4]], s: &Shading) -> Vec<f32> {
-    let w = view.width as usize;
-    let h = view.height as usize;
-    let mut img = vec![0.0f32; 3 * w * h];
-    img.par_chunks_mut(3 * w.max(1))
-        .enumerate()
-        .for_each(|(row, out)| {
-            for col in 0..w {
-                let hits = view.pixel_hits(row * w + col);
-                let c = pixel(hits.iter().map(|h| shade(h, view.verts(h), params, s)), s);
-                out[3 * col..3 * col + 3].copy_from_slice(&c.to_array());
-            }
-        });
-    img
+    render_rows(view, params, s, None)
 }
 
 /// Views with more hits than this are shaded twice a step instead of keeping their shaded
@@ -202,41 +191,55 @@ fn row_slices<'a, T>(view: &ViewHits, buf: &'a mut [T]) -> Vec<&'a mut [T]> {
     rows
 }
 
-/// [`render`], also returning every hit shaded (in hit order) for [`hit_gradients_shaded`].
-pub fn render_shaded(view: &ViewHits, params: &[[f32; 4]], s: &Shading) -> (Vec<f32>, Vec<Shaded>) {
-    let mut shaded = Vec::new();
-    let img = render_shaded_into(view, params, s, &mut shaded);
-    (img, shaded)
-}
-
-/// [`render_shaded`] into `shaded`, whose allocation is reused (a fit's steps would otherwise
-/// fault in a fresh buffer for every view).
+/// [`render`], also leaving every hit shaded (in hit order) in `shaded` for
+/// [`hit_gradients_into`]; the buffer's allocation is reused (a fit's steps would otherwise
+/// fault in a fresh one for every view).
 pub fn render_shaded_into(
     view: &ViewHits,
     params: &[[f32; 4]],
     s: &Shading,
     shaded: &mut Vec<Shaded>,
 ) -> Vec<f32> {
+    render_rows(view, params, s, Some(shaded))
+}
+
+/// Rows composited in parallel, each pixel's hits shaded into `shaded` when given.
+fn render_rows(
+    view: &ViewHits,
+    params: &[[f32; 4]],
+    s: &Shading,
+    shaded: Option<&mut Vec<Shaded>>,
+) -> Vec<f32> {
     let w = view.width as usize;
     let h = view.height as usize;
     let mut img = vec![0.0f32; 3 * w * h];
-    shaded.clear();
-    shaded.resize(view.hits.len(), Shaded::default());
+    let rows: Vec<Option<&mut [Shaded]>> = match shaded {
+        Some(buf) => {
+            buf.clear();
+            buf.resize(view.hits.len(), Shaded::default());
+            row_slices(view, buf).into_iter().map(Some).collect()
+        }
+        None => (0..h).map(|_| None).collect(),
+    };
     img.par_chunks_mut(3 * w.max(1))
-        .zip(row_slices(view, shaded).into_par_iter())
+        .zip(rows.into_par_iter())
         .enumerate()
-        .for_each(|(row, (out, sh))| {
+        .for_each(|(row, (out, mut sh))| {
             let first = view.offsets[row * w] as usize;
             for col in 0..w {
-                let (a, b) = (
-                    view.offsets[row * w + col] as usize,
-                    view.offsets[row * w + col + 1] as usize,
-                );
-                let px = &mut sh[a - first..b - first];
-                for (slot, hit) in px.iter_mut().zip(&view.hits[a..b]) {
-                    *slot = shade(hit, view.verts(hit), params, s);
-                }
-                let c = pixel(px.iter().copied(), s);
+                let std::ops::Range { start: a, end: b } = view.range(row * w + col);
+                let hits = &view.hits[a..b];
+                let shade_hit = |h: &Rec| shade(h, view.verts(h), params, s);
+                let c = match sh.as_deref_mut() {
+                    Some(sh) => {
+                        let px = &mut sh[a - first..b - first];
+                        for (slot, hit) in px.iter_mut().zip(hits) {
+                            *slot = shade_hit(hit);
+                        }
+                        pixel(px.iter().copied(), s)
+                    }
+                    None => pixel(hits.iter().map(shade_hit), s),
+                };
                 out[3 * col..3 * col + 3].copy_from_slice(&c.to_array());
             }
         });
@@ -257,21 +260,8 @@ pub fn hit_gradients(
     out
 }
 
-/// [`hit_gradients`] from the hits [`render_shaded`] shaded with the same parameters.
-pub fn hit_gradients_shaded(
-    view: &ViewHits,
-    params: &[[f32; 4]],
-    shaded: &[Shaded],
-    s: &Shading,
-    dimg: &[f32],
-) -> Vec<[f32; 4]> {
-    let mut out = Vec::new();
-    hit_gradients_into(view, params, Some(shaded), s, dimg, &mut out);
-    out
-}
-
 /// [`hit_gradients`] into `out` (its allocation reused), each pixel's hits taken from
-/// `shaded` ([`render_shaded`] with the same parameters) or shaded again.
+/// `shaded` ([`render_shaded_into`] with the same parameters) or shaded again.
 pub fn hit_gradients_into(
     view: &ViewHits,
     params: &[[f32; 4]],
@@ -291,7 +281,7 @@ pub fn hit_gradients_into(
             let (mut tr, mut scratch) = (Vec::new(), Vec::new());
             for col in 0..w {
                 let p = row * w + col;
-                let (a, b) = (view.offsets[p] as usize, view.offsets[p + 1] as usize);
+                let std::ops::Range { start: a, end: b } = view.range(p);
                 let px: &[Shaded] = match shaded {
                     Some(sh) => &sh[a..b],
                     None => {
@@ -318,19 +308,6 @@ pub fn scatter(view: &ViewHits, dh: &[[f32; 4]], grad: &mut [[f32; 4]]) {
             }
         }
     }
-}
-
-/// Add the gradient of the loss with respect to every vertex's RGBA to `grad`, given
-/// `dimg = ∂L/∂image` (interleaved RGB).
-pub fn backward(
-    view: &ViewHits,
-    params: &[[f32; 4]],
-    s: &Shading,
-    dimg: &[f32],
-    grad: &mut [[f32; 4]],
-) {
-    let dh = hit_gradients(view, params, s, dimg);
-    scatter(view, &dh, grad);
 }
 
 #[cfg(test)]
@@ -391,7 +368,7 @@ mod tests {
     /// The per-pixel formula, written out: C = Σ c_i·α_i·Π_{j<i}(1 − α_j) + bg·Π(1 − α_j).
     fn reference_pixel(view: &ViewHits, p: usize, params: &[[f32; 4]], s: &Shading) -> [f64; 3] {
         let mut out = [0.0f64; 3];
-        let hits = view.pixel_hits(p);
+        let hits = &view.hits[view.range(p)];
         for (i, h) in hits.iter().enumerate() {
             let alpha = |h: &Rec| {
                 let v = view.verts(h);
@@ -442,7 +419,8 @@ mod tests {
                 background: Vec3::new(0.2, 0.5, 0.9),
             };
             let img = render(&view, &params, &s);
-            let (img2, shaded) = render_shaded(&view, &params, &s);
+            let mut shaded = Vec::new();
+            let img2 = render_shaded_into(&view, &params, &s, &mut shaded);
             assert_eq!(shaded.len(), view.hits.len());
             assert!(img
                 .iter()
@@ -464,7 +442,8 @@ mod tests {
                 .map(|i| ((i * 37 % 11) as f32 - 5.0) / 7.0)
                 .collect();
             let a = hit_gradients(&view, &params, &s, &dimg);
-            let b = hit_gradients_shaded(&view, &params, &shaded, &s, &dimg);
+            let mut b = Vec::new();
+            hit_gradients_into(&view, &params, Some(&shaded), &s, &dimg, &mut b);
             assert_eq!(a.len(), view.hits.len());
             assert!(a
                 .iter()

@@ -69,7 +69,16 @@ pub struct Validation {
 impl Validation {
     /// The largest loss from the start (negative), or the smallest gain.
     pub fn worst(&self) -> f64 {
-        self.change.iter().copied().fold(f64::INFINITY, f64::min)
+        self.worst_view().1
+    }
+
+    /// The view of [`Validation::worst`] (the first of equals) and its change; `(0, ∞)`
+    /// without views.
+    pub fn worst_view(&self) -> (usize, f64) {
+        self.change.iter().enumerate().fold(
+            (0, f64::INFINITY),
+            |m, (i, &c)| if c < m.1 { (i, c) } else { m },
+        )
     }
 }
 
@@ -144,15 +153,16 @@ impl Distiller {
             .zip(&self.guard.start)
             .map(|(a, b)| a - b)
             .collect();
-        let worst = change.iter().copied().fold(f64::INFINITY, f64::min);
-        let admissible = worst >= -self.opts.guard_tolerance_db.max(0.0);
-        self.guard.log.push(Validation {
+        let mut v = Validation {
             iteration: it,
             mean,
             psnr: now.clone(),
             change,
-            admissible,
-        });
+            admissible: false,
+        };
+        v.admissible = v.worst() >= -self.opts.guard_tolerance_db.max(0.0);
+        let admissible = v.admissible;
+        self.guard.log.push(v);
         if it == 0 {
             self.report.validation_start = mean;
         }

@@ -241,18 +241,18 @@ impl Distiller {
             params.extend(m.colors.iter().map(|c| c.to_array()));
         }
         let n = params.len();
+        let ntris = tri.triangle_count();
+        if n > u32::MAX as usize || ntris > u32::MAX as usize {
+            return Err(DistillError::Invalid(format!(
+                "distillation indexes vertices and triangles with 32 bits: this mesh has {n} \
+                 vertices and {ntris} triangles"
+            )));
+        }
         let mut tri_base = Vec::with_capacity(tri.meshes.len());
-        let mut tris = Vec::new();
+        let mut tris = Vec::with_capacity(ntris);
         for (m, &b) in tri.meshes.iter().zip(&base) {
             tri_base.push(tris.len() as u32);
             tris.extend(m.tris.iter().map(|t| t.map(|i| b as u32 + i)));
-        }
-        if n > u32::MAX as usize || tris.len() > u32::MAX as usize {
-            return Err(DistillError::Invalid(format!(
-                "distillation indexes vertices and triangles with 32 bits: this mesh has {n} \
-                 vertices and {} triangles",
-                tris.len()
-            )));
         }
         let (w, h) = (cameras[0].width as u64, cameras[0].height as u64);
         let values = cameras.len() as u64 * w * h * 3;

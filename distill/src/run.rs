@@ -238,17 +238,14 @@ pub fn distill_export(
     let held_times = opts.view_times(held.len());
     let held_targets = native_targets_sh(scene, &held, &held_times, opts.target_sh_degree)?;
     let before = psnr_each(&mut d, &held, &held_times, &held_targets)?;
-    let start = (!held.is_empty() && !opts.positions).then(|| d.params().to_vec());
     d.run(on_step)?;
-    // Where the guard kept the start (every step refused), the held-back images are the ones
-    // just measured, bit for bit: the same colours on the same mesh.
-    let unchanged = start.is_some_and(|p| {
-        p.iter()
-            .flatten()
-            .zip(d.params().iter().flatten())
-            .all(|(a, b)| a.to_bits() == b.to_bits())
-    });
-    let after = if unchanged {
+    // Where no step ran, or the guard went back to the start (its iteration-0 snapshot, the
+    // colours just measured), the held-back images are the ones of `before`, bit for bit: the
+    // same colours on the same mesh (moved positions change the mesh).
+    let r = d.report();
+    let at_start =
+        !opts.positions && (r.iterations == 0 || (r.validation_views > 0 && r.kept_iteration == 0));
+    let after = if at_start {
         before.clone()
     } else {
         psnr_each(&mut d, &held, &held_times, &held_targets)?

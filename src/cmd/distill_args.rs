@@ -94,7 +94,7 @@ pub struct DistillArgs {
     pub distill_record_k: usize,
     /// Memory (GB) for the views' recorded hits, kept between steps; views beyond it are
     /// traced again in every step they are used (slower, same result).
-    #[arg(long, value_name = "GB", default_value_t = DistillOptions::default().hit_budget as f64 / 1e9, value_parser = parse_non_negative, requires = "distill")]
+    #[arg(long, value_name = "GB", default_value_t = default_memory_gb(), value_parser = parse_non_negative, requires = "distill")]
     pub distill_memory: f64,
     /// Views per Adam step, spread around the rig and taken in turn (0: every view).
     #[arg(long, value_name = "B", default_value_t = DistillOptions::default().batch, requires = "distill")]
@@ -172,7 +172,7 @@ impl DistillArgs {
             },
             params: self.distill_params.mode(),
             record_k: self.distill_record_k,
-            hit_budget: (self.distill_memory * 1e9).min(u64::MAX as f64) as u64,
+            hit_budget: memory_bytes(self.distill_memory),
             batch: self.distill_batch,
             eps_pixels: self.distill_eps,
             footprint: self.distill_footprint == OnOff::On,
@@ -231,23 +231,16 @@ impl DistillArgs {
             );
         }
         if let Some(v) = &out.best_refused {
+            let (view, change) = v.worst_view();
             // Rounded up, so the tolerance named does admit the iteration.
-            let loss = (-v.worst() * 100.0).ceil() / 100.0;
-            let (view, _) = v
-                .change
-                .iter()
-                .enumerate()
-                .fold(
-                    (0, f64::INFINITY),
-                    |m, (i, &c)| if c < m.1 { (i, c) } else { m },
-                );
+            let tolerance = (-change * 100.0).ceil() / 100.0;
             eprintln!(
-                "  the guard refused iteration {} (validation mean {:.2} dB, {:+.2}): validation view {} lost {:.2} dB; --distill-guard-tolerance {loss:.2} keeps it",
+                "  the guard refused iteration {} (validation mean {:.2} dB, {:+.2}): validation view {} lost {:.2} dB; --distill-guard-tolerance {tolerance:.2} keeps it",
                 v.iteration,
                 v.mean,
                 v.mean - r.validation_kept,
                 view + 1,
-                -v.worst(),
+                -change,
             );
         }
         if let (Some((a, b)), Some((worst, median))) = (out.held_back, out.held_back_change) {
@@ -274,6 +267,16 @@ pub fn cameras_beside(
     } else {
         Ok(Vec::new())
     }
+}
+
+/// The hit-list memory of `--distill-memory` and `bench distill --memory` by default, GB.
+pub fn default_memory_gb() -> f64 {
+    DistillOptions::default().hit_budget as f64 / 1e9
+}
+
+/// Bytes of `gb` GB (saturating, as float-to-integer casts do).
+pub fn memory_bytes(gb: f64) -> u64 {
+    (gb * 1e9) as u64
 }
 
 /// A number in [0, 1].

@@ -9,15 +9,16 @@ use std::time::Instant;
 use splatbridge::distill::run::{fitting_times, resolve_views, ViewRequest};
 use splatbridge::distill::{DistillOptions, Distiller};
 
-use crate::cmd::common;
+use crate::cmd::convert::ProfileArg;
+use crate::cmd::{common, distill_args};
 
 #[derive(clap::Args)]
 pub struct Args {
     #[arg(help = concat!("The scene to distil: ", scene_formats!(), "."))]
     pub scene: PathBuf,
-    /// Meshing profile: texture (convert's default), meshsplats or rings.
-    #[arg(long, default_value = "texture")]
-    pub profile: String,
+    /// Meshing profile (texture: `convert`'s default for glTF).
+    #[arg(long, value_enum, default_value = "texture")]
+    pub profile: ProfileArg,
     /// Fitting views, as `convert --views` (auto: the scene's cameras, else sphere:48).
     #[arg(long, default_value = "auto")]
     pub views: String,
@@ -30,7 +31,7 @@ pub struct Args {
     #[arg(long, default_value_t = 10)]
     pub steps: usize,
     /// Memory for the views' hit lists, GB, as `convert --distill-memory`.
-    #[arg(long, value_name = "GB", default_value_t = DistillOptions::default().hit_budget as f64 / 1e9, value_parser = crate::cmd::distill_args::parse_non_negative)]
+    #[arg(long, value_name = "GB", default_value_t = distill_args::default_memory_gb(), value_parser = distill_args::parse_non_negative)]
     pub memory: f64,
 }
 
@@ -42,29 +43,21 @@ struct ConvertLine {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    if !["texture", "meshsplats", "rings"].contains(&args.profile.as_str()) {
-        anyhow::bail!(
-            "--profile: unknown profile '{}' (texture, meshsplats, rings)",
-            args.profile
-        );
-    }
     // The mesh `convert SCENE --profile P -o OUT.glb` would export (its layout, up axis,
     // coplanar step): the options the distiller of `convert --distill` gets.
-    let scene_arg = args.scene.as_os_str().to_owned();
-    let line = <ConvertLine as clap::Parser>::try_parse_from([
+    let mut line = <ConvertLine as clap::Parser>::try_parse_from([
         "convert".as_ref(),
-        scene_arg.as_os_str(),
-        "--profile".as_ref(),
-        args.profile.as_ref(),
+        args.scene.as_os_str(),
         "-o".as_ref(),
         "bench.glb".as_ref(),
-    ] as [&std::ffi::OsStr; 6])?;
+    ] as [&std::ffi::OsStr; 4])?;
+    line.args.profile = Some(args.profile);
     let req = line.args.request()?;
     let input = req.load(&common::print_warning)?;
     let scene = input.scene;
     let convert = req.mesh_options(&scene, input.kind)?;
     // As `convert --views auto`: a 3DGS `cameras.json` beside the input when the scene has none.
-    let cameras = crate::cmd::distill_args::cameras_beside(&args.views, &scene, &args.scene)?;
+    let cameras = distill_args::cameras_beside(&args.views, &scene, &args.scene)?;
     let req = ViewRequest {
         spec: args.views.clone(),
         width: args.width,
@@ -78,7 +71,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let opts = DistillOptions {
         time,
         times: fitting_times(&scene, req.times),
-        hit_budget: (args.memory * 1e9).min(u64::MAX as f64) as u64,
+        hit_budget: distill_args::memory_bytes(args.memory),
         ..DistillOptions::default()
     };
     let t = Instant::now();
@@ -110,7 +103,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         r.width,
         r.height,
         views.spec,
-        args.profile,
+        clap::ValueEnum::to_possible_value(&args.profile)
+            .map_or_else(String::new, |v| v.get_name().to_string()),
         r.vertices,
         rayon::current_num_threads()
     );
