@@ -194,6 +194,124 @@ fn convert_keeps_2dgs_surfels_and_fans_lie_in_their_plane() {
     check_fans_in_plane(&cloud, &plain_mesh, false);
 }
 
+/// `--footprint-for` on a 2DGS file raises each surfel to 2DGS's own filter (σ at least √½ px at
+/// its depth, in its plane), not 3DGS's 0.3 px² sum: the fans lie in their planes and span
+/// exactly the widened surfels' scales, as the library's rule gives them.
+#[test]
+fn footprint_for_raises_2dgs_surfels_to_their_own_filter() {
+    use splatbridge_distill::footprint::{widen_scene_for, LowPass};
+    let tmp = tempfile::tempdir().unwrap();
+    let (p, cloud) = surfel_file(tmp.path());
+    let args = |extra: &[&'static str], out: &Path| -> Vec<String> {
+        let mut a: Vec<String> = [
+            "convert",
+            s(&p),
+            "--mesh",
+            "--profile",
+            "rings",
+            "--segments",
+            "8",
+            "--rings",
+            "2",
+            "--up",
+            "y",
+            "--no-coplanar-offset",
+            "-o",
+            s(out),
+        ]
+        .iter()
+        .map(|x| x.to_string())
+        .collect();
+        a.extend(extra.iter().map(|x| x.to_string()));
+        a
+    };
+    let plain = tmp.path().join("plain.ply");
+    let a = args(&[], &plain);
+    stdout(&run(&a.iter().map(String::as_str).collect::<Vec<_>>()));
+    let widened = tmp.path().join("widened.ply");
+    // 64×48: the surfels (σ e^-4…e^-2 in a unit box) straddle the filter's σ there.
+    let a = args(
+        &["--camera", "orbit:1:0", "--footprint-for", "64x48"],
+        &widened,
+    );
+    let o = run(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("300 Gaussians widened by 2DGS's ½ px² filter"),
+        "{err}"
+    );
+    // The same widening through the library, on the camera convert resolved.
+    let mut scene = splatbridge_scene::dynamic::DynamicScene::from_static(cloud.clone());
+    let cam = splatbridge::pipeline::export_request::resolve_spec("orbit:1:0", &scene, "--camera")
+        .unwrap();
+    scene.cameras = vec![cam];
+    let w = widen_scene_for(&mut scene, 64, 48, LowPass::Surfel2d).unwrap();
+    assert_eq!(w.widened, 300);
+    let wide = scene.static_gaussians;
+    let raised = (0..300)
+        .filter(|&i| wide.log_scales[i] != cloud.log_scales[i])
+        .count();
+    // Neither nothing nor everything: the test would not tell the rule from another otherwise.
+    assert!(raised > 30 && raised < 300, "{raised} of 300 raised");
+    for i in 0..300 {
+        let (a, b) = (cloud.log_scales[i], wide.log_scales[i]);
+        // Raised to one common filter σ or kept: never lowered, never a sum of variances.
+        assert!(b.x >= a.x && b.y >= a.y, "surfel {i}: {a} -> {b}");
+        assert_eq!(
+            b.z,
+            b.x.min(b.y) + splatbridge_scene::ply::SURFEL_THICKNESS.ln()
+        );
+    }
+    check_fans_in_plane(&wide, &widened, false);
+    // Each fan spans its widened surfel as the plain fan spans the plain one: the same
+    // coordinates in units of the surfel's own scales.
+    let (pr, wr) = (fan_reach(&cloud, &plain), fan_reach(&wide, &widened));
+    for i in 0..300 {
+        // f32 vertices a few ulps from the mean, divided by scales ≥ e^-4: 1e-3 relative.
+        assert!(
+            (pr[i] - wr[i]).abs() <= 1e-3 * pr[i],
+            "surfel {i}: reach {} plain, {} widened",
+            pr[i],
+            wr[i]
+        );
+    }
+}
+
+/// For each surfel of `cloud`, the largest in-plane coordinate of its fan in the mesh PLY
+/// at `mesh` in units of the surfel's own scales (fans matched to surfels by centroid).
+fn fan_reach(cloud: &GaussianCloud, mesh: &Path) -> Vec<f32> {
+    let (verts, _) = read_mesh_ply(&std::fs::read(mesh).unwrap());
+    let per = verts.len() / cloud.len();
+    let mut reach = vec![f32::NAN; cloud.len()];
+    for fan in verts.chunks(per) {
+        let centroid = fan.iter().copied().sum::<Vec3>() / fan.len() as f32;
+        let i = (0..cloud.len())
+            .min_by(|&a, &b| {
+                let da = (cloud.means[a] - centroid).length_squared();
+                let db = (cloud.means[b] - centroid).length_squared();
+                da.total_cmp(&db)
+            })
+            .unwrap();
+        let r = Mat3::from_quat(cloud.unit_rotation(i));
+        let sc = cloud.scale(i);
+        reach[i] = fan
+            .iter()
+            .map(|v| {
+                let d = *v - cloud.means[i];
+                (d.dot(r.x_axis) / sc.x)
+                    .abs()
+                    .max((d.dot(r.y_axis) / sc.y).abs())
+            })
+            .fold(0.0, f32::max);
+    }
+    assert!(
+        reach.iter().all(|r| r.is_finite()),
+        "a surfel without a fan"
+    );
+    reach
+}
+
 /// Every fan of the mesh PLY at `mesh` lies in the plane of its own surfel of `cloud`, spanned
 /// by the surfel's two tangent axes. `as_for_blender`: the file was written with the default
 /// `--up -y` (a half turn about x baked into the vertices) and the coplanar separation, so the

@@ -11,7 +11,7 @@ use anyhow::{bail, Context};
 use splatbridge_convert::options::{ChunkOrder, VolumetricMode};
 use splatbridge_convert::splats_gltf::KhrCompression;
 use splatbridge_convert::{ConvertOptions, ConvertReport, Profile};
-use splatbridge_distill::footprint::{widen_scene_for, Widened};
+use splatbridge_distill::footprint::{widen_scene_for, LowPass, Widened};
 use splatbridge_scene::camera_spec::{CameraRequest, CameraSource};
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::effects::EffectCounters;
@@ -135,10 +135,18 @@ impl ExportRequest {
         }
         let widened = match self.footprint_for {
             Some(_) if cloud.is_some() => bail!("--footprint-for: widens Gaussians for a mesh export; a splat output keeps the Gaussians native splatting filters itself"),
-            Some((w, h)) => Some(
-                widen_scene_for(&mut scene, w, h)
-                    .map_err(|e| anyhow::anyhow!("--footprint-for: {e}"))?,
-            ),
+            Some((w, h)) => {
+                // A 2DGS file's mesh stands in for 2DGS's own filter, anything else's for
+                // 3DGS splatting's: the renderer `render --model auto` takes for it.
+                let low_pass = match kind {
+                    GaussianKind::Surfels2D => LowPass::Surfel2d,
+                    GaussianKind::Gaussians3D | GaussianKind::Points => LowPass::Splat3d,
+                };
+                Some(
+                    widen_scene_for(&mut scene, w, h, low_pass)
+                        .map_err(|e| anyhow::anyhow!("--footprint-for: {e}"))?,
+                )
+            }
             None => None,
         };
         Ok(ExportInput {

@@ -171,7 +171,8 @@ pub struct Args {
     pub camera: Vec<String>,
     /// Make the mesh for this resolution: widen every Gaussian by native splatting's 0.3 px²
     /// low-pass at its depth in the cameras (--camera or the scene's own) resized to WxH, so
-    /// the mesh blurs there as native does instead of aliasing. Mesh outputs only.
+    /// the mesh blurs there as native does instead of aliasing. A 2DGS file's surfels are raised
+    /// to 2DGS's own filter instead (σ at least √½ px, in their plane). Mesh outputs only.
     #[arg(long, value_name = "WxH", value_parser = parse_wxh, conflicts_with = "distill")]
     pub footprint_for: Option<(u32, u32)>,
     /// Mesh layout of glTF outputs (mesh profiles; not OBJ/PLY).
@@ -227,8 +228,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut scene = input.scene;
     if let (Some((w, h)), Some(done)) = (args.footprint_for, &input.widened) {
         eprintln!(
-            "footprint for {w}×{h}: {} Gaussians widened (largest σ added {:.3e}), {} behind every camera left as they are",
-            done.widened, done.max_sigma, done.unseen
+            "footprint for {w}×{h}: {} Gaussians widened by {} (filter σ up to {:.3e} world units), {} behind every camera left as they are",
+            done.widened,
+            done.low_pass.name(),
+            done.max_sigma,
+            done.unseen
         );
     }
     if let Some(format) = input.cloud {
