@@ -132,13 +132,7 @@ impl RayFootprint {
     /// `variance_px2` pixels². None when `d` does not point in front of the camera.
     pub fn pinhole(cam: &Camera, d: DVec3, variance_px2: f64) -> Option<Self> {
         let w = cam.world_to_cam;
-        let forward = w.row(2);
-        let dz = d.dot(forward);
-        if !(dz > 0.0) {
-            return None;
-        }
-        // Camera coordinates of the ray's point at unit view depth: (x, y, 1).
-        let pc = w * (d / dz);
+        let (forward, pc) = unit_depth_point(cam, d)?;
         // Rows of J at unit depth, carried to world: Wᵀ·j.
         let m0 = w.transpose() * DVec3::new(cam.fx, 0.0, -cam.fx * pc.x);
         let m1 = w.transpose() * DVec3::new(0.0, cam.fy, -cam.fy * pc.y);
@@ -153,7 +147,7 @@ impl RayFootprint {
         }
         let inv = g.inverse() * variance_px2;
         let cov = [inv.x_axis.x, inv.y_axis.x, inv.y_axis.y];
-        let pixel = (cam.fx * pc.x + cam.cx, cam.fy * pc.y + cam.cy);
+        let pixel = pixel_of(cam, pc);
         cov.iter().all(|v| v.is_finite()).then_some(RayFootprint {
             forward,
             e1,
@@ -162,6 +156,62 @@ impl RayFootprint {
             pixel,
         })
     }
+}
+
+/// The camera's forward axis and the camera coordinates `(x, y, 1)` of the point at unit view
+/// depth on the ray of unit direction `d`; None when `d` does not point in front of the camera.
+fn unit_depth_point(cam: &Camera, d: DVec3) -> Option<(DVec3, DVec3)> {
+    let w = cam.world_to_cam;
+    let forward = w.row(2);
+    let dz = d.dot(forward);
+    if !(dz > 0.0) {
+        return None;
+    }
+    Some((forward, w * (d / dz)))
+}
+
+/// The continuous pixel of the camera point `pc` at unit depth.
+fn pixel_of(cam: &Camera, pc: DVec3) -> (f64, f64) {
+    (cam.fx * pc.x + cam.cx, cam.fy * pc.y + cam.cy)
+}
+
+/// The pixel position [`RayFootprint::pinhole`] gives the ray of unit direction `d` (the same
+/// numbers), without the rest of its footprint; None where `pinhole` is None for that reason.
+pub fn pinhole_pixel(cam: &Camera, d: DVec3) -> Option<(f64, f64)> {
+    unit_depth_point(cam, d).map(|(_, pc)| pixel_of(cam, pc))
+}
+
+/// Whether [`RayFootprint::pinhole`] gives a footprint to every ray of `cam` through its image
+/// `[0, width] × [0, height]`, so that a renderer may take [`pinhole_pixel`] alone and work out
+/// the rest only for the rays that need it.
+///
+/// Why a check of the frame suffices: `pinhole` is None only when the ray is not in front, or
+/// when `g = AᵀA` has no positive determinant or `s·g⁻¹` is not finite. For a pinhole ray
+/// `d ∝ Wᵀ(x, y, 1)`, `det A = ±fx·fy/|(x, y, 1)|`, so `det g = (fx·fy·cos θ)²`, with `θ` the
+/// ray's angle to the optical axis, and g's condition number is at most
+/// `(max(fx, fy)/min(fx, fy))²/cos²θ`. Over the image, `cos θ` is smallest at a corner (the
+/// farthest point from the principal point). With focal lengths within 1e-30…1e30 and a
+/// ratio of at most 1e3, corners at `cos θ ≥ 1e-3` and a finite variance, the condition number
+/// is below 1e12, so f64 rounding (relative 1e-16 per operation) leaves `det g` positive by
+/// ten orders of magnitude, and `g`, its inverse and `cov` far from overflow. The corners'
+/// own footprints are checked as well.
+pub fn covers_frame(cam: &Camera, variance_px2: f64) -> bool {
+    let focal = |f: f64| (1e-30..=1e30).contains(&f);
+    let ratio = cam.fx / cam.fy;
+    if !(focal(cam.fx) && focal(cam.fy) && (1e-3..=1e3).contains(&ratio))
+        || !(variance_px2.is_finite() && variance_px2 >= 0.0)
+        || !(cam.cx.is_finite() && cam.cy.is_finite())
+    {
+        return false;
+    }
+    let (w, h) = (cam.width as f64, cam.height as f64);
+    [(0.0, 0.0), (w, 0.0), (0.0, h), (w, h)]
+        .iter()
+        .all(|&(u, v)| {
+            let d = cam.ray_dir(u, v);
+            d.dot(cam.world_to_cam.row(2)) >= 1e-3
+                && RayFootprint::pinhole(cam, d, variance_px2).is_some()
+        })
 }
 
 /// Half-width to add on every axis to the box of a Gaussian whose mean is at view depth `z`, so
@@ -214,6 +264,44 @@ mod tests {
             h,
         )
         .unwrap()
+    }
+
+    /// `pinhole_pixel` is `pinhole`'s pixel bit for bit, and `covers_frame` holds exactly
+    /// where it should: ordinary views of any aspect and principal point, not views whose
+    /// corners reach 89.9° off axis, focal lengths out of range or a huge aspect of pixels.
+    #[test]
+    fn pixel_alone_and_frames_covered() {
+        let eye = DVec3::new(0.3, -0.2, 0.1);
+        let target = DVec3::new(-0.4, 0.5, 3.0);
+        for (fov, w, h) in [(50.0, 64, 48), (120.0, 30, 90), (5.0, 200, 10)] {
+            let mut c = Camera::look_at(eye, target, DVec3::NEG_Y, fov, w, h).unwrap();
+            c.cx += 7.25;
+            assert!(covers_frame(&c, 0.3), "{fov}° {w}×{h}");
+            for j in 0..=h {
+                for i in 0..=w {
+                    let d = c.ray_dir(i as f64 * 0.999, j as f64 * 0.999);
+                    let f = RayFootprint::pinhole(&c, d, 0.3).unwrap();
+                    let p = pinhole_pixel(&c, d).unwrap();
+                    assert_eq!(
+                        (p.0.to_bits(), p.1.to_bits()),
+                        (f.pixel.0.to_bits(), f.pixel.1.to_bits())
+                    );
+                }
+            }
+            assert!(pinhole_pixel(&c, -c.world_to_cam.row(2)).is_none());
+        }
+        let c = Camera::look_at(eye, target, DVec3::NEG_Y, 179.9, 64, 48).unwrap();
+        assert!(!covers_frame(&c, 0.3), "corners 89.9° off axis");
+        let base = Camera::look_at(eye, target, DVec3::NEG_Y, 50.0, 64, 48).unwrap();
+        for (fx, fy) in [(1e-31, 1e-31), (1e31, 1e31), (1e4, 1.0)] {
+            let c = Camera {
+                fx,
+                fy,
+                ..base.clone()
+            };
+            assert!(!covers_frame(&c, 0.3), "fx {fx} fy {fy}");
+        }
+        assert!(!covers_frame(&base, f64::NAN));
     }
 
     #[test]

@@ -672,6 +672,10 @@ impl GaussianTracer {
         let mean_colors = (opts.sh_direction == ShDirection::Mean)
             .then(|| (cam.centre, self.colors_toward_mean(cam.centre)));
         let mean_colors = mean_colors.as_ref().map(|(o, c)| (*o, c.as_slice()));
+        // Mode `on` reads the whole footprint only for the odd lane without a usable pixel
+        // record; where the frame guarantees every ray one, a ray starts with its pixel alone.
+        let pixel_only = padded.as_ref().is_some_and(|p| p.mode == Footprint::On)
+            && crate::footprint::covers_frame(cam, variance);
         let prepare = start.elapsed().as_secs_f64();
         let (frame, mut stats) = crate::render::render_frame_tiles(
             cam,
@@ -686,25 +690,41 @@ impl GaussianTracer {
             |(cells, scratch), o, d, uv| {
                 // The sample's pixel (a sample of pixel i lies in [i, i + 1)).
                 let list = cells.of(uv.0 as u32, uv.1 as u32);
-                let fp = padded
-                    .as_ref()
-                    .map(|p| (RayFootprint::pinhole(cam, d, variance), p));
+                let fp = padded.as_ref().map(|p| {
+                    let f = if pixel_only {
+                        crate::footprint::pinhole_pixel(cam, d).map(Lazy::Pixel)
+                    } else {
+                        RayFootprint::pinhole(cam, d, variance).map(Lazy::Whole)
+                    };
+                    (f, p)
+                });
                 match fp {
                     // A footprint the camera cannot give this ray: the per-ray path's fallback.
                     Some((None, _)) => with_thread_buffer(opts.k, |b| {
                         self.trace_fp(o, d, Some(forward), None, opts, b)
                     }),
-                    Some((Some(f), p)) => self.trace_tile(
-                        list,
-                        o,
-                        d,
-                        uv,
-                        forward,
-                        Some((&f, p)),
-                        mean_colors,
-                        opts,
-                        scratch,
-                    ),
+                    Some((Some(f), p)) => {
+                        let f = match &f {
+                            Lazy::Whole(f) => tiles::RayFp::Whole(f),
+                            &Lazy::Pixel(pixel) => tiles::RayFp::Pixel {
+                                cam,
+                                d,
+                                variance,
+                                pixel,
+                            },
+                        };
+                        self.trace_tile(
+                            list,
+                            o,
+                            d,
+                            uv,
+                            forward,
+                            Some((f, p)),
+                            mean_colors,
+                            opts,
+                            scratch,
+                        )
+                    }
                     None => {
                         self.trace_tile(list, o, d, uv, forward, None, mean_colors, opts, scratch)
                     }
@@ -714,6 +734,13 @@ impl GaussianTracer {
         stats.seconds += prepare;
         Ok((frame, stats))
     }
+}
+
+/// A primary ray's footprint in the tile path: whole, or its pixel alone (see
+/// [`tiles::RayFp`]).
+enum Lazy {
+    Whole(RayFootprint),
+    Pixel((f64, f64)),
 }
 
 #[cfg(test)]

@@ -368,6 +368,52 @@ pub(super) fn color_from_basis(coeffs: &[Vec3], b: &[f32; 16]) -> Vec3 {
     (c + Vec3::splat(0.5)).max(Vec3::ZERO)
 }
 
+/// A primary ray's footprint as the tile path is given it.
+#[derive(Clone, Copy, Debug)]
+pub(super) enum RayFp<'a> {
+    /// Worked out whole ([`RayFootprint::pinhole`]).
+    Whole(&'a RayFootprint),
+    /// Only its pixel ([`crate::footprint::pinhole_pixel`], the same numbers): the frame passed
+    /// [`crate::footprint::covers_frame`], so `pinhole` gives every one of its rays a
+    /// footprint, and the rest of it, which mode `on` reads only for a lane without a usable
+    /// pixel record, is worked out when such a lane comes.
+    Pixel {
+        cam: &'a Camera,
+        d: DVec3,
+        variance: f64,
+        pixel: (f64, f64),
+    },
+}
+
+impl RayFp<'_> {
+    /// The ray's continuous pixel.
+    fn pixel(&self) -> (f64, f64) {
+        match self {
+            RayFp::Whole(f) => f.pixel,
+            RayFp::Pixel { pixel, .. } => *pixel,
+        }
+    }
+}
+
+/// The ray's whole footprint in part 0's frame, worked out on first use and kept in `local`.
+fn whole<'l>(
+    local: &'l mut Option<LocalFootprint>,
+    tracer: &GaussianTracer,
+    f: RayFp<'_>,
+    pad: &Padded,
+) -> Option<&'l LocalFootprint> {
+    if local.is_none() {
+        let full = match f {
+            RayFp::Whole(f) => *f,
+            RayFp::Pixel {
+                cam, d, variance, ..
+            } => RayFootprint::pinhole(cam, d, variance)?,
+        };
+        *local = Some(LocalFootprint::new(tracer, 0, &full, pad));
+    }
+    local.as_ref()
+}
+
 impl GaussianTracer {
     /// Whether [`GaussianTracer::render`] takes the tile path (see the module documentation).
     pub(super) fn tiles_apply(&self, opts: &RenderOptions) -> bool {
@@ -396,7 +442,7 @@ impl GaussianTracer {
         d: DVec3,
         uv: (f64, f64),
         forward: DVec3,
-        fp: Option<(&RayFootprint, &Padded)>,
+        fp: Option<(RayFp<'_>, &Padded)>,
         mean_colors: Option<(DVec3, &[Vec3])>,
         opts: &RenderOptions,
         scratch: &mut Scratch,
@@ -405,10 +451,28 @@ impl GaussianTracer {
         let (ro, rd) = (self.local_point(0, o), self.local_dir(0, d));
         let fwd = self.local_dir(0, forward);
         let forward_cos = rd.dot(fwd);
-        let local = fp.map(|(f, pad)| LocalFootprint::new(self, 0, f, pad));
         let mode = fp.map_or(Footprint::Off, |(_, p)| p.mode);
+        // The ray's whole footprint in the part's frame, where it is at hand; a pixel-only
+        // footprint is completed the first time a lane needs the 3-D form.
+        let mut local = fp.and_then(|(f, pad)| match f {
+            RayFp::Whole(f) => Some(LocalFootprint::new(self, 0, f, pad)),
+            RayFp::Pixel { .. } => None,
+        });
+        // What every lane needs: the centred pixel and the low-pass `s`, `s²`.
+        let pixel = fp.map(|(f, pad)| {
+            let s = pad.variance as f32;
+            let p = f.pixel();
+            (
+                (
+                    (p.0 - pad.principal.0) as f32,
+                    (p.1 - pad.principal.1) as f32,
+                ),
+                s,
+                s * s,
+            )
+        });
         let (u, v) = (uv.0 as f32, uv.1 as f32);
-        let (cu, cv) = local.map_or((0.0, 0.0), |f| f.centred);
+        let (cu, cv) = pixel.map_or((0.0, 0.0), |(c, _, _)| c);
         let mut acc = Accum::default();
         let mut hits = 0u32;
         let mut candidates = 0u32;
@@ -460,8 +524,8 @@ impl GaussianTracer {
                 continue;
             }
             // Mode `on`: the eight lanes' `q` from the pixel records (`Part::response_fp`).
-            let lanes_q = match local {
-                Some(f) if mode == Footprint::On => Some(chunk.q(f.centred, f.s, f.s2)),
+            let lanes_q = match pixel {
+                Some((c, s, s2)) if mode == Footprint::On => Some(chunk.q(c, s, s2)),
                 _ => None,
             };
             while pass != 0 {
@@ -469,15 +533,17 @@ impl GaussianTracer {
                 pass &= pass - 1;
                 candidates += 1;
                 let p = chunk.p[l] as usize;
-                let r = match (&local, fp) {
-                    (Some(f), Some((_, pad))) if mode == Footprint::Projected => {
-                        part.response_projected(p, ro, rd, f, &pad.splats[0][p])
+                let r = match fp {
+                    Some((f, pad)) if mode == Footprint::Projected => {
+                        whole(&mut local, self, f, pad)
+                            .and_then(|f| part.response_projected(p, ro, rd, f, &pad.splats[0][p]))
                     }
-                    (Some(f), Some(_)) => {
+                    Some((f, pad)) => {
                         // `Part::response_fp` keyed at the mean's depth, lane `l`'s share.
                         let q = match lanes_q {
                             Some((q, ok)) if chunk.ok[l] => (ok >> l & 1 == 1).then_some(q[l]),
-                            _ => part.widened_q_3d(p, ro, f),
+                            _ => whole(&mut local, self, f, pad)
+                                .and_then(|f| part.widened_q_3d(p, ro, f)),
                         };
                         q.filter(|q| *q <= chunk.r2[l])
                             .and_then(|q| alpha_of(chunk.opacity[l], q))
