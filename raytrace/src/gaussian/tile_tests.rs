@@ -221,39 +221,3 @@ fn tile_render_does_not_depend_on_threads() {
         assert_eq!(frames[0], frames[2], "{footprint:?}");
     }
 }
-
-/// A ray of the tile path starts with its pixel alone when `footprint::covers_frame` holds and
-/// completes its footprint only for a lane without a usable pixel record: equal to brute force
-/// bit for bit on a view with a Gaussian centred exactly at the camera (view depth 0, so its
-/// record is unusable and every pixel's walk completes its footprint for it). Frames the check
-/// refuses (`footprint::tests::pixel_alone_and_frames_covered`) take the whole footprint of
-/// every ray, as before; their brute-force reference is out of reach here (a 179.8° view's
-/// grown boxes make obvhs's debug build refuse its tree depth).
-#[test]
-fn pixel_only_footprints_equal_whole_ones() {
-    // f32-exact, so a mean can sit exactly at the centre.
-    let eye = DVec3::new(0.25, -0.125, -0.375);
-    let mut cloud = scene(13, 800);
-    let (q, sh) = random_rotation_and_sh(&mut Rng::new(5));
-    let at = eye.as_vec3();
-    assert_eq!(at.as_dvec3(), eye);
-    cloud.push(at, Vec3::new(0.9, 0.4, 0.6).map(f32::ln), q, 0.5, &sh);
-    let tracer = GaussianTracer::new(cloud, BackendKind::Obvhs, BuildPreset::Medium).unwrap();
-    let opts = RenderOptions {
-        footprint: Footprint::On,
-        order: HitOrder::MeanDepth,
-        sh_direction: ShDirection::Mean,
-        ..RenderOptions::default()
-    };
-    let target = DVec3::new(0.1, -0.05, 4.0);
-    for (fov, covered) in [(75.0, true)] {
-        let cam = Camera::look_at(eye, target, DVec3::NEG_Y, fov, 41, 23).unwrap();
-        assert_eq!(crate::footprint::covers_frame(&cam, 0.3), covered, "{fov}°");
-        // `PixelSplat::new` marks a record at view depth 0 unusable.
-        assert_eq!((cam.world_to_cam * (at.as_dvec3() - cam.centre)).z, 0.0);
-        let [(tiled, ts), _, (brute, bs)] = renders(&tracer, &cam, &opts);
-        assert!(bs.hits > 0, "{fov}°: nothing drawn");
-        assert_eq!(bits(&tiled), bits(&brute), "{fov}°: tiles vs brute force");
-        assert_eq!(ts.hits, bs.hits, "{fov}°");
-    }
-}

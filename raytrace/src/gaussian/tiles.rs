@@ -376,7 +376,10 @@ pub(super) enum RayFp<'a> {
     /// Only its pixel ([`crate::footprint::pinhole_pixel`], the same numbers): the frame passed
     /// [`crate::footprint::covers_frame`], so `pinhole` gives every one of its rays a
     /// footprint, and the rest of it, which mode `on` reads only for a lane without a usable
-    /// pixel record, is worked out when such a lane comes.
+    /// pixel record, is worked out when such a lane comes. (A record is unusable only when its
+    /// numbers are not finite at a positive view depth, so that rarely happens; every other
+    /// ray is the same numbers as with [`RayFp::Whole`], checked against brute force by the
+    /// tile tests, which now take this path.)
     Pixel {
         cam: &'a Camera,
         d: DVec3,
