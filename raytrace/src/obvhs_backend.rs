@@ -4,16 +4,25 @@
 //! Presets never pre-split triangles (see `BuildPreset`), so each primitive sits in exactly one
 //! leaf. Traversal goes through `ray_traverse`, whose closure returns a distance that shrinks
 //! the ray's `tmax`: that is how the k-nearest query culls nodes beyond the k-th hit.
-
-use std::time::Duration;
+//!
+//! The CWBVH's traversal keeps its pending node groups on a fixed stack of 32 entries that,
+//! when full, overwrites its top (`obvhs::faststack::StackStack::push`), and obvhs's debug
+//! build refuses a wide tree of 32 or more levels: deeper, a ray could silently lose subtrees.
+//! Degenerate inputs build such trees (boxes that all contain one another, as the grown proxies
+//! of a nearly 180° view do). Every build therefore measures its wide tree's depth, and a tree
+//! too deep for that stack is kept as the binary BVH it was made from, whose traversal sizes
+//! its stack from the tree's depth.
 
 use glam::{Vec3, Vec3A};
 use obvhs::aabb::Aabb;
-use obvhs::cwbvh::builder::{build_cwbvh, build_cwbvh_from_tris};
+use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
+use obvhs::bvh2::Bvh2;
+use obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh;
 use obvhs::cwbvh::CwBvh;
+use obvhs::ploc::PlocBuilder;
 use obvhs::ray::{Ray, RayHit};
 use obvhs::triangle::Triangle;
-use obvhs::BvhBuildParams;
+use obvhs::{Boundable, BvhBuildParams};
 
 use crate::backend::{Accel, BuildPreset};
 
@@ -52,9 +61,21 @@ fn make_ray(origin: Vec3, dir: Vec3, tmax: f32) -> Ray {
     }
 }
 
-/// A CWBVH plus the map from its leaf order to the caller's primitive indices.
+/// The CWBVH's traversal stack (`obvhs::cwbvh::TRAVERSAL_STACK_SIZE`, private there): a tree
+/// of this many levels or more may overflow it.
+const WIDE_STACK: u32 = 32;
+
+/// A built tree, with its leaf order (`primitive_indices`) mapping to the caller's primitives.
+enum Tree {
+    /// The compressed wide BVH (every tree shallower than [`WIDE_STACK`]).
+    Wide(CwBvh),
+    /// The binary BVH it was made from, for a tree too deep for the wide traversal's stack.
+    Binary(Bvh2),
+}
+
+/// An obvhs BVH over the caller's primitives.
 pub struct ObvhsAccel {
-    bvh: CwBvh,
+    tree: Tree,
 }
 
 impl ObvhsAccel {
@@ -67,8 +88,7 @@ impl ObvhsAccel {
                 v2: Vec3A::from(verts[c as usize]),
             })
             .collect();
-        let bvh = build_cwbvh_from_tris(&t, params(preset), &mut Duration::default());
-        ObvhsAccel::kept(bvh)
+        ObvhsAccel::build(preset, &t)
     }
 
     pub fn boxes(preset: BuildPreset, boxes: &[(Vec3, Vec3)]) -> Self {
@@ -76,8 +96,24 @@ impl ObvhsAccel {
             .iter()
             .map(|(lo, hi)| Aabb::new(Vec3A::from(*lo), Vec3A::from(*hi)))
             .collect();
-        let bvh = build_cwbvh(&b, params(preset), &mut Duration::default());
-        ObvhsAccel::kept(bvh)
+        ObvhsAccel::build(preset, &b)
+    }
+
+    /// obvhs's `build_cwbvh` (PLOC, reinsertion, conversion to the wide tree; no pre-splits),
+    /// step by step, so that a tree too deep for the wide traversal stays binary (and so that
+    /// a debug build does not stop at obvhs's own assertion of that depth).
+    fn build<T: Boundable>(preset: BuildPreset, prims: &[T]) -> Self {
+        let (mut bvh2, wide) = trees(preset, prims);
+        if wide_depth(&wide) < WIDE_STACK {
+            return ObvhsAccel::kept(wide);
+        }
+        // The binary traversal picks its stack by `max_depth` (a heap one past 192 levels); the
+        // builder's figure predates the reinsertion, which can deepen the tree.
+        bvh2.max_depth = binary_depth(&bvh2) + 1;
+        bvh2.primitive_indices.shrink_to_fit();
+        ObvhsAccel {
+            tree: Tree::Binary(bvh2),
+        }
     }
 
     /// The built structure as it is kept: obvhs reserves one wide node per primitive for the
@@ -86,8 +122,82 @@ impl ObvhsAccel {
     fn kept(mut bvh: CwBvh) -> Self {
         bvh.nodes.shrink_to_fit();
         bvh.primitive_indices.shrink_to_fit();
-        ObvhsAccel { bvh }
+        ObvhsAccel {
+            tree: Tree::Wide(bvh),
+        }
     }
+
+    /// Whether the tree is the binary fallback (for the tests).
+    #[cfg(test)]
+    fn is_binary(&self) -> bool {
+        matches!(self.tree, Tree::Binary(_))
+    }
+
+    fn primitive_indices(&self) -> &[u32] {
+        match &self.tree {
+            Tree::Wide(b) => &b.primitive_indices,
+            Tree::Binary(b) => &b.primitive_indices,
+        }
+    }
+}
+
+/// The binary tree and the wide tree obvhs's `build_cwbvh` makes of `prims`.
+fn trees<T: Boundable>(preset: BuildPreset, prims: &[T]) -> (Bvh2, CwBvh) {
+    let config = params(preset);
+    let mut bvh2 = PlocBuilder::with_capacity(prims.len()).build(
+        config.ploc_search_distance,
+        prims,
+        (0..prims.len() as u32).collect(),
+        config.sort_precision,
+        config.search_depth_threshold,
+    );
+    ReinsertionOptimizer::default().run(&mut bvh2, config.reinsertion_batch_ratio, None);
+    let wide = bvh2_to_cwbvh(&bvh2, config.max_prims_per_leaf.clamp(1, 3), true, false);
+    (bvh2, wide)
+}
+
+/// Levels of inner nodes on the longest path of a wide tree (the root alone: 0), walked with
+/// an explicit stack (a degenerate tree can be thousands of levels deep).
+fn wide_depth(bvh: &CwBvh) -> u32 {
+    if bvh.nodes.is_empty() {
+        return 0;
+    }
+    let mut deepest = 0;
+    let mut stack = vec![(0usize, 0u32)];
+    while let Some((i, depth)) = stack.pop() {
+        deepest = deepest.max(depth);
+        let node = &bvh.nodes[i];
+        for &meta in &node.child_meta {
+            // obvhs's layout: an inner child's meta is 24 + its slot, and the inner children
+            // are stored in slot order from `child_base_idx`.
+            if meta == 0 || (meta & 0b11111) < 24 {
+                continue;
+            }
+            let slot = (meta & 0b11111) as u32 - 24;
+            let rank = (node.imask as u32 & !(u32::MAX << slot)).count_ones();
+            stack.push((node.child_base_idx as usize + rank as usize, depth + 1));
+        }
+    }
+    deepest
+}
+
+/// Nodes on the longest root-to-leaf path of a binary tree, walked with an explicit stack.
+fn binary_depth(bvh: &Bvh2) -> usize {
+    if bvh.nodes.is_empty() {
+        return 0;
+    }
+    let mut deepest = 0;
+    let mut stack = vec![(0usize, 1usize)];
+    while let Some((i, depth)) = stack.pop() {
+        deepest = deepest.max(depth);
+        let node = &bvh.nodes[i];
+        if !node.is_leaf() {
+            let first = node.first_index as usize;
+            stack.push((first, depth + 1));
+            stack.push((first + 1, depth + 1));
+        }
+    }
+    deepest
 }
 
 impl ObvhsAccel {
@@ -112,7 +222,7 @@ impl ObvhsAccel {
         let ray = make_ray(origin + dir * shift, dir, tmax - shift);
         let mut hit = RayHit::none();
         let mut cull = tmax;
-        self.bvh.ray_traverse(ray, &mut hit, |_, id| {
+        let mut test = |id: usize| {
             let before = cull;
             let prim = match map {
                 Some(m) => m[id],
@@ -124,7 +234,16 @@ impl ObvhsAccel {
             } else {
                 f32::INFINITY
             }
-        });
+        };
+        // Both traversals shrink the ray's `tmax` to what the closure returns.
+        match &self.tree {
+            Tree::Wide(b) => {
+                b.ray_traverse(ray, &mut hit, |_, id| test(id));
+            }
+            Tree::Binary(b) => {
+                b.ray_traverse(ray, &mut hit, |_, id| test(id));
+            }
+        }
     }
 }
 
@@ -141,13 +260,13 @@ impl Accel for ObvhsAccel {
             dir,
             0.0,
             tmax,
-            Some(&self.bvh.primitive_indices),
+            Some(self.primitive_indices()),
             visit,
         );
     }
 
     fn slots(&self) -> Option<&[u32]> {
-        Some(&self.bvh.primitive_indices)
+        Some(self.primitive_indices())
     }
 
     fn traverse_slots(
@@ -159,5 +278,96 @@ impl Accel for ObvhsAccel {
         visit: &mut dyn FnMut(u32, bool, &mut f32),
     ) {
         self.walk(origin, dir, tmin, tmax, None, visit);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use splatbridge_scene::rng::Rng;
+
+    /// Every primitive a traversal reports, sorted (nothing culled: the closure never lowers
+    /// the cull distance).
+    fn reported(accel: &ObvhsAccel, o: Vec3, d: Vec3) -> Vec<u32> {
+        let mut got = Vec::new();
+        accel.traverse(o, d, f32::INFINITY, &mut |p, _, _| got.push(p));
+        got.sort_unstable();
+        got.dedup();
+        got
+    }
+
+    /// Boxes the ray enters ahead of its origin, by the reference slab test.
+    fn brute(boxes: &[(Vec3, Vec3)], o: Vec3, d: Vec3) -> Vec<u32> {
+        (0..boxes.len() as u32)
+            .filter(|&i| {
+                let (lo, hi) = boxes[i as usize];
+                crate::geom::ray_box(o.as_dvec3(), d.as_dvec3(), lo.as_dvec3(), hi.as_dvec3())
+                    .is_some_and(|(_, t1)| t1 >= 0.0)
+            })
+            .collect()
+    }
+
+    /// A thousand boxes each holding the next (sizes 1.01^i, centres jittered): the wide
+    /// tree is deeper than its traversal stack, so the binary tree is kept, and it reports
+    /// exactly the boxes a ray enters. Ordinary random boxes keep the wide tree, with the same
+    /// check.
+    #[test]
+    fn trees_too_deep_for_the_wide_stack_stay_binary() {
+        let mut r = Rng::new(1);
+        // Nested clusters: at each of 150 sizes, 24 boxes jittered about the centre, so that
+        // every level of the tree has several inner children a ray from inside enters.
+        let nested: Vec<(Vec3, Vec3)> = (0..3600)
+            .map(|i| {
+                let s = 1.05f32.powi(i / 24);
+                let c = Vec3::new(r.range(-0.1, 0.1), r.range(-0.1, 0.1), r.range(-0.1, 0.1)) * s;
+                (c - Vec3::splat(s), c + Vec3::splat(s))
+            })
+            .collect();
+        let scattered: Vec<(Vec3, Vec3)> = (0..3000)
+            .map(|_| {
+                let c = Vec3::new(r.range(-5.0, 5.0), r.range(-5.0, 5.0), r.range(-5.0, 5.0));
+                let h = Vec3::new(r.range(0.01, 0.5), r.range(0.01, 0.5), r.range(0.01, 0.5));
+                (c - h, c + h)
+            })
+            .collect();
+        let rays: Vec<(Vec3, Vec3)> = (0..300)
+            .map(|_| {
+                // Origins inside and outside the boxes, any direction.
+                let o = Vec3::new(r.range(-8.0, 8.0), r.range(-8.0, 8.0), r.range(-8.0, 8.0));
+                (o, Vec3::new(r.normal(), r.normal(), r.normal()).normalize())
+            })
+            .collect();
+        // Boxes a ray enters that the traversal does not report (a BVH may report more: its
+        // nodes are conservative, and the caller tests each primitive).
+        let lost = |a: &ObvhsAccel, boxes: &[(Vec3, Vec3)]| -> usize {
+            rays.iter()
+                .map(|&(o, d)| {
+                    let got = reported(a, o, d);
+                    brute(boxes, o, d)
+                        .iter()
+                        .filter(|i| got.binary_search(i).is_err())
+                        .count()
+                })
+                .sum()
+        };
+        for (boxes, binary) in [(&nested, true), (&scattered, false)] {
+            let a = ObvhsAccel::boxes(BuildPreset::Medium, boxes);
+            assert_eq!(a.is_binary(), binary);
+            let entered: usize = rays.iter().map(|&(o, d)| brute(boxes, o, d).len()).sum();
+            assert!(entered > 300, "too few boxes entered to tell: {entered}");
+            assert_eq!(lost(&a, boxes), 0, "binary: {binary}");
+        }
+        // That set's wide tree is beyond the stack obvhs sizes for it (its debug build refuses
+        // it). Traversed anyway, these rays lose nothing from it: a group is pushed only where
+        // a node leaves two or more hit children behind, which these trees rarely do; the
+        // fallback keeps to obvhs's own limit rather than to what a given ray happens to need.
+        let (_, wide) = trees(
+            BuildPreset::Medium,
+            &nested
+                .iter()
+                .map(|(lo, hi)| Aabb::new(Vec3A::from(*lo), Vec3A::from(*hi)))
+                .collect::<Vec<_>>(),
+        );
+        assert!(wide_depth(&wide) >= WIDE_STACK);
     }
 }

@@ -221,3 +221,35 @@ fn tile_render_does_not_depend_on_threads() {
         assert_eq!(frames[0], frames[2], "{footprint:?}");
     }
 }
+
+/// A frame `footprint::covers_frame` refuses (a 179.8° view: its corner rays are too oblique)
+/// works out every ray's footprint whole, and still equals the per-ray path and brute force
+/// bit for bit. Its grown boxes nest deeply (the footprint's pad grows as the focal length
+/// shrinks): as a wide tree the per-ray BVH would be 36 levels deep (measured), which obvhs's
+/// traversal stack does not hold, so the backend keeps it binary (`obvhs_backend`).
+#[test]
+fn frames_the_pixel_check_refuses_still_match() {
+    let tracer =
+        GaussianTracer::new(scene(13, 800), BackendKind::Obvhs, BuildPreset::Medium).unwrap();
+    let cam = Camera::look_at(
+        DVec3::new(0.05, 0.02, -0.3),
+        DVec3::new(0.1, -0.05, 4.0),
+        DVec3::NEG_Y,
+        179.8,
+        41,
+        23,
+    )
+    .unwrap();
+    assert!(!crate::footprint::covers_frame(&cam, 0.3));
+    let opts = RenderOptions {
+        footprint: Footprint::On,
+        order: HitOrder::MeanDepth,
+        sh_direction: ShDirection::Mean,
+        ..RenderOptions::default()
+    };
+    let [(tiled, ts), (per_ray, _), (brute, bs)] = renders(&tracer, &cam, &opts);
+    assert!(bs.hits > 0, "nothing drawn");
+    assert_eq!(bits(&tiled), bits(&brute), "tiles vs brute force");
+    assert_eq!(bits(&per_ray), bits(&brute), "BVH vs brute force");
+    assert_eq!(ts.hits, bs.hits);
+}
