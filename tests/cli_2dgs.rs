@@ -286,13 +286,7 @@ fn fan_reach(cloud: &GaussianCloud, mesh: &Path) -> Vec<f32> {
     let mut reach = vec![f32::NAN; cloud.len()];
     for fan in verts.chunks(per) {
         let centroid = fan.iter().copied().sum::<Vec3>() / fan.len() as f32;
-        let i = (0..cloud.len())
-            .min_by(|&a, &b| {
-                let da = (cloud.means[a] - centroid).length_squared();
-                let db = (cloud.means[b] - centroid).length_squared();
-                da.total_cmp(&db)
-            })
-            .unwrap();
+        let i = nearest_surfel(cloud, centroid);
         let r = Mat3::from_quat(cloud.unit_rotation(i));
         let sc = cloud.scale(i);
         reach[i] = fan
@@ -344,13 +338,7 @@ fn check_fans_in_plane(cloud: &GaussianCloud, mesh: &Path, as_for_blender: bool)
     let mut matched = vec![false; cloud.len()];
     for fan in verts.chunks(per) {
         let centroid = turn(fan.iter().copied().sum::<Vec3>() / fan.len() as f32);
-        let i = (0..cloud.len())
-            .min_by(|&a, &b| {
-                let da = (cloud.means[a] - centroid).length_squared();
-                let db = (cloud.means[b] - centroid).length_squared();
-                da.total_cmp(&db)
-            })
-            .unwrap();
+        let i = nearest_surfel(cloud, centroid);
         assert!(!matched[i], "surfel {i} has two fans");
         matched[i] = true;
         // The plane of the surfel's own tangent axes: rotation columns 0 and 1.
@@ -383,6 +371,17 @@ fn check_fans_in_plane(cloud: &GaussianCloud, mesh: &Path, as_for_blender: bool)
         }
     }
     assert!(matched.iter().all(|&m| m), "every surfel has its own fan");
+}
+
+/// The surfel of `cloud` whose centre is nearest `p`.
+fn nearest_surfel(cloud: &GaussianCloud, p: Vec3) -> usize {
+    (0..cloud.len())
+        .min_by(|&a, &b| {
+            let da = (cloud.means[a] - p).length_squared();
+            let db = (cloud.means[b] - p).length_squared();
+            da.total_cmp(&db)
+        })
+        .unwrap()
 }
 
 /// Vertex positions (x y z, the first three float properties) and face count of a binary

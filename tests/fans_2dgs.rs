@@ -27,6 +27,17 @@ fn real(name: &str) -> PathBuf {
     PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/real")).join(name)
 }
 
+/// A shared capture flattened to 2DGS surfels, and the 320×240 orbit rig of these tests.
+fn flattened(name: &str) -> (splatbridge_scene::GaussianCloud, OrbitRig) {
+    let (cloud, _) = read_ply(&real(name), &ReadOptions::default()).unwrap();
+    let rig = OrbitRig {
+        width: 320,
+        height: 240,
+        ..OrbitRig::default()
+    };
+    (flatten_to_surfels(&cloud), rig)
+}
+
 /// Mean of a list of PSNRs.
 fn mean(v: &[f64]) -> f64 {
     v.iter().sum::<f64>() / v.len() as f64
@@ -38,13 +49,7 @@ fn mean(v: &[f64]) -> f64 {
     ignore = "needs the shared real scenes (../shared/data/real)"
 )]
 fn fans_from_flattened_fourth_st_against_the_2dgs_rasterizer() {
-    let (cloud, _) = read_ply(&real("fourth_st.ply"), &ReadOptions::default()).unwrap();
-    let surfels = flatten_to_surfels(&cloud);
-    let rig = OrbitRig {
-        width: 320,
-        height: 240,
-        ..OrbitRig::default()
-    };
+    let (surfels, rig) = flattened("fourth_st.ply");
     let cams: Vec<_> = [0usize, 3]
         .iter()
         .map(|&k| rig.camera(&surfels, 8, k).unwrap())
@@ -138,13 +143,7 @@ fn fans_from_flattened_fourth_st_against_the_2dgs_rasterizer() {
 )]
 fn fans_made_for_2dgs_filter_at_320x240() {
     use splatbridge_distill::footprint::{widen_scene_for, LowPass};
-    let (cloud, _) = read_ply(&real("plant.ply"), &ReadOptions::default()).unwrap();
-    let surfels = flatten_to_surfels(&cloud);
-    let rig = OrbitRig {
-        width: 320,
-        height: 240,
-        ..OrbitRig::default()
-    };
+    let (surfels, rig) = flattened("plant.ply");
     let dir = tempfile::tempdir().unwrap();
     let opts = ConvertOptions {
         profile: Profile::Rings,
