@@ -689,7 +689,15 @@ impl GaussianTracer {
             },
             |(cells, scratch), o, d, uv| {
                 // The sample's pixel (a sample of pixel i lies in [i, i + 1)).
-                let list = cells.of(uv.0 as u32, uv.1 as u32);
+                let ray = tiles::TileRay {
+                    list: cells.of(uv.0 as u32, uv.1 as u32),
+                    o,
+                    d,
+                    uv,
+                    forward,
+                    fp: None,
+                    mean_colors,
+                };
                 let fp = padded.as_ref().map(|p| {
                     let f = if pixel_only {
                         crate::footprint::pinhole_pixel(cam, d).map(Lazy::Pixel)
@@ -713,21 +721,13 @@ impl GaussianTracer {
                                 pixel,
                             },
                         };
-                        self.trace_tile(
-                            list,
-                            o,
-                            d,
-                            uv,
-                            forward,
-                            Some((f, p)),
-                            mean_colors,
-                            opts,
-                            scratch,
-                        )
+                        let ray = tiles::TileRay {
+                            fp: Some((f, p)),
+                            ..ray
+                        };
+                        self.trace_tile(ray, opts, scratch)
                     }
-                    None => {
-                        self.trace_tile(list, o, d, uv, forward, None, mean_colors, opts, scratch)
-                    }
+                    None => self.trace_tile(ray, opts, scratch),
                 }
             },
         )?;

@@ -368,6 +368,22 @@ pub(super) fn color_from_basis(coeffs: &[Vec3], b: &[f32; 16]) -> Vec3 {
     (c + Vec3::splat(0.5)).max(Vec3::ZERO)
 }
 
+/// One primary ray of the tile path: the cell list `list` it walks, its origin `o`, direction
+/// `d`, continuous image coordinate `uv` and the camera's `forward` axis, its footprint `fp`
+/// (None with the footprint off) with the camera's grown boxes, and `mean_colors`, the colours
+/// toward the means seen from the frame's origin (with [`ShDirection::Mean`]; a ray from
+/// elsewhere evaluates its own).
+#[derive(Clone, Copy)]
+pub(super) struct TileRay<'a> {
+    pub list: &'a [Chunk],
+    pub o: DVec3,
+    pub d: DVec3,
+    pub uv: (f64, f64),
+    pub forward: DVec3,
+    pub fp: Option<(RayFp<'a>, &'a Padded)>,
+    pub mean_colors: Option<(DVec3, &'a [Vec3])>,
+}
+
 /// A primary ray's footprint as the tile path is given it.
 #[derive(Clone, Copy, Debug)]
 pub(super) enum RayFp<'a> {
@@ -426,38 +442,25 @@ impl GaussianTracer {
             && (opts.footprint == Footprint::Projected || opts.order == HitOrder::MeanDepth)
     }
 
-    /// One primary ray through the cell list `list`: what [`GaussianTracer::trace_fp`]
-    /// returns for it (its statistics aside: one traversal, and the candidates its rectangle
-    /// and ellipse tests passed). `uv` is the ray's continuous image coordinate, `fp` its
-    /// footprint (None with the footprint off), `padded` the camera's grown boxes,
-    /// `mean_colors` the colours toward the means seen from the frame's origin (with
-    /// [`ShDirection::Mean`]; a ray from elsewhere evaluates its own), `scratch` the tile's
-    /// scratch space.
+    /// One primary ray ([`TileRay`]): what [`GaussianTracer::trace_fp`] returns for it (its
+    /// statistics aside: one traversal, and the candidates its rectangle and ellipse tests
+    /// passed); `scratch` is the tile's scratch space.
     ///
     /// Hits are composited as they come (transmittance, depth and where the ray stops need no
     /// colour); their colours are evaluated together at the end and added in the hits' order,
     /// the same float operations in the same order as blending each hit's colour as it comes.
-    #[allow(clippy::too_many_arguments)]
     pub(super) fn trace_tile(
         &self,
-        list: &[Chunk],
-        o: DVec3,
-        d: DVec3,
-        uv: (f64, f64),
-        forward: DVec3,
-        fp: Option<(RayFp<'_>, &Padded)>,
-        mean_colors: Option<(DVec3, &[Vec3])>,
+        ray: TileRay<'_>,
         opts: &RenderOptions,
         scratch: &mut Scratch,
     ) -> PixelOut {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: AVX2 is present.
-            return unsafe {
-                self.trace_tile_avx2(list, o, d, uv, forward, fp, mean_colors, opts, scratch)
-            };
+            return unsafe { self.trace_tile_avx2(ray, opts, scratch) };
         }
-        self.trace_tile_with(list, o, d, uv, forward, fp, mean_colors, opts, scratch)
+        self.trace_tile_with(ray, opts, scratch)
     }
 
     /// [`GaussianTracer::trace_tile`] compiled for AVX2: the eight-lane rectangle, ellipse and
@@ -469,37 +472,32 @@ impl GaussianTracer {
     /// The CPU must support AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    #[allow(clippy::too_many_arguments)]
     unsafe fn trace_tile_avx2(
         &self,
-        list: &[Chunk],
-        o: DVec3,
-        d: DVec3,
-        uv: (f64, f64),
-        forward: DVec3,
-        fp: Option<(RayFp<'_>, &Padded)>,
-        mean_colors: Option<(DVec3, &[Vec3])>,
+        ray: TileRay<'_>,
         opts: &RenderOptions,
         scratch: &mut Scratch,
     ) -> PixelOut {
-        self.trace_tile_with(list, o, d, uv, forward, fp, mean_colors, opts, scratch)
+        self.trace_tile_with(ray, opts, scratch)
     }
 
     /// The body of [`GaussianTracer::trace_tile`], inlined into each of its builds.
     #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
     fn trace_tile_with(
         &self,
-        list: &[Chunk],
-        o: DVec3,
-        d: DVec3,
-        uv: (f64, f64),
-        forward: DVec3,
-        fp: Option<(RayFp<'_>, &Padded)>,
-        mean_colors: Option<(DVec3, &[Vec3])>,
+        ray: TileRay<'_>,
         opts: &RenderOptions,
         scratch: &mut Scratch,
     ) -> PixelOut {
+        let TileRay {
+            list,
+            o,
+            d,
+            uv,
+            forward,
+            fp,
+            mean_colors,
+        } = ray;
         let part = &self.parts[0];
         let (ro, rd) = (self.local_point(0, o), self.local_dir(0, d));
         let fwd = self.local_dir(0, forward);
