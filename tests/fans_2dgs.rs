@@ -38,6 +38,24 @@ fn flattened(name: &str) -> (splatbridge_scene::GaussianCloud, OrbitRig) {
     (flatten_to_surfels(&cloud), rig)
 }
 
+/// What `compare SURFELS.ply --profiles rings` exports (the rings profile at its defaults, one
+/// fan per surfel), written into `dir` and loaded for tracing.
+fn export_fans(scene: &DynamicScene, dir: &std::path::Path) -> parity::TracedMesh {
+    let opts = ConvertOptions {
+        profile: Profile::Rings,
+        volumetric: VolumetricMode::Flat,
+        ..ConvertOptions::default()
+    };
+    parity::export_and_load(
+        scene,
+        &opts,
+        &dir.join("fans.glb"),
+        BackendKind::Obvhs,
+        BuildPreset::default(),
+    )
+    .unwrap()
+}
+
 /// Mean of a list of PSNRs.
 fn mean(v: &[f64]) -> f64 {
     v.iter().sum::<f64>() / v.len() as f64
@@ -56,21 +74,7 @@ fn fans_from_flattened_fourth_st_against_the_2dgs_rasterizer() {
         .collect();
     let scene = DynamicScene::from_static(surfels);
     let dir = tempfile::tempdir().unwrap();
-    // What `compare SURFELS.ply --profiles rings` exports: the rings profile at its defaults,
-    // one fan per surfel.
-    let opts = ConvertOptions {
-        profile: Profile::Rings,
-        volumetric: VolumetricMode::Flat,
-        ..ConvertOptions::default()
-    };
-    let m = parity::export_and_load(
-        &scene,
-        &opts,
-        &dir.path().join("fans.glb"),
-        BackendKind::Obvhs,
-        BuildPreset::default(),
-    )
-    .unwrap();
+    let m = export_fans(&scene, dir.path());
     let (mut fans, mut splat3) = (Vec::new(), Vec::new());
     // Fans against 2DGS with its named departures, one at a time (docs/formats.md#2dgs-surfels):
     // DC colours (fans carry no view dependence), then no low-pass, then per-pixel hit order.
@@ -145,11 +149,6 @@ fn fans_made_for_2dgs_filter_at_320x240() {
     use splatbridge_distill::footprint::{widen_scene_for, LowPass};
     let (surfels, rig) = flattened("plant.ply");
     let dir = tempfile::tempdir().unwrap();
-    let opts = ConvertOptions {
-        profile: Profile::Rings,
-        volumetric: VolumetricMode::Flat,
-        ..ConvertOptions::default()
-    };
     let native = NativeOptions::default();
     let (mut plain, mut as_2dgs, mut as_3dgs) = (Vec::new(), Vec::new(), Vec::new());
     for k in [0usize, 3] {
@@ -167,14 +166,7 @@ fn fans_made_for_2dgs_filter_at_320x240() {
             if let Some(lp) = low_pass {
                 widen_scene_for(&mut scene, 320, 240, lp).unwrap();
             }
-            let m = parity::export_and_load(
-                &scene,
-                &opts,
-                &dir.path().join("fans.glb"),
-                BackendKind::Obvhs,
-                BuildPreset::default(),
-            )
-            .unwrap();
+            let m = export_fans(&scene, dir.path());
             let (t, _) = m.tracer.render_traced(&cam, 0.0).unwrap();
             out.push(metrics::psnr(&reference, &t).unwrap());
         }

@@ -700,9 +700,14 @@ impl GaussianTracer {
                 };
                 let fp = padded.as_ref().map(|p| {
                     let f = if pixel_only {
-                        crate::footprint::pinhole_pixel(cam, d).map(Lazy::Pixel)
+                        crate::footprint::pinhole_pixel(cam, d).map(|pixel| tiles::RayFp::Pixel {
+                            cam,
+                            d,
+                            variance,
+                            pixel,
+                        })
                     } else {
-                        RayFootprint::pinhole(cam, d, variance).map(Lazy::Whole)
+                        RayFootprint::pinhole(cam, d, variance).map(tiles::RayFp::Whole)
                     };
                     (f, p)
                 });
@@ -712,15 +717,6 @@ impl GaussianTracer {
                         self.trace_fp(o, d, Some(forward), None, opts, b)
                     }),
                     Some((Some(f), p)) => {
-                        let f = match &f {
-                            Lazy::Whole(f) => tiles::RayFp::Whole(f),
-                            &Lazy::Pixel(pixel) => tiles::RayFp::Pixel {
-                                cam,
-                                d,
-                                variance,
-                                pixel,
-                            },
-                        };
                         let ray = tiles::TileRay {
                             fp: Some((f, p)),
                             ..ray
@@ -734,13 +730,6 @@ impl GaussianTracer {
         stats.seconds += prepare;
         Ok((frame, stats))
     }
-}
-
-/// A primary ray's footprint in the tile path: whole, or its pixel alone (see
-/// [`tiles::RayFp`]).
-enum Lazy {
-    Whole(RayFootprint),
-    Pixel((f64, f64)),
 }
 
 #[cfg(test)]

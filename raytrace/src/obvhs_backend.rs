@@ -156,46 +156,47 @@ fn trees<T: Boundable>(preset: BuildPreset, prims: &[T]) -> (Bvh2, CwBvh) {
     (bvh2, wide)
 }
 
-/// Levels of inner nodes on the longest path of a wide tree (the root alone: 0), walked with
-/// an explicit stack (a degenerate tree can be thousands of levels deep).
+/// Levels below the root on the longest path of inner nodes of a wide tree (the root alone: 0,
+/// as obvhs's `calculate_max_depth` counts for its own assertion).
 fn wide_depth(bvh: &CwBvh) -> u32 {
-    if bvh.nodes.is_empty() {
-        return 0;
-    }
-    let mut deepest = 0;
-    let mut stack = vec![(0usize, 0u32)];
-    while let Some((i, depth)) = stack.pop() {
-        deepest = deepest.max(depth);
+    longest_path(bvh.nodes.len(), |i, out| {
         let node = &bvh.nodes[i];
         for &meta in &node.child_meta {
             // obvhs's layout: an inner child's meta is 24 + its slot, and the inner children
             // are stored in slot order from `child_base_idx`.
-            if meta == 0 || (meta & 0b11111) < 24 {
-                continue;
+            if meta != 0 && (meta & 0b11111) >= 24 {
+                let slot = (meta & 0b11111) as u32 - 24;
+                let rank = (node.imask as u32 & !(u32::MAX << slot)).count_ones();
+                out.push(node.child_base_idx as usize + rank as usize);
             }
-            let slot = (meta & 0b11111) as u32 - 24;
-            let rank = (node.imask as u32 & !(u32::MAX << slot)).count_ones();
-            stack.push((node.child_base_idx as usize + rank as usize, depth + 1));
         }
-    }
-    deepest
+    })
+    .saturating_sub(1) as u32
 }
 
-/// Nodes on the longest root-to-leaf path of a binary tree, walked with an explicit stack.
+/// Nodes on the longest root-to-leaf path of a binary tree.
 fn binary_depth(bvh: &Bvh2) -> usize {
-    if bvh.nodes.is_empty() {
-        return 0;
-    }
-    let mut deepest = 0;
-    let mut stack = vec![(0usize, 1usize)];
-    while let Some((i, depth)) = stack.pop() {
-        deepest = deepest.max(depth);
+    longest_path(bvh.nodes.len(), |i, out| {
         let node = &bvh.nodes[i];
         if !node.is_leaf() {
-            let first = node.first_index as usize;
-            stack.push((first, depth + 1));
-            stack.push((first + 1, depth + 1));
+            out.extend([node.first_index as usize, node.first_index as usize + 1]);
         }
+    })
+}
+
+/// Nodes on the longest path from node 0 of a tree of `nodes` nodes (0 when empty), whose node
+/// `i`'s children `children(i, out)` pushes; walked with an explicit stack, since a degenerate
+/// tree can be thousands of levels deep.
+fn longest_path(nodes: usize, children: impl Fn(usize, &mut Vec<usize>)) -> usize {
+    if nodes == 0 {
+        return 0;
+    }
+    let (mut deepest, mut stack, mut kids) = (0, vec![(0usize, 1usize)], Vec::new());
+    while let Some((i, depth)) = stack.pop() {
+        deepest = deepest.max(depth);
+        kids.clear();
+        children(i, &mut kids);
+        stack.extend(kids.iter().map(|&c| (c, depth + 1)));
     }
     deepest
 }

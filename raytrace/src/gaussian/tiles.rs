@@ -388,7 +388,7 @@ pub(super) struct TileRay<'a> {
 #[derive(Clone, Copy, Debug)]
 pub(super) enum RayFp<'a> {
     /// Worked out whole ([`RayFootprint::pinhole`]).
-    Whole(&'a RayFootprint),
+    Whole(RayFootprint),
     /// Only its pixel ([`crate::footprint::pinhole_pixel`], the same numbers): the frame passed
     /// [`crate::footprint::covers_frame`], so `pinhole` gives every one of its rays a
     /// footprint, and the rest of it, which mode `on` reads only for a lane without a usable
@@ -423,7 +423,7 @@ fn whole<'l>(
 ) -> Option<&'l LocalFootprint> {
     if local.is_none() {
         let full = match f {
-            RayFp::Whole(f) => *f,
+            RayFp::Whole(f) => f,
             RayFp::Pixel {
                 cam, d, variance, ..
             } => RayFootprint::pinhole(cam, d, variance)?,
@@ -506,7 +506,7 @@ impl GaussianTracer {
         // The ray's whole footprint in the part's frame, where it is at hand; a pixel-only
         // footprint is completed the first time a lane needs the 3-D form.
         let mut local = fp.and_then(|(f, pad)| match f {
-            RayFp::Whole(f) => Some(LocalFootprint::new(self, 0, f, pad)),
+            RayFp::Whole(f) => Some(LocalFootprint::new(self, 0, &f, pad)),
             RayFp::Pixel { .. } => None,
         });
         // What every lane needs: the centred pixel and the low-pass `s`, `s²`.
