@@ -98,7 +98,7 @@ pub(crate) fn check_white(scene: &TriScene) -> Result<()> {
             ));
         }
         if let Some(t) = m.texture.and_then(|t| scene.textures.get(t)) {
-            if t.texels.iter().any(|c| !white(c.truncate())) {
+            if t.texels().any(|c| !white(c.truncate())) {
                 return Err(DistillError::Invalid(
                     "distillation needs white textures (the falloff texture carries alpha only)"
                         .into(),

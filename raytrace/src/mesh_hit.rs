@@ -93,9 +93,9 @@ impl MeshTracer {
         // Coverage from the watertight f32 test (or the backend's own report, whose edge rule
         // may pick the neighbouring triangle); distance and barycentrics of accepted hits are
         // refined in f64 (f32 loses ~ulp(|o − v|)/size on small far triangles).
-        let wt = r
-            .wray
-            .intersect_or(a, b, c, f32::NEG_INFINITY, f32::INFINITY);
+        // Over every t, without the test's divisions: its distance and barycentrics are
+        // needed only where the f64 ones below cannot be formed.
+        let wt = r.wray.cover(a, b, c);
         match wt {
             Err(Miss::Outside) if !reported => return Tested::Outside,
             Err(_) if !reported => return Tested::Open,
@@ -114,7 +114,7 @@ impl MeshTracer {
         };
         let t = match wt {
             _ if tp.is_finite() => tp as f32,
-            Some(h) => h.t,
+            Some(h) => h.hit().t,
             None => return Tested::Open,
         };
         // +0.0 normalises −0.0 so the bit pattern orders like the value.
@@ -134,7 +134,7 @@ impl MeshTracer {
         let refined = refine_bary(a.as_dvec3(), b.as_dvec3(), c.as_dvec3(), r.lo64, r.ld64);
         let bary = match (wt, refined) {
             (_, Some(bary)) => bary,
-            (Some(h), None) => h.bary,
+            (Some(h), None) => h.hit().bary,
             (None, None) => return Tested::Open,
         };
         let rgba = if buf.shade_on_insert {

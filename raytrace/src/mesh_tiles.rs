@@ -44,7 +44,7 @@ use crate::error::Result;
 use crate::geom::ray_box;
 use crate::hit_record::{HitLists, RecordedHit};
 use crate::kbuffer::{Accum, KBuffer};
-use crate::mesh_cands::{mirror_pairs, Cand, Cold, Edges, Hot};
+use crate::mesh_cands::{mirror_pairs, Cand, Cold, Edges, HotChunk, LANES};
 use crate::mesh_hit::{Compositor, LocalRay, Query, Tested};
 use crate::mesh_tracer::{MeshTracer, PreparedInstance, TrianglePayload};
 use crate::render::{camera_ray, render_frame_tiles, RenderOptions, Stats};
@@ -315,15 +315,16 @@ fn everywhere() -> ([f32; 4], Edges) {
 }
 
 /// A tile's rays' shared state: its list split into [`CELL`]×[`CELL`]-pixel cells (each in
-/// the tile's order; cell `c` is `cell_start[c]..cell_start[c + 1]` of the records, whose part
-/// every entry's walk reads, `hot`, is apart from the part only tested triangles read,
-/// `cold`), each instance's local ray for the current ray (made on first use), and the
+/// the tile's order, padded to whole chunks of [`LANES`]; cell `c` is chunks
+/// `cell_start[c]..cell_start[c + 1]`, whose part every entry's walk reads, `hot`, is apart
+/// from the part only tested triangles read, `cold`, record `LANES·k + l` for lane `l` of
+/// chunk `k`), each instance's local ray for the current ray (made on first use), and the
 /// buffer.
 pub(crate) struct TileCtx {
     x0: u32,
     y0: u32,
     cell_start: Vec<u32>,
-    hot: Vec<Hot>,
+    hot: Vec<HotChunk>,
     cold: Vec<Cold>,
     /// `(ray number, local ray)` per instance; None: the ray misses the instance's bounds.
     rays: Vec<(u32, Option<LocalRay>)>,
@@ -345,29 +346,35 @@ impl TileCtx {
                 [a as u8, b as u8, c as u8, d as u8]
             })
             .collect();
-        let mut cell_start = vec![0u32; n * n + 1];
+        let mut counts = vec![0u32; n * n];
         for s in &spans {
             for cy in s[2]..=s[3] {
                 for cx in s[0]..=s[1] {
-                    cell_start[cy as usize * n + cx as usize + 1] += 1;
+                    counts[cy as usize * n + cx as usize] += 1;
                 }
             }
         }
-        for k in 1..cell_start.len() {
-            cell_start[k] += cell_start[k - 1];
+        // Chunk offsets of the cells, and each cell's next record (in records).
+        let mut cell_start = vec![0u32; n * n + 1];
+        for (k, &c) in counts.iter().enumerate() {
+            cell_start[k + 1] = cell_start[k] + c.div_ceil(LANES as u32);
         }
         let total = cell_start[n * n] as usize;
-        let mut next = cell_start.clone();
-        let blank = Cand::BLANK;
-        let mut hot = vec![blank.hot(); total];
-        let mut cold = vec![blank.cold(); total];
+        let mut next: Vec<u32> = cell_start[..n * n]
+            .iter()
+            .map(|&c| c * LANES as u32)
+            .collect();
+        let mut hot = vec![HotChunk::EMPTY; total];
+        let mut cold = vec![Cand::BLANK.cold(); total * LANES];
         for (&i, s) in list.iter().zip(&spans) {
             let c = &lists.cands[i as usize];
+            let h = c.hot();
             for cy in s[2]..=s[3] {
                 for cx in s[0]..=s[1] {
                     let k = &mut next[cy as usize * n + cx as usize];
-                    hot[*k as usize] = c.hot();
-                    cold[*k as usize] = c.cold();
+                    let r = *k as usize;
+                    hot[r / LANES].set(r % LANES, &h);
+                    cold[r] = c.cold();
                     *k += 1;
                 }
             }
@@ -489,42 +496,66 @@ impl MeshTracer {
         let rays = &mut ctx.rays;
         let cell = cell_of(ctx.x0, ctx.y0, uv);
         let range = ctx.cell_start[cell] as usize..ctx.cell_start[cell + 1] as usize;
-        for (h, e) in ctx.hot[range.clone()].iter().zip(&ctx.cold[range]) {
-            if h.zmin > cull {
+        // The records in key order, eight at a time: the lanes whose key, rectangle and edges
+        // pass, in lane order. Keys ascend and the cull distance only falls, so the first
+        // record keyed beyond it ends the walk, as one by one.
+        'walk: for (k, chunk) in range.clone().zip(&ctx.hot[range]) {
+            if chunk.zmin[0] > cull {
                 break;
             }
-            if !(u >= h.rect[0] && u <= h.rect[2] && v >= h.rect[1] && v <= h.rect[3]) {
-                continue;
-            }
-            if !h.edges.admit(u, v) {
-                continue;
-            }
-            let ii = e.inst as usize;
-            let inst = &insts[ii];
-            let slot = &mut rays[ii];
-            if slot.0 != ray {
-                *slot = (ray, local_ray(self, inst, o, d));
-            }
-            let Some(r) = slot.1 else {
-                continue;
-            };
-            let tested = self.test_triangle(
-                ii, inst.mesh, &r, e.verts, e.group, e.tri, false, &q, &mut buf, &mut cull,
-            );
-            // The other winding, where the first's outcome leaves it open (`Tested`).
-            if e.mirror != u32::MAX && tested == Tested::Open {
-                let blas = &self.blas[inst.mesh];
-                let mesh = &self.scene.meshes[inst.mesh];
-                let m = e.mirror;
-                let tri = mesh.tris[m as usize].map(|i| blas.relative(mesh.positions[i as usize]));
-                self.test_triangle(
-                    ii, inst.mesh, &r, tri, e.group, m, false, &q, &mut buf, &mut cull,
-                );
+            let mut m = chunk.mask(u, v, cull);
+            while m != 0 {
+                let l = m.trailing_zeros() as usize;
+                m &= m - 1;
+                if chunk.zmin[l] > cull {
+                    break 'walk;
+                }
+                let e = &ctx.cold[k * LANES + l];
+                self.tile_candidate(insts, rays, ray, e, o, d, &q, &mut buf, &mut cull);
             }
         }
         buf.shade_on_insert = false;
         buf.stop = None;
         ctx.buf = buf;
+    }
+
+    /// The walk's test of one record `e` that passed the pre-tests, for the ray `o + t·d`
+    /// (number `ray`): its instance's local ray (made on first use), the triangle, and its
+    /// other winding where the first's outcome leaves it open (`Tested`).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn tile_candidate(
+        &self,
+        insts: &[PreparedInstance],
+        rays: &mut [(u32, Option<LocalRay>)],
+        ray: u32,
+        e: &Cold,
+        o: DVec3,
+        d: DVec3,
+        q: &Query,
+        buf: &mut KBuffer<TrianglePayload>,
+        cull: &mut f32,
+    ) {
+        let ii = e.inst as usize;
+        let inst = &insts[ii];
+        let slot = &mut rays[ii];
+        if slot.0 != ray {
+            *slot = (ray, local_ray(self, inst, o, d));
+        }
+        let Some(r) = slot.1 else {
+            return;
+        };
+        let tested = self.test_triangle(
+            ii, inst.mesh, &r, e.verts, e.group, e.tri, false, q, buf, cull,
+        );
+        // The other winding, where the first's outcome leaves it open (`Tested`).
+        if e.mirror != u32::MAX && tested == Tested::Open {
+            let blas = &self.blas[inst.mesh];
+            let mesh = &self.scene.meshes[inst.mesh];
+            let m = e.mirror;
+            let tri = mesh.tris[m as usize].map(|i| blas.relative(mesh.positions[i as usize]));
+            self.test_triangle(ii, inst.mesh, &r, tri, e.group, m, false, q, buf, cull);
+        }
     }
 }
 

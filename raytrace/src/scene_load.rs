@@ -100,31 +100,51 @@ fn texture_from(path: &Path, tex: &gltf::Texture, images: &[gltf::image::Data]) 
             ]),
         }
     };
-    let texels = (0..n)
-        .map(|p| {
-            let c: Vec<f32> = (0..ch).map(|k| get(p * ch + k)).collect();
-            let (r, g, b, a) = match ch {
-                1 => (c[0], c[0], c[0], 1.0),
-                2 => (c[0], c[0], c[0], c[1]),
-                3 => (c[0], c[1], c[2], 1.0),
-                _ => (c[0], c[1], c[2], c[3]),
-            };
-            Vec4::new(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a)
-        })
-        .collect();
+    // One texel's channels as (R, G, B, A) positions in the image, and a constant alpha.
+    let layout = |p: usize| -> ([usize; 3], Option<usize>) {
+        let b = p * ch;
+        match ch {
+            1 => ([b, b, b], None),
+            2 => ([b, b, b], Some(b + 1)),
+            3 => ([b, b + 1, b + 2], None),
+            _ => ([b, b + 1, b + 2], Some(b + 3)),
+        }
+    };
     let s = tex.sampler();
     let wrap = |w: gltf::texture::WrappingMode| match w {
         gltf::texture::WrappingMode::ClampToEdge => Wrap::Clamp,
         gltf::texture::WrappingMode::MirroredRepeat => Wrap::Mirror,
         gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
     };
-    Ok(Texture {
-        width: img.width,
-        height: img.height,
-        texels,
-        wrap: [wrap(s.wrap_s()), wrap(s.wrap_t())],
-        nearest: s.mag_filter() == Some(gltf::texture::MagFilter::Nearest),
-    })
+    let wrap = [wrap(s.wrap_s()), wrap(s.wrap_t())];
+    let nearest = s.mag_filter() == Some(gltf::texture::MagFilter::Nearest);
+    if bytes == 1 {
+        // Kept as bytes, decoded on read by the same conversion (`Texture::from_bytes`).
+        let texels = (0..n)
+            .map(|p| {
+                let ([r, g, b], a) = layout(p);
+                let px = &img.pixels;
+                [px[r], px[g], px[b], a.map_or(255, |a| px[a])]
+            })
+            .collect();
+        return Ok(Texture::from_bytes(
+            img.width, img.height, texels, wrap, nearest,
+        ));
+    }
+    let texels = (0..n)
+        .map(|p| {
+            let ([r, g, b], a) = layout(p);
+            Vec4::new(
+                srgb_to_linear(get(r)),
+                srgb_to_linear(get(g)),
+                srgb_to_linear(get(b)),
+                a.map_or(1.0, get),
+            )
+        })
+        .collect();
+    Ok(Texture::from_texels(
+        img.width, img.height, texels, wrap, nearest,
+    ))
 }
 
 fn read_scalar_u32(

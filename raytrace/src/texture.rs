@@ -4,6 +4,8 @@
 
 use glam::{Vec2, Vec4};
 
+use crate::model::srgb_to_linear;
+
 /// Texture coordinate wrap mode (glTF sampler).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Wrap {
@@ -18,13 +20,113 @@ pub enum Wrap {
 pub struct Texture {
     pub width: u32,
     pub height: u32,
-    pub texels: Vec<Vec4>,
+    texels: Texels,
     pub wrap: [Wrap; 2],
     /// Nearest-neighbour magnification/minification (sampler filter NEAREST); bilinear otherwise.
     pub nearest: bool,
 }
 
+/// How texels are kept: an 8-bit image as its bytes (a quarter of the memory, so a sample's
+/// four texels come from cache: the falloff texture of every texture export is 256 KB instead
+/// of 1 MB), decoded on read through tables of the very conversion a float texel gets, so both
+/// give the same numbers.
+#[derive(Clone, Debug)]
+enum Texels {
+    Float(Vec<Vec4>),
+    Byte(Vec<[u8; 4]>, Box<ByteDecode>),
+}
+
+/// The decoded value of each byte: RGB through the sRGB decode, alpha as stored.
+#[derive(Clone, Debug)]
+struct ByteDecode {
+    rgb: [f32; 256],
+    alpha: [f32; 256],
+}
+
+impl ByteDecode {
+    fn new() -> Self {
+        let unorm = |i: usize| i as f32 / 255.0;
+        ByteDecode {
+            rgb: std::array::from_fn(|i| srgb_to_linear(unorm(i))),
+            alpha: std::array::from_fn(unorm),
+        }
+    }
+
+    #[inline(always)]
+    fn get(&self, b: [u8; 4]) -> Vec4 {
+        Vec4::new(
+            self.rgb[b[0] as usize],
+            self.rgb[b[1] as usize],
+            self.rgb[b[2] as usize],
+            self.alpha[b[3] as usize],
+        )
+    }
+}
+
 impl Texture {
+    /// A texture of decoded texels, row-major.
+    pub fn from_texels(
+        width: u32,
+        height: u32,
+        texels: Vec<Vec4>,
+        wrap: [Wrap; 2],
+        nearest: bool,
+    ) -> Self {
+        Texture {
+            width,
+            height,
+            texels: Texels::Float(texels),
+            wrap,
+            nearest,
+        }
+    }
+
+    /// A texture of 8-bit texels as stored (RGB sRGB-encoded, alpha linear), row-major: it
+    /// samples as [`Texture::from_texels`] of `srgb_to_linear(byte / 255)` (RGB) and
+    /// `byte / 255` (alpha) does, bit for bit.
+    pub fn from_bytes(
+        width: u32,
+        height: u32,
+        texels: Vec<[u8; 4]>,
+        wrap: [Wrap; 2],
+        nearest: bool,
+    ) -> Self {
+        Texture {
+            width,
+            height,
+            texels: Texels::Byte(texels, Box::new(ByteDecode::new())),
+            wrap,
+            nearest,
+        }
+    }
+
+    /// Number of texels.
+    pub fn len(&self) -> usize {
+        match &self.texels {
+            Texels::Float(t) => t.len(),
+            Texels::Byte(t, _) => t.len(),
+        }
+    }
+
+    /// Whether the texture has no texel.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Texel `i` (row-major), decoded.
+    #[inline(always)]
+    pub fn texel_at(&self, i: usize) -> Vec4 {
+        match &self.texels {
+            Texels::Float(t) => t[i],
+            Texels::Byte(t, d) => d.get(t[i]),
+        }
+    }
+
+    /// Every texel, decoded, row-major.
+    pub fn texels(&self) -> impl Iterator<Item = Vec4> + '_ {
+        (0..self.len()).map(|i| self.texel_at(i))
+    }
+
     fn texel(&self, x: i64, y: i64) -> Vec4 {
         let wrap = |i: i64, n: u32, m: Wrap| -> usize {
             let n = n as i64;
@@ -43,12 +145,12 @@ impl Texture {
         };
         let xi = wrap(x, self.width, self.wrap[0]);
         let yi = wrap(y, self.height, self.wrap[1]);
-        self.texels[yi * self.width as usize + xi]
+        self.texel_at(yi * self.width as usize + xi)
     }
 
     /// Sample at texture coordinate `uv` (texel centres at (i + 0.5)/size).
     pub fn sample(&self, uv: Vec2) -> Vec4 {
-        if self.texels.is_empty() || !uv.is_finite() {
+        if self.is_empty() || !uv.is_finite() {
             return Vec4::ONE;
         }
         let x = uv.x as f64 * self.width as f64 - 0.5;
@@ -66,10 +168,10 @@ impl Texture {
             let i = (y0 * w + x0) as usize;
             let row = w as usize;
             (
-                self.texels[i],
-                self.texels[i + 1],
-                self.texels[i + row],
-                self.texels[i + row + 1],
+                self.texel_at(i),
+                self.texel_at(i + 1),
+                self.texel_at(i + row),
+                self.texel_at(i + row + 1),
             )
         } else {
             // Saturating: a coordinate beyond i64's texels (an f32 UV of 1e30) stays at the
@@ -140,13 +242,7 @@ mod tests {
                 .map(|_| Vec4::new(next(), next(), next(), next()))
                 .collect();
             for wrap in [Wrap::Clamp, Wrap::Repeat, Wrap::Mirror] {
-                let t = Texture {
-                    width: w,
-                    height: h,
-                    texels: texels.clone(),
-                    wrap: [wrap, Wrap::Clamp],
-                    nearest: false,
-                };
+                let t = Texture::from_texels(w, h, texels.clone(), [wrap, Wrap::Clamp], false);
                 let mut uvs: Vec<Vec2> = (0..2000)
                     .map(|_| Vec2::new(next() * 3.0 - 1.0, next() * 3.0 - 1.0))
                     .collect();
@@ -173,6 +269,62 @@ mod tests {
                             .zip(b.to_array())
                             .all(|(p, q)| p.to_bits() == q.to_bits()),
                         "{w}×{h} {wrap:?} at {uv}: {a} vs {b}"
+                    );
+                }
+            }
+        }
+    }
+    /// An 8-bit texture samples as the float texture of the same decode does, bit for bit: every
+    /// byte value, every wrap mode, bilinear and nearest, inside and across the edges.
+    #[test]
+    fn byte_texels_sample_as_their_decoded_floats() {
+        let (w, h) = (16u32, 16u32);
+        // Every byte value appears in every channel (16·16 texels, four channels rotated).
+        let bytes: Vec<[u8; 4]> = (0..w * h)
+            .map(|i| {
+                let b = i as u8;
+                [
+                    b,
+                    b.wrapping_mul(7),
+                    b.wrapping_add(91),
+                    b.wrapping_mul(13).wrapping_add(5),
+                ]
+            })
+            .collect();
+        let unorm = |b: u8| b as f32 / 255.0;
+        let floats: Vec<Vec4> = bytes
+            .iter()
+            .map(|b| {
+                Vec4::new(
+                    srgb_to_linear(unorm(b[0])),
+                    srgb_to_linear(unorm(b[1])),
+                    srgb_to_linear(unorm(b[2])),
+                    unorm(b[3]),
+                )
+            })
+            .collect();
+        let mut state = 3u64;
+        let mut next = move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        for wrap in [Wrap::Clamp, Wrap::Repeat, Wrap::Mirror] {
+            for nearest in [false, true] {
+                let f = Texture::from_texels(w, h, floats.clone(), [wrap, wrap], nearest);
+                let b = Texture::from_bytes(w, h, bytes.clone(), [wrap, wrap], nearest);
+                assert_eq!(b.len(), f.len());
+                assert!(b.texels().zip(f.texels()).all(|(p, q)| p == q));
+                for _ in 0..3000 {
+                    let uv = Vec2::new(next() * 3.0 - 1.0, next() * 3.0 - 1.0);
+                    let (p, q) = (b.sample(uv), f.sample(uv));
+                    assert!(
+                        p.to_array()
+                            .iter()
+                            .zip(q.to_array())
+                            .all(|(x, y)| x.to_bits() == y.to_bits()),
+                        "{wrap:?} nearest {nearest} at {uv}: {p} vs {q}"
                     );
                 }
             }

@@ -91,6 +91,29 @@ impl WRay {
         tmin: f32,
         tmax: f32,
     ) -> Result<TriHit, Miss> {
+        let cov = self.edges(a, b, c)?;
+        let t = cov.num / cov.det;
+        if !(t >= tmin && t <= tmax) {
+            return Err(Miss::Other);
+        }
+        Ok(cov.hit_at(t))
+    }
+
+    /// [`WRay::intersect_or`] over every `t` (`−∞ ≤ t ≤ +∞`), without its divisions: the
+    /// outcome is the same (`t` is NaN exactly where its numerator is, the determinant being
+    /// finite and non-zero), and [`Covered::hit`] gives the same hit where it is needed.
+    #[inline]
+    pub fn cover(&self, a: Vec3, b: Vec3, c: Vec3) -> Result<Covered, Miss> {
+        let cov = self.edges(a, b, c)?;
+        if cov.num.is_nan() {
+            return Err(Miss::Other);
+        }
+        Ok(cov)
+    }
+
+    /// The edge functions, determinant and distance numerator of the test.
+    #[inline(always)]
+    fn edges(&self, a: Vec3, b: Vec3, c: Vec3) -> Result<Covered, Miss> {
         let (kx, ky, kz) = (self.kx, self.ky, self.kz);
         let a = a - self.origin;
         let b = b - self.origin;
@@ -123,15 +146,41 @@ impl WRay {
         let az = self.sz * a[kz];
         let bz = self.sz * b[kz];
         let cz = self.sz * c[kz];
-        let t = (u * az + v * bz + w * cz) / det;
-        if !(t >= tmin && t <= tmax) {
-            return Err(Miss::Other);
-        }
-        let inv = 1.0 / det;
-        Ok(TriHit {
-            t,
-            bary: [u * inv, v * inv, w * inv],
+        Ok(Covered {
+            u,
+            v,
+            w,
+            det,
+            num: u * az + v * bz + w * cz,
         })
+    }
+}
+
+/// A ray the watertight test found inside a triangle: its edge functions, their sum and the
+/// numerator of the distance, before the divisions ([`WRay::cover`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Covered {
+    u: f32,
+    v: f32,
+    w: f32,
+    det: f32,
+    num: f32,
+}
+
+impl Covered {
+    /// The hit [`WRay::intersect_or`] reports, from the same operations.
+    #[inline]
+    pub fn hit(&self) -> TriHit {
+        self.hit_at(self.num / self.det)
+    }
+
+    #[inline(always)]
+    fn hit_at(&self, t: f32) -> TriHit {
+        let inv = 1.0 / self.det;
+        TriHit {
+            t,
+            bary: [self.u * inv, self.v * inv, self.w * inv],
+        }
     }
 }
 
@@ -193,5 +242,59 @@ mod tests {
                 f32::INFINITY
             )
             .is_none());
+    }
+    /// [`WRay::cover`] and [`Covered::hit`] give what [`WRay::intersect_or`] over every `t`
+    /// gives, bit for bit: random rays and triangles (small, huge, slivers, repeated
+    /// vertices, vertices at ±1e30 whose distance numerator overflows or is NaN).
+    #[test]
+    fn cover_equals_the_whole_range_test() {
+        let mut state = 5u64;
+        let mut next = move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
+        };
+        let (mut hits, mut outside, mut other) = (0, 0, 0);
+        for i in 0..20_000 {
+            let scale = [1.0f32, 1e-3, 1e3, 1e30][i % 4];
+            let mut v = || Vec3::new(next(), next(), next() + 2.0) * scale;
+            let (a, b, mut c) = (v(), v(), v());
+            if i % 7 == 0 {
+                c = a;
+            }
+            if i % 11 == 0 {
+                c = Vec3::new(f32::INFINITY, 0.0, 1.0);
+            }
+            let r = WRay::new(
+                Vec3::new(next(), next(), 0.0) * 0.5,
+                Vec3::new(next() * 0.3, next() * 0.3, 1.0),
+            );
+            let want = r.intersect_or(a, b, c, f32::NEG_INFINITY, f32::INFINITY);
+            let got = r.cover(a, b, c).map(|c| c.hit());
+            match (want, got) {
+                (Ok(w), Ok(g)) => {
+                    hits += 1;
+                    assert_eq!(w.t.to_bits(), g.t.to_bits());
+                    assert!(w
+                        .bary
+                        .iter()
+                        .zip(g.bary)
+                        .all(|(p, q)| p.to_bits() == q.to_bits()));
+                }
+                (Err(w), Err(g)) => {
+                    assert_eq!(w, g);
+                    match w {
+                        Miss::Outside => outside += 1,
+                        Miss::Other => other += 1,
+                    }
+                }
+                (w, g) => panic!("{w:?} vs {g:?}"),
+            }
+        }
+        assert!(
+            hits > 1000 && outside > 1000 && other > 100,
+            "{hits} {outside} {other}"
+        );
     }
 }

@@ -281,8 +281,8 @@ fn attributes_read_back() {
     assert_eq!(s.textures.len(), 1);
     assert_eq!(s.textures[0].width, 4);
     // Alpha is linear in glTF textures; RGB white decodes to 1.
-    assert!((s.textures[0].texels[2].w - 128.0 / 255.0).abs() < 1e-6);
-    assert!((s.textures[0].texels[2].x - 1.0).abs() < 1e-6);
+    assert!((s.textures[0].texel_at(2).w - 128.0 / 255.0).abs() < 1e-6);
+    assert!((s.textures[0].texel_at(2).x - 1.0).abs() < 1e-6);
     // The same file from a path.
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("t.glb");
