@@ -152,6 +152,10 @@ fn bad_distillation_options_exit_2_naming_the_option() {
         "--distill-guard-tolerance=inf",
         "--distill-memory=-1",
         "--distill-memory=nan",
+        "--distill-record-transmittance=0",
+        "--distill-record-transmittance=1",
+        "--distill-record-transmittance=nan",
+        "--distill-record-transmittance=-0.5",
     ] {
         let r = run(&[
             "convert",
@@ -209,9 +213,14 @@ fn bench_distill_reports_set_up_steps_and_views_kept() {
             .map(|l| l.split(' ').nth(1).unwrap().to_string())
     };
     assert_eq!(hits(&kept), hits(&streamed));
+    // Recording stops at the named transmittance: a shallower one keeps fewer hits.
+    let shallow = bench(&["--profile", "meshsplats", "--record-transmittance", "0.5"]);
+    let count = |t: &str| hits(t).unwrap().parse::<u64>().unwrap();
+    assert!(count(&shallow) < count(&kept), "{shallow}\n{kept}");
     for (arg, name) in [
         (&["--profile", "cubes"][..], "--profile"),
         (&["--memory=-1"][..], "--memory"),
+        (&["--record-transmittance=1"][..], "--record-transmittance"),
     ] {
         let mut args = vec!["bench", "distill", scene.as_str()];
         args.extend_from_slice(arg);

@@ -11,8 +11,9 @@
 //!    the 3DGS EWA dilation, which fans otherwise lack), and that scene is what is exported.
 //! 3. Hits: per view and pixel, the ordered hit list the compositor uses
 //!    (`raytrace::hit_record`), recorded once (the geometry is fixed; only colours and
-//!    opacities change) down to a transmittance of `record_transmittance`, below the
-//!    tracer's 1e-4, so hits that show when opacities drop are kept.
+//!    opacities change) down to a transmittance of `record_transmittance`: by default
+//!    1e-4, where native splatting stops blending (`--distill-record-transmittance` keeps
+//!    deeper hits, for fits that lower the opacities in front a long way).
 //! 4. Iterations: every view is composited from its hits with the current vertex RGBA
 //!    ([`composite`]), the loss ([`loss`]) and its image gradient are computed, the gradient is
 //!    carried back through front-to-back compositing analytically to the vertices, and one

@@ -92,6 +92,11 @@ pub struct DistillArgs {
     /// pixel's BVH fewer times).
     #[arg(long, value_name = "K", default_value_t = DistillOptions::default().record_k, requires = "distill")]
     pub distill_record_k: usize,
+    /// Transmittance each pixel's hits are recorded down to: the hits behind it are not in
+    /// the fit, so a fit that lowers the opacities in front cannot see them (smaller keeps
+    /// more hits a pixel: more memory and time a step).
+    #[arg(long, value_name = "T", default_value_t = DistillOptions::default().record_transmittance, value_parser = parse_transmittance, requires = "distill")]
+    pub distill_record_transmittance: f32,
     /// Memory (GB) for the views' recorded hits, kept between steps; views beyond it are
     /// traced again in every step they are used (slower, same result).
     #[arg(long, value_name = "GB", default_value_t = default_memory_gb(), value_parser = parse_non_negative, requires = "distill")]
@@ -172,6 +177,7 @@ impl DistillArgs {
             },
             params: self.distill_params.mode(),
             record_k: self.distill_record_k,
+            record_transmittance: self.distill_record_transmittance,
             hit_budget: memory_bytes(self.distill_memory),
             batch: self.distill_batch,
             eps_pixels: self.distill_eps,
@@ -288,6 +294,16 @@ pub fn parse_unit(s: &str) -> Result<f64, String> {
 }
 
 /// A finite number ≥ 0.
+/// A transmittance strictly between 0 and 1.
+pub fn parse_transmittance(s: &str) -> Result<f32, String> {
+    let t: f32 = s.parse().map_err(|e| format!("{e}"))?;
+    if t > 0.0 && t < 1.0 {
+        Ok(t)
+    } else {
+        Err(format!("{s} is not strictly between 0 and 1"))
+    }
+}
+
 pub fn parse_non_negative(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
         Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),

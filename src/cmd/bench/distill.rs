@@ -33,6 +33,9 @@ pub struct Args {
     /// Memory for the views' hit lists, GB, as `convert --distill-memory`.
     #[arg(long, value_name = "GB", default_value_t = distill_args::default_memory_gb(), value_parser = distill_args::parse_non_negative)]
     pub memory: f64,
+    /// Transmittance hits are recorded down to, as `convert --distill-record-transmittance`.
+    #[arg(long, value_name = "T", default_value_t = DistillOptions::default().record_transmittance, value_parser = distill_args::parse_transmittance)]
+    pub record_transmittance: f32,
 }
 
 /// `convert`'s own command line, to take its export options exactly as it does.
@@ -72,6 +75,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         time,
         times: fitting_times(&scene, req.times),
         hit_budget: distill_args::memory_bytes(args.memory),
+        record_transmittance: args.record_transmittance,
         ..DistillOptions::default()
     };
     let t = Instant::now();
