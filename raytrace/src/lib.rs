@@ -39,6 +39,8 @@ pub mod render;
 pub mod scene_load;
 pub mod secondary;
 pub mod shadows;
+#[cfg(test)]
+mod test_rng;
 mod texture;
 pub mod tri;
 

@@ -351,13 +351,7 @@ mod tests {
     /// partial chunk, and the empty lanes, which no pixel passes.
     #[test]
     fn chunk_lanes_equal_the_scalar_tests() {
-        let mut state = 11u64;
-        let mut next = move || {
-            state = state
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (state >> 40) as f64 / (1u64 << 24) as f64
-        };
+        let mut next = crate::test_rng::unit(11);
         let mut passed = 0;
         for round in 0..400 {
             let n = round % LANES + 1;

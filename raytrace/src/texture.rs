@@ -72,13 +72,7 @@ impl Texture {
         wrap: [Wrap; 2],
         nearest: bool,
     ) -> Self {
-        Texture {
-            width,
-            height,
-            texels: Texels::Float(texels),
-            wrap,
-            nearest,
-        }
+        Self::of(width, height, Texels::Float(texels), wrap, nearest)
     }
 
     /// A texture of 8-bit texels as stored (RGB sRGB-encoded, alpha linear), row-major: it
@@ -91,10 +85,15 @@ impl Texture {
         wrap: [Wrap; 2],
         nearest: bool,
     ) -> Self {
+        let texels = Texels::Byte(texels, Box::new(ByteDecode::new()));
+        Self::of(width, height, texels, wrap, nearest)
+    }
+
+    fn of(width: u32, height: u32, texels: Texels, wrap: [Wrap; 2], nearest: bool) -> Self {
         Texture {
             width,
             height,
-            texels: Texels::Byte(texels, Box::new(ByteDecode::new())),
+            texels,
             wrap,
             nearest,
         }
@@ -210,6 +209,13 @@ fn floor(x: f64) -> f64 {
 mod tests {
     use super::*;
 
+    fn same_bits(a: Vec4, b: Vec4) -> bool {
+        a.to_array()
+            .iter()
+            .zip(b.to_array())
+            .all(|(p, q)| p.to_bits() == q.to_bits())
+    }
+
     /// Bilinear filtering as written in the definition: four texels through `texel` (which
     /// applies the wrap mode to each), weights from `f64::floor`.
     fn sample_reference(t: &Texture, uv: Vec2) -> Vec4 {
@@ -230,13 +236,8 @@ mod tests {
     /// texel row or column too.
     #[test]
     fn sampling_equals_the_definition() {
-        let mut state = 7u64;
-        let mut next = move || {
-            state = state
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (state >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut draw = crate::test_rng::unit(7);
+        let mut next = move || draw() as f32;
         for (w, h) in [(5u32, 4u32), (1, 6), (7, 1), (16, 16)] {
             let texels: Vec<Vec4> = (0..w * h)
                 .map(|_| Vec4::new(next(), next(), next(), next()))
@@ -263,13 +264,7 @@ mod tests {
                 ]);
                 for uv in uvs {
                     let (a, b) = (t.sample(uv), sample_reference(&t, uv));
-                    assert!(
-                        a.to_array()
-                            .iter()
-                            .zip(b.to_array())
-                            .all(|(p, q)| p.to_bits() == q.to_bits()),
-                        "{w}×{h} {wrap:?} at {uv}: {a} vs {b}"
-                    );
+                    assert!(same_bits(a, b), "{w}×{h} {wrap:?} at {uv}: {a} vs {b}");
                 }
             }
         }
@@ -303,13 +298,8 @@ mod tests {
                 )
             })
             .collect();
-        let mut state = 3u64;
-        let mut next = move || {
-            state = state
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (state >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut draw = crate::test_rng::unit(3);
+        let mut next = move || draw() as f32;
         for wrap in [Wrap::Clamp, Wrap::Repeat, Wrap::Mirror] {
             for nearest in [false, true] {
                 let f = Texture::from_texels(w, h, floats.clone(), [wrap, wrap], nearest);
@@ -320,10 +310,7 @@ mod tests {
                     let uv = Vec2::new(next() * 3.0 - 1.0, next() * 3.0 - 1.0);
                     let (p, q) = (b.sample(uv), f.sample(uv));
                     assert!(
-                        p.to_array()
-                            .iter()
-                            .zip(q.to_array())
-                            .all(|(x, y)| x.to_bits() == y.to_bits()),
+                        same_bits(p, q),
                         "{wrap:?} nearest {nearest} at {uv}: {p} vs {q}"
                     );
                 }

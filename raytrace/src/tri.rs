@@ -248,13 +248,8 @@ mod tests {
     /// vertices, vertices at ±1e30 whose distance numerator overflows or is NaN).
     #[test]
     fn cover_equals_the_whole_range_test() {
-        let mut state = 5u64;
-        let mut next = move || {
-            state = state
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (state >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
-        };
+        let mut draw = crate::test_rng::unit(5);
+        let mut next = move || draw() as f32 * 2.0 - 1.0;
         let (mut hits, mut outside, mut other) = (0, 0, 0);
         for i in 0..20_000 {
             let scale = [1.0f32, 1e-3, 1e3, 1e30][i % 4];
