@@ -200,6 +200,15 @@ fn bench_distill_reports_set_up_steps_and_views_kept() {
     let streamed = bench(&["--profile", "meshsplats", "--memory", "0"]);
     assert!(kept.contains("4 fitting windows 32×24"), "{kept}");
     assert!(kept.contains("set-up"), "{kept}");
+    // The set-up's parts, each a number of seconds.
+    for part in ["the mesh ", "native targets ", "hit recording "] {
+        let secs = kept
+            .split(part)
+            .nth(1)
+            .and_then(|t| t.split(' ').next())
+            .and_then(|v| v.parse::<f64>().ok());
+        assert!(secs.is_some_and(|s| s >= 0.0), "{part}: {kept}");
+    }
     assert!(kept.contains("4 views kept, 0 streamed"), "{kept}");
     assert!(streamed.contains("0 views kept, 4 streamed"), "{streamed}");
     assert!(

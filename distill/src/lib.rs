@@ -119,6 +119,11 @@ pub struct DistillReport {
     pub params: String,
     pub iterations: usize,
     pub setup_seconds: f64,
+    /// Parts of the set-up: the mesh (export in memory, load, BVH), the native targets and
+    /// the hit recording.
+    pub setup_mesh_seconds: f64,
+    pub setup_targets_seconds: f64,
+    pub setup_record_seconds: f64,
     pub seconds: f64,
     pub hits: u64,
     pub stored_views: usize,
@@ -275,6 +280,8 @@ impl Distiller {
         let fitted_positions = opts.positions.then(|| positions::Positions::new(&tri));
         let tracer = MeshTracer::new(tri, BackendKind::default(), BuildPreset::default())?;
         let native = native_options(opts.target_sh_degree);
+        let mesh_seconds = start.elapsed().as_secs_f64();
+        let (mut targets_seconds, mut record_seconds) = (0.0, 0.0);
         let mut renderer = splatbridge_hybrid::native::Renderer::new();
         let mut d = Distiller {
             tracer,
@@ -322,13 +329,17 @@ impl Distiller {
                 if times[i] != t {
                     continue;
                 }
+                let t0 = Instant::now();
                 let frame = targets::render_native(&mut renderer, &cloud, cam, &native)?;
+                let t1 = Instant::now();
                 // Moving vertices change the hits in every step: none are kept.
                 let hits = if opts.positions {
                     ViewHits::default()
                 } else {
                     d.record(cam, t)?
                 };
+                targets_seconds += (t1 - t0).as_secs_f64();
+                record_seconds += t1.elapsed().as_secs_f64();
                 d.report.hits += hits.hits.len() as u64;
                 let keep = !opts.positions && stored + hits.bytes() <= opts.hit_budget;
                 if keep {
@@ -348,6 +359,9 @@ impl Distiller {
         d.views = slots.into_iter().flatten().collect();
         d.report.hit_bytes = stored;
         d.report.setup_seconds = start.elapsed().as_secs_f64();
+        d.report.setup_mesh_seconds = mesh_seconds;
+        d.report.setup_targets_seconds = targets_seconds;
+        d.report.setup_record_seconds = record_seconds;
         Ok(d)
     }
 

@@ -217,8 +217,10 @@ impl DistillArgs {
         eprintln!("distilled: {}", out.description);
         eprintln!("  parameters: {} ({} vertices)", r.params, r.vertices);
         eprintln!(
-            "  set-up {:.1} s, {} hits ({} views kept, {} streamed, {:.0} MB), loss {:.4} → {:.4}",
+            "  set-up {:.1} s (native targets {:.1} s, hit recording {:.1} s), {} hits ({} views kept, {} streamed, {:.0} MB), loss {:.4} → {:.4}",
             r.setup_seconds,
+            r.setup_targets_seconds,
+            r.setup_record_seconds,
             r.hits,
             r.stored_views,
             r.streamed_views,
