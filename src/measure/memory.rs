@@ -14,7 +14,11 @@ pub fn physical_bytes() -> Option<u64> {
 
 /// The `field  N kB` line of a proc(5) file, in bytes.
 fn kb_field(file: &str, field: &str) -> Option<u64> {
-    let s = std::fs::read_to_string(file).ok()?;
+    kb_in(&std::fs::read_to_string(file).ok()?, field)
+}
+
+/// The `field  N kB` line of a proc(5) file's text, in bytes.
+fn kb_in(s: &str, field: &str) -> Option<u64> {
     let line = s.lines().find(|l| l.starts_with(field))?;
     let kb: u64 = line[field.len()..]
         .trim()
@@ -37,13 +41,18 @@ pub fn resident_bytes() -> Option<u64> {
 
 #[cfg(test)]
 mod tests {
-    /// The peak is at least the current resident size, and both exist on Linux.
+    /// The peak is at least the current resident size, and both exist on Linux. Both are
+    /// read from one snapshot of the file: the kernel reports `VmHWM` as at least `VmRSS` within
+    /// a snapshot, but its high-water mark lags, so a peak read after a resident size (other
+    /// tests' threads allocating and freeing between the reads) can be below it.
     #[test]
     #[cfg(target_os = "linux")]
     fn peak_covers_resident() {
-        let rss = super::resident_bytes().unwrap();
-        let peak = super::peak_bytes().unwrap();
+        let s = std::fs::read_to_string("/proc/self/status").unwrap();
+        let rss = super::kb_in(&s, "VmRSS:").unwrap();
+        let peak = super::kb_in(&s, "VmHWM:").unwrap();
         assert!(rss > 0 && peak >= rss, "{rss} {peak}");
+        assert!(super::resident_bytes().is_some() && super::peak_bytes().is_some());
         assert!(super::physical_bytes().unwrap() > peak);
     }
 }
