@@ -89,7 +89,7 @@ impl Default for DistillOptions {
             hit_budget: 3_000_000_000,
             // Native splatting stops blending a pixel where its transmittance falls below
             // 1e-4: hits behind that are not in the image the fit matches. Recording down to
-            // 1e-6 kept 30 % more hits and cost 40 % more time on `plant` and `fourth_st`
+            // 1e-6 kept 16–29 % more hits and took 22–47 % longer on `fourth_st` and `plant`
             // for a fit within 0.06 dB (docs/distill.md, "Recording depth").
             record_transmittance: 1e-4,
             params: ParamMode::Vertex,
