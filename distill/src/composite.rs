@@ -22,6 +22,7 @@ use std::sync::Arc;
 use glam::Vec3;
 use rayon::prelude::*;
 use splatbridge_convert::mesh::linear_to_srgb;
+use splatbridge_raytrace::prefetch;
 
 /// One recorded hit: the global triangle (an index into [`ViewHits::tris`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -71,31 +72,14 @@ impl ViewHits {
     fn prefetch(&self, i: usize, params: &[[f32; 4]]) {
         const AHEAD: usize = 16;
         if let Some(h) = self.hits.get(i + AHEAD) {
-            prefetch_at(&self.tris, h.tri as usize);
+            prefetch::at(&self.tris, h.tri as usize);
         }
         if let Some(h) = self.hits.get(i + AHEAD / 2) {
             for v in self.verts(h) {
-                prefetch_at(params, v as usize);
+                prefetch::at(params, v as usize);
             }
         }
     }
-}
-
-/// Hint the cache to fetch `xs[i]` (nothing when `i` is out of range).
-#[inline(always)]
-fn prefetch_at<T>(xs: &[T], i: usize) {
-    #[cfg(target_arch = "x86_64")]
-    if let Some(x) = xs.get(i) {
-        // SAFETY: a prefetch is a hint without architectural effect, and the pointer is that
-        // of an element of the slice.
-        unsafe {
-            std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(
-                (x as *const T).cast::<i8>(),
-            );
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = (xs, i);
 }
 
 /// The derivative of the sRGB encoding at linear value x (x in [0, 1]).

@@ -669,6 +669,7 @@ mod tests {
         assert!(buf.rejects(hit(3.0, 0).key()));
         assert!(!buf.rejects(hit(1.5, 0).key()));
     }
+
     /// [`KBuffer::search`]'s shortcut for a key beyond the last gives the binary search's
     /// answer: on buffers grown from random hits with ties, for keys below, among, equal to
     /// and beyond the buffered ones, and on the empty buffer.
@@ -690,6 +691,7 @@ mod tests {
         }
         assert!(beyond > 100, "{beyond}");
     }
+
     /// [`packed`] orders keys as the tuples do, field by field, at the fields' extremes.
     #[test]
     fn packed_keys_order_as_the_tuples() {

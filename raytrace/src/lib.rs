@@ -35,6 +35,7 @@ pub mod morph;
 pub mod obj_frame;
 pub mod obj_read;
 pub mod obvhs_backend;
+pub mod prefetch;
 pub mod render;
 pub mod scene_load;
 pub mod secondary;

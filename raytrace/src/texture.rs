@@ -33,8 +33,11 @@ pub struct Texture {
 #[derive(Clone, Debug)]
 enum Texels {
     Float(Vec<Vec4>),
-    Byte(Vec<[u8; 4]>, Box<ByteDecode>),
+    Byte(Vec<[u8; 4]>, &'static ByteDecode),
 }
+
+/// The one decode table every byte texture reads.
+static BYTE_DECODE: std::sync::LazyLock<ByteDecode> = std::sync::LazyLock::new(ByteDecode::new);
 
 /// The decoded value of each byte: RGB through the sRGB decode, alpha as stored.
 #[derive(Clone, Debug)]
@@ -85,7 +88,7 @@ impl Texture {
         wrap: [Wrap; 2],
         nearest: bool,
     ) -> Self {
-        let texels = Texels::Byte(texels, Box::new(ByteDecode::new()));
+        let texels = Texels::Byte(texels, &BYTE_DECODE);
         Self::of(width, height, texels, wrap, nearest)
     }
 

@@ -68,7 +68,7 @@ pub struct Args {
     pub distill_footprint: super::distill_args::OnOff,
     /// Which footprint of the views that see a Gaussian the distilled meshes widen it by
     /// (0 the smallest, 1 the largest).
-    #[arg(long, value_name = "Q", default_value_t = splatbridge::distill::DistillOptions::default().footprint_quantile, value_parser = super::distill_args::parse_unit)]
+    #[arg(long, value_name = "Q", default_value_t = splatbridge::distill::DistillOptions::default().footprint_quantile, value_parser = super::common::parse_unit)]
     pub distill_footprint_quantile: f64,
     /// What the distill rows' fits move: per-vertex or per-Gaussian colour and opacity.
     #[arg(long, value_enum, default_value = "vertex")]
@@ -79,7 +79,7 @@ pub struct Args {
     pub distill_validation: usize,
     /// How far (dB) a validation view may fall below its start before the distill rows'
     /// guard refuses an iteration.
-    #[arg(long, value_name = "DB", default_value_t = splatbridge::distill::DistillOptions::default().guard_tolerance_db, value_parser = super::distill_args::parse_non_negative)]
+    #[arg(long, value_name = "DB", default_value_t = splatbridge::distill::DistillOptions::default().guard_tolerance_db, value_parser = super::common::parse_non_negative)]
     pub distill_guard_tolerance: f64,
     /// Iterations of the distill rows' fits.
     #[arg(long, value_name = "K", default_value_t = splatbridge::distill::DistillOptions::default().iterations)]

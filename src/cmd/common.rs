@@ -148,3 +148,29 @@ pub fn parse_rgb(s: &str) -> Result<glam::Vec3, String> {
     }
     Ok(v.as_vec3())
 }
+
+/// A number in [0, 1].
+pub fn parse_unit(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if (0.0..=1.0).contains(&v) => Ok(v),
+        _ => Err(format!("{s:?} is not a number from 0 to 1")),
+    }
+}
+
+/// A transmittance strictly between 0 and 1.
+pub fn parse_transmittance(s: &str) -> Result<f32, String> {
+    let t: f32 = s.parse().map_err(|e| format!("{e}"))?;
+    if t > 0.0 && t < 1.0 {
+        Ok(t)
+    } else {
+        Err(format!("{s} is not strictly between 0 and 1"))
+    }
+}
+
+/// A finite number ≥ 0.
+pub fn parse_non_negative(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
+        _ => Err(format!("{s:?} is not a number ≥ 0")),
+    }
+}

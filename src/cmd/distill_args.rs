@@ -95,11 +95,11 @@ pub struct DistillArgs {
     /// Transmittance each pixel's hits are recorded down to: the hits behind it are not in
     /// the fit, so a fit that lowers the opacities in front cannot see them (smaller keeps
     /// more hits a pixel: more memory and time a step).
-    #[arg(long, value_name = "T", default_value_t = DistillOptions::default().record_transmittance, value_parser = parse_transmittance, requires = "distill")]
+    #[arg(long, value_name = "T", default_value_t = DistillOptions::default().record_transmittance, value_parser = super::common::parse_transmittance, requires = "distill")]
     pub distill_record_transmittance: f32,
     /// Memory (GB) for the views' recorded hits, kept between steps; views beyond it are
     /// traced again in every step they are used (slower, same result).
-    #[arg(long, value_name = "GB", default_value_t = default_memory_gb(), value_parser = parse_non_negative, requires = "distill")]
+    #[arg(long, value_name = "GB", default_value_t = default_memory_gb(), value_parser = super::common::parse_non_negative, requires = "distill")]
     pub distill_memory: f64,
     /// Views per Adam step, spread around the rig and taken in turn (0: every view).
     #[arg(long, value_name = "B", default_value_t = DistillOptions::default().batch, requires = "distill")]
@@ -115,11 +115,11 @@ pub struct DistillArgs {
     pub distill_footprint: OnOff,
     /// Which footprint of the views that see a Gaussian it is widened by: 0 the smallest
     /// (the most detailed view's), 1 the largest, between them a quantile.
-    #[arg(long, value_name = "Q", default_value_t = DistillOptions::default().footprint_quantile, value_parser = parse_unit, requires = "distill")]
+    #[arg(long, value_name = "Q", default_value_t = DistillOptions::default().footprint_quantile, value_parser = super::common::parse_unit, requires = "distill")]
     pub distill_footprint_quantile: f64,
     /// How far (dB) a validation view may fall below its start before the guard refuses an
     /// iteration; the default refuses any real loss.
-    #[arg(long, value_name = "DB", default_value_t = DistillOptions::default().guard_tolerance_db, value_parser = parse_non_negative, requires = "distill")]
+    #[arg(long, value_name = "DB", default_value_t = DistillOptions::default().guard_tolerance_db, value_parser = super::common::parse_non_negative, requires = "distill")]
     pub distill_guard_tolerance: f64,
     /// Highest SH degree of the native targets (and held-back references); 0 fits and
     /// measures against view-independent colour, to see what view-dependence costs.
@@ -285,30 +285,4 @@ pub fn default_memory_gb() -> f64 {
 /// Bytes of `gb` GB (saturating, as float-to-integer casts do).
 pub fn memory_bytes(gb: f64) -> u64 {
     (gb * 1e9) as u64
-}
-
-/// A number in [0, 1].
-pub fn parse_unit(s: &str) -> Result<f64, String> {
-    match s.parse::<f64>() {
-        Ok(v) if (0.0..=1.0).contains(&v) => Ok(v),
-        _ => Err(format!("{s:?} is not a number from 0 to 1")),
-    }
-}
-
-/// A finite number ≥ 0.
-/// A transmittance strictly between 0 and 1.
-pub fn parse_transmittance(s: &str) -> Result<f32, String> {
-    let t: f32 = s.parse().map_err(|e| format!("{e}"))?;
-    if t > 0.0 && t < 1.0 {
-        Ok(t)
-    } else {
-        Err(format!("{s} is not strictly between 0 and 1"))
-    }
-}
-
-pub fn parse_non_negative(s: &str) -> Result<f64, String> {
-    match s.parse::<f64>() {
-        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
-        _ => Err(format!("{s:?} is not a number ≥ 0")),
-    }
 }

@@ -9,8 +9,8 @@
 //! the tile path's images stay equal to the per-ray BVH path's and the brute-force
 //! reference's bit for bit (`tile_tests`), and the kernels are checked lane by lane against
 //! the scalar functions (`lane_tests`). The lanes are plain arrays, vectorized as far as the
-//! compiler finds (no CPU feature is required); the only `unsafe` is the cache hint of
-//! [`prefetch`].
+//! compiler finds (no CPU feature is required); the cache hint of [`prefetch`] is
+//! `crate::prefetch`'s.
 
 use glam::Vec3;
 
@@ -171,25 +171,7 @@ impl Default for Products {
 /// evaluated after the ray's walk).
 #[inline(always)]
 pub(super) fn prefetch(coeffs: &[Vec3]) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        let bytes: &[u8] = bytemuck::cast_slice(coeffs);
-        if bytes.is_empty() {
-            return;
-        }
-        // Every 64-byte line the slice touches: its first byte, then every 64th, then its last.
-        let last = bytes.len().saturating_sub(1);
-        for at in (0..bytes.len()).step_by(64).chain(std::iter::once(last)) {
-            // SAFETY: a prefetch is a hint without architectural effect; `at` is inside the
-            // slice.
-            unsafe {
-                use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-                _mm_prefetch::<_MM_HINT_T0>(bytes.as_ptr().wrapping_add(at).cast::<i8>());
-            }
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = coeffs;
+    crate::prefetch::lines(coeffs);
 }
 
 /// [`super::tiles::color_from_basis`] of each of `coeffs` (at most [`LANES`] slices of equal

@@ -31,10 +31,10 @@ pub struct Args {
     #[arg(long, default_value_t = 10)]
     pub steps: usize,
     /// Memory for the views' hit lists, GB, as `convert --distill-memory`.
-    #[arg(long, value_name = "GB", default_value_t = distill_args::default_memory_gb(), value_parser = distill_args::parse_non_negative)]
+    #[arg(long, value_name = "GB", default_value_t = distill_args::default_memory_gb(), value_parser = common::parse_non_negative)]
     pub memory: f64,
     /// Transmittance hits are recorded down to, as `convert --distill-record-transmittance`.
-    #[arg(long, value_name = "T", default_value_t = DistillOptions::default().record_transmittance, value_parser = distill_args::parse_transmittance)]
+    #[arg(long, value_name = "T", default_value_t = DistillOptions::default().record_transmittance, value_parser = common::parse_transmittance)]
     pub record_transmittance: f32,
 }
 
