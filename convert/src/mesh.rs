@@ -115,25 +115,8 @@ impl VertexSink for Bounds {
     fn triangle(&mut self, _: [u32; 3]) {}
 }
 
-/// The sRGB decoding function (IEC 61966-2-1), display value → linear.
-#[inline]
-pub fn srgb_to_linear(c: f32) -> f32 {
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
-}
-
-/// The sRGB encoding function, linear → display value.
-#[inline]
-pub fn linear_to_srgb(c: f32) -> f32 {
-    if c <= 0.003_130_8 {
-        c * 12.92
-    } else {
-        1.055 * c.powf(1.0 / 2.4) - 0.055
-    }
-}
+/// The sRGB transfer functions (IEC 61966-2-1): display value → linear, linear → display.
+pub use splatbridge_scene::srgb::{decode as srgb_to_linear, encode as linear_to_srgb};
 
 /// Scratch space one worker reuses between Gaussians.
 #[derive(Default)]

@@ -46,6 +46,7 @@ pub mod options;
 pub mod order;
 pub mod positions;
 pub mod run;
+mod step;
 pub mod targets;
 pub mod tied;
 pub mod views;
@@ -53,6 +54,7 @@ pub mod views;
 use std::time::Instant;
 
 use rayon::prelude::*;
+
 use splatbridge_convert::vertex_colours::VertexColours;
 use splatbridge_convert::ConvertOptions;
 
@@ -174,9 +176,11 @@ pub struct Distiller {
     positions: Option<positions::Positions>,
     /// Validation views and the best iteration they have seen ([`guard`]).
     guard: guard::Guard,
-    /// Buffers a step reuses ([`Distiller::loss_and_gradient_over`]).
+    /// Buffers a step reuses ([`Distiller::loss_and_gradient_over`]): each view of a group
+    /// its shaded hits, and the per-hit gradients of the view being differentiated and of the
+    /// one being scattered.
     shaded_bufs: Vec<Vec<composite::Shaded>>,
-    dh_buf: Vec<[f32; 4]>,
+    dh_bufs: [Vec<[f32; 4]>; 2],
 }
 
 impl Distiller {
@@ -312,7 +316,7 @@ impl Distiller {
             positions: fitted_positions,
             guard: guard::Guard::default(),
             shaded_bufs: Vec::new(),
-            dh_buf: Vec::new(),
+            dh_bufs: [Vec::new(), Vec::new()],
         };
         let mut stored = 0u64;
         let times = opts.view_times(cameras.len());
@@ -321,37 +325,49 @@ impl Distiller {
         distinct.sort_by(f64::total_cmp);
         distinct.dedup();
         let mut slots: Vec<Option<View>> = (0..cameras.len()).map(|_| None).collect();
+        // Views are recorded a few at a time (one per thread): a 240×180 window's tiles do
+        // not keep two cores busy, and its hit lists are assembled serially.
+        let threads = rayon::current_num_threads().max(1);
+        let mut frames = vec![Vec::new(); cameras.len()];
         for &t in &distinct {
             let cloud = scene.composite(t);
-            for (i, cam) in cameras.iter().enumerate() {
-                if times[i] != t {
-                    continue;
-                }
-                let t0 = Instant::now();
-                let frame = targets::render_native(&mut renderer, &cloud, cam, &native)?;
+            let of_t: Vec<usize> = (0..cameras.len()).filter(|&i| times[i] == t).collect();
+            let t0 = Instant::now();
+            for &i in &of_t {
+                frames[i] =
+                    targets::render_native(&mut renderer, &cloud, &cameras[i], &native)?.rgb;
+            }
+            targets_seconds += t0.elapsed().as_secs_f64();
+            drop(cloud);
+            for group in of_t.chunks(threads) {
                 let t1 = Instant::now();
                 // Moving vertices change the hits in every step: none are kept.
-                let hits = if opts.positions {
-                    ViewHits::default()
-                } else {
-                    d.record(cam, t)?
-                };
-                targets_seconds += (t1 - t0).as_secs_f64();
+                let lists: Vec<Result<ViewHits>> = group
+                    .par_iter()
+                    .map(|&i| match opts.positions {
+                        true => Ok(ViewHits::default()),
+                        false => d.record(&cameras[i], t),
+                    })
+                    .collect();
                 record_seconds += t1.elapsed().as_secs_f64();
-                d.report.hits += hits.hits.len() as u64;
-                let keep = !opts.positions && stored + hits.bytes() <= opts.hit_budget;
-                if keep {
-                    stored += hits.bytes();
-                    d.report.stored_views += 1;
-                } else {
-                    d.report.streamed_views += 1;
+                for (&i, hits) in group.iter().zip(lists) {
+                    let hits = hits?;
+                    d.report.hits += hits.hits.len() as u64;
+                    // Kept in camera order while they fit the budget.
+                    let keep = !opts.positions && stored + hits.bytes() <= opts.hit_budget;
+                    if keep {
+                        stored += hits.bytes();
+                        d.report.stored_views += 1;
+                    } else {
+                        d.report.streamed_views += 1;
+                    }
+                    slots[i] = Some(View {
+                        camera: cameras[i].clone(),
+                        time: t,
+                        target: std::mem::take(&mut frames[i]),
+                        hits: keep.then_some(hits),
+                    });
                 }
-                slots[i] = Some(View {
-                    camera: cam.clone(),
-                    time: t,
-                    target: frame.rgb,
-                    hits: keep.then_some(hits),
-                });
             }
         }
         d.views = slots.into_iter().flatten().collect();
@@ -453,98 +469,6 @@ impl Distiller {
     pub fn loss_and_gradient(&mut self) -> Result<(f64, Vec<[f32; 4]>)> {
         let all: Vec<usize> = (0..self.views.len()).collect();
         self.loss_and_gradient_over(&all)
-    }
-
-    /// Mean loss over the views `which` and its gradient with respect to every vertex's RGBA.
-    pub fn loss_and_gradient_over(&mut self, which: &[usize]) -> Result<(f64, Vec<[f32; 4]>)> {
-        let mut grad = vec![[0.0f32; 4]; self.params.len()];
-        let mut pos_grad = vec![[0.0f32; 4]; self.positions.as_ref().map_or(0, |p| p.start.len())];
-        let nviews = which.len().max(1) as f64;
-        let mut total = 0.0;
-        let streamed = which.iter().any(|&i| self.views[i].hits.is_none());
-        if streamed {
-            self.apply();
-        }
-        let s = (1.0 / nviews) as f32;
-        // Images and image gradients of a few views at a time in parallel (the loss is serial
-        // work per view), then the backward passes in view order, so the sums do not depend
-        // on the thread count. A chunk holds one image gradient per thread.
-        let chunk = rayon::current_num_threads().max(1);
-        // Buffers reused over the groups and steps: each view of a group its shaded hits, and
-        // the per-hit gradients of the view being scattered.
-        let mut shaded_bufs = std::mem::take(&mut self.shaded_bufs);
-        shaded_bufs.resize_with(chunk, Vec::new);
-        let mut dh = std::mem::take(&mut self.dh_buf);
-        for group in which.chunks(chunk) {
-            let (params, shading, kind) = (&self.params, &self.shading, self.opts.loss);
-            let views = &self.views;
-            // Each stored view's loss and image gradient, and whether its hits as shaded are
-            // in its buffer (when few enough to keep, [`composite::MAX_SHADED_HITS`]).
-            let losses: Vec<Option<(f64, Vec<f32>, bool)>> = group
-                .par_iter()
-                .zip(shaded_bufs.par_iter_mut())
-                .map(|(&i, buf)| {
-                    let v = &views[i];
-                    v.hits.as_ref().map(|hits| {
-                        let (w, h) = (hits.width as usize, hits.height as usize);
-                        let keep = hits.hits.len() <= composite::MAX_SHADED_HITS;
-                        let img = if keep {
-                            composite::render_shaded_into(hits, params, shading, buf)
-                        } else {
-                            composite::render(hits, params, shading)
-                        };
-                        let (l, dimg) = loss::loss_and_grad(&img, &v.target, w, h, kind);
-                        (l, dimg, keep)
-                    })
-                })
-                .collect();
-            for ((&i, stored), buf) in group.iter().zip(losses).zip(&shaded_bufs) {
-                let owned;
-                let (hits, (l, mut dimg, kept)) = match (&self.views[i].hits, stored) {
-                    (Some(h), Some(lg)) => (h, lg),
-                    _ => {
-                        owned = self.record(&self.views[i].camera, self.views[i].time)?;
-                        let (w, h) = (owned.width as usize, owned.height as usize);
-                        let img = composite::render(&owned, &self.params, &self.shading);
-                        let (l, dimg) =
-                            loss::loss_and_grad(&img, &self.views[i].target, w, h, self.opts.loss);
-                        (&owned, (l, dimg, false))
-                    }
-                };
-                total += l / nviews;
-                dimg.iter_mut().for_each(|g| *g *= s);
-                let cached = kept.then_some(buf.as_slice());
-                composite::hit_gradients_into(
-                    hits,
-                    &self.params,
-                    cached,
-                    &self.shading,
-                    &dimg,
-                    &mut dh,
-                );
-                composite::scatter(hits, &dh, &mut grad);
-                if self.positions.is_some() {
-                    let view = &self.views[i];
-                    let mut to_local = vec![None; self.base.len()];
-                    for inst in self.tracer.prepare(view.time) {
-                        to_local[inst.mesh].get_or_insert(inst.to_local);
-                    }
-                    let rays = positions::ViewRays {
-                        camera: &view.camera,
-                        to_local,
-                        scene: &self.tracer.scene,
-                        base: &self.base,
-                    };
-                    positions::gradient(hits, &dh, &self.params, &rays, &mut pos_grad);
-                }
-            }
-        }
-        self.shaded_bufs = shaded_bufs;
-        self.dh_buf = dh;
-        if let Some(p) = &mut self.positions {
-            p.grad = pos_grad;
-        }
-        Ok((total, grad))
     }
 
     /// ∂L/∂p per vertex (fourth lane unused) of the last [`Self::loss_and_gradient_over`],

@@ -545,24 +545,9 @@ pub fn sample_channel(c: &Channel, t: f64) -> [f64; 4] {
     }
 }
 
-/// sRGB transfer function encode (linear → display value), for colours clamped to [0, 1].
-#[inline]
-pub fn linear_to_srgb(c: f32) -> f32 {
-    if c <= 0.003_130_8 {
-        c * 12.92
-    } else {
-        1.055 * c.powf(1.0 / 2.4) - 0.055
-    }
-}
-
-/// glTF sRGB transfer function decode (for base-colour texture RGB).
-pub fn srgb_to_linear(c: f32) -> f32 {
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
-}
+/// The sRGB transfer functions (encode for colours clamped to [0, 1]; decode for base-colour
+/// texture RGB, as glTF's sRGB textures are decoded).
+pub use splatbridge_scene::srgb::{decode as srgb_to_linear, encode as linear_to_srgb};
 
 impl Mesh {
     /// RGBA at barycentric position `bary` of triangle `tri`, as an unlit BLEND viewer shades it:

@@ -27,6 +27,7 @@ pub mod ply;
 pub mod rng;
 pub mod sh;
 pub mod sh_rotate;
+pub mod srgb;
 pub mod surfel_guard;
 pub mod surfels;
 pub mod trajectory;
