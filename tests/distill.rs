@@ -514,6 +514,69 @@ fn the_guard_keeps_the_best_admissible_validation_at_its_tolerance() {
     assert!(logs[0].iter().any(|v| !v.admissible), "no view lost");
 }
 
+/// With a patience of N the fit stops at the first validation that ends N in a row without
+/// progress (no better admissible iteration, no refused one with a worst view closer to its
+/// start than every refused one before), which is where the full run's log first does so:
+/// the same validations up to there, and the iteration the full run would keep had it ended
+/// there.
+#[test]
+fn the_fit_stops_when_its_patience_is_spent() {
+    let (scene, fit, _, _) = street_fit_and_held_back();
+    let cloud = scene.composite(0.0);
+    // As in the guard's test: two fitting views, validation views of another orbit, so that
+    // some validations are refused.
+    let fit = &fit[..2];
+    let val = views::orbit(&cloud, 5, 0..5, 64, 48).unwrap();
+    let run = |patience: usize| {
+        let d_opts = DistillOptions {
+            iterations: 60,
+            params: ParamMode::Vertex,
+            patience,
+            ..DistillOptions::default()
+        };
+        let mut d = Distiller::new(&scene, &opts(Profile::MeshSplats), fit, &d_opts).unwrap();
+        d.add_validation(&scene, &val, &[0.0; 5]).unwrap();
+        d.run(|_| {}).unwrap();
+        (d.validation_log().to_vec(), d.report())
+    };
+    let (full, rf) = run(0);
+    assert_eq!((rf.iterations, rf.stopped_early), (60, false));
+    let mut stops = 0;
+    for patience in [1, 2, 3] {
+        // Where the full log spends this patience, and the best admissible iteration then.
+        let (mut best, mut closest, mut since, mut stop) =
+            ((f64::NEG_INFINITY, 0), f64::NEG_INFINITY, 0, None);
+        for (k, v) in full.iter().enumerate() {
+            since += 1;
+            if v.admissible && v.mean > best.0 {
+                (best, since) = ((v.mean, v.iteration), 0);
+            }
+            if !v.admissible && v.worst() > closest {
+                (closest, since) = (v.worst(), 0);
+            }
+            if since >= patience && v.iteration < 60 {
+                stop = Some(k);
+                break;
+            }
+        }
+        let (log, r) = run(patience);
+        match stop {
+            Some(k) => {
+                stops += 1;
+                assert!(r.stopped_early, "patience {patience}");
+                assert_eq!(r.iterations, full[k].iteration, "patience {patience}");
+                assert_eq!(log, full[..=k], "patience {patience}");
+                assert_eq!(r.kept_iteration, best.1, "patience {patience}");
+            }
+            None => {
+                assert_eq!((r.iterations, r.stopped_early), (60, false));
+                assert_eq!(log, full);
+            }
+        }
+    }
+    assert!(stops > 0, "no patience was spent: {full:?}");
+}
+
 /// Views beyond the hit budget are traced again in each step instead of kept. Before any
 /// step both paths see the same hits, so the loss and gradient are the same bit for bit (the
 /// streamed path composites freshly recorded hits and shades them in each pass, the stored

@@ -156,6 +156,8 @@ fn bad_distillation_options_exit_2_naming_the_option() {
         "--distill-record-transmittance=1",
         "--distill-record-transmittance=nan",
         "--distill-record-transmittance=-0.5",
+        "--distill-patience=-1",
+        "--distill-patience=three",
     ] {
         let r = run(&[
             "convert",

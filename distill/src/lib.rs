@@ -138,6 +138,9 @@ pub struct DistillReport {
     pub validation_start: f64,
     pub validation_kept: f64,
     pub kept_iteration: usize,
+    /// Whether the fit stopped before its iterations ran out, its patience spent
+    /// ([`DistillOptions::patience`]).
+    pub stopped_early: bool,
 }
 
 pub(crate) struct View {
@@ -596,6 +599,10 @@ impl Distiller {
             }
             if self.history.len().is_multiple_of(guard::EVERY) {
                 self.validate()?;
+                if self.patience_spent() {
+                    self.report.stopped_early = true;
+                    break;
+                }
             }
         }
         self.validate()?;

@@ -57,6 +57,10 @@ pub struct DistillOptions {
     /// refused ([`crate::guard`]): the default refuses any real loss; larger values trade
     /// the guarantee for the gains of the other views.
     pub guard_tolerance_db: f64,
+    /// Validations in a row ([`crate::guard::EVERY`] steps apart) without progress (no better
+    /// admissible iteration, no refused one closer to admissible), after which the fit stops
+    /// ([`crate::guard::PATIENCE`]). 0 runs every iteration.
+    pub patience: usize,
     /// Highest SH degree of the native targets (3: all the scene has). Degree 0 makes the
     /// targets view-independent, so a fit to them measures what view-dependence costs a
     /// mesh (docs/distill.md, "Where the remaining error is").
@@ -104,6 +108,7 @@ impl Default for DistillOptions {
             // never ending below it forbids (docs/distill.md, "One mesh for every size").
             footprint_quantile: 0.0,
             guard_tolerance_db: crate::guard::TOLERANCE_DB,
+            patience: crate::guard::PATIENCE,
             target_sh_degree: 3,
             order: HitOrder::Ray,
             positions: false,

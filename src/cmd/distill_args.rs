@@ -121,6 +121,11 @@ pub struct DistillArgs {
     /// iteration; the default refuses any real loss.
     #[arg(long, value_name = "DB", default_value_t = DistillOptions::default().guard_tolerance_db, value_parser = super::common::parse_non_negative, requires = "distill")]
     pub distill_guard_tolerance: f64,
+    /// Validations in a row (10 steps apart) without progress, after which the fit stops:
+    /// none finds a better admissible iteration or a refused one closer to admissible than
+    /// before (0: run every iteration).
+    #[arg(long, value_name = "N", default_value_t = DistillOptions::default().patience, requires = "distill")]
+    pub distill_patience: usize,
     /// Highest SH degree of the native targets (and held-back references); 0 fits and
     /// measures against view-independent colour, to see what view-dependence costs.
     #[arg(long, value_name = "D", default_value_t = 3, value_parser = clap::value_parser!(u8).range(0..=3), requires = "distill")]
@@ -184,6 +189,7 @@ impl DistillArgs {
             footprint: self.distill_footprint == OnOff::On,
             footprint_quantile: self.distill_footprint_quantile,
             guard_tolerance_db: self.distill_guard_tolerance,
+            patience: self.distill_patience,
             target_sh_degree: self.distill_sh_degree,
             order: match self.distill_order {
                 OrderArg::Ray => HitOrder::Ray,
@@ -236,6 +242,12 @@ impl DistillArgs {
                 r.validation_kept,
                 r.kept_iteration,
                 r.iterations
+            );
+        }
+        if r.stopped_early {
+            eprintln!(
+                "  stopped after iteration {}: {} validations in a row without progress (no admissible iteration better than iteration {}, none closer to admissible; --distill-patience 0 runs all {})",
+                r.iterations, self.distill_patience, r.kept_iteration, self.iterations
             );
         }
         if let Some(v) = &out.best_refused {
