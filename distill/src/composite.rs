@@ -124,23 +124,21 @@ fn shade(h: &Rec, verts: [u32; 3], params: &[[f32; 4]], s: &Shading) -> Shaded {
     for ((&v, cc), dd) in x.iter().zip(c.iter_mut()).zip(dc.iter_mut()) {
         let inside = (0.0..=1.0).contains(&v);
         let v = v.clamp(0.0, 1.0);
-        if s.encode {
+        // Each branch's value is computed and one selected: colours near black and at the
+        // clamps would mispredict branches in this loop over every hit of every view.
+        let (enc, slope) = if s.encode {
             // Within one ulp of the encode rounded once (`scene::srgb` tests it on every
-            // float), at a third of `powf`'s cost: a step shades every hit of 16 views.
-            *cc = srgb::encode_fast(v);
-            // The slope from the encoded value: above the linear toe,
-            // d/dx (1.055·x^(1/2.4) − 0.055) = (c + 0.055) / (2.4·x), without a second powf.
-            *dd = if !inside {
-                0.0
-            } else if v <= 0.003_130_8 {
-                12.92
-            } else {
-                (*cc + 0.055) / (2.4 * v)
-            };
+            // float), at a fraction of `powf`'s cost. The slope from the encoded value: above
+            // the linear toe, d/dx (1.055·x^(1/2.4) − 0.055) = (c + 0.055) / (2.4·x), without
+            // a second powf.
+            let enc = srgb::encode_unit(v);
+            let power = (enc + 0.055) / (2.4 * v);
+            (enc, if v <= 0.003_130_8 { 12.92 } else { power })
         } else {
-            *cc = v;
-            *dd = if inside { 1.0 } else { 0.0 };
-        }
+            (v, 1.0)
+        };
+        *cc = enc;
+        *dd = if inside { slope } else { 0.0 };
     }
     let a = h.fa * x[3];
     Shaded {

@@ -77,6 +77,29 @@ pub fn encode_fast(c: f32) -> f32 {
     (1.055 * (t.pow2[e] * pow_m0 * series) - 0.055) as f32
 }
 
+/// [`encode_fast`] of a value already in [0, 1] (a clamped colour), bit for bit, without
+/// branches: both the linear toe and the power are computed and one is selected, so a hot
+/// loop over colours near black does not mispredict (the table indices are clamped to the
+/// tables where the toe is taken).
+#[inline]
+pub fn encode_unit(c: f32) -> f32 {
+    let t = &*TABLES;
+    let bits = c.to_bits();
+    let e = ((bits >> 23) as usize).clamp(118, 127) - 118;
+    let i = ((bits >> (23 - BITS)) as usize) & (INTERVALS - 1);
+    let m = f64::from(f32::from_bits((bits & 0x007f_ffff) | 0x3f80_0000));
+    let [pow_m0, inv_m0] = t.centre[i];
+    let x = m * inv_m0 - 1.0;
+    let series = 1.0 + x * (A + x * (K2 + x * K3));
+    let power = (1.055 * (t.pow2[e] * pow_m0 * series) - 0.055) as f32;
+    let toe = c * 12.92;
+    if c <= 0.003_130_8 {
+        toe
+    } else {
+        power
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -120,6 +143,15 @@ mod tests {
             off_by_one * 100_000 <= n,
             "{off_by_one} of {n} off by one ulp"
         );
+    }
+
+    #[test]
+    fn unit_encode_is_the_fast_encode_on_every_float_in_0_1() {
+        for bits in (0..=1f32.to_bits()).step_by(5).chain([0, 1f32.to_bits()]) {
+            let c = f32::from_bits(bits);
+            assert_eq!(encode_unit(c).to_bits(), encode_fast(c).to_bits(), "{c:e}");
+        }
+        assert_eq!(encode_unit(-0.0).to_bits(), encode(-0.0).to_bits());
     }
 
     #[test]
