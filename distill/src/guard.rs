@@ -9,6 +9,7 @@
 //! admissible iteration with the best mean is kept, the start itself when none is. Fitted
 //! positions change the hits every step, so they are not validated.
 
+use rayon::prelude::*;
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::Camera;
 
@@ -109,15 +110,24 @@ impl Distiller {
         }
         let native = targets::native_options(self.opts.target_sh_degree);
         let mut r = splatbridge_hybrid::native::Renderer::new();
+        let mut frames = Vec::with_capacity(cameras.len());
         for (cam, &t) in cameras.iter().zip(times) {
             let cloud = scene.composite(t);
-            let target = targets::render_native(&mut r, &cloud, cam, &native)?.rgb;
-            let hits = self.record(cam, t)?;
+            frames.push(targets::render_native(&mut r, &cloud, cam, &native)?.rgb);
+        }
+        // Every validation view is kept: recorded side by side, as the fitting views are.
+        let this = &*self;
+        let hits: Vec<Result<composite::ViewHits>> = cameras
+            .par_iter()
+            .zip(times)
+            .map(|(cam, &t)| this.record(cam, t))
+            .collect();
+        for (((cam, &t), target), hits) in cameras.iter().zip(times).zip(frames).zip(hits) {
             self.guard.views.push(View {
                 camera: cam.clone(),
                 time: t,
                 target,
-                hits: Some(hits),
+                hits: Some(hits?),
             });
         }
         self.report.validation_views = self.guard.views.len();
