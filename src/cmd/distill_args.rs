@@ -246,8 +246,12 @@ impl DistillArgs {
         }
         if r.stopped_early {
             eprintln!(
-                "  stopped after iteration {}: {} validations in a row without progress (no admissible iteration better than iteration {}, none closer to admissible; --distill-patience 0 runs all {})",
-                r.iterations, self.distill_patience, r.kept_iteration, self.iterations
+                "  stopped after iteration {}: {} validation{} in a row without progress (no admissible iteration better than iteration {}, none closer to admissible; --distill-patience 0 runs all {})",
+                r.iterations,
+                self.distill_patience,
+                if self.distill_patience == 1 { "" } else { "s" },
+                r.kept_iteration,
+                self.iterations
             );
         }
         if let Some(v) = &out.best_refused {
