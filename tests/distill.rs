@@ -441,6 +441,15 @@ fn target_sh_degree_caps_the_targets_sh() {
     }
 }
 
+/// Two fitting views of the street and validation views of another orbit, so that the fit,
+/// made for two directions, makes some validation view worse (the guard's tests check it).
+fn guarded_fit() -> (DynamicScene, Vec<Camera>, Vec<Camera>) {
+    let (scene, mut fit, _, _) = street_fit_and_held_back();
+    fit.truncate(2);
+    let val = views::orbit(&scene.composite(0.0), 5, 0..5, 64, 48).unwrap();
+    (scene, fit, val)
+}
+
 /// The guard keeps the admissible validation with the best mean, and a validation is
 /// admissible exactly when no view fell below its start by more than the tolerance; with a
 /// tolerance no loss reaches, every validation is admissible and the best mean is kept.
@@ -448,12 +457,8 @@ fn target_sh_degree_caps_the_targets_sh() {
 /// measured again after `run`).
 #[test]
 fn the_guard_keeps_the_best_admissible_validation_at_its_tolerance() {
-    let (scene, fit, _, _) = street_fit_and_held_back();
-    let cloud = scene.composite(0.0);
-    // Two fitting views and validation views of another orbit, so that the fit, made for
-    // two directions, makes some validation view worse (checked below).
-    let fit = &fit[..2];
-    let val = views::orbit(&cloud, 5, 0..5, 64, 48).unwrap();
+    let (scene, fit, val) = guarded_fit();
+    let fit = &fit[..];
     let mut logs = Vec::new();
     let mut refused = None;
     for tolerance in [splatbridge::distill::guard::TOLERANCE_DB, 1e9] {
@@ -521,12 +526,8 @@ fn the_guard_keeps_the_best_admissible_validation_at_its_tolerance() {
 /// there.
 #[test]
 fn the_fit_stops_when_its_patience_is_spent() {
-    let (scene, fit, _, _) = street_fit_and_held_back();
-    let cloud = scene.composite(0.0);
-    // As in the guard's test: two fitting views, validation views of another orbit, so that
-    // some validations are refused.
-    let fit = &fit[..2];
-    let val = views::orbit(&cloud, 5, 0..5, 64, 48).unwrap();
+    let (scene, fit, val) = guarded_fit();
+    let fit = &fit[..];
     let run = |patience: usize| {
         let d_opts = DistillOptions {
             iterations: 60,

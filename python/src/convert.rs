@@ -112,7 +112,7 @@ fn distill_of(d: &Bound<'_, PyAny>, time: f64) -> PyResult<Option<Distill>> {
         return Ok(on.then_some(Distill { views, options }));
     }
     let dict = d.cast::<PyDict>().map_err(|_| {
-        crate::Error::new_err("distill: expected True or a dict (views, iterations, time_budget, width, height, held_back, times)")
+        crate::Error::new_err("distill: expected True or a dict (views, iterations, time_budget, width, height, held_back, times, batch, patience)")
     })?;
     for (k, v) in dict.iter() {
         let key: String = k.extract()?;
@@ -125,9 +125,10 @@ fn distill_of(d: &Bound<'_, PyAny>, time: f64) -> PyResult<Option<Distill>> {
             "iterations" => options.iterations = v.extract()?,
             "time_budget" => options.max_seconds = v.extract()?,
             "batch" => options.batch = v.extract()?,
+            "patience" => options.patience = v.extract()?,
             other => {
                 return Err(crate::Error::new_err(format!(
-                    "distill: unknown option '{other}' (views, iterations, time_budget, width, height, held_back, times, batch)"
+                    "distill: unknown option '{other}' (views, iterations, time_budget, width, height, held_back, times, batch, patience)"
                 )))
             }
         }
@@ -145,7 +146,8 @@ fn distill_of(d: &Bound<'_, PyAny>, time: f64) -> PyResult<Option<Distill>> {
 /// ``distill``: fit the mesh's colours to native splatting first (glTF meshes): ``True`` for
 /// the CLI's defaults or a dict, e.g. ``{"views": "orbit:16", "time_budget": 30}``
 /// (``views``, ``iterations``, ``time_budget`` seconds, ``width``, ``height``, ``held_back``,
-/// ``times``, ``batch``). ``cameras``: cameras to embed in glTF outputs instead of the
+/// ``times``, ``batch``, ``patience``: validations without progress before the fit stops, 0
+/// never). ``cameras``: cameras to embed in glTF outputs instead of the
 /// scene's own (the CLI's ``--camera``: ``"orbit:8"``, ``"scene"``, ``"cams.json"``, specs).
 /// Returns the report ``convert --json`` prints (a splat file: format, Gaussians, bytes).
 ///

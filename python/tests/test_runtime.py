@@ -56,7 +56,8 @@ def test_ctrl_c_stops_a_long_distillation(small, tmp_path):
         print("ready", flush=True)
         try:
             splatbridge.convert(scene, {str(tmp_path / "fit.glb")!r},
-                                distill={{"views": "orbit:4", "iterations": 10**9, "width": 32, "height": 24}})
+                                distill={{"views": "orbit:4", "iterations": 10**9, "width": 32, "height": 24,
+                                             "patience": 0}})
         except KeyboardInterrupt:
             print("interrupted", flush=True)
             sys.exit(7)
