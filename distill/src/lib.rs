@@ -54,7 +54,6 @@ pub mod views;
 use std::time::Instant;
 
 use rayon::prelude::*;
-
 use splatbridge_convert::vertex_colours::VertexColours;
 use splatbridge_convert::ConvertOptions;
 
@@ -347,9 +346,12 @@ impl Distiller {
                 // Moving vertices change the hits in every step: none are kept.
                 let lists: Vec<Result<ViewHits>> = group
                     .par_iter()
-                    .map(|&i| match opts.positions {
-                        true => Ok(ViewHits::default()),
-                        false => d.record(&cameras[i], t),
+                    .map(|&i| {
+                        if opts.positions {
+                            Ok(ViewHits::default())
+                        } else {
+                            d.record(&cameras[i], t)
+                        }
                     })
                     .collect();
                 record_seconds += t1.elapsed().as_secs_f64();
