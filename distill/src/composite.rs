@@ -82,16 +82,6 @@ impl ViewHits {
     }
 }
 
-/// The derivative of the sRGB encoding at linear value x (x in [0, 1]).
-#[inline]
-pub fn srgb_slope(x: f32) -> f32 {
-    if x <= 0.003_130_8 {
-        12.92
-    } else {
-        1.055 / 2.4 * x.powf(1.0 / 2.4 - 1.0)
-    }
-}
-
 /// How the hit colours are encoded for blending.
 #[derive(Clone, Copy, Debug)]
 pub struct Shading {

@@ -34,7 +34,7 @@ pub const TOLERANCE_DB: f64 = 1e-3;
 /// progress when it finds a better admissible iteration, or when it is refused with a worst
 /// view closer to its start than every refused validation before it (a fit whose first steps
 /// overshoot and recover keeps going). Measured at the defaults on the five shared scenes
-/// (docs/distill.md, "Stopping early"): the same iteration kept by all five, `fourth_st` and
+/// (docs/distill-time.md, "Stopping early"): the same iteration kept by all five, `fourth_st` and
 /// `donut` stopped after 40 and 30 of 60 steps.
 pub const PATIENCE: usize = 2;
 
@@ -194,9 +194,10 @@ impl Distiller {
         if closer {
             self.guard.closest_refused = Some(worst);
         }
-        self.guard.since_progress = match (admissible && better) || closer {
-            true => 0,
-            false => self.guard.since_progress + 1,
+        self.guard.since_progress = if (admissible && better) || closer {
+            0
+        } else {
+            self.guard.since_progress + 1
         };
         if admissible && better {
             self.guard.best = Some(Snapshot {

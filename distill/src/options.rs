@@ -29,7 +29,7 @@ pub struct DistillOptions {
     pub params: ParamMode,
     /// The k-buffer size of hit recording: the order is the tracer's (hits sorted by the
     /// same keys), a larger buffer walks the BVH fewer times for a deep pixel (64 halved
-    /// the set-up's wall time on `tile_lod1` against 16; docs/distill.md).
+    /// the set-up's wall time on `tile_lod1` against 16; docs/distill-time.md, "Where the time goes").
     pub record_k: usize,
     /// Views per Adam step: 0 for all of them (full batch), else that many in turn
     /// ([`Distiller::batch`]).
@@ -89,12 +89,12 @@ impl Default for DistillOptions {
             k: 16,
             // All 48 default views of a deep street capture (`fourth_st`: 113.7 M hits of 20
             // bytes, 2.29 GB) stay in memory: re-tracing the views beyond the budget took
-            // half of each step (docs/distill.md, "Time").
+            // half of each step (docs/distill-time.md).
             hit_budget: 3_000_000_000,
             // Native splatting stops blending a pixel where its transmittance falls below
             // 1e-4: hits behind that are not in the image the fit matches. Recording down to
             // 1e-6 kept 16–29 % more hits and took 22–47 % longer on `fourth_st` and `plant`
-            // for a fit within 0.06 dB (docs/distill.md, "Recording depth").
+            // for a fit within 0.06 dB (docs/distill-time.md, "Recording depth").
             record_transmittance: 1e-4,
             params: ParamMode::Vertex,
             record_k: 64,

@@ -65,39 +65,36 @@ pub fn encode_fast(c: f32) -> f32 {
     if !(c > 0.003_130_8 && c <= 1.0) {
         return encode(c);
     }
-    let t = &*TABLES;
-    let bits = c.to_bits();
-    // c is normal here: its biased exponent is 118…127 (e = −9…0).
-    let e = (bits >> 23) as usize - 118;
-    let i = ((bits >> (23 - BITS)) as usize) & (INTERVALS - 1);
-    let m = f64::from(f32::from_bits((bits & 0x007f_ffff) | 0x3f80_0000));
-    let [pow_m0, inv_m0] = t.centre[i];
-    let x = m * inv_m0 - 1.0;
-    let series = 1.0 + x * (A + x * (K2 + x * K3));
-    (1.055 * (t.pow2[e] * pow_m0 * series) - 0.055) as f32
+    power(c)
 }
 
 /// [`encode_fast`] of a value already in [0, 1] (a clamped colour), bit for bit, without
 /// branches: both the linear toe and the power are computed and one is selected, so a hot
-/// loop over colours near black does not mispredict (the table indices are clamped to the
-/// tables where the toe is taken).
+/// loop over colours near black does not mispredict.
 #[inline]
 pub fn encode_unit(c: f32) -> f32 {
+    let (toe, power) = (c * 12.92, power(c));
+    if c <= 0.003_130_8 {
+        toe
+    } else {
+        power
+    }
+}
+
+/// `1.055·c^(1/2.4) − 0.055` from the tables, exact for c in (0.0031308, 1]; for other
+/// values the exponent's index is clamped to the table, so the result is finite and unused.
+#[inline]
+fn power(c: f32) -> f32 {
     let t = &*TABLES;
     let bits = c.to_bits();
+    // Biased exponents 118…127 are e = −9…0.
     let e = ((bits >> 23) as usize).clamp(118, 127) - 118;
     let i = ((bits >> (23 - BITS)) as usize) & (INTERVALS - 1);
     let m = f64::from(f32::from_bits((bits & 0x007f_ffff) | 0x3f80_0000));
     let [pow_m0, inv_m0] = t.centre[i];
     let x = m * inv_m0 - 1.0;
     let series = 1.0 + x * (A + x * (K2 + x * K3));
-    let power = (1.055 * (t.pow2[e] * pow_m0 * series) - 0.055) as f32;
-    let toe = c * 12.92;
-    if c <= 0.003_130_8 {
-        toe
-    } else {
-        power
-    }
+    (1.055 * (t.pow2[e] * pow_m0 * series) - 0.055) as f32
 }
 
 #[cfg(test)]

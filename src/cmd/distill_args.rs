@@ -245,14 +245,9 @@ impl DistillArgs {
             );
         }
         if r.stopped_early {
-            eprintln!(
-                "  stopped after iteration {}: {} validation{} in a row without progress (no admissible iteration better than iteration {}, none closer to admissible; --distill-patience 0 runs all {})",
-                r.iterations,
-                self.distill_patience,
-                if self.distill_patience == 1 { "" } else { "s" },
-                r.kept_iteration,
-                self.iterations
-            );
+            let (n, kept, all) = (self.distill_patience, r.kept_iteration, self.iterations);
+            let s = if n == 1 { "" } else { "s" };
+            eprintln!("  stopped after iteration {}: {n} validation{s} in a row without progress (no admissible iteration better than iteration {kept}, none closer to admissible; --distill-patience 0 runs all {all})", r.iterations);
         }
         if let Some(v) = &out.best_refused {
             let (view, change) = v.worst_view();
