@@ -101,7 +101,7 @@ impl MeshTracer {
         k: usize,
         min_transmittance: f32,
     ) -> Result<HitLists> {
-        if self.tiles_pay(time) {
+        if self.tiles_pay(time, cam.width as u64 * cam.height as u64) {
             return self.record_hits_tiles(cam, time, min_transmittance);
         }
         self.record_hits_per_ray(cam, time, k, min_transmittance)

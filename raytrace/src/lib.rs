@@ -9,6 +9,8 @@
 
 pub mod backend;
 mod mesh_cands;
+#[cfg(test)]
+mod mesh_cull_tests;
 pub(crate) mod mesh_hit;
 #[cfg(test)]
 mod mesh_tile_tests;

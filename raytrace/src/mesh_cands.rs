@@ -113,11 +113,16 @@ impl Edges {
         for (i, e) in out.iter_mut().enumerate() {
             let (pj, pk, pi) = (p[(i + 1) % 3], p[(i + 2) % 3], p[i]);
             let (dx, dy) = (pk.0 - pj.0, pk.1 - pj.1);
-            let len = dx.hypot(dy);
+            // Not `hypot`: a length off by an ulp scales the whole edge function (its sign is
+            // unchanged) far below `EVAL_SLACK`, and an overflow or underflow to 0 leaves the
+            // edge admitting every pixel (below).
+            let len = (dx * dx + dy * dy).sqrt();
             if !(len > 0.0 && len.is_finite()) {
                 continue;
             }
-            let (mut a, mut b) = (-dy / len, dx / len);
+            // One division: the normal's length is 1 to within an ulp or two either way.
+            let inv = 1.0 / len;
+            let (mut a, mut b) = (-dy * inv, dx * inv);
             let mut c = -(a * pj.0 + b * pj.1);
             // Oriented so the opposite vertex is inside; a vertex on the line (a sliver)
             // leaves either orientation valid, since the triangle lies on the line.

@@ -23,16 +23,16 @@ use super::render::{camera_ray, RenderOptions};
 use crate::backend::{BackendKind, BuildPreset};
 
 /// SplitMix64.
-struct Rng(u64);
+pub(crate) struct Rng(pub(crate) u64);
 impl Rng {
-    fn f(&mut self) -> f32 {
+    pub(crate) fn f(&mut self) -> f32 {
         self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
         let mut z = self.0;
         z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
         z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
         ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
     }
-    fn range(&mut self, a: f32, b: f32) -> f32 {
+    pub(crate) fn range(&mut self, a: f32, b: f32) -> f32 {
         a + (b - a) * self.f()
     }
 }
@@ -77,7 +77,7 @@ fn fan(
 /// exactly (equal keys), every fifth fully transparent, every third opaque (so rays stop, and
 /// the walk's early exit is exercised), some large (across the camera of [`cameras`]), with
 /// both windings when `both`.
-fn random_mesh(seed: u64, n: usize, extent: f32, offset: Vec3, both: bool) -> Mesh {
+pub(crate) fn random_mesh(seed: u64, n: usize, extent: f32, offset: Vec3, both: bool) -> Mesh {
     let mut r = Rng(seed);
     let mut m = Mesh {
         has_gaussian_ids: true,
@@ -125,7 +125,7 @@ fn random_mesh(seed: u64, n: usize, extent: f32, offset: Vec3, both: bool) -> Me
     m
 }
 
-fn blend() -> Vec<Material> {
+pub(crate) fn blend() -> Vec<Material> {
     vec![Material {
         base_color: Vec4::ONE,
         texture: None,
@@ -272,7 +272,7 @@ fn hit_bits(h: &MeshHit) -> Vec<u32> {
     v
 }
 
-fn bits(f: &Frame) -> Vec<u32> {
+pub(crate) fn bits(f: &Frame) -> Vec<u32> {
     f.rgb
         .iter()
         .chain(&f.alpha)
@@ -282,7 +282,7 @@ fn bits(f: &Frame) -> Vec<u32> {
 }
 
 /// The image from the reference hits (the compositing of `MeshTracer::trace`).
-fn reference_image(tracer: &MeshTracer, cam: &Camera, opts: &RenderOptions) -> Frame {
+pub(crate) fn reference_image(tracer: &MeshTracer, cam: &Camera, opts: &RenderOptions) -> Frame {
     crate::render::render_frame_spp(cam, opts.spp, |o, d| {
         let mut comp = Compositor::new(opts, tracer.scene.colors_linear);
         for h in reference(tracer, 0.0, o, d, opts.min_transmittance) {
@@ -296,9 +296,9 @@ fn reference_image(tracer: &MeshTracer, cam: &Camera, opts: &RenderOptions) -> F
     .0
 }
 
-fn tracer(scene: TriScene) -> MeshTracer {
+pub(crate) fn tracer(scene: TriScene) -> MeshTracer {
     let t = MeshTracer::new(scene, BackendKind::Obvhs, BuildPreset::Medium).unwrap();
-    assert!(t.tiles_pay(0.0));
+    assert!(t.tiles_pay(0.0, 1));
     t
 }
 

@@ -116,6 +116,10 @@ pub struct Blas {
     pub planes: Vec<(DVec3, f64)>,
     pub lo: DVec3,
     pub hi: DVec3,
+    /// Every vertex position is finite, so `lo..hi` holds every vertex the hit test sees (a
+    /// NaN coordinate is skipped by `min`/`max`): the screen tiles may skip an instance whose
+    /// box the camera cannot see (`mesh_tiles::box_unseen`).
+    pub finite: bool,
     pub accel: Box<dyn Accel>,
     /// Over single triangles: the triangles laid out in the acceleration structure's order
     /// (see `Accel::slots`), their vertices (relative to `anchor`), index in the mesh and
@@ -136,6 +140,9 @@ pub struct Blas {
     /// Each triangle's other winding (`mesh_cands::mirror_pairs`), found on the first render
     /// through screen tiles (4 bytes a triangle, kept for later frames).
     pub(crate) mirror: std::sync::OnceLock<Vec<u32>>,
+    /// Each planar group's largest triangle side (`mesh_tiles`' list keys), found on the
+    /// first render through screen tiles (8 bytes a group).
+    pub(crate) group_extent: std::sync::OnceLock<Vec<f64>>,
 }
 
 /// Each triangle's planar group over runs of triangles. Runs never cross Gaussians, and a
@@ -350,6 +357,7 @@ impl MeshTracer {
         per_box: Option<usize>,
     ) -> Result<Blas> {
         let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+        let finite = m.positions.iter().all(|p| p.is_finite());
         for p in &m.positions {
             lo = lo.min(p.as_dvec3());
             hi = hi.max(p.as_dvec3());
@@ -419,6 +427,7 @@ impl MeshTracer {
             planes,
             lo,
             hi,
+            finite,
             accel,
             slot_verts,
             slot_tri,
@@ -426,6 +435,7 @@ impl MeshTracer {
             run_start,
             group,
             mirror: std::sync::OnceLock::new(),
+            group_extent: std::sync::OnceLock::new(),
         })
     }
 
@@ -590,7 +600,7 @@ impl MeshTracer {
     /// ([`MeshTracer::tiles_pay`], `mesh_tiles`), otherwise ray by ray.
     pub fn render(&self, cam: &Camera, time: f64, opts: &RenderOptions) -> Result<(Frame, Stats)> {
         opts.validate()?;
-        if self.tiles_pay(time) {
+        if self.tiles_pay(time, cam.width as u64 * cam.height as u64 * opts.spp as u64) {
             return self.render_tiles(cam, time, opts);
         }
         self.render_per_ray(cam, time, opts)
