@@ -8,6 +8,7 @@
 //! renders a `GaussianCloud`; [`secondary`] answers transmittance and closest-opaque queries.
 
 pub mod backend;
+mod mesh_bin;
 mod mesh_cands;
 #[cfg(test)]
 mod mesh_cull_tests;

@@ -9,8 +9,8 @@
 use glam::{DQuat, DVec3, Vec3};
 use splatbridge_scene::Camera;
 
+use super::mesh_bin::TileLists;
 use super::mesh_tile_tests::{bits, blend, random_mesh, reference_image, tracer, Rng};
-use super::mesh_tiles::TileLists;
 use super::model::{Node, TriScene};
 use super::render::RenderOptions;
 

@@ -15,8 +15,9 @@ use splatbridge_scene::{Camera, Frame};
 
 use super::footprint::sample_offsets;
 use super::kbuffer::KBuffer;
+use super::mesh_bin::TileLists;
 use super::mesh_hit::{Compositor, Query};
-use super::mesh_tiles::{local_ray, TileCtx, TileLists, TILE};
+use super::mesh_tiles::{local_ray, TileCtx, TILE};
 use super::mesh_tracer::{MeshHit, MeshTracer, PreparedInstance};
 use super::model::{AlphaMode, Material, Mesh, Node, TriScene};
 use super::render::{camera_ray, RenderOptions};
