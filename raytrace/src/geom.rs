@@ -42,3 +42,14 @@ pub fn transformed_box(to_world: &glam::DAffine3, lo: DVec3, hi: DVec3) -> (DVec
     let pad = (whi - wlo).max_element() * 1e-6 + 1e-9 * whi.abs().max(wlo.abs()).max_element();
     (wlo - DVec3::splat(pad), whi + DVec3::splat(pad))
 }
+
+/// A total order on f32 as u32 (negative values below positive ones).
+#[inline]
+pub(crate) fn order_bits(z: f32) -> u32 {
+    let b = z.to_bits();
+    if b >> 31 == 1 {
+        !b
+    } else {
+        b | 0x8000_0000
+    }
+}

@@ -16,6 +16,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 use splatbridge_scene::Camera;
 
+use crate::geom::order_bits;
 use crate::mesh_cands::{mirror_pairs, Cand, Edges};
 use crate::mesh_tiles::TILE;
 use crate::mesh_tracer::{MeshTracer, PreparedInstance};
@@ -52,15 +53,17 @@ pub(crate) struct TileLists {
     order: Vec<u32>,
 }
 
-/// A total order on f32 as u32 (negative values below positive ones).
-#[inline]
-fn order_bits(z: f32) -> u32 {
-    let b = z.to_bits();
-    if b >> 31 == 1 {
-        !b
-    } else {
-        b | 0x8000_0000
-    }
+/// The rectangle `[u_min, v_min, u_max, v_max]` of image points.
+fn bounds(points: impl Iterator<Item = (f64, f64)>) -> [f64; 4] {
+    points.fold(
+        [
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        ],
+        |r, (u, v)| [r[0].min(u), r[1].min(v), r[2].max(u), r[3].max(v)],
+    )
 }
 
 /// `x` rounded to an f32 not above it.
@@ -203,15 +206,7 @@ impl TileLists {
                     let m = |x: f64| {
                         RECT_MARGIN + 1e-5 * x.abs() + ORIGIN_MARGIN * focal * reach / zfront
                     };
-                    let mut r = [
-                        f64::INFINITY,
-                        f64::INFINITY,
-                        f64::NEG_INFINITY,
-                        f64::NEG_INFINITY,
-                    ];
-                    for p in &v {
-                        r = [r[0].min(p.u), r[1].min(p.v), r[2].max(p.u), r[3].max(p.v)];
-                    }
+                    let r = bounds(v.iter().map(|p| (p.u, p.v)));
                     let ms = r.map(m);
                     let r = [r[0] - ms[0], r[1] - ms[1], r[2] + ms[2], r[3] + ms[3]];
                     if !r.iter().all(|x| x.is_finite()) {
@@ -440,16 +435,10 @@ fn box_unseen(
     if !(z > slack) {
         return false;
     }
-    let mut r = [
-        f64::INFINITY,
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-        f64::NEG_INFINITY,
-    ];
-    for x in &q {
-        let (u, v) = (cam.fx * x.x / x.z + cam.cx, cam.fy * x.y / x.z + cam.cy);
-        r = [r[0].min(u), r[1].min(v), r[2].max(u), r[3].max(v)];
-    }
+    let r = bounds(
+        q.iter()
+            .map(|x| (cam.fx * x.x / x.z + cam.cx, cam.fy * x.y / x.z + cam.cy)),
+    );
     let big = r.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     // A point moved by `eps` in each coordinate moves its projection by at most
     // `f·eps·(1 + |x|/z)/z`; the projection's own rounding is far below 1e-9 of the terms.

@@ -29,6 +29,7 @@ use super::lanes::{colors_from_basis, prefetch, Chunk, Products, LANES};
 use super::part::alpha_of;
 use super::{GaussianHit, GaussianPayload, GaussianTracer};
 use crate::footprint::{Footprint, HitOrder, RayFootprint, ShDirection};
+use crate::geom::order_bits;
 use crate::kbuffer::{Accum, Hit};
 use crate::render::{PixelOut, RenderOptions};
 use crate::screen_cells::cell_span;
@@ -100,17 +101,6 @@ pub(super) struct TileLists {
     /// `starts[k]..starts[k + 1]` is tile `k`'s range of `entries`.
     starts: Vec<usize>,
     entries: Vec<Entry>,
-}
-
-/// A total order on f32 as u32 (negative values below positive ones).
-#[inline]
-fn order_bits(z: f32) -> u32 {
-    let b = z.to_bits();
-    if b >> 31 == 1 {
-        !b
-    } else {
-        b | 0x8000_0000
-    }
 }
 
 /// The screen rectangle of a box (anchor-relative corners `lo`, `hi` of a part fixed in the
