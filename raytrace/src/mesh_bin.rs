@@ -21,8 +21,6 @@ use crate::mesh_cands::{mirror_pairs, Cand, Edges};
 use crate::mesh_tiles::TILE;
 use crate::mesh_tracer::{MeshTracer, PreparedInstance};
 
-/// Runs of triangles binned together by one thread (`TileLists::build`).
-const RUN_BLOCK: usize = 64;
 /// Widening of a triangle's screen rectangle beyond its vertices' projection, in pixels: the
 /// f32 rounding of the ray's direction moves its pixel by about 1e-4 px at focal lengths of
 /// 1e3 px; 0.05 px plus a relative 1e-5 of the coordinate is a wide margin over it. The f32
@@ -112,7 +110,7 @@ impl TileLists {
         let tw = cam.width.div_ceil(TILE) as usize;
         let th = cam.height.div_ceil(TILE) as usize;
         let focal = cam.fx.max(cam.fy);
-        let mut blocks: Vec<Vec<Cand>> = Vec::new();
+        let mut cands: Vec<Cand> = Vec::new();
         let mut skipped = 0;
         for (ii, inst) in insts.iter().enumerate() {
             let blas = &tracer.blas[inst.mesh];
@@ -237,23 +235,15 @@ impl TileLists {
                     mirror: pair,
                 })
             };
-            // Blocks of runs side by side, each block's records in order into its own vector
-            // (sized for all its triangles), joined once below: each record is written twice.
+            // Runs side by side, their records in order straight into the frame's list.
             let rs = &blas.run_start;
-            blocks.par_extend((0..runs.div_ceil(RUN_BLOCK)).into_par_iter().map(|b| {
-                let (p0, p1) = (b * RUN_BLOCK, ((b + 1) * RUN_BLOCK).min(runs));
-                let mut v = Vec::with_capacity((rs[p1] - rs[p0]) as usize);
-                for p in p0..p1 {
-                    v.extend((rs[p] as usize..rs[p + 1] as usize).filter_map(|t| make(p, t)));
-                }
-                v
-            }));
+            cands.par_extend(
+                (0..runs)
+                    .into_par_iter()
+                    .flat_map_iter(|p| (rs[p] as usize..rs[p + 1] as usize).map(move |t| (p, t)))
+                    .filter_map(|(p, t)| make(p, t)),
+            );
         }
-        let mut cands = Vec::with_capacity(blocks.iter().map(Vec::len).sum());
-        for b in &blocks {
-            cands.extend_from_slice(b);
-        }
-        drop(blocks);
         // Tile lists name records by a u32 position: 2³² records would take 460 GB.
         debug_assert!(cands.len() <= u32::MAX as usize);
         let order = list_order(&cands);
