@@ -681,12 +681,8 @@ impl GaussianTracer {
             cam,
             opts.spp,
             tiles::TILE,
-            |tx, ty| {
-                (
-                    lists.cells(tx, ty, padded.as_ref()),
-                    tiles::Scratch::default(),
-                )
-            },
+            || (tiles::Cells::default(), tiles::Scratch::default()),
+            |(cells, _), tx, ty| *cells = lists.cells(tx, ty, padded.as_ref()),
             |(cells, scratch), o, d, uv| {
                 // The sample's pixel (a sample of pixel i lies in [i, i + 1)).
                 let ray = tiles::TileRay {

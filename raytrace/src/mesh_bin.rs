@@ -93,9 +93,15 @@ struct Projected {
 }
 
 impl TileLists {
-    /// Bin the triangles of `insts` for `cam`.
-    pub(crate) fn build(tracer: &MeshTracer, insts: &[PreparedInstance], cam: &Camera) -> Self {
-        Self::build_with(tracer, insts, cam, true)
+    /// Bin the triangles of `insts` for `cam`'s rays from the sample positions `offsets`
+    /// within each pixel (`footprint::sample_offsets`, as `render::pixel_at` places them).
+    pub(crate) fn build(
+        tracer: &MeshTracer,
+        insts: &[PreparedInstance],
+        cam: &Camera,
+        offsets: &[(f64, f64)],
+    ) -> Self {
+        Self::build_with(tracer, insts, cam, offsets, true)
     }
 
     /// [`TileLists::build`]; `skip_unseen: false` projects every instance's triangles, even
@@ -104,8 +110,10 @@ impl TileLists {
         tracer: &MeshTracer,
         insts: &[PreparedInstance],
         cam: &Camera,
+        offsets: &[(f64, f64)],
         skip_unseen: bool,
     ) -> Self {
+        let samples = Samples::new(offsets, cam);
         let (w, h) = (cam.width as f64, cam.height as f64);
         let tw = cam.width.div_ceil(TILE) as usize;
         let th = cam.height.div_ceil(TILE) as usize;
@@ -216,10 +224,9 @@ impl TileLists {
                         // The rectangle's margin bounds how far along each axis the test's
                         // rounding moves a crossing; twice the largest bounds its distance.
                         let margin = 2.0 * ms.iter().fold(0.0f64, |a, &b| a.max(b));
-                        (
-                            [down(r[0]), down(r[1]), up(r[2]), up(r[3])],
-                            Edges::new(v.map(|p| (p.u, p.v)), margin, extent),
-                        )
+                        let rect = [down(r[0]), down(r[1]), up(r[2]), up(r[3])];
+                        let edges = || Edges::new(v.map(|p| (p.u, p.v)), margin, extent);
+                        (rect, samples.may_pass(&rect, edges)?)
                     }
                 } else {
                     everywhere()
@@ -348,6 +355,93 @@ fn group_extents(mesh: &crate::model::Mesh, blas: &crate::mesh_tracer::Blas) -> 
         }
     }
     ext
+}
+
+/// The positions a frame's rays start from, per axis: pixel `i`'s samples lie at `i + du`
+/// (the offsets' distinct `du`, `render::pixel_at`'s arithmetic), which the walk rounds to f32.
+/// A record none of them passes the walk's pre-test for is never a candidate: most sub-pixel
+/// triangles of a large export are such (their widened rectangle holds no pixel centre), and
+/// dropping them before the sort and the tiles changes no hit (`docs/trace-speed.md`, "Tile
+/// contexts kept, and triangles between the samples").
+struct Samples {
+    du: Vec<f64>,
+    dv: Vec<f64>,
+    width: u32,
+    height: u32,
+}
+
+/// How many sample coordinates per axis [`Samples::may_pass`] tries against the edges; a
+/// rectangle holding more is kept without the edge test.
+const FEW: usize = 3;
+
+impl Samples {
+    fn new(offsets: &[(f64, f64)], cam: &Camera) -> Self {
+        let distinct = |mut v: Vec<f64>| {
+            v.sort_by(f64::total_cmp);
+            v.dedup();
+            v
+        };
+        Samples {
+            du: distinct(offsets.iter().map(|o| o.0).collect()),
+            dv: distinct(offsets.iter().map(|o| o.1).collect()),
+            width: cam.width,
+            height: cam.height,
+        }
+    }
+
+    /// The f32 sample coordinates in `[lo, hi]` along one axis of `n` pixels, into `out`:
+    /// their count, or `FEW + 1` once there are more than [`FEW`].
+    fn within(lo: f32, hi: f32, offs: &[f64], n: u32, out: &mut [f32; FEW]) -> usize {
+        let mut k = 0;
+        for &o in offs {
+            // From a pixel before the first whose sample can reach `lo` (the f32 rounding of
+            // `i + o` moves it by far less than a pixel; `as` takes a positive `s` to its floor,
+            // saturating); NaN and anything below 1 start at pixel 0.
+            let s = lo as f64 - o;
+            let mut i = if s > 1.0 { s as u64 - 1 } else { 0 };
+            while i < n as u64 {
+                let x = (i as f64 + o) as f32;
+                if x > hi {
+                    break;
+                }
+                if x >= lo {
+                    if k == FEW {
+                        return FEW + 1;
+                    }
+                    out[k] = x;
+                    k += 1;
+                }
+                i += 1;
+            }
+        }
+        k
+    }
+
+    /// The edges of a record with this rectangle, where some sample of the image may pass the
+    /// walk's pre-test of it (`HotChunk::mask`, whose lanes perform `Edges::admit`'s
+    /// operations); None only where none can. Samples are taken per axis, so for several
+    /// samples a pixel this tries a superset of the pixels' sample positions.
+    /// The edges are made (`edges()`) only for a rectangle that holds a sample.
+    fn may_pass(&self, rect: &[f32; 4], edges: impl FnOnce() -> Edges) -> Option<Edges> {
+        // Beyond a few offsets per axis (more than 4 samples a pixel, a quality setting) the
+        // search would cost more than the records it drops.
+        if self.du.len() > FEW || self.dv.len() > FEW {
+            return Some(edges());
+        }
+        let (mut us, mut vs) = ([0.0f32; FEW], [0.0f32; FEW]);
+        let nu = Self::within(rect[0], rect[2], &self.du, self.width, &mut us);
+        let nv = Self::within(rect[1], rect[3], &self.dv, self.height, &mut vs);
+        if nu == 0 || nv == 0 {
+            return None;
+        }
+        let e = edges();
+        let seen = nu > FEW
+            || nv > FEW
+            || us[..nu]
+                .iter()
+                .any(|&u| vs[..nv].iter().any(|&v| e.admit(u, v)));
+        seen.then_some(e)
+    }
 }
 
 /// The rectangle and edge functions of a triangle every ray may cross.

@@ -142,8 +142,9 @@ impl Edges {
     }
 
     /// Whether the pixel `(u, v)` may be reported by the watertight test (the walk tests eight
-    /// records at once, [`HotChunk::mask`]; this is its reference).
-    #[cfg(test)]
+    /// records at once, [`HotChunk::mask`]; this is its reference, and binning's test of
+    /// whether any sample can pass).
+    #[inline]
     pub(crate) fn admit(&self, u: f32, v: f32) -> bool {
         let e = &self.0;
         (e[0][0] * u + e[0][1] * v + e[0][2] >= 0.0)

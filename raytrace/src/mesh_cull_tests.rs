@@ -4,13 +4,17 @@
 //! edges to within a fraction of a pixel (where the rectangle margins decide), seen through
 //! whole views, windows of a larger view (the principal point moved off the image, as
 //! distillation records them) and a camera inside the scene; and images through the skipping
-//! equal to the brute-force reference's.
+//! equal to the brute-force reference's. Also the records binning drops because no sample of
+//! the image can pass their pre-test (`mesh_bin::Samples`): none of them is crossed by a
+//! sample's ray, and images over sub-pixel triangles equal the brute-force reference's.
 
 use glam::{DQuat, DVec3, Vec3};
 use splatbridge_scene::Camera;
 
+use super::footprint::sample_offsets;
 use super::mesh_bin::TileLists;
 use super::mesh_tile_tests::{bits, blend, random_mesh, reference_image, tracer, Rng};
+use super::mesh_tiles::local_ray;
 use super::model::{Node, TriScene};
 use super::render::RenderOptions;
 
@@ -133,8 +137,8 @@ fn unseen_instances_skip_only_triangles_never_binned() {
         let tracer = tracer(scattered(seed, 150));
         let insts = tracer.prepare_list(0.0);
         for cam in cameras() {
-            let fast = TileLists::build(&tracer, &insts, &cam);
-            let all = TileLists::build_with(&tracer, &insts, &cam, false);
+            let fast = TileLists::build(&tracer, &insts, &cam, &[(0.5, 0.5)]);
+            let all = TileLists::build_with(&tracer, &insts, &cam, &[(0.5, 0.5)], false);
             assert_eq!(all.skipped, 0);
             let (a, b) = (fast.records(), all.records());
             let first = a.iter().zip(&b).position(|(x, y)| x != y);
@@ -163,4 +167,90 @@ fn windows_through_skipping_equal_brute_force() {
         let want = reference_image(&tracer, &cam, &opts);
         assert_eq!(bits(&img), bits(&want), "{}", cam.name);
     }
+}
+
+/// Twelve nodes of one mesh of small fans (40 fans of 6 triangles each way, spread over ±0.5,
+/// sized 0.02–0.16 of it), at depths 2–10 across the main view: most triangles are under a
+/// pixel on screen, many between the pixel centres.
+fn dust(seed: u64) -> TriScene {
+    let mut r = Rng(seed);
+    let cam = main_camera();
+    let nodes = (0..12)
+        .map(|_| {
+            let (u, v, z) = (
+                r.range(8.0, 56.0) as f64,
+                r.range(6.0, 42.0) as f64,
+                r.range(2.0, 10.0) as f64,
+            );
+            Node {
+                mesh: Some(0),
+                translation: DVec3::new((u - cam.cx) / cam.fx * z, (v - cam.cy) / cam.fy * z, z),
+                ..Node::default()
+            }
+        })
+        .collect();
+    TriScene {
+        meshes: vec![random_mesh(seed, 40, 0.5, Vec3::ZERO, true)],
+        materials: blend(),
+        nodes,
+        colors_linear: true,
+        ..TriScene::default()
+    }
+}
+
+/// The records binning drops for want of a sample are crossed by no sample's ray (the
+/// watertight test over every sample of every pixel, for one and four samples a pixel), a
+/// fair share is dropped (else the check shows nothing), and images at 1 and 4 samples a pixel
+/// equal the brute-force reference's.
+#[test]
+fn triangles_between_the_samples_are_never_crossed() {
+    let cam = main_camera();
+    let (mut dropped, mut total) = (0usize, 0usize);
+    for seed in [4u64, 9] {
+        let tracer = tracer(dust(seed));
+        let insts = tracer.prepare_list(0.0);
+        // Sixteen samples a pixel take four offsets an axis: no record is dropped for them.
+        let all = TileLists::build(&tracer, &insts, &cam, &sample_offsets(16)).records();
+        for spp in [1, 4] {
+            let offsets = sample_offsets(spp);
+            let kept = TileLists::build(&tracer, &insts, &cam, &offsets).records();
+            let kept: std::collections::HashSet<(u32, u32)> =
+                kept.iter().map(|r| (r[5], r[6])).collect();
+            for rec in all.iter().filter(|r| !kept.contains(&(r[5], r[6]))) {
+                dropped += 1;
+                let inst = &insts[rec[5] as usize];
+                let (mesh, blas) = (&tracer.scene.meshes[inst.mesh], &tracer.blas[inst.mesh]);
+                let verts =
+                    mesh.tris[rec[6] as usize].map(|i| blas.relative(mesh.positions[i as usize]));
+                for j in 0..cam.height {
+                    for i in 0..cam.width {
+                        for &(du, dv) in &offsets {
+                            let (o, d) =
+                                crate::render::camera_ray(&cam, i as f64 + du, j as f64 + dv);
+                            if let Some(r) = local_ray(&tracer, inst, o, d) {
+                                assert!(
+                                    r.wray.cover(verts[0], verts[1], verts[2]).is_err(),
+                                    "seed {seed}, {spp} spp: triangle {} of instance {} dropped, \
+                                     but the ray of pixel ({i}, {j}) + ({du}, {dv}) crosses it",
+                                    rec[6],
+                                    rec[5]
+                                );
+                            }
+                        }
+                    }
+                }
+            }
+            total += all.len();
+            let opts = RenderOptions {
+                spp,
+                ..RenderOptions::default()
+            };
+            let (img, _) = tracer.render(&cam, 0.0, &opts).unwrap();
+            let want = reference_image(&tracer, &cam, &opts);
+            assert_eq!(bits(&img), bits(&want), "seed {seed}, {spp} spp");
+        }
+    }
+    // Measured: 9,116 of 13,216 records (69 %) over both scenes and sample counts; a fifth is
+    // far below it.
+    assert!(dropped * 5 > total, "{dropped} of {total} records dropped");
 }

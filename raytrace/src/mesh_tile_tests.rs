@@ -311,9 +311,9 @@ fn tile_hits_equal_brute_force() {
         let tracer = tracer(scene(seed, Vec3::ZERO, both));
         let insts = tracer.prepare_list(0.0);
         for cam in cameras(DVec3::ZERO) {
-            let lists = TileLists::build(&tracer, &insts, &cam);
             for spp in [1, 4] {
                 let offsets = sample_offsets(spp);
+                let lists = TileLists::build(&tracer, &insts, &cam, &offsets);
                 for ty in 0..cam.height.div_ceil(TILE) {
                     for tx in 0..cam.width.div_ceil(TILE) {
                         let mut ctx = TileCtx::new(&lists, tx, ty, insts.len());
@@ -525,7 +525,7 @@ fn pixel_aligned_grids_equal_brute_force() {
         ..TriScene::default()
     });
     let insts = tracer.prepare_list(0.0);
-    let lists = TileLists::build(&tracer, &insts, &cam);
+    let lists = TileLists::build(&tracer, &insts, &cam, &[(0.5, 0.5)]);
     let mut compared = 0usize;
     for ty in 0..cam.height.div_ceil(TILE) {
         for tx in 0..cam.width.div_ceil(TILE) {

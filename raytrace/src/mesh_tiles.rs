@@ -37,6 +37,7 @@ use splatbridge_scene::{Camera, Frame};
 
 use crate::backend::BackendKind;
 use crate::error::Result;
+use crate::footprint::sample_offsets;
 use crate::geom::ray_box;
 use crate::hit_record::{HitLists, RecordedHit};
 use crate::kbuffer::{Accum, KBuffer};
@@ -73,6 +74,9 @@ pub(crate) struct TileCtx {
     cell_start: Vec<u32>,
     hot: Vec<HotChunk>,
     cold: Vec<Cold>,
+    /// [`TileCtx::fill`]'s scratch: each list entry's cell span, each cell's next record.
+    spans: Vec<[u8; 4]>,
+    next: Vec<u32>,
     /// `(ray number, local ray)` per instance; None: the ray misses the instance's bounds.
     rays: Vec<(u32, Option<LocalRay>)>,
     ray: u32,
@@ -80,21 +84,47 @@ pub(crate) struct TileCtx {
 }
 
 impl TileCtx {
+    /// A context holding no tile yet, for a scene of `instances` instances: [`TileCtx::fill`]
+    /// gives it one.
+    pub(crate) fn empty(instances: usize) -> Self {
+        TileCtx {
+            x0: 0,
+            y0: 0,
+            cell_start: Vec::new(),
+            hot: Vec::new(),
+            cold: Vec::new(),
+            spans: Vec::new(),
+            next: Vec::new(),
+            rays: vec![(0, None); instances],
+            ray: 0,
+            buf: KBuffer::unbounded(),
+        }
+    }
+
+    /// The context of tile `(tx, ty)`, for a scene of `instances` instances.
+    #[cfg(test)]
     pub(crate) fn new(lists: &TileLists, tx: u32, ty: u32, instances: usize) -> Self {
+        let mut ctx = Self::empty(instances);
+        ctx.fill(lists, tx, ty);
+        ctx
+    }
+
+    /// Make this the context of tile `(tx, ty)`: its cells filled from the tile's list, in
+    /// the buffers the previous tile used. The instances' local rays stay keyed by ray
+    /// number, which keeps counting, so none is taken for a ray of this tile.
+    pub(crate) fn fill(&mut self, lists: &TileLists, tx: u32, ty: u32) {
         let list = lists.tile(tx, ty);
         let n = (TILE / CELL) as usize;
         let (x0, y0) = ((tx * TILE) as f64, (ty * TILE) as f64);
-        let spans: Vec<[u8; 4]> = list
-            .iter()
-            .map(|&i| {
-                let r = lists.cands[i as usize].rect;
-                let (a, b) = cell_span(r[0], r[2], x0, CELL, n);
-                let (c, d) = cell_span(r[1], r[3], y0, CELL, n);
-                [a as u8, b as u8, c as u8, d as u8]
-            })
-            .collect();
-        let mut counts = vec![0u32; n * n];
-        for s in &spans {
+        self.spans.clear();
+        self.spans.extend(list.iter().map(|&i| {
+            let r = lists.cands[i as usize].rect;
+            let (a, b) = cell_span(r[0], r[2], x0, CELL, n);
+            let (c, d) = cell_span(r[1], r[3], y0, CELL, n);
+            [a as u8, b as u8, c as u8, d as u8]
+        }));
+        let mut counts = [0u32; ((TILE / CELL) * (TILE / CELL)) as usize];
+        for s in &self.spans {
             for cy in s[2]..=s[3] {
                 for cx in s[0]..=s[1] {
                     counts[cy as usize * n + cx as usize] += 1;
@@ -102,52 +132,40 @@ impl TileCtx {
             }
         }
         // Chunk offsets of the cells, and each cell's next record (in records).
-        let mut cell_start = vec![0u32; n * n + 1];
+        self.cell_start.clear();
+        self.cell_start.push(0);
         for (k, &c) in counts.iter().enumerate() {
-            cell_start[k + 1] = cell_start[k] + c.div_ceil(LANES as u32);
+            self.cell_start
+                .push(self.cell_start[k] + c.div_ceil(LANES as u32));
         }
-        let total = cell_start[n * n] as usize;
-        let mut next: Vec<u32> = cell_start[..n * n]
-            .iter()
-            .map(|&c| c * LANES as u32)
-            .collect();
-        let mut hot = vec![HotChunk::EMPTY; total];
-        let mut cold = vec![Cand::BLANK.cold(); total * LANES];
-        for (&i, s) in list.iter().zip(&spans) {
+        let total = self.cell_start[n * n] as usize;
+        self.next.clear();
+        self.next
+            .extend(self.cell_start[..n * n].iter().map(|&c| c * LANES as u32));
+        self.hot.clear();
+        self.hot.resize(total, HotChunk::EMPTY);
+        self.cold.clear();
+        self.cold.resize(total * LANES, Cand::BLANK.cold());
+        for (&i, s) in list.iter().zip(&self.spans) {
             let c = &lists.cands[i as usize];
             let h = c.hot();
             for cy in s[2]..=s[3] {
                 for cx in s[0]..=s[1] {
-                    let k = &mut next[cy as usize * n + cx as usize];
+                    let k = &mut self.next[cy as usize * n + cx as usize];
                     let r = *k as usize;
-                    hot[r / LANES].set(r % LANES, &h);
-                    cold[r] = c.cold();
+                    self.hot[r / LANES].set(r % LANES, &h);
+                    self.cold[r] = c.cold();
                     *k += 1;
                 }
             }
         }
-        TileCtx {
-            x0: tx * TILE,
-            y0: ty * TILE,
-            cell_start,
-            hot,
-            cold,
-            rays: Vec::new(),
-            ray: 0,
-            buf: KBuffer::unbounded(),
-        }
-        .with_instances(instances)
+        (self.x0, self.y0) = (tx * TILE, ty * TILE);
     }
 
     /// The buffer [`MeshTracer::tile_hits`] filled.
     #[cfg(test)]
     pub(crate) fn buffer(&self) -> &KBuffer<TrianglePayload> {
         &self.buf
-    }
-
-    fn with_instances(mut self, n: usize) -> Self {
-        self.rays = vec![(0, None); n];
-        self
     }
 }
 
@@ -193,14 +211,15 @@ impl MeshTracer {
         cam.validate()?;
         let start = std::time::Instant::now();
         let insts = self.prepare_list(time);
-        let lists = TileLists::build(self, &insts, cam);
+        let lists = TileLists::build(self, &insts, cam, &sample_offsets(opts.spp));
         let bin = start.elapsed().as_secs_f64();
         let lin = self.scene.colors_linear;
         let (frame, mut stats) = render_frame_tiles(
             cam,
             opts.spp,
             TILE,
-            |tx, ty| TileCtx::new(&lists, tx, ty, insts.len()),
+            || TileCtx::empty(insts.len()),
+            |ctx, tx, ty| ctx.fill(&lists, tx, ty),
             |ctx, o, d, uv| {
                 self.tile_hits(&insts, ctx, o, d, uv, opts.min_transmittance);
                 let mut comp = Compositor::new(opts, lin);
@@ -358,44 +377,48 @@ impl MeshTracer {
     ) -> Result<HitLists> {
         cam.validate()?;
         let insts = self.prepare_list(time);
-        let lists = TileLists::build(self, &insts, cam);
+        // Each pixel's centre, as `sample_offsets(1)` places it.
+        let lists = TileLists::build(self, &insts, cam, &[(0.5, 0.5)]);
         let (w, h) = (cam.width as usize, cam.height as usize);
         let t = TILE as usize;
         let (tw, th) = (w.div_ceil(t), h.div_ceil(t));
         // Per tile: each pixel's hit count (row-major in the tile) and the hits.
         let tiles: Vec<(Vec<u32>, Vec<RecordedHit>)> = (0..tw * th)
             .into_par_iter()
-            .map(|k| {
-                let (tx, ty) = (k % tw, k / tw);
-                let mut ctx = TileCtx::new(&lists, tx as u32, ty as u32, insts.len());
-                let (mut counts, mut hits) = (Vec::with_capacity(t * t), Vec::new());
-                for j in ty * t..((ty + 1) * t).min(h) {
-                    for i in tx * t..((tx + 1) * t).min(w) {
-                        let uv = (i as f64 + 0.5, j as f64 + 0.5);
-                        let (o, d) = camera_ray(cam, uv.0, uv.1);
-                        self.tile_hits(&insts, &mut ctx, o, d, uv, min_transmittance);
-                        let before = hits.len();
-                        let mut acc = Accum::default();
-                        for hit in &ctx.buf.hits {
-                            let a = hit.payload.rgba.w;
-                            if a > 0.0 {
-                                hits.push(RecordedHit {
-                                    mesh: insts[hit.instance as usize].mesh as u32,
-                                    tri: hit.payload.tri,
-                                    bary: hit.payload.bary,
-                                    t: hit.t,
-                                });
-                                acc.add(glam::Vec3::ZERO, a, hit.t);
-                                if acc.tr < min_transmittance {
-                                    break;
+            .map_init(
+                || TileCtx::empty(insts.len()),
+                |ctx, k| {
+                    let (tx, ty) = (k % tw, k / tw);
+                    ctx.fill(&lists, tx as u32, ty as u32);
+                    let (mut counts, mut hits) = (Vec::with_capacity(t * t), Vec::new());
+                    for j in ty * t..((ty + 1) * t).min(h) {
+                        for i in tx * t..((tx + 1) * t).min(w) {
+                            let uv = (i as f64 + 0.5, j as f64 + 0.5);
+                            let (o, d) = camera_ray(cam, uv.0, uv.1);
+                            self.tile_hits(&insts, ctx, o, d, uv, min_transmittance);
+                            let before = hits.len();
+                            let mut acc = Accum::default();
+                            for hit in &ctx.buf.hits {
+                                let a = hit.payload.rgba.w;
+                                if a > 0.0 {
+                                    hits.push(RecordedHit {
+                                        mesh: insts[hit.instance as usize].mesh as u32,
+                                        tri: hit.payload.tri,
+                                        bary: hit.payload.bary,
+                                        t: hit.t,
+                                    });
+                                    acc.add(glam::Vec3::ZERO, a, hit.t);
+                                    if acc.tr < min_transmittance {
+                                        break;
+                                    }
                                 }
                             }
+                            counts.push((hits.len() - before) as u32);
                         }
-                        counts.push((hits.len() - before) as u32);
                     }
-                }
-                (counts, hits)
-            })
+                    (counts, hits)
+                },
+            )
             .collect();
         // Row-major pixels from the tiles' row-major pixels.
         let mut count = vec![0u32; w * h];

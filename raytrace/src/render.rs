@@ -178,19 +178,24 @@ where
 }
 
 /// As [`render_frame_spp`], parallel over square tiles of `tile` pixels instead of rows:
-/// `prepare(tx, ty)` runs once per tile (column `tx`, row `ty`, row-major tile index
-/// `ty·⌈w/tile⌉ + tx`) and its result traces each of the tile's samples. Every pixel's samples
+/// `prepare(ctx, tx, ty)` runs once per tile (column `tx`, row `ty`, row-major tile index
+/// `ty·⌈w/tile⌉ + tx`) and the context it filled traces each of the tile's samples. A
+/// context comes from `init` once per worker's run of tiles and is filled again for each
+/// tile, so its buffers keep their allocations from tile to tile (fresh ones every tile
+/// cost page faults: `docs/trace-speed.md`, "Tile contexts kept"). Every pixel's samples
 /// are traced exactly as [`render_frame_spp`] traces them, so a tracer whose `trace` gives the
 /// same pixel gives the same image, at any thread count.
-pub fn render_frame_tiles<C, P, F>(
+pub fn render_frame_tiles<C, I, P, F>(
     cam: &Camera,
     spp: u32,
     tile: u32,
+    init: I,
     prepare: P,
     trace: F,
 ) -> Result<(Frame, Stats)>
 where
-    P: Fn(u32, u32) -> C + Sync,
+    I: Fn() -> C + Sync + Send,
+    P: Fn(&mut C, u32, u32) + Sync,
     F: Fn(&mut C, DVec3, DVec3, (f64, f64)) -> PixelOut + Sync,
 {
     cam.validate()?;
@@ -206,13 +211,13 @@ where
     let offsets = sample_offsets(spp);
     let tiles: Vec<Vec<PixelOut>> = (0..tw * th)
         .into_par_iter()
-        .map(|k| {
+        .map_init(&init, |ctx, k| {
             let (tx, ty) = (k % tw, k / tw);
-            let mut ctx = prepare(tx as u32, ty as u32);
+            prepare(ctx, tx as u32, ty as u32);
             let mut out = Vec::with_capacity(t * t);
             for j in ty * t..((ty + 1) * t).min(h) {
                 for i in tx * t..((tx + 1) * t).min(w) {
-                    let f = |o: DVec3, d: DVec3, uv: (f64, f64)| trace(&mut ctx, o, d, uv);
+                    let f = |o: DVec3, d: DVec3, uv: (f64, f64)| trace(ctx, o, d, uv);
                     out.push(pixel_at(cam, spp, &offsets, i, j, f));
                 }
             }

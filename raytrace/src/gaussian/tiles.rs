@@ -48,6 +48,7 @@ const RECT_MARGIN: f64 = 0.05;
 pub(super) const CELL: u32 = 4;
 
 /// A tile's list split by cell (see [`TileLists::cells`]), each cell's list in [`Chunk`]s.
+#[derive(Default)]
 pub(super) struct Cells {
     x0: u32,
     y0: u32,
