@@ -118,6 +118,15 @@ impl TileLists {
         let tw = cam.width.div_ceil(TILE) as usize;
         let th = cam.height.div_ceil(TILE) as usize;
         let focal = cam.fx.max(cam.fy);
+        // Each mesh's group sizes and winding pairs, found on its first frame: side by side
+        // over the meshes (each is one serial pass over its triangles).
+        insts.par_iter().for_each(|inst| {
+            let (blas, mesh) = (&tracer.blas[inst.mesh], &tracer.scene.meshes[inst.mesh]);
+            if !(mesh.tris.is_empty() || blas.run_start.is_empty()) {
+                blas.group_extent.get_or_init(|| group_extents(mesh, blas));
+                blas.mirror.get_or_init(|| winding_pairs(mesh, blas));
+            }
+        });
         let mut cands: Vec<Cand> = Vec::new();
         let mut skipped = 0;
         for (ii, inst) in insts.iter().enumerate() {
@@ -181,15 +190,7 @@ impl TileLists {
             for (z, e) in gz.iter_mut().zip(gext) {
                 *z -= 2e-3 * scale * e;
             }
-            let mirror = blas.mirror.get_or_init(|| {
-                let mut group = vec![0u32; mesh.tris.len()];
-                for p in 0..runs {
-                    for t in blas.run_start[p] as usize..blas.run_start[p + 1] as usize {
-                        group[t] = blas.group.get(p, t);
-                    }
-                }
-                mirror_pairs(&mesh.tris, &mesh.tri_gaussian, &group)
-            });
+            let mirror = blas.mirror.get_or_init(|| winding_pairs(mesh, blas));
             let tris = &mesh.tris;
             let extent = w.max(h) + 1.0;
             let make = |p: usize, t: usize| -> Option<Cand> {
@@ -340,6 +341,17 @@ fn list_order(cands: &[Cand]) -> Vec<u32> {
         .collect();
     keys.par_sort_unstable();
     keys.par_iter().map(|&k| k as u32).collect()
+}
+
+/// Each triangle's other winding (`mesh_cands::mirror_pairs` over the mesh's groups).
+fn winding_pairs(mesh: &crate::model::Mesh, blas: &crate::mesh_tracer::Blas) -> Vec<u32> {
+    let mut group = vec![0u32; mesh.tris.len()];
+    for p in 0..blas.run_start.len().saturating_sub(1) {
+        for t in blas.run_start[p] as usize..blas.run_start[p + 1] as usize {
+            group[t] = blas.group.get(p, t);
+        }
+    }
+    mirror_pairs(&mesh.tris, &mesh.tri_gaussian, &group)
 }
 
 /// Each group's largest triangle side, in the mesh's units (the planarity tolerance of its
