@@ -222,8 +222,16 @@ fn triangles_between_the_samples_are_never_crossed() {
                 let (mesh, blas) = (&tracer.scene.meshes[inst.mesh], &tracer.blas[inst.mesh]);
                 let verts =
                     mesh.tris[rec[6] as usize].map(|i| blas.relative(mesh.positions[i as usize]));
-                for j in 0..cam.height {
-                    for i in 0..cam.width {
+                // The pixels whose samples lie within 2 px of its rectangle (the walk's
+                // pre-test, whose soundness the brute-force tile tests check, admits none
+                // beyond it).
+                let r = [rec[1], rec[2], rec[3], rec[4]].map(f32::from_bits);
+                let span = |lo: f32, hi: f32, n: u32| {
+                    let lo = (lo as f64 - 2.0).floor().max(0.0) as u32;
+                    lo.min(n)..((hi as f64 + 2.0).ceil().max(0.0) as u32).min(n)
+                };
+                for j in span(r[1], r[3], cam.height) {
+                    for i in span(r[0], r[2], cam.width) {
                         for &(du, dv) in &offsets {
                             let (o, d) =
                                 crate::render::camera_ray(&cam, i as f64 + du, j as f64 + dv);
