@@ -373,8 +373,8 @@ fn group_extents(mesh: &crate::model::Mesh, blas: &crate::mesh_tracer::Blas) -> 
 /// (the offsets' distinct `du`, `render::pixel_at`'s arithmetic), which the walk rounds to f32.
 /// A record none of them passes the walk's pre-test for is never a candidate: most sub-pixel
 /// triangles of a large export are such (their widened rectangle holds no pixel centre), and
-/// dropping them before the sort and the tiles changes no hit (`docs/trace-speed.md`, "Tile
-/// contexts kept, and triangles between the samples").
+/// dropping them before the sort and the tiles changes no hit (`docs/trace-speed-mesh.md`,
+/// "Triangles between the samples").
 struct Samples {
     du: Vec<f64>,
     dv: Vec<f64>,

@@ -52,7 +52,7 @@ use crate::screen_cells::cell_span;
 /// are at least this fraction of its triangles. Measured on `fourth_st`'s one-node exports
 /// (`--layout input`, 0.71 M and 2.83 M triangles) at 80×60 to 1920×1080, the per-ray path
 /// was faster below about a 44th (texture) and a 32nd (meshsplats) of the triangles; a 25th
-/// leaves the tiles only where they clearly pay (`docs/trace-speed.md`, "Every layout through
+/// leaves the tiles only where they clearly pay (`docs/trace-speed-mesh.md`, "Every layout through
 /// the tiles").
 pub const TRIANGLES_PER_RAY: u64 = 25;
 
@@ -187,7 +187,7 @@ impl MeshTracer {
     /// its slowest case) or the rays are at least a [`TRIANGLES_PER_RAY`]-th of the triangles.
     /// Binning costs a pass over every triangle a frame, which a one-node mesh's own BVH does
     /// not need; past that many rays the one pass a ray pays for it
-    /// (`docs/trace-speed.md`, "Every layout through the tiles").
+    /// (`docs/trace-speed-mesh.md`, "Every layout through the tiles").
     pub fn tiles_pay(&self, time: f64, rays: u64) -> bool {
         if !self.tiles_apply() {
             return false;

@@ -182,7 +182,7 @@ where
 /// `ty·⌈w/tile⌉ + tx`) and the context it filled traces each of the tile's samples. A
 /// context comes from `init` once per worker's run of tiles and is filled again for each
 /// tile, so its buffers keep their allocations from tile to tile (fresh ones every tile
-/// cost page faults: `docs/trace-speed.md`, "Tile contexts kept"). Every pixel's samples
+/// cost page faults: `docs/trace-speed-mesh.md`, "tile contexts kept"). Every pixel's samples
 /// are traced exactly as [`render_frame_spp`] traces them, so a tracer whose `trace` gives the
 /// same pixel gives the same image, at any thread count.
 pub fn render_frame_tiles<C, I, P, F>(
