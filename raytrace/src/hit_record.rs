@@ -14,7 +14,7 @@ use rayon::prelude::*;
 
 use crate::error::Result;
 use crate::kbuffer::{self, Accum, KBuffer};
-use crate::mesh_tracer::{with_thread_buffer, Instances, MeshTracer, TrianglePayload};
+use crate::mesh_tracer::{with_thread_buffer, Instances, MeshHit, MeshTracer, TrianglePayload};
 use crate::render::camera_ray;
 use splatbridge_scene::Camera;
 
@@ -37,6 +37,31 @@ pub struct HitLists {
     pub height: u32,
     pub offsets: Vec<u64>,
     pub hits: Vec<RecordedHit>,
+}
+
+/// Record hit `h` of mesh `mesh` where it shades to α > 0, and composite its α into `acc`:
+/// true once the transmittance is below `min_transmittance`, where recording stops (the rule
+/// of both recorders, per ray and through the tiles).
+#[inline]
+pub(crate) fn record(
+    h: &MeshHit,
+    mesh: usize,
+    acc: &mut Accum,
+    out: &mut Vec<RecordedHit>,
+    min_transmittance: f32,
+) -> bool {
+    let a = h.payload.rgba.w;
+    if !(a > 0.0) {
+        return false;
+    }
+    out.push(RecordedHit {
+        mesh: mesh as u32,
+        tri: h.payload.tri,
+        bary: h.payload.bary,
+        t: h.t,
+    });
+    acc.add(glam::Vec3::ZERO, a, h.t);
+    acc.tr < min_transmittance
 }
 
 impl HitLists {
@@ -69,21 +94,14 @@ impl MeshTracer {
                 self.collect(insts, o, d, 0.0, f32::INFINITY, after, buf)
             },
             |h| {
-                let a = h.payload.rgba.w;
-                if a > 0.0 {
-                    out.push(RecordedHit {
-                        mesh: insts[h.instance as usize].mesh as u32,
-                        tri: h.payload.tri,
-                        bary: h.payload.bary,
-                        t: h.t,
-                    });
-                    acc.add(glam::Vec3::ZERO, a, h.t);
-                    tr.set(acc.tr);
-                    if acc.tr < min_transmittance {
-                        return ControlFlow::Break(());
-                    }
+                let mesh = insts[h.instance as usize].mesh;
+                let stop = record(h, mesh, &mut acc, out, min_transmittance);
+                tr.set(acc.tr);
+                if stop {
+                    ControlFlow::Break(())
+                } else {
+                    ControlFlow::Continue(())
                 }
-                ControlFlow::Continue(())
             },
         );
         buf.shade_on_insert = false;

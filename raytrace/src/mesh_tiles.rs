@@ -39,7 +39,7 @@ use crate::backend::BackendKind;
 use crate::error::Result;
 use crate::footprint::sample_offsets;
 use crate::geom::ray_box;
-use crate::hit_record::{HitLists, RecordedHit};
+use crate::hit_record::{record, HitLists, RecordedHit};
 use crate::kbuffer::{Accum, KBuffer};
 use crate::mesh_bin::TileLists;
 use crate::mesh_cands::{Cand, Cold, HotChunk, LANES};
@@ -399,18 +399,9 @@ impl MeshTracer {
                             let before = hits.len();
                             let mut acc = Accum::default();
                             for hit in &ctx.buf.hits {
-                                let a = hit.payload.rgba.w;
-                                if a > 0.0 {
-                                    hits.push(RecordedHit {
-                                        mesh: insts[hit.instance as usize].mesh as u32,
-                                        tri: hit.payload.tri,
-                                        bary: hit.payload.bary,
-                                        t: hit.t,
-                                    });
-                                    acc.add(glam::Vec3::ZERO, a, hit.t);
-                                    if acc.tr < min_transmittance {
-                                        break;
-                                    }
+                                let mesh = insts[hit.instance as usize].mesh;
+                                if record(hit, mesh, &mut acc, &mut hits, min_transmittance) {
+                                    break;
                                 }
                             }
                             counts.push((hits.len() - before) as u32);
