@@ -37,6 +37,7 @@ use std::ops::ControlFlow;
 use std::time::Instant;
 
 use glam::{DAffine3, DVec3, Vec3, Vec4};
+use rayon::prelude::*;
 
 use crate::backend::{build_boxes, build_triangles, Accel, BackendKind, BuildPreset};
 use crate::error::Result;
@@ -311,13 +312,26 @@ impl MeshTracer {
         runs: Option<&dyn Fn(usize) -> usize>,
     ) -> Result<Self> {
         let start = Instant::now();
-        let mut blas = Vec::with_capacity(scene.meshes.len());
-        let mut per_boxes = Vec::with_capacity(scene.meshes.len());
-        for m in &scene.meshes {
-            let per_box = runs.map(|f| f(m.tris.len()).max(1));
-            per_boxes.push(per_box);
-            blas.push(Self::build_blas(m, backend, preset, per_box)?);
-        }
+        let per_boxes: Vec<Option<usize>> = scene
+            .meshes
+            .iter()
+            .map(|m| runs.map(|f| f(m.tris.len()).max(1)))
+            .collect();
+        // obvhs builds the meshes side by side (a viewer layout has hundreds of small meshes,
+        // each built on one thread); Embree's builds are threaded within each scene, so its
+        // meshes go one after the other. Errors are reported in mesh order either way.
+        let one =
+            |(m, &per_box): (&Mesh, &Option<usize>)| Self::build_blas(m, backend, preset, per_box);
+        let built: Vec<Result<Blas>> = match backend {
+            BackendKind::Obvhs => scene
+                .meshes
+                .par_iter()
+                .zip(per_boxes.par_iter())
+                .map(one)
+                .collect(),
+            BackendKind::Embree => scene.meshes.iter().zip(&per_boxes).map(one).collect(),
+        };
+        let blas = built.into_iter().collect::<Result<Vec<Blas>>>()?;
         Ok(MeshTracer {
             scene,
             blas,
