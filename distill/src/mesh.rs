@@ -67,8 +67,8 @@ pub(crate) fn hit_alpha_factor(scene: &TriScene, mesh: usize, tri: usize, bary: 
     };
     let mut a = mat.base_color.w;
     if let (Some(tex), Some(uvs)) = (mat.texture.and_then(|t| scene.textures.get(t)), &m.uvs) {
-        // Interpolated as `Mesh::shade` does, in the same order.
-        let uv = splatbridge_raytrace::model::interpolate(uvs, m.tris[tri], bary);
+        let [i0, i1, i2] = m.tris[tri].map(|i| i as usize);
+        let uv = uvs[i0] * bary[0] + uvs[i1] * bary[1] + uvs[i2] * bary[2];
         a *= tex.sample(uv).w;
     }
     a

@@ -47,8 +47,6 @@ pub mod shadows;
 mod test_rng;
 mod texture;
 pub mod tri;
-#[cfg(test)]
-mod winding_tests;
 
 pub use backend::{BackendKind, BuildPreset};
 pub use error::{Result, TraceError};

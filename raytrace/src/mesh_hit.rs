@@ -9,7 +9,7 @@ use glam::{DVec3, Vec3, Vec4};
 
 use crate::kbuffer::{Accum, Hit, KBuffer, Key};
 use crate::mesh_tracer::{MeshTracer, TrianglePayload};
-use crate::model::{index_order, linear_to_srgb, srgb_to_linear};
+use crate::model::{linear_to_srgb, srgb_to_linear};
 use crate::render::{Compositing, PixelOut, RenderOptions};
 use crate::tri::{Miss, WRay};
 
@@ -130,24 +130,8 @@ impl MeshTracer {
         if buf.holds_at(pos, prim) {
             return decided;
         }
-        // Only hits that enter the buffer pay for the f64 barycentrics, taken over the
-        // vertices in index order (both windings get the same numbers, `index_order`).
-        let o = index_order(m.tris[prim as usize]);
-        let v = [a, b, c];
-        let refined = refine_bary(
-            v[o[0]].as_dvec3(),
-            v[o[1]].as_dvec3(),
-            v[o[2]].as_dvec3(),
-            r.lo64,
-            r.ld64,
-        )
-        .map(|l| {
-            let mut bary = [0.0; 3];
-            for (k, &slot) in o.iter().enumerate() {
-                bary[slot] = l[k];
-            }
-            bary
-        });
+        // Only hits that enter the buffer pay for the f64 barycentrics.
+        let refined = refine_bary(a.as_dvec3(), b.as_dvec3(), c.as_dvec3(), r.lo64, r.ld64);
         let bary = match (wt, refined) {
             (_, Some(bary)) => bary,
             (Some(h), None) => h.hit().bary,
@@ -160,11 +144,10 @@ impl MeshTracer {
                 &self.scene.materials,
                 &self.scene.textures,
             );
-            // The other winding gets the same barycentrics and shade, bit for bit (f64 ones
-            // over the vertices in index order; the watertight fallback's are the same
-            // numbers permuted, `WRay::intersect_or`), so its α is not above 0 either.
+            // The other winding's barycentrics are the same numbers computed in another order:
+            // its shade may differ in the last bits, so its α is not decided here.
             if !(c.w > 0.0) {
-                return decided;
+                return Tested::Open;
             }
             c
         } else {
@@ -196,12 +179,11 @@ pub(crate) enum Tested {
     /// the other winding, [`WRay::intersect_or`]).
     Outside,
     /// The hit's key (the group plane's distance, the Gaussian, instance and group) decided
-    /// it: inserted, or rejected by the range, the buffer's stop, an equal key of lower rank,
-    /// or its shade's α of 0. The other winding has the same key, a higher rank and the same
-    /// shade: it would be rejected.
+    /// it: inserted, or rejected by the range, the buffer's stop or an equal key of lower
+    /// rank. The other winding has the same key and a higher rank: it would be rejected.
     Decided,
-    /// Anything else (a degenerate or in-plane case, a distance not from the plane): the
-    /// other winding must be tested itself.
+    /// Anything else (shading, a degenerate or in-plane case, a distance not from the plane):
+    /// the other winding must be tested itself.
     Open,
 }
 

@@ -496,38 +496,6 @@ pub(crate) fn hermite(s: f64) -> [f64; 4] {
 }
 
 /// Sample a channel at time `t`, clamped to its first/last key outside the keyed range.
-/// The slots of a triangle's vertices in the order of their vertex indices (equal indices in
-/// slot order): the order every per-hit sum over the vertices is taken in (barycentric
-/// interpolation here, the barycentrics in `mesh_hit`), so that the two windings of a triangle,
-/// the same indices in another order, give the same numbers to the bit, and one winding's
-/// outcome decides the other's (`mesh_hit::Tested`). Equal indices occur only in a degenerate
-/// triangle, which the watertight test never reports (its determinant is exactly 0).
-#[inline]
-pub fn index_order(t: [u32; 3]) -> [usize; 3] {
-    let (mut a, mut b, mut c) = (0, 1, 2);
-    if t[b] < t[a] {
-        std::mem::swap(&mut a, &mut b);
-    }
-    if t[c] < t[b] {
-        std::mem::swap(&mut b, &mut c);
-        if t[b] < t[a] {
-            std::mem::swap(&mut a, &mut b);
-        }
-    }
-    [a, b, c]
-}
-
-/// `Σ values[tri[k]]·bary[k]` over the triangle's vertices, summed in [`index_order`].
-#[inline]
-pub fn interpolate<T>(values: &[T], tri: [u32; 3], bary: [f32; 3]) -> T
-where
-    T: Copy + std::ops::Mul<f32, Output = T> + std::ops::Add<Output = T>,
-{
-    let [a, b, c] = index_order(tri);
-    let term = |k: usize| values[tri[k] as usize] * bary[k];
-    term(a) + term(b) + term(c)
-}
-
 pub fn sample_channel(c: &Channel, t: f64) -> [f64; 4] {
     let cubic = c.interpolation == Interpolation::CubicSpline;
     let value = |k: usize| {
@@ -591,15 +559,17 @@ impl Mesh {
         materials: &[Material],
         textures: &[Texture],
     ) -> Vec4 {
-        let idx = self.tris[tri];
-        let mut c = interpolate(&self.colors, idx, bary);
+        let [i0, i1, i2] = self.tris[tri].map(|i| i as usize);
+        let mut c =
+            self.colors[i0] * bary[0] + self.colors[i1] * bary[1] + self.colors[i2] * bary[2];
         let default = Material::default();
         let m = materials
             .get(self.tri_material.get(tri) as usize)
             .unwrap_or(&default);
         c *= m.base_color;
         if let (Some(tex), Some(uvs)) = (m.texture.and_then(|t| textures.get(t)), &self.uvs) {
-            c *= tex.sample(interpolate(uvs, idx, bary));
+            let uv = uvs[i0] * bary[0] + uvs[i1] * bary[1] + uvs[i2] * bary[2];
+            c *= tex.sample(uv);
         }
         let a = c.w.clamp(0.0, 1.0);
         let a = match m.alpha_mode {
@@ -714,57 +684,5 @@ impl Mesh {
             };
         }
         (group, next)
-    }
-}
-
-#[cfg(test)]
-mod order_tests {
-    use super::*;
-
-    /// Interpolation over a triangle gives the same bits for its vertices in any order (the
-    /// two windings of an export's triangle, and the other four orders), with the weights
-    /// permuted alike; the sum in slot order does not (else the test shows nothing).
-    #[test]
-    fn interpolation_is_the_same_in_every_vertex_order() {
-        let mut draw = crate::test_rng::unit(11);
-        let mut next = move || draw() as f32;
-        let perms = [
-            [0, 1, 2],
-            [0, 2, 1],
-            [1, 0, 2],
-            [1, 2, 0],
-            [2, 0, 1],
-            [2, 1, 0],
-        ];
-        let mut slot_order_differs = 0;
-        for _ in 0..2000 {
-            let values: Vec<Vec4> = (0..8)
-                .map(|_| Vec4::new(next(), next() * 1e3, next() * 1e-3, next()))
-                .collect();
-            let mut tri = [0u32; 3];
-            while tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2] {
-                tri = [0, 1, 2].map(|_| (next() * 8.0) as u32 % 8);
-            }
-            let (b0, b1) = (next(), next());
-            let bary = [b0, b1 * (1.0 - b0), 1.0 - b0 - b1 * (1.0 - b0)];
-            let want = interpolate(&values, tri, bary).to_array().map(f32::to_bits);
-            for p in perms {
-                let (t, b) = (p.map(|k| tri[k]), p.map(|k| bary[k]));
-                assert_eq!(
-                    interpolate(&values, t, b).to_array().map(f32::to_bits),
-                    want
-                );
-                let slot = values[t[0] as usize] * b[0]
-                    + values[t[1] as usize] * b[1]
-                    + values[t[2] as usize] * b[2];
-                slot_order_differs += (slot.to_array().map(f32::to_bits) != want) as u32;
-            }
-            let o = index_order(tri);
-            assert!(
-                tri[o[0]] < tri[o[1]] && tri[o[1]] < tri[o[2]],
-                "{tri:?} {o:?}"
-            );
-        }
-        assert!(slot_order_differs > 100, "{slot_order_differs}");
     }
 }
