@@ -20,9 +20,9 @@
 //! with the lowest triangle index kept among equal keys: exactly the brute-force reference
 //! (every triangle tested, hits sorted, `mesh_tile_tests`). The per-ray BVH path fills buffers
 //! of k hits round after round and keeps the first-found triangle for the k-th key of a full
-//! buffer; the two can differ only there (a tie at the k-th key between triangles of one fan;
-//! the two windings of one triangle give the same hit, `model::index_order`), in the last
-//! bits of the interpolated colour.
+//! buffer; the two can differ only there (a tie at the k-th key between triangles of one fan,
+//! or the two windings of one triangle, whose barycentrics are the same numbers in another
+//! order), in the last bits of the interpolated colour.
 //!
 //! Which renders take this path: obvhs (the default backend; an Embree build traces over
 //! single triangles and may report a hit by its own edge rule, so it keeps its per-ray path),
