@@ -236,7 +236,7 @@ impl TileLists {
                     zmin,
                     rect,
                     edges,
-                    verts: tris[t].map(|i| blas.relative(mesh.positions[i as usize])),
+                    verts: blas.triangle(&mesh.positions, tris[t]),
                     inst: ii as u32,
                     tri: t as u32,
                     group: g,

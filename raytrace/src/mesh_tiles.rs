@@ -328,7 +328,7 @@ impl MeshTracer {
             let blas = &self.blas[inst.mesh];
             let mesh = &self.scene.meshes[inst.mesh];
             let m = e.mirror;
-            let tri = mesh.tris[m as usize].map(|i| blas.relative(mesh.positions[i as usize]));
+            let tri = blas.triangle(&mesh.positions, mesh.tris[m as usize]);
             self.test_triangle(ii, inst.mesh, &r, tri, e.group, m, false, q, buf, cull);
         }
     }

@@ -195,6 +195,19 @@ impl Blas {
     pub fn relative(&self, p: Vec3) -> Vec3 {
         (p.as_dvec3() - self.anchor).as_vec3()
     }
+
+    /// Triangle `tri`'s vertices (indices into `positions`) relative to the anchor: each
+    /// [`Blas::relative`]. Written out rather than through `[T; 3]::map`, which the
+    /// compiler kept as a call on every candidate of the per-ray path (a tenth of its
+    /// profile over a 14 M-triangle mesh).
+    #[inline(always)]
+    pub fn triangle(&self, positions: &[Vec3], tri: [u32; 3]) -> [Vec3; 3] {
+        [
+            self.relative(positions[tri[0] as usize]),
+            self.relative(positions[tri[1] as usize]),
+            self.relative(positions[tri[2] as usize]),
+        ]
+    }
 }
 
 /// Where each run of triangles starts (and, last, the triangle count): at most `per_box`
@@ -545,7 +558,7 @@ impl MeshTracer {
                         let p = blas.accel.slots().map_or(s, |m| m[s] as usize);
                         let (start, end) = (blas.run_start[p], blas.run_start[p + 1]);
                         for t in start as usize..end as usize {
-                            let v = mesh.tris[t].map(|i| blas.relative(mesh.positions[i as usize]));
+                            let v = blas.triangle(&mesh.positions, mesh.tris[t]);
                             test(v, blas.group.get(p, t), t as u32, false, cull);
                         }
                     }
