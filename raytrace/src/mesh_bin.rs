@@ -429,11 +429,11 @@ impl Samples {
         k
     }
 
-    /// The edges of a record with this rectangle, where some sample of the image may pass the
-    /// walk's pre-test of it (`HotChunk::mask`, whose lanes perform `Edges::admit`'s
-    /// operations); None only where none can. Samples are taken per axis, so for several
-    /// samples a pixel this tries a superset of the pixels' sample positions.
-    /// The edges are made (`edges()`) only for a rectangle that holds a sample.
+    /// The edges of a record with this rectangle, made by `edges()` only for a rectangle
+    /// that holds a sample, where some sample of the image may pass the walk's pre-test of it
+    /// (`HotChunk::mask`, whose lanes perform `Edges::admit`'s operations); None only where
+    /// none can. Samples are taken per axis, so for several samples a pixel this tries a
+    /// superset of the pixels' sample positions.
     fn may_pass(&self, rect: &[f32; 4], edges: impl FnOnce() -> Edges) -> Option<Edges> {
         // Beyond a few offsets per axis (more than 4 samples a pixel, a quality setting) the
         // search would cost more than the records it drops.

@@ -137,8 +137,8 @@ fn unseen_instances_skip_only_triangles_never_binned() {
         let tracer = tracer(scattered(seed, 150));
         let insts = tracer.prepare_list(0.0);
         for cam in cameras() {
-            let fast = TileLists::build(&tracer, &insts, &cam, &[(0.5, 0.5)]);
-            let all = TileLists::build_with(&tracer, &insts, &cam, &[(0.5, 0.5)], false);
+            let fast = TileLists::build(&tracer, &insts, &cam, &sample_offsets(1));
+            let all = TileLists::build_with(&tracer, &insts, &cam, &sample_offsets(1), false);
             assert_eq!(all.skipped, 0);
             let (a, b) = (fast.records(), all.records());
             let first = a.iter().zip(&b).position(|(x, y)| x != y);
@@ -220,8 +220,7 @@ fn triangles_between_the_samples_are_never_crossed() {
                 dropped += 1;
                 let inst = &insts[rec[5] as usize];
                 let (mesh, blas) = (&tracer.scene.meshes[inst.mesh], &tracer.blas[inst.mesh]);
-                let verts =
-                    mesh.tris[rec[6] as usize].map(|i| blas.relative(mesh.positions[i as usize]));
+                let verts = blas.triangle(&mesh.positions, mesh.tris[rec[6] as usize]);
                 // The pixels whose samples lie within 2 px of its rectangle (the walk's
                 // pre-test, whose soundness the brute-force tile tests check, admits none
                 // beyond it).

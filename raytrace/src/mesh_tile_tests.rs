@@ -215,7 +215,7 @@ fn reference(tracer: &MeshTracer, time: f64, o: DVec3, d: DVec3, min_t: f32) -> 
         let mesh = &tracer.scene.meshes[inst.mesh];
         for p in 0..blas.run_start.len() - 1 {
             for t in blas.run_start[p] as usize..blas.run_start[p + 1] as usize {
-                let v = mesh.tris[t].map(|i| blas.relative(mesh.positions[i as usize]));
+                let v = blas.triangle(&mesh.positions, mesh.tris[t]);
                 let mut cull = f32::INFINITY;
                 let g = blas.group.get(p, t);
                 tracer.test_triangle(
@@ -525,7 +525,7 @@ fn pixel_aligned_grids_equal_brute_force() {
         ..TriScene::default()
     });
     let insts = tracer.prepare_list(0.0);
-    let lists = TileLists::build(&tracer, &insts, &cam, &[(0.5, 0.5)]);
+    let lists = TileLists::build(&tracer, &insts, &cam, &sample_offsets(1));
     let mut compared = 0usize;
     for ty in 0..cam.height.div_ceil(TILE) {
         for tx in 0..cam.width.div_ceil(TILE) {

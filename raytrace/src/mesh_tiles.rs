@@ -52,8 +52,8 @@ use crate::screen_cells::cell_span;
 /// are at least this fraction of its triangles. Measured on `fourth_st`'s one-node exports
 /// (`--layout input`, 0.71 M and 2.83 M triangles) at 80×60 to 1920×1080, the per-ray path
 /// was faster below about a 44th (texture) and a 32nd (meshsplats) of the triangles; a 25th
-/// leaves the tiles only where they clearly pay (`docs/trace-speed-mesh.md`, "Every layout through
-/// the tiles").
+/// leaves the tiles only where they clearly pay (`docs/trace-speed-mesh.md`, "Every layout
+/// through the tiles").
 pub const TRIANGLES_PER_RAY: u64 = 25;
 
 /// Tile edge in pixels (native's `BLOCK_X = BLOCK_Y`).
@@ -377,8 +377,8 @@ impl MeshTracer {
     ) -> Result<HitLists> {
         cam.validate()?;
         let insts = self.prepare_list(time);
-        // Each pixel's centre, as `sample_offsets(1)` places it.
-        let lists = TileLists::build(self, &insts, cam, &[(0.5, 0.5)]);
+        // One ray through each pixel's centre.
+        let lists = TileLists::build(self, &insts, cam, &sample_offsets(1));
         let (w, h) = (cam.width as usize, cam.height as usize);
         let t = TILE as usize;
         let (tw, th) = (w.div_ceil(t), h.div_ceil(t));
