@@ -65,6 +65,9 @@ pub struct DistillOptions {
     /// targets view-independent, so a fit to them measures what view-dependence costs a
     /// mesh (docs/distill.md, "Where the remaining error is").
     pub target_sh_degree: u8,
+    /// Highest SH degree of the fitting views' targets, when not `target_sh_degree`; the
+    /// validation views and held-back references keep `target_sh_degree`.
+    pub fit_sh_degree: Option<u8>,
     /// The order each pixel's hits are composited in, fitting and measuring alike: the
     /// tracer's (what viewers draw) or native splatting's, a measurement of what ray order
     /// costs ([`order`]).
@@ -110,6 +113,7 @@ impl Default for DistillOptions {
             guard_tolerance_db: crate::guard::TOLERANCE_DB,
             patience: crate::guard::PATIENCE,
             target_sh_degree: 3,
+            fit_sh_degree: None,
             order: HitOrder::Ray,
             positions: false,
             lr_position: 0.01,

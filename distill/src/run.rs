@@ -195,6 +195,11 @@ pub struct Outcome {
     pub description: String,
     /// The refused validation of the highest mean, above the kept one ([`Distiller::best_refused`]).
     pub best_refused: Option<super::guard::Validation>,
+    /// Every validation of the fit, in order (the guard's log).
+    pub validations: Vec<super::guard::Validation>,
+    /// Each held-back view's PSNR against native before and after fitting, dB.
+    pub held_back_before: Vec<f64>,
+    pub held_back_after: Vec<f64>,
 }
 
 /// The worst (smallest) and the median of `x`.
@@ -309,6 +314,9 @@ pub fn distill_export(
         held_back_views: held.len(),
         description,
         best_refused: d.best_refused().cloned(),
+        validations: d.validation_log().to_vec(),
+        held_back_before: before,
+        held_back_after: after,
     })
 }
 

@@ -130,6 +130,10 @@ pub struct DistillArgs {
     /// measures against view-independent colour, to see what view-dependence costs.
     #[arg(long, value_name = "D", default_value_t = 3, value_parser = clap::value_parser!(u8).range(0..=3), requires = "distill")]
     pub distill_sh_degree: u8,
+    /// Highest SH degree of the fitting views' targets alone (validation and held-back views
+    /// keep --distill-sh-degree).
+    #[arg(long, value_name = "D", value_parser = clap::value_parser!(u8).range(0..=3), requires = "distill")]
+    pub distill_fit_sh_degree: Option<u8>,
     /// The order the fit composites each pixel's hits in: ray (the tracer's, what every viewer
     /// draws) or splat (whole Gaussians by the depth of their centres, as native splatting
     /// sorts). Splat is a measurement of what ray order costs: the held-back figures are in
@@ -143,6 +147,16 @@ pub struct DistillArgs {
     /// Adam's step for positions, in units of each Gaussian's size (with --distill-positions).
     #[arg(long, value_name = "S", default_value_t = DistillOptions::default().lr_position, requires = "distill_positions")]
     pub distill_position_step: f32,
+    /// Adam's step for the vertices' colours (linear RGB, 0…1).
+    #[arg(long, value_name = "S", default_value_t = DistillOptions::default().lr_colour, requires = "distill")]
+    pub distill_colour_step: f32,
+    /// Adam's step for the vertices' opacities (0 keeps them as converted).
+    #[arg(long, value_name = "S", default_value_t = DistillOptions::default().lr_alpha, requires = "distill")]
+    pub distill_alpha_step: f32,
+    /// Write what the fit did as JSON: every validation (each view's PSNR and change) and
+    /// each held-back view's PSNR before and after.
+    #[arg(long, value_name = "FILE", requires = "distill")]
+    pub distill_log: Option<std::path::PathBuf>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -191,6 +205,9 @@ impl DistillArgs {
             guard_tolerance_db: self.distill_guard_tolerance,
             patience: self.distill_patience,
             target_sh_degree: self.distill_sh_degree,
+            fit_sh_degree: self.distill_fit_sh_degree,
+            lr_colour: self.distill_colour_step,
+            lr_alpha: self.distill_alpha_step,
             order: match self.distill_order {
                 OrderArg::Ray => HitOrder::Ray,
                 OrderArg::Splat => HitOrder::Splat,
@@ -219,6 +236,11 @@ impl DistillArgs {
         let out = distill_export(scene, opts, &req, &d, |_| pb.inc(1))
             .with_context(|| format!("--distill (views {})", self.views))?;
         pb.finish_and_clear();
+        if let Some(path) = &self.distill_log {
+            let json = serde_json::to_vec_pretty(&out).context("--distill-log")?;
+            std::fs::write(path, json)
+                .with_context(|| format!("--distill-log: {}", path.display()))?;
+        }
         let r = &out.report;
         eprintln!("distilled: {}", out.description);
         eprintln!("  parameters: {} ({} vertices)", r.params, r.vertices);

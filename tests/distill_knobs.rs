@@ -1,0 +1,171 @@
+//! The fit's separate knobs: the fitting targets' SH degree apart from the measuring one,
+//! the colour and opacity steps apart, and `--distill-log`, the fit's record.
+
+mod cli_common;
+mod distill_common;
+
+use cli_common::{ok, path, street, temp_dir};
+use distill_common::opts;
+use splatbridge::distill::{views, DistillOptions, Distiller, ParamMode};
+use splatbridge_convert::Profile;
+use splatbridge_scene::dynamic::DynamicScene;
+use splatbridge_scene::fixtures::large;
+
+/// A small cloud with a strong first SH band, so that degree 0 and the full degree differ.
+fn view_dependent() -> DynamicScene {
+    let mut cloud = large(300, 7);
+    let n = cloud.len();
+    let k = cloud.sh.len() / n.max(1);
+    let dc: Vec<glam::Vec3> = (0..n).map(|i| cloud.sh[i * k]).collect();
+    cloud.sh_degree = 1;
+    cloud.sh = dc
+        .iter()
+        .flat_map(|&c| {
+            [
+                c,
+                glam::Vec3::splat(0.5),
+                glam::Vec3::new(-0.4, 0.3, 0.2),
+                glam::Vec3::splat(-0.3),
+            ]
+        })
+        .collect();
+    DynamicScene::from_static(cloud)
+}
+
+/// `fit_sh_degree` changes the fitting views' targets and nothing else: the first loss is
+/// the one of a fit whose targets are all at that degree (bit for bit), the validation
+/// views' start is the one of a fit at the full degree (bit for bit), and both differ from
+/// the other fit's, so the test sees which targets each set got.
+#[test]
+fn the_fitting_targets_sh_degree_leaves_the_validation_targets_alone() {
+    let scene = view_dependent();
+    let cloud = scene.composite(0.0);
+    let fit = views::orbit(&cloud, 4, 0..2, 32, 24).unwrap();
+    let val = views::orbit(&cloud, 5, 0..3, 32, 24).unwrap();
+    let first = |target: u8, fit_degree: Option<u8>| {
+        let d_opts = DistillOptions {
+            iterations: 0,
+            params: ParamMode::Vertex,
+            target_sh_degree: target,
+            fit_sh_degree: fit_degree,
+            ..DistillOptions::default()
+        };
+        let mut d = Distiller::new(&scene, &opts(Profile::MeshSplats), &fit, &d_opts).unwrap();
+        d.add_validation(&scene, &val, &[0.0; 3]).unwrap();
+        d.run(|_| {}).unwrap();
+        let loss = d.loss_and_gradient().unwrap().0;
+        (loss, d.validation_log()[0].psnr.clone())
+    };
+    let (loss_mixed, val_mixed) = first(3, Some(0));
+    let (loss_dc, val_dc) = first(0, None);
+    let (loss_full, val_full) = first(3, None);
+    assert_eq!(loss_mixed, loss_dc, "the fitting targets are at degree 0");
+    assert_eq!(
+        val_mixed, val_full,
+        "the validation targets keep the full degree"
+    );
+    assert_ne!(
+        loss_dc, loss_full,
+        "the first band shows in the fitting targets"
+    );
+    assert_ne!(
+        val_dc, val_full,
+        "the first band shows in the validation targets"
+    );
+}
+
+/// A zero opacity step keeps every vertex's alpha as converted while the colours move; a
+/// zero colour step the other way round.
+#[test]
+fn a_zero_step_keeps_its_channels_as_converted() {
+    let scene = view_dependent();
+    let fit = views::orbit(&scene.composite(0.0), 4, 0..4, 32, 24).unwrap();
+    for (lr_colour, lr_alpha) in [(0.02, 0.0), (1e-30, 0.02)] {
+        let d_opts = DistillOptions {
+            iterations: 5,
+            params: ParamMode::Vertex,
+            lr_colour,
+            lr_alpha,
+            ..DistillOptions::default()
+        };
+        let mut d = Distiller::new(&scene, &opts(Profile::MeshSplats), &fit, &d_opts).unwrap();
+        let start = d.params().to_vec();
+        d.run(|_| {}).unwrap();
+        let moved = |lanes: std::ops::Range<usize>| {
+            d.params()
+                .iter()
+                .zip(&start)
+                .filter(|(a, b)| lanes.clone().any(|l| a[l] != b[l]))
+                .count()
+        };
+        // A colour step of 1e-30 moves a value in [0, 1] by less than half an ulp of any
+        // colour above 1e-23, which every converted colour here is (they are at least the
+        // background's 1/255): none changes.
+        let (colours, alphas) = (moved(0..3), moved(3..4));
+        if lr_alpha == 0.0 {
+            assert_eq!(alphas, 0, "no alpha moves at a zero opacity step");
+            assert!(colours > 0, "the colours move");
+        } else {
+            assert_eq!(colours, 0, "no colour moves at a colour step of 1e-30");
+            assert!(alphas > 0, "the alphas move");
+        }
+    }
+}
+
+/// `--distill-log` writes every validation (each view's PSNR and its change from the start)
+/// and the held-back views' PSNRs before and after, which agree with what `convert` prints.
+#[test]
+fn the_distill_log_holds_every_validation_and_the_held_back_views() {
+    let dir = temp_dir("distill-knobs", "log");
+    let (out, log) = (dir.join("street.glb"), dir.join("fit.json"));
+    let scene = street();
+    let stderr = ok(&[
+        "convert",
+        scene.as_str(),
+        "--distill",
+        "--views",
+        "orbit:4",
+        "--distill-width",
+        "32",
+        "--distill-height",
+        "24",
+        "--held-back",
+        "2",
+        "--distill-validation",
+        "3",
+        "--iterations",
+        "20",
+        "--distill-patience",
+        "0",
+        "--distill-log",
+        path(&log),
+        "-o",
+        path(&out),
+    ])
+    .stderr;
+    let stderr = String::from_utf8_lossy(&stderr);
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&log).unwrap()).unwrap();
+    let vals = v["validations"].as_array().unwrap();
+    let its: Vec<u64> = vals
+        .iter()
+        .map(|x| x["iteration"].as_u64().unwrap())
+        .collect();
+    assert_eq!(its, [0, 10, 20]);
+    let start: Vec<f64> = serde_json::from_value(vals[0]["psnr"].clone()).unwrap();
+    assert_eq!(start.len(), 3);
+    for x in vals {
+        let psnr: Vec<f64> = serde_json::from_value(x["psnr"].clone()).unwrap();
+        let change: Vec<f64> = serde_json::from_value(x["change"].clone()).unwrap();
+        for ((p, c), s) in psnr.iter().zip(&change).zip(&start) {
+            // The change is the difference of the same two numbers, up to the rounding of
+            // one subtraction of values near 30 dB (ulp 3.6e-15).
+            assert!((p - s - c).abs() < 1e-12, "{p} - {s} vs {c}");
+        }
+    }
+    let before: Vec<f64> = serde_json::from_value(v["held_back_before"].clone()).unwrap();
+    let after: Vec<f64> = serde_json::from_value(v["held_back_after"].clone()).unwrap();
+    assert_eq!((before.len(), after.len()), (2, 2));
+    let mean = |x: &[f64]| x.iter().sum::<f64>() / x.len() as f64;
+    let said = format!("{:.2} dB → {:.2} dB", mean(&before), mean(&after));
+    assert!(stderr.contains(&said), "{said} not in {stderr}");
+}
