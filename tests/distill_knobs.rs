@@ -169,3 +169,107 @@ fn the_distill_log_holds_every_validation_and_the_held_back_views() {
     let said = format!("{:.2} dB → {:.2} dB", mean(&before), mean(&after));
     assert!(stderr.contains(&said), "{said} not in {stderr}");
 }
+
+/// The street fixture fitted from two views of an orbit and validated from five of another,
+/// so that the fit, made for two directions, makes some validation view worse.
+fn guarded() -> (
+    DynamicScene,
+    Vec<splatbridge_scene::Camera>,
+    Vec<splatbridge_scene::Camera>,
+) {
+    let scene = splatbridge_scene::fixtures::street_with(
+        &splatbridge_scene::fixtures::StreetParams::new(3, 3000),
+    );
+    let cloud = scene.composite(0.0);
+    let mut fit = views::orbit(&cloud, 8, 0..8, 64, 48).unwrap();
+    fit.truncate(2);
+    let val = views::orbit(&cloud, 5, 0..5, 64, 48).unwrap();
+    (scene, fit, val)
+}
+
+/// The guarded fit of [`guarded`] for `iterations` steps with `eps_backtrack_pixels` and
+/// `tolerance`: its validation log, report and final parameters.
+fn guarded_run(
+    backtrack: f32,
+    tolerance: f64,
+    iterations: usize,
+) -> (
+    Vec<splatbridge::distill::guard::Validation>,
+    splatbridge::distill::DistillReport,
+    Vec<[f32; 4]>,
+) {
+    let (scene, fit, val) = guarded();
+    let d_opts = DistillOptions {
+        iterations,
+        params: ParamMode::Vertex,
+        guard_tolerance_db: tolerance,
+        eps_backtrack_pixels: backtrack,
+        patience: 0,
+        ..DistillOptions::default()
+    };
+    let mut d = Distiller::new(&scene, &opts(Profile::MeshSplats), &fit, &d_opts).unwrap();
+    d.add_validation(&scene, &val, &[0.0; 5]).unwrap();
+    d.run(|_| {}).unwrap();
+    (d.validation_log().to_vec(), d.report(), d.params().to_vec())
+}
+
+/// Backtracking: the fit is the same as without it up to its first refused validation; there
+/// it goes back to the best admissible iteration, exactly: with an ε so large that no later
+/// step moves a value (1e30 pixels' loss: a step is lr·g/ε, far below half an ulp of any
+/// colour), every later validation measures that iteration's colours bit for bit. A fit
+/// whose every validation passes never backtracks and is the same bit for bit.
+#[test]
+fn a_refused_validation_sends_the_fit_back_to_the_best_admissible_iteration() {
+    let default_tol = splatbridge::distill::guard::TOLERANCE_DB;
+    let eps = DistillOptions::default().eps_pixels;
+    let (plain, plain_report, _) = guarded_run(eps, default_tol, 40);
+    assert_eq!(
+        plain_report.backtracked, None,
+        "no backtrack at ε_backtrack = ε"
+    );
+    let refused = plain
+        .iter()
+        .position(|v| !v.admissible)
+        .expect("the two-view fit makes some validation view worse");
+    let (log, report, _) = guarded_run(1e30, default_tol, 40);
+    assert_eq!(
+        &log[..=refused],
+        &plain[..=refused],
+        "the same fit up to the refusal"
+    );
+    let best = plain[..refused]
+        .iter()
+        .filter(|v| v.admissible)
+        .max_by(|a, b| a.mean.total_cmp(&b.mean))
+        .unwrap();
+    assert_eq!(
+        report.backtracked,
+        Some((plain[refused].iteration, best.iteration))
+    );
+    assert!(log.len() > refused + 1, "validations after the backtrack");
+    for v in &log[refused + 1..] {
+        assert_eq!(
+            v.psnr, best.psnr,
+            "iteration {}: not the kept colours",
+            v.iteration
+        );
+    }
+    // Every validation admissible: no backtrack, the same parameters bit for bit.
+    let (_, r1, p1) = guarded_run(eps, 1e9, 30);
+    let (_, r2, p2) = guarded_run(10.0, 1e9, 30);
+    assert_eq!((r1.backtracked, r2.backtracked), (None, None));
+    assert_eq!(p1, p2);
+}
+
+/// After a backtrack to ε 10 the fit keeps moving: the last validation differs from the
+/// one it went back to, and the kept iteration is never below the start.
+#[test]
+fn the_fit_goes_on_after_a_backtrack() {
+    let (log, report, _) = guarded_run(10.0, splatbridge::distill::guard::TOLERANCE_DB, 40);
+    let (at, to) = report.backtracked.expect("a backtrack");
+    let back = log.iter().find(|v| v.iteration == to).unwrap();
+    let last = log.last().unwrap();
+    assert!(last.iteration > at);
+    assert_ne!(last.psnr, back.psnr, "nothing moved after the backtrack");
+    assert!(report.validation_kept >= report.validation_start);
+}

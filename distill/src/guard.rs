@@ -8,6 +8,17 @@
 //! mesh as converted) by more than a tolerance (`--distill-guard-tolerance`, 1e-3 dB); the
 //! admissible iteration with the best mean is kept, the start itself when none is. Fitted
 //! positions change the hits every step, so they are not validated.
+//!
+//! Backtracking: the first refused validation sends the fit back to the best admissible
+//! iteration (its parameters; Adam's moments start again) and the fit goes on with a larger
+//! ε ([`DistillOptions::eps_backtrack_pixels`](crate::DistillOptions), 10 pixels' loss
+//! against 0.04). Adam moves every parameter whose gradient is above ε by about the full
+//! step whatever the gradient's size, and those below it in proportion to the gradient: a
+//! larger ε makes the fit move only what many pixels of the batch agree on at full speed.
+//! The fit whose every validation passes is unchanged (bit for bit); one that makes some
+//! view worse, as a fit from a few dozen windows does to the views between them where
+//! colours depend on the direction, starts again with the damping that view needs, instead
+//! of keeping the start.
 
 use rayon::prelude::*;
 use splatbridge_scene::dynamic::DynamicScene;
@@ -216,6 +227,39 @@ impl Distiller {
     pub fn patience_spent(&self) -> bool {
         let p = self.opts.patience;
         p > 0 && !self.guard.views.is_empty() && self.guard.since_progress >= p
+    }
+
+    /// Whether the last validation calls for a backtrack: it was refused, the fit has not
+    /// backtracked yet, and the backtrack's ε is larger than the fit's (see the module
+    /// documentation, "Backtracking").
+    pub fn backtrack_due(&self) -> bool {
+        let refused = self.guard.log.last().is_some_and(|v| !v.admissible);
+        refused
+            && self.report.backtracked.is_none()
+            && self.guard.best.is_some()
+            && self.opts.eps_backtrack_pixels > self.opts.eps_pixels
+            && self.positions.is_none()
+    }
+
+    /// Go back to the best admissible iteration's parameters, start Adam's moments again
+    /// and go on with [`DistillOptions::eps_backtrack_pixels`](crate::DistillOptions). A
+    /// backtrack is progress for the patience: the fit after it is another fit.
+    pub fn backtrack(&mut self) {
+        let Some(best) = &self.guard.best else {
+            return;
+        };
+        self.params.clone_from(&best.params);
+        if let (Some(t), Some(theta)) = (self.tied.as_mut(), &best.theta) {
+            t.theta.clone_from(theta);
+        }
+        self.m.iter_mut().for_each(|m| *m = [0.0; 4]);
+        self.v.iter_mut().for_each(|v| *v = [0.0; 4]);
+        let it = self.history.len();
+        self.adam_t0 = it;
+        self.eps = self.opts.eps_backtrack_pixels / self.pixels;
+        self.report.backtracked = Some((it, best.iteration));
+        self.guard.since_progress = 0;
+        self.guard.closest_refused = None;
     }
 
     /// Go back to the best admissible iteration (no-op without validation views).

@@ -140,6 +140,9 @@ pub struct DistillReport {
     /// Whether the fit stopped before its iterations ran out, its patience spent
     /// ([`DistillOptions::patience`]).
     pub stopped_early: bool,
+    /// The iteration whose refused validation sent the fit back to the best admissible one
+    /// with ε raised ([`DistillOptions::eps_backtrack_pixels`]), and that iteration.
+    pub backtracked: Option<(usize, usize)>,
 }
 
 pub(crate) struct View {
@@ -170,8 +173,14 @@ pub struct Distiller {
     start: Instant,
     pub history: Vec<Progress>,
     report: DistillReport,
-    /// Adam's ε for these views' size ([`DistillOptions::eps_pixels`]).
+    /// Adam's ε for these views' size ([`DistillOptions::eps_pixels`]; after a backtrack
+    /// [`DistillOptions::eps_backtrack_pixels`]), and the views' mean pixel count it is
+    /// divided by.
     eps: f32,
+    pixels: f32,
+    /// The step Adam's bias correction counts from: 0, or the step of the last backtrack
+    /// ([`guard`]), where the moments start again.
+    adam_t0: usize,
     /// The Gaussians' centres when hits are composited in splat order.
     centres: Option<Centres>,
     /// Fitted positions ([`DistillOptions::positions`]).
@@ -314,6 +323,8 @@ impl Distiller {
             start,
             history: Vec::new(),
             eps: opts.eps_pixels / mean_pixels(cameras),
+            pixels: mean_pixels(cameras),
+            adam_t0: 0,
             centres,
             positions: fitted_positions,
             guard: guard::Guard::default(),
@@ -513,7 +524,7 @@ impl Distiller {
     pub fn step(&mut self) -> Result<f64> {
         let which = self.batch(self.history.len());
         let (loss, grad) = self.loss_and_gradient_over(&which)?;
-        let t = self.history.len() as i32 + 1;
+        let t = (self.history.len() - self.adam_t0) as i32 + 1;
         let lr = [
             self.opts.lr_colour,
             self.opts.lr_colour,
@@ -601,7 +612,9 @@ impl Distiller {
             }
             if self.history.len().is_multiple_of(guard::EVERY) {
                 self.validate()?;
-                if self.patience_spent() {
+                if self.backtrack_due() {
+                    self.backtrack();
+                } else if self.patience_spent() {
                     self.report.stopped_early = true;
                     break;
                 }

@@ -42,6 +42,11 @@ pub struct DistillOptions {
     /// instead of following noise at full step (Adam's usual 1e-8 lets it; on `fourth_st`
     /// held-back views peaked after 20 steps and then fell; docs/distill.md).
     pub eps_pixels: f32,
+    /// Adam's ε, in the same units, after the guard first refuses a validation: the fit goes
+    /// back to the best iteration the validation views accept, its moments start again, and
+    /// it goes on with this ε ([`crate::guard`], "Backtracking"). Not larger than
+    /// `eps_pixels`: never.
+    pub eps_backtrack_pixels: f32,
     /// Make the fitted mesh from the Gaussians widened by native splatting's 0.3 px² low-pass
     /// at their depth in the fitting views ([`widen_for_fit`], `convert --footprint-for`'s
     /// widening sized by the fitting cameras), so the fans of Gaussians near or under a pixel
@@ -103,6 +108,13 @@ impl Default for DistillOptions {
             record_k: 64,
             batch: 16,
             eps_pixels: 0.04,
+            // Measured on `fourth_st` (texture profile, `sphere:48`, the guard's eight views):
+            // from the start at ε 0.4 a validation view still lost 0.02–0.12 dB at every
+            // validation, at 4 it lost 0.04 after 10 steps and recovered, at 10 every
+            // validation from step 20 on was admissible and the mean still rose at step 60
+            // (+0.40 dB), at 40 the fit barely moved (+0.20 at step 60, one view at −0.004).
+            // docs/distill.md, "Backtracking".
+            eps_backtrack_pixels: 10.0,
             footprint: true,
             // The smallest footprint, so no view is blurred more than native blurs it. The
             // median (0.5) gains more on `pc_short` (18 held-back views, 320×240 to 1080p:
@@ -150,6 +162,12 @@ impl DistillOptions {
             return bad(format!(
                 "--distill-position-step {} must be a finite number ≥ 0",
                 self.lr_position
+            ));
+        }
+        if !(self.eps_backtrack_pixels >= 0.0 && self.eps_backtrack_pixels.is_finite()) {
+            return bad(format!(
+                "--distill-eps-backtrack {} must be a finite number ≥ 0",
+                self.eps_backtrack_pixels
             ));
         }
         if !(self.eps_pixels >= 0.0 && self.eps_pixels.is_finite()) {

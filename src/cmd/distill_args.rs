@@ -108,6 +108,11 @@ pub struct DistillArgs {
     /// move less than the step size, so what the views barely see stays as converted.
     #[arg(long, value_name = "E", default_value_t = DistillOptions::default().eps_pixels, requires = "distill")]
     pub distill_eps: f32,
+    /// Adam's ε, in the same units, once the guard refuses a validation: the fit goes back
+    /// to the best iteration the validation views accept and goes on with it (not larger
+    /// than --distill-eps: never).
+    #[arg(long, value_name = "E", default_value_t = DistillOptions::default().eps_backtrack_pixels, requires = "distill")]
+    pub distill_eps_backtrack: f32,
     /// Make the mesh from the Gaussians widened by native splatting's 0.3 px² low-pass at
     /// their depth in the fitting views (as --footprint-for does for given cameras), so the
     /// fit starts from fans that blur as native does at the fitting size.
@@ -200,6 +205,7 @@ impl DistillArgs {
             hit_budget: memory_bytes(self.distill_memory),
             batch: self.distill_batch,
             eps_pixels: self.distill_eps,
+            eps_backtrack_pixels: self.distill_eps_backtrack,
             footprint: self.distill_footprint == OnOff::On,
             footprint_quantile: self.distill_footprint_quantile,
             guard_tolerance_db: self.distill_guard_tolerance,
@@ -264,6 +270,12 @@ impl DistillArgs {
                 r.validation_kept,
                 r.kept_iteration,
                 r.iterations
+            );
+        }
+        if let Some((at, to)) = r.backtracked {
+            eprintln!(
+                "  the guard refused iteration {at}: the fit went back to iteration {to} and went on with ε {} (--distill-eps-backtrack)",
+                self.distill_eps_backtrack
             );
         }
         if r.stopped_early {
