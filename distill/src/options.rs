@@ -112,7 +112,7 @@ impl Default for DistillOptions {
             // from the start at ε 0.4 a validation view still lost 0.02–0.12 dB at every
             // validation, at 4 it lost 0.04 after 10 steps and recovered, at 10 every
             // validation from step 20 on was admissible and the mean still rose at step 60
-            // (+0.40 dB), at 40 the fit barely moved (+0.20 at step 60, one view at −0.004).
+            // (+0.40 dB), at 40 the fit barely moved (+0.20 at step 60, one view at −0.0012).
             // docs/distill.md, "Backtracking".
             eps_backtrack_pixels: 10.0,
             footprint: true,
