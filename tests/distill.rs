@@ -466,6 +466,8 @@ fn the_guard_keeps_the_best_admissible_validation_at_its_tolerance() {
             iterations: 30,
             params: ParamMode::Vertex,
             guard_tolerance_db: tolerance,
+            // The guard alone: backtracking is tested in `distill_knobs.rs`.
+            eps_backtrack_pixels: 0.0,
             ..DistillOptions::default()
         };
         let mut d = Distiller::new(&scene, &opts(Profile::MeshSplats), fit, &d_opts).unwrap();
@@ -509,6 +511,7 @@ fn the_guard_keeps_the_best_admissible_validation_at_its_tolerance() {
         iterations: 30,
         params: ParamMode::Vertex,
         guard_tolerance_db: -refused.worst() + 1e-9,
+        eps_backtrack_pixels: 0.0,
         ..DistillOptions::default()
     };
     let mut d = Distiller::new(&scene, &opts(Profile::MeshSplats), fit, &d_opts).unwrap();
@@ -533,6 +536,9 @@ fn the_fit_stops_when_its_patience_is_spent() {
             iterations: 60,
             params: ParamMode::Vertex,
             patience,
+            // The patience rule alone: a backtrack counts as progress
+            // (`distill_knobs.rs`).
+            eps_backtrack_pixels: 0.0,
             ..DistillOptions::default()
         };
         let mut d = Distiller::new(&scene, &opts(Profile::MeshSplats), fit, &d_opts).unwrap();

@@ -193,6 +193,7 @@ fn guarded_run(
     backtrack: f32,
     tolerance: f64,
     iterations: usize,
+    patience: usize,
 ) -> (
     Vec<splatbridge::distill::guard::Validation>,
     splatbridge::distill::DistillReport,
@@ -204,7 +205,7 @@ fn guarded_run(
         params: ParamMode::Vertex,
         guard_tolerance_db: tolerance,
         eps_backtrack_pixels: backtrack,
-        patience: 0,
+        patience,
         ..DistillOptions::default()
     };
     let mut d = Distiller::new(&scene, &opts(Profile::MeshSplats), &fit, &d_opts).unwrap();
@@ -222,7 +223,7 @@ fn guarded_run(
 fn a_refused_validation_sends_the_fit_back_to_the_best_admissible_iteration() {
     let default_tol = splatbridge::distill::guard::TOLERANCE_DB;
     let eps = DistillOptions::default().eps_pixels;
-    let (plain, plain_report, _) = guarded_run(eps, default_tol, 40);
+    let (plain, plain_report, _) = guarded_run(eps, default_tol, 40, 0);
     assert_eq!(
         plain_report.backtracked, None,
         "no backtrack at ε_backtrack = ε"
@@ -231,7 +232,7 @@ fn a_refused_validation_sends_the_fit_back_to_the_best_admissible_iteration() {
         .iter()
         .position(|v| !v.admissible)
         .expect("the two-view fit makes some validation view worse");
-    let (log, report, _) = guarded_run(1e30, default_tol, 40);
+    let (log, report, _) = guarded_run(1e30, default_tol, 40, 0);
     assert_eq!(
         &log[..=refused],
         &plain[..=refused],
@@ -255,17 +256,22 @@ fn a_refused_validation_sends_the_fit_back_to_the_best_admissible_iteration() {
         );
     }
     // Every validation admissible: no backtrack, the same parameters bit for bit.
-    let (_, r1, p1) = guarded_run(eps, 1e9, 30);
-    let (_, r2, p2) = guarded_run(10.0, 1e9, 30);
+    let (_, r1, p1) = guarded_run(eps, 1e9, 30, 0);
+    let (_, r2, p2) = guarded_run(10.0, 1e9, 30, 0);
     assert_eq!((r1.backtracked, r2.backtracked), (None, None));
     assert_eq!(p1, p2);
 }
 
 /// After a backtrack to ε 10 the fit keeps moving: the last validation differs from the
-/// one it went back to, and the kept iteration is never below the start.
+/// one it went back to, and the kept iteration is never below the start. The backtrack is
+/// progress for the patience: at a patience of 1 the fit still takes the steps after it.
 #[test]
 fn the_fit_goes_on_after_a_backtrack() {
-    let (log, report, _) = guarded_run(10.0, splatbridge::distill::guard::TOLERANCE_DB, 40);
+    let tol = splatbridge::distill::guard::TOLERANCE_DB;
+    let (_, r1, _) = guarded_run(10.0, tol, 40, 1);
+    let (at, _) = r1.backtracked.expect("a backtrack");
+    assert!(r1.iterations > at, "stopped at the backtrack: {r1:?}");
+    let (log, report, _) = guarded_run(10.0, tol, 40, 0);
     let (at, to) = report.backtracked.expect("a backtrack");
     let back = log.iter().find(|v| v.iteration == to).unwrap();
     let last = log.last().unwrap();
