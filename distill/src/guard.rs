@@ -229,6 +229,17 @@ impl Distiller {
         p > 0 && !self.guard.views.is_empty() && self.guard.since_progress >= p
     }
 
+    /// The validation after every [`EVERY`]-th step: measure, backtrack where the
+    /// validation calls for it; true when the patience is spent (the fit should stop).
+    pub fn validate_step(&mut self) -> Result<bool> {
+        self.validate()?;
+        if self.backtrack_due() {
+            self.backtrack();
+            return Ok(false);
+        }
+        Ok(self.patience_spent())
+    }
+
     /// Whether the last validation calls for a backtrack: it was refused, the fit has not
     /// backtracked yet, and the backtrack's ε is larger than the fit's (see the module
     /// documentation, "Backtracking").

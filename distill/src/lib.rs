@@ -610,14 +610,9 @@ impl Distiller {
             if let Some(p) = self.history.last() {
                 on_step(p);
             }
-            if self.history.len().is_multiple_of(guard::EVERY) {
-                self.validate()?;
-                if self.backtrack_due() {
-                    self.backtrack();
-                } else if self.patience_spent() {
-                    self.report.stopped_early = true;
-                    break;
-                }
+            if self.history.len().is_multiple_of(guard::EVERY) && self.validate_step()? {
+                self.report.stopped_early = true;
+                break;
             }
         }
         self.validate()?;

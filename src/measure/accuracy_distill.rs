@@ -233,7 +233,9 @@ pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<Distill
             d.step()?;
             fit_seconds += t0.elapsed().as_secs_f64();
             if d.history.len() % crate::distill::guard::EVERY == 0 {
-                d.validate()?;
+                // The fit's own rule, backtracking included; the sweep runs every step
+                // (its checkpoints), so the patience is not applied.
+                d.validate_step()?;
             }
         }
         let r = d.report();
