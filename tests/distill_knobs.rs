@@ -162,6 +162,11 @@ fn the_distill_log_holds_every_validation_and_the_held_back_views() {
             assert!((p - s - c).abs() < 1e-12, "{p} - {s} vs {c}");
         }
     }
+    let names: Vec<String> = serde_json::from_value(v["validation_names"].clone()).unwrap();
+    assert_eq!(names.len(), 3);
+    assert!(names.iter().all(|n| n.starts_with("sphere ")), "{names:?}");
+    let held: Vec<String> = serde_json::from_value(v["held_back_names"].clone()).unwrap();
+    assert_eq!(held.len(), 2);
     let before: Vec<f64> = serde_json::from_value(v["held_back_before"].clone()).unwrap();
     let after: Vec<f64> = serde_json::from_value(v["held_back_after"].clone()).unwrap();
     assert_eq!((before.len(), after.len()), (2, 2));

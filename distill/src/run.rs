@@ -197,6 +197,9 @@ pub struct Outcome {
     pub best_refused: Option<super::guard::Validation>,
     /// Every validation of the fit, in order (the guard's log).
     pub validations: Vec<super::guard::Validation>,
+    /// The validation views' and the held-back views' names (where and how large).
+    pub validation_names: Vec<String>,
+    pub held_back_names: Vec<String>,
     /// Each held-back view's PSNR against native before and after fitting, dB.
     pub held_back_before: Vec<f64>,
     pub held_back_after: Vec<f64>,
@@ -315,6 +318,8 @@ pub fn distill_export(
         description,
         best_refused: d.best_refused().cloned(),
         validations: d.validation_log().to_vec(),
+        validation_names: views.validation.iter().map(|c| c.name.clone()).collect(),
+        held_back_names: held.iter().map(|c| c.name.clone()).collect(),
         held_back_before: before,
         held_back_after: after,
     })
