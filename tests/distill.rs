@@ -407,23 +407,8 @@ fn the_footprint_widened_fit_beats_the_plain_one_on_small_gaussians() {
 /// differ where the scene has view-dependent colour.
 #[test]
 fn target_sh_degree_caps_the_targets_sh() {
-    let mut cloud = large(300, 7);
-    let n = cloud.len();
-    let k = cloud.sh.len() / n.max(1);
-    let dc: Vec<glam::Vec3> = (0..n).map(|i| cloud.sh[i * k]).collect();
-    // Degree 1 with the same DC and a strong first band.
-    cloud.sh_degree = 1;
-    cloud.sh = dc
-        .iter()
-        .flat_map(|&c| {
-            [
-                c,
-                glam::Vec3::splat(0.5),
-                glam::Vec3::new(-0.4, 0.3, 0.2),
-                glam::Vec3::splat(-0.3),
-            ]
-        })
-        .collect();
+    let cloud = distill_common::view_dependent_cloud();
+    let dc: Vec<glam::Vec3> = cloud.sh.iter().step_by(4).copied().collect();
     let scene = DynamicScene::from_static(cloud.clone());
     let cams = views::orbit(&cloud, 4, 0..2, 32, 24).unwrap();
     let times = [0.0, 0.0];

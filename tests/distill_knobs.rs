@@ -9,27 +9,10 @@ use distill_common::opts;
 use splatbridge::distill::{views, DistillOptions, Distiller, ParamMode};
 use splatbridge_convert::Profile;
 use splatbridge_scene::dynamic::DynamicScene;
-use splatbridge_scene::fixtures::large;
 
-/// A small cloud with a strong first SH band, so that degree 0 and the full degree differ.
+/// The view-dependent cloud of the shared helpers, as a static scene.
 fn view_dependent() -> DynamicScene {
-    let mut cloud = large(300, 7);
-    let n = cloud.len();
-    let k = cloud.sh.len() / n.max(1);
-    let dc: Vec<glam::Vec3> = (0..n).map(|i| cloud.sh[i * k]).collect();
-    cloud.sh_degree = 1;
-    cloud.sh = dc
-        .iter()
-        .flat_map(|&c| {
-            [
-                c,
-                glam::Vec3::splat(0.5),
-                glam::Vec3::new(-0.4, 0.3, 0.2),
-                glam::Vec3::splat(-0.3),
-            ]
-        })
-        .collect();
-    DynamicScene::from_static(cloud)
+    DynamicScene::from_static(distill_common::view_dependent_cloud())
 }
 
 /// `fit_sh_degree` changes the fitting views' targets and nothing else: the first loss is

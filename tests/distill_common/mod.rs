@@ -114,3 +114,25 @@ pub fn trace_export(scene: &DynamicScene, convert: &ConvertOptions) -> (MeshTrac
     let tracer = MeshTracer::new(tri, BackendKind::default(), BuildPreset::default()).unwrap();
     (tracer, bytes)
 }
+
+/// A cloud of `large(300, 7)` with SH degree 1: its DC terms and a strong first band, so
+/// that renders at degree 0 and at the full degree differ.
+pub fn view_dependent_cloud() -> GaussianCloud {
+    let mut cloud = splatbridge_scene::fixtures::large(300, 7);
+    let n = cloud.len();
+    let k = cloud.sh.len() / n.max(1);
+    let dc: Vec<glam::Vec3> = (0..n).map(|i| cloud.sh[i * k]).collect();
+    cloud.sh_degree = 1;
+    cloud.sh = dc
+        .iter()
+        .flat_map(|&c| {
+            [
+                c,
+                glam::Vec3::splat(0.5),
+                glam::Vec3::new(-0.4, 0.3, 0.2),
+                glam::Vec3::splat(-0.3),
+            ]
+        })
+        .collect();
+    cloud
+}
