@@ -158,6 +158,14 @@ fn bad_distillation_options_exit_2_naming_the_option() {
         "--distill-record-transmittance=-0.5",
         "--distill-patience=-1",
         "--distill-patience=three",
+        "--distill-eps-backtrack=-1",
+        "--distill-eps-backtrack=nan",
+        "--distill-colour-step=0",
+        "--distill-colour-step=inf",
+        "--distill-alpha-step=-1",
+        "--distill-alpha-step=nan",
+        "--distill-fit-sh-degree=4",
+        "--distill-log",
     ] {
         let r = run(&[
             "convert",

@@ -145,10 +145,17 @@ impl DistillOptions {
 
     pub fn validate(&self) -> Result<()> {
         let bad = |m: String| Err(DistillError::Invalid(m));
-        if !(self.lr_colour > 0.0 && self.lr_colour.is_finite())
-            || !(self.lr_alpha >= 0.0 && self.lr_alpha.is_finite())
-        {
-            return bad("distillation step sizes must be finite and positive".into());
+        if !(self.lr_colour > 0.0 && self.lr_colour.is_finite()) {
+            return bad(format!(
+                "--distill-colour-step {} must be a finite number > 0",
+                self.lr_colour
+            ));
+        }
+        if !(self.lr_alpha >= 0.0 && self.lr_alpha.is_finite()) {
+            return bad(format!(
+                "--distill-alpha-step {} must be a finite number ≥ 0",
+                self.lr_alpha
+            ));
         }
         if let Some(s) = self.max_seconds {
             if !(s >= 0.0 && s.is_finite()) {
