@@ -145,43 +145,30 @@ impl DistillOptions {
 
     pub fn validate(&self) -> Result<()> {
         let bad = |m: String| Err(DistillError::Invalid(m));
-        if !(self.lr_colour > 0.0 && self.lr_colour.is_finite()) {
-            return bad(format!(
-                "--distill-colour-step {} must be a finite number > 0",
-                self.lr_colour
-            ));
-        }
-        if !(self.lr_alpha >= 0.0 && self.lr_alpha.is_finite()) {
-            return bad(format!(
-                "--distill-alpha-step {} must be a finite number ≥ 0",
-                self.lr_alpha
-            ));
-        }
+        // (option, value, whether 0 is allowed): each a finite number, above 0 or at least 0.
+        let mut numbers = vec![
+            ("--distill-colour-step", self.lr_colour as f64, false),
+            ("--distill-alpha-step", self.lr_alpha as f64, true),
+            ("--distill-position-step", self.lr_position as f64, true),
+            (
+                "--distill-eps-backtrack",
+                self.eps_backtrack_pixels as f64,
+                true,
+            ),
+            ("--distill-eps", self.eps_pixels as f64, true),
+        ];
         if let Some(s) = self.max_seconds {
-            if !(s >= 0.0 && s.is_finite()) {
-                return bad(format!("--distill-time {s} must be a finite number ≥ 0"));
+            numbers.insert(2, ("--distill-time", s, true));
+        }
+        for (name, x, zero) in numbers {
+            let ok = x.is_finite() && (x > 0.0 || (zero && x == 0.0));
+            if !ok {
+                let bound = if zero { "≥ 0" } else { "> 0" };
+                return bad(format!("{name} {x} must be a finite number {bound}"));
             }
         }
         if self.times.iter().any(|t| !t.is_finite()) {
             return bad("distillation times must be finite".into());
-        }
-        if !(self.lr_position >= 0.0 && self.lr_position.is_finite()) {
-            return bad(format!(
-                "--distill-position-step {} must be a finite number ≥ 0",
-                self.lr_position
-            ));
-        }
-        if !(self.eps_backtrack_pixels >= 0.0 && self.eps_backtrack_pixels.is_finite()) {
-            return bad(format!(
-                "--distill-eps-backtrack {} must be a finite number ≥ 0",
-                self.eps_backtrack_pixels
-            ));
-        }
-        if !(self.eps_pixels >= 0.0 && self.eps_pixels.is_finite()) {
-            return bad(format!(
-                "--distill-eps {} must be a finite number ≥ 0",
-                self.eps_pixels
-            ));
         }
         if !(1..=1024).contains(&self.k) {
             return bad(format!("k-buffer size {} is outside 1..=1024", self.k));
