@@ -265,10 +265,9 @@ impl Distiller {
         }
         self.m.iter_mut().for_each(|m| *m = [0.0; 4]);
         self.v.iter_mut().for_each(|v| *v = [0.0; 4]);
-        let it = self.history.len();
-        self.adam_t0 = it;
-        self.eps = self.opts.eps_backtrack_pixels / self.pixels;
-        self.report.backtracked = Some((it, best.iteration));
+        // From this step on Adam counts its steps afresh and takes the backtrack's ε
+        // (`Distiller::eps`).
+        self.report.backtracked = Some((self.history.len(), best.iteration));
         self.guard.since_progress = 0;
         self.guard.closest_refused = None;
     }

@@ -173,14 +173,9 @@ pub struct Distiller {
     start: Instant,
     pub history: Vec<Progress>,
     report: DistillReport,
-    /// Adam's ε for these views' size ([`DistillOptions::eps_pixels`]; after a backtrack
-    /// [`DistillOptions::eps_backtrack_pixels`]), and the views' mean pixel count it is
-    /// divided by.
-    eps: f32,
+    /// The views' mean pixel count, which Adam's ε in pixels' loss is divided by
+    /// ([`Distiller::eps`]).
     pixels: f32,
-    /// The step Adam's bias correction counts from: 0, or the step of the last backtrack
-    /// ([`guard`]), where the moments start again.
-    adam_t0: usize,
     /// The Gaussians' centres when hits are composited in splat order.
     centres: Option<Centres>,
     /// Fitted positions ([`DistillOptions::positions`]).
@@ -322,9 +317,7 @@ impl Distiller {
             opts: opts.clone(),
             start,
             history: Vec::new(),
-            eps: opts.eps_pixels / mean_pixels(cameras),
             pixels: mean_pixels(cameras),
-            adam_t0: 0,
             centres,
             positions: fitted_positions,
             guard: guard::Guard::default(),
@@ -524,7 +517,10 @@ impl Distiller {
     pub fn step(&mut self) -> Result<f64> {
         let which = self.batch(self.history.len());
         let (loss, grad) = self.loss_and_gradient_over(&which)?;
-        let t = (self.history.len() - self.adam_t0) as i32 + 1;
+        // Adam's bias correction counts from the backtrack, where its moments start again.
+        let from = self.report.backtracked.map_or(0, |(at, _)| at);
+        let t = (self.history.len() - from) as i32 + 1;
+        let eps = self.eps();
         let lr = [
             self.opts.lr_colour,
             self.opts.lr_colour,
@@ -539,7 +535,7 @@ impl Distiller {
                 &grad,
                 lr,
                 t,
-                self.eps,
+                eps,
                 |p| p.iter_mut().for_each(|x| *x = x.clamp(0.0, 1.0)),
             ),
             Some(tied) => {
@@ -551,7 +547,7 @@ impl Distiller {
                     &g,
                     lr,
                     t,
-                    self.eps,
+                    eps,
                     Tied::project,
                 );
                 tied.expand(&mut self.params);
@@ -573,7 +569,7 @@ impl Distiller {
                 &g,
                 [lr, lr, lr, 0.0],
                 t,
-                self.eps,
+                eps,
                 |_| {},
             );
         }
@@ -590,6 +586,16 @@ impl Distiller {
         self.report.iterations = self.history.len();
         self.report.seconds = self.start.elapsed().as_secs_f64();
         Ok(loss)
+    }
+
+    /// Adam's ε for these views' size: [`DistillOptions::eps_pixels`], or after a backtrack
+    /// ([`guard`]) [`DistillOptions::eps_backtrack_pixels`], in units of one pixel's loss.
+    fn eps(&self) -> f32 {
+        let e = match self.report.backtracked {
+            Some(_) => self.opts.eps_backtrack_pixels,
+            None => self.opts.eps_pixels,
+        };
+        e / self.pixels
     }
 
     /// Whether the iteration count or the time budget is used up.

@@ -146,9 +146,11 @@ impl DistillOptions {
     pub fn validate(&self) -> Result<()> {
         let bad = |m: String| Err(DistillError::Invalid(m));
         // (option, value, whether 0 is allowed): each a finite number, above 0 or at least 0.
-        let mut numbers = vec![
+        let numbers = [
             ("--distill-colour-step", self.lr_colour as f64, false),
             ("--distill-alpha-step", self.lr_alpha as f64, true),
+            // No budget is a budget of 0: always valid.
+            ("--distill-time", self.max_seconds.unwrap_or(0.0), true),
             ("--distill-position-step", self.lr_position as f64, true),
             (
                 "--distill-eps-backtrack",
@@ -157,9 +159,6 @@ impl DistillOptions {
             ),
             ("--distill-eps", self.eps_pixels as f64, true),
         ];
-        if let Some(s) = self.max_seconds {
-            numbers.insert(2, ("--distill-time", s, true));
-        }
         for (name, x, zero) in numbers {
             let ok = x.is_finite() && (x > 0.0 || (zero && x == 0.0));
             if !ok {

@@ -205,6 +205,23 @@ pub struct Outcome {
     pub held_back_after: Vec<f64>,
 }
 
+/// For `--views auto` on a scene without cameras of its own: the cameras of a 3DGS
+/// `cameras.json` beside the input `input`, if there is one (none otherwise).
+pub fn cameras_beside(
+    views: &str,
+    scene: &DynamicScene,
+    input: &std::path::Path,
+) -> Result<Vec<Camera>> {
+    let beside = input.with_file_name("cameras.json");
+    if views == "auto" && scene.cameras.is_empty() && beside.is_file() {
+        splatbridge_scene::camera::load_cameras_json(&beside).map_err(|e| {
+            super::DistillError::Invalid(format!("--views auto: {}: {e}", beside.display()))
+        })
+    } else {
+        Ok(Vec::new())
+    }
+}
+
 /// The worst (smallest) and the median of `x`.
 pub fn worst_and_median(x: &[f64]) -> Option<(f64, f64)> {
     let mut v: Vec<f64> = x.iter().copied().filter(|a| !a.is_nan()).collect();

@@ -222,7 +222,7 @@ impl DistillArgs {
             lr_position: self.distill_position_step,
             ..DistillOptions::default()
         };
-        let cameras = cameras_beside(&self.views, scene, input)?;
+        let cameras = splatbridge::distill::run::cameras_beside(&self.views, scene, input)?;
         let req = ViewRequest {
             spec: self.views.clone(),
             width: self.distill_width,
@@ -247,78 +247,8 @@ impl DistillArgs {
             std::fs::write(path, json)
                 .with_context(|| format!("--distill-log: {}", path.display()))?;
         }
-        let r = &out.report;
-        eprintln!("distilled: {}", out.description);
-        eprintln!("  parameters: {} ({} vertices)", r.params, r.vertices);
-        eprintln!(
-            "  set-up {:.1} s (native targets {:.1} s, hit recording {:.1} s), {} hits ({} views kept, {} streamed, {:.0} MB), loss {:.4} → {:.4}",
-            r.setup_seconds,
-            r.setup_targets_seconds,
-            r.setup_record_seconds,
-            r.hits,
-            r.stored_views,
-            r.streamed_views,
-            r.hit_bytes as f64 / 1e6,
-            r.loss_first,
-            r.loss_last
-        );
-        if r.validation_views > 0 {
-            eprintln!(
-                "  validation PSNR ({} views): {:.2} dB → {:.2} dB (iteration {} of {} kept)",
-                r.validation_views,
-                r.validation_start,
-                r.validation_kept,
-                r.kept_iteration,
-                r.iterations
-            );
-        }
-        if let Some((at, to)) = r.backtracked {
-            eprintln!(
-                "  the guard refused iteration {at}: the fit went back to iteration {to} and went on with ε {} (--distill-eps-backtrack)",
-                self.distill_eps_backtrack
-            );
-        }
-        if r.stopped_early {
-            let (n, kept, all) = (self.distill_patience, r.kept_iteration, self.iterations);
-            let s = if n == 1 { "" } else { "s" };
-            eprintln!("  stopped after iteration {}: {n} validation{s} in a row without progress (no admissible iteration better than iteration {kept}, none closer to admissible; --distill-patience 0 runs all {all})", r.iterations);
-        }
-        if let Some(v) = &out.best_refused {
-            let (view, change) = v.worst_view();
-            // Rounded up, so the tolerance named does admit the iteration.
-            let tolerance = (-change * 100.0).ceil() / 100.0;
-            eprintln!(
-                "  the guard refused iteration {} (validation mean {:.2} dB, {:+.2}): validation view {} lost {:.2} dB; --distill-guard-tolerance {tolerance:.2} keeps it",
-                v.iteration,
-                v.mean,
-                v.mean - r.validation_kept,
-                view + 1,
-                -change,
-            );
-        }
-        if let (Some((a, b)), Some((worst, median))) = (out.held_back, out.held_back_change) {
-            eprintln!(
-                "  held-back PSNR against native ({} views): {a:.2} dB → {b:.2} dB (change: worst {worst:+.2}, median {median:+.2} dB)",
-                out.held_back_views
-            );
-        }
+        super::distill_report::print(&out, self);
         Ok(())
-    }
-}
-
-/// For `--views auto` on a scene without cameras of its own: the cameras of a 3DGS
-/// `cameras.json` beside the input, if there is one (none otherwise).
-pub fn cameras_beside(
-    views: &str,
-    scene: &DynamicScene,
-    input: &std::path::Path,
-) -> anyhow::Result<Vec<splatbridge_scene::Camera>> {
-    let beside = input.with_file_name("cameras.json");
-    if views == "auto" && scene.cameras.is_empty() && beside.is_file() {
-        splatbridge_scene::camera::load_cameras_json(&beside)
-            .with_context(|| format!("--views auto: {}", beside.display()))
-    } else {
-        Ok(Vec::new())
     }
 }
 

@@ -7,6 +7,7 @@ pub mod compare;
 pub mod convert;
 pub mod demo;
 pub mod distill_args;
+mod distill_report;
 pub mod fixture;
 pub mod hybrid;
 pub mod info;

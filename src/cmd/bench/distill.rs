@@ -60,7 +60,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let scene = input.scene;
     let convert = req.mesh_options(&scene, input.kind)?;
     // As `convert --views auto`: a 3DGS `cameras.json` beside the input when the scene has none.
-    let cameras = distill_args::cameras_beside(&args.views, &scene, &args.scene)?;
+    let cameras = splatbridge::distill::run::cameras_beside(&args.views, &scene, &args.scene)?;
     let req = ViewRequest {
         spec: args.views.clone(),
         width: args.width,
