@@ -20,25 +20,9 @@ fn glb_json(bytes: &[u8]) -> Value {
 /// A small distillation of the street fixture (moving cars) into `out`: four 32×24 views
 /// over two scene times, one held back, with `extra` options; returns stderr.
 fn distil_street(out: &Path, extra: &[&str]) -> String {
-    let scene = street();
-    let mut args = vec![
-        "convert",
-        scene.as_str(),
-        "--distill",
-        "--views",
-        "orbit:4",
-        "--distill-width",
-        "32",
-        "--distill-height",
-        "24",
-        "--held-back",
-        "1",
-        "--distill-times",
-        "2",
-    ];
+    let mut args = vec!["--distill-times", "2"];
     args.extend_from_slice(extra);
-    args.extend(["-o", path(out)]);
-    String::from_utf8_lossy(&ok(&args).stderr).into_owned()
+    cli_common::distil_street_with("1", &args, out)
 }
 
 /// The MeshSplats profile distilled for three steps.

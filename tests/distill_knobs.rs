@@ -4,7 +4,7 @@
 mod cli_common;
 mod distill_common;
 
-use cli_common::{ok, path, street, temp_dir};
+use cli_common::{path, temp_dir};
 use distill_common::opts;
 use splatbridge::distill::{views, DistillOptions, Distiller, ParamMode};
 use splatbridge_convert::Profile;
@@ -101,32 +101,20 @@ fn a_zero_step_keeps_its_channels_as_converted() {
 fn the_distill_log_holds_every_validation_and_the_held_back_views() {
     let dir = temp_dir("distill-knobs", "log");
     let (out, log) = (dir.join("street.glb"), dir.join("fit.json"));
-    let scene = street();
-    let stderr = ok(&[
-        "convert",
-        scene.as_str(),
-        "--distill",
-        "--views",
-        "orbit:4",
-        "--distill-width",
-        "32",
-        "--distill-height",
-        "24",
-        "--held-back",
+    let stderr = cli_common::distil_street_with(
         "2",
-        "--distill-validation",
-        "3",
-        "--iterations",
-        "20",
-        "--distill-patience",
-        "0",
-        "--distill-log",
-        path(&log),
-        "-o",
-        path(&out),
-    ])
-    .stderr;
-    let stderr = String::from_utf8_lossy(&stderr);
+        &[
+            "--distill-validation",
+            "3",
+            "--iterations",
+            "20",
+            "--distill-patience",
+            "0",
+            "--distill-log",
+            path(&log),
+        ],
+        &out,
+    );
     let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&log).unwrap()).unwrap();
     let vals = v["validations"].as_array().unwrap();
     let its: Vec<u64> = vals

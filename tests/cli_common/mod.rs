@@ -45,6 +45,28 @@ pub fn street() -> String {
     concat!(env!("CARGO_MANIFEST_DIR"), "/fixtures/street/scene.json").into()
 }
 
+/// `convert STREET --distill` of four 32×24 views with `held_back` held-back views, then
+/// `extra` and `-o out`: the small distillation the CLI tests run; returns stderr.
+pub fn distil_street_with(held_back: &str, extra: &[&str], out: &Path) -> String {
+    let scene = street();
+    let mut args = vec![
+        "convert",
+        scene.as_str(),
+        "--distill",
+        "--views",
+        "orbit:4",
+        "--distill-width",
+        "32",
+        "--distill-height",
+        "24",
+        "--held-back",
+        held_back,
+    ];
+    args.extend_from_slice(extra);
+    args.extend(["-o", path(out)]);
+    String::from_utf8_lossy(&ok(&args).stderr).into_owned()
+}
+
 pub fn run(args: &[&str]) -> Output {
     Command::new(BIN)
         .args(args)
