@@ -57,6 +57,7 @@ use rayon::prelude::*;
 use splatbridge_convert::vertex_colours::VertexColours;
 use splatbridge_convert::ConvertOptions;
 
+use splatbridge_raytrace::hit_record::{HitLists, RecordedHit};
 use splatbridge_raytrace::{BackendKind, BuildPreset, MeshTracer, RenderOptions};
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::{Camera, Frame};
@@ -422,30 +423,35 @@ impl Distiller {
 
     /// Trace one view's hit lists at scene time `time` with the tracer's current colours.
     fn record(&self, cam: &Camera, time: f64) -> Result<ViewHits> {
-        let mut lists = self.tracer.record_hits(
-            cam,
-            time,
-            self.opts.record_k,
-            self.opts.record_transmittance,
-        )?;
         let scene = &self.tracer.scene;
-        if let Some(c) = &self.centres {
-            c.reorder(scene, &mut lists, cam, time);
-        }
-        let hits = lists
-            .hits
-            .iter()
-            .map(|h| Rec {
-                tri: self.tri_base[h.mesh as usize] + h.tri,
-                bary: h.bary,
-                fa: hit_alpha_factor(scene, h.mesh as usize, h.tri as usize, h.bary),
-            })
-            .collect();
+        let rec = |h: &RecordedHit| Rec {
+            tri: self.tri_base[h.mesh as usize] + h.tri,
+            bary: h.bary,
+            fa: hit_alpha_factor(scene, h.mesh as usize, h.tri as usize, h.bary),
+        };
+        let (k, tr) = (self.opts.record_k, self.opts.record_transmittance);
+        let lists = match &self.centres {
+            // Splat order sorts each pixel's hits by their distances, which `Rec` does not
+            // keep: sorted first, then made `Rec`s.
+            Some(c) => {
+                let mut lists = self.tracer.record_hits(cam, time, k, tr)?;
+                c.reorder(scene, &mut lists, cam, time);
+                HitLists {
+                    hits: lists.hits.par_iter().map(rec).collect(),
+                    width: lists.width,
+                    height: lists.height,
+                    offsets: lists.offsets,
+                }
+            }
+            // Each hit made a `Rec` as the lists are assembled (no list of every hit in the
+            // tracer's form).
+            None => self.tracer.record_hits_map(cam, time, k, tr, rec)?,
+        };
         Ok(ViewHits {
             width: lists.width,
             height: lists.height,
             offsets: lists.offsets,
-            hits,
+            hits: lists.hits,
             tris: self.tris.clone(),
         })
     }

@@ -30,13 +30,14 @@ pub struct RecordedHit {
     pub t: f32,
 }
 
-/// Every pixel's hits, row-major: pixel `p`'s hits are `hits[offsets[p]..offsets[p + 1]]`.
+/// Every pixel's hits, row-major: pixel `p`'s hits are `hits[offsets[p]..offsets[p + 1]]`;
+/// each hit a [`RecordedHit`], or what [`MeshTracer::record_hits_map`] made of it.
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct HitLists {
+pub struct HitLists<H = RecordedHit> {
     pub width: u32,
     pub height: u32,
     pub offsets: Vec<u64>,
-    pub hits: Vec<RecordedHit>,
+    pub hits: Vec<H>,
 }
 
 /// Record hit `h` of mesh `mesh` where it shades to α > 0, and composite its α into `acc`:
@@ -64,8 +65,8 @@ pub(crate) fn record(
     acc.tr < min_transmittance
 }
 
-impl HitLists {
-    pub fn pixel(&self, p: usize) -> &[RecordedHit] {
+impl<H> HitLists<H> {
+    pub fn pixel(&self, p: usize) -> &[H] {
         &self.hits[self.offsets[p] as usize..self.offsets[p + 1] as usize]
     }
 }
@@ -119,10 +120,33 @@ impl MeshTracer {
         k: usize,
         min_transmittance: f32,
     ) -> Result<HitLists> {
+        self.record_hits_map(cam, time, k, min_transmittance, |h| *h)
+    }
+
+    /// [`MeshTracer::record_hits`] with each hit stored as `map` makes it (a consumer's own
+    /// record of a hit, made as the lists are assembled instead of in a pass over them).
+    pub fn record_hits_map<T, F>(
+        &self,
+        cam: &Camera,
+        time: f64,
+        k: usize,
+        min_transmittance: f32,
+        map: F,
+    ) -> Result<HitLists<T>>
+    where
+        T: Copy + Send + Sync,
+        F: Fn(&RecordedHit) -> T + Sync,
+    {
         if self.tiles_pay(time, cam.width as u64 * cam.height as u64) {
-            return self.record_hits_tiles(cam, time, min_transmittance);
+            return self.record_hits_tiles_map(cam, time, min_transmittance, map);
         }
-        self.record_hits_per_ray(cam, time, k, min_transmittance)
+        let lists = self.record_hits_per_ray(cam, time, k, min_transmittance)?;
+        Ok(HitLists {
+            width: lists.width,
+            height: lists.height,
+            hits: lists.hits.par_iter().map(&map).collect(),
+            offsets: lists.offsets,
+        })
     }
 
     /// [`MeshTracer::record_hits`] ray by ray through the BVHs and k-buffer rounds.

@@ -8,6 +8,8 @@
 //! renders a `GaussianCloud`; [`secondary`] answers transmittance and closest-opaque queries.
 
 pub mod backend;
+#[cfg(test)]
+mod hit_record_tests;
 mod mesh_bin;
 mod mesh_cands;
 #[cfg(test)]

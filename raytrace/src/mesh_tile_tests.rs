@@ -136,7 +136,7 @@ pub(crate) fn blend() -> Vec<Material> {
 
 /// Two meshes, four static nodes (the first mesh twice, one node rotated and scaled, one under
 /// a scaled parent), around `offset`.
-fn scene(seed: u64, offset: Vec3, both: bool) -> TriScene {
+pub(crate) fn scene(seed: u64, offset: Vec3, both: bool) -> TriScene {
     let a = random_mesh(seed, 160, 1.0, offset, both);
     let b = random_mesh(seed ^ 0xABCD, 90, 0.5, offset, both);
     TriScene {
@@ -172,7 +172,7 @@ fn scene(seed: u64, offset: Vec3, both: bool) -> TriScene {
 
 /// A camera outside the scene and one inside it (triangles reach behind it and around it),
 /// at sizes that are not multiples of a tile.
-fn cameras(offset: DVec3) -> Vec<Camera> {
+pub(crate) fn cameras(offset: DVec3) -> Vec<Camera> {
     vec![
         Camera::look_at(
             offset + DVec3::new(0.4, -0.6, -4.0),
@@ -198,7 +198,13 @@ fn cameras(offset: DVec3) -> Vec<Camera> {
 /// The reference hits of one ray: every triangle of every instance through the per-candidate
 /// test into a buffer with neither a capacity nor a stop, then cut after the hit where
 /// compositing's transmittance falls below `min_t`.
-fn reference(tracer: &MeshTracer, time: f64, o: DVec3, d: DVec3, min_t: f32) -> Vec<MeshHit> {
+pub(crate) fn reference(
+    tracer: &MeshTracer,
+    time: f64,
+    o: DVec3,
+    d: DVec3,
+    min_t: f32,
+) -> Vec<MeshHit> {
     let insts = tracer.prepare_list(time);
     let mut buf = KBuffer::unbounded();
     buf.shade_on_insert = true;

@@ -366,15 +366,28 @@ pub(crate) fn local_ray(
 }
 
 impl MeshTracer {
-    /// [`MeshTracer::record_hits`] through the tile lists: each pixel centre's hits in
+    /// [`MeshTracer::record_hits_map`] through the tile lists: each pixel centre's hits in
     /// compositing order, up to the hit that takes the transmittance below `min_transmittance`
-    /// (the walk of [`MeshTracer::ordered_hits`], on the same hits).
-    pub(crate) fn record_hits_tiles(
+    /// (the walk of [`MeshTracer::ordered_hits`], on the same hits), each stored as `map` makes
+    /// it.
+    ///
+    /// A tile's hits are recorded into its thread's scratch list (reused tile after tile, so a
+    /// tile neither grows a fresh list nor faults in new pages), stored mapped in a list of
+    /// their exact count, and finally copied into the row-major lists image row by image row
+    /// in parallel: each hit is written twice after its recording, and no list of all hits
+    /// exists in another form (`docs/distill-time.md`, "Recording straight into the fit's
+    /// lists").
+    pub(crate) fn record_hits_tiles_map<T, F>(
         &self,
         cam: &Camera,
         time: f64,
         min_transmittance: f32,
-    ) -> Result<HitLists> {
+        map: F,
+    ) -> Result<HitLists<T>>
+    where
+        T: Copy + Send + Sync,
+        F: Fn(&RecordedHit) -> T + Sync,
+    {
         cam.validate()?;
         let insts = self.prepare_list(time);
         // One ray through each pixel's centre.
@@ -382,77 +395,107 @@ impl MeshTracer {
         let (w, h) = (cam.width as usize, cam.height as usize);
         let t = TILE as usize;
         let (tw, th) = (w.div_ceil(t), h.div_ceil(t));
-        // Per tile: each pixel's hit count (row-major in the tile) and the hits.
-        let tiles: Vec<(Vec<u32>, Vec<RecordedHit>)> = (0..tw * th)
+        // Per tile: each pixel's hit count (row-major in the tile), where each of its pixel
+        // rows' hits start, and the hits.
+        let tiles: Vec<RecordedTile<T>> = (0..tw * th)
             .into_par_iter()
             .map_init(
-                || TileCtx::empty(insts.len()),
-                |ctx, k| {
+                || (TileCtx::empty(insts.len()), Vec::new()),
+                |(ctx, scratch), k| {
                     let (tx, ty) = (k % tw, k / tw);
                     ctx.fill(&lists, tx as u32, ty as u32);
-                    let (mut counts, mut hits) = (Vec::with_capacity(t * t), Vec::new());
+                    scratch.clear();
+                    let mut counts = Vec::with_capacity(t * t);
+                    let mut row_start = Vec::with_capacity(t + 1);
                     for j in ty * t..((ty + 1) * t).min(h) {
+                        row_start.push(scratch.len());
                         for i in tx * t..((tx + 1) * t).min(w) {
                             let uv = (i as f64 + 0.5, j as f64 + 0.5);
                             let (o, d) = camera_ray(cam, uv.0, uv.1);
                             self.tile_hits(&insts, ctx, o, d, uv, min_transmittance);
-                            let before = hits.len();
+                            let before = scratch.len();
                             let mut acc = Accum::default();
                             for hit in &ctx.buf.hits {
                                 let mesh = insts[hit.instance as usize].mesh;
-                                if record(hit, mesh, &mut acc, &mut hits, min_transmittance) {
+                                if record(hit, mesh, &mut acc, scratch, min_transmittance) {
                                     break;
                                 }
                             }
-                            counts.push((hits.len() - before) as u32);
+                            counts.push((scratch.len() - before) as u32);
                         }
                     }
-                    (counts, hits)
+                    row_start.push(scratch.len());
+                    RecordedTile {
+                        counts,
+                        row_start,
+                        hits: scratch.iter().map(&map).collect(),
+                    }
                 },
             )
             .collect();
-        // Row-major pixels from the tiles' row-major pixels.
+        // Row-major offsets from the tiles' row-major pixels.
         let mut count = vec![0u32; w * h];
-        for (k, (c, _)) in tiles.iter().enumerate() {
+        for (k, tile) in tiles.iter().enumerate() {
             let (tx, ty) = (k % tw, k / tw);
             let x0 = tx * t;
             let tw_px = (x0 + t).min(w) - x0;
-            for (n, &cnt) in c.iter().enumerate() {
+            for (n, &cnt) in tile.counts.iter().enumerate() {
                 count[(ty * t + n / tw_px) * w + x0 + n % tw_px] = cnt;
             }
         }
-        let mut out = HitLists {
+        let mut offsets = Vec::with_capacity(w * h + 1);
+        offsets.push(0u64);
+        for &c in &count {
+            let last = *offsets.last().unwrap_or(&0);
+            offsets.push(last + c as u64);
+        }
+        let total = *offsets.last().unwrap_or(&0) as usize;
+        let mut hits: Vec<T> = Vec::with_capacity(total);
+        {
+            // Image row j's hits are the hits of its pixel row in each tile of its tile row,
+            // tile after tile: one disjoint range of the output per row.
+            let mut rows = Vec::with_capacity(h);
+            let mut rest = &mut hits.spare_capacity_mut()[..total];
+            for j in 0..h {
+                let n = (offsets[(j + 1) * w] - offsets[j * w]) as usize;
+                let (row, tail) = rest.split_at_mut(n);
+                rows.push(row);
+                rest = tail;
+            }
+            rows.into_par_iter().enumerate().for_each(|(j, dst)| {
+                let (ty, r) = (j / t, j % t);
+                let mut at = 0;
+                for tile in &tiles[ty * tw..(ty + 1) * tw] {
+                    let src = &tile.hits[tile.row_start[r]..tile.row_start[r + 1]];
+                    for (d, s) in dst[at..at + src.len()].iter_mut().zip(src) {
+                        d.write(*s);
+                    }
+                    at += src.len();
+                }
+                // The row's length is the sum of its pixels' counts, which are these ranges'
+                // lengths: every slot of the row is written (checked, not assumed, for the
+                // `set_len` below).
+                assert_eq!(at, dst.len(), "a row's recorded hits fill its range");
+            });
+        }
+        // SAFETY: the rows split `spare_capacity_mut()[..total]` into disjoint ranges that
+        // cover it (their lengths add up to `offsets[w·h] = total`), and every row asserted
+        // above that it wrote each of its slots; a failed assertion panics before this line.
+        unsafe { hits.set_len(total) };
+        Ok(HitLists {
             width: cam.width,
             height: cam.height,
-            offsets: Vec::with_capacity(w * h + 1),
-            hits: Vec::with_capacity(tiles.iter().map(|x| x.1.len()).sum()),
-        };
-        out.offsets.push(0);
-        for &c in &count {
-            let last = *out.offsets.last().unwrap_or(&0);
-            out.offsets.push(last + c as u64);
-        }
-        out.hits.resize(
-            *out.offsets.last().unwrap_or(&0) as usize,
-            RecordedHit {
-                mesh: 0,
-                tri: 0,
-                bary: [0.0; 3],
-                t: 0.0,
-            },
-        );
-        for (k, (c, hs)) in tiles.iter().enumerate() {
-            let (tx, ty) = (k % tw, k / tw);
-            let x0 = tx * t;
-            let tw_px = (x0 + t).min(w) - x0;
-            let mut at = 0usize;
-            for (n, &cnt) in c.iter().enumerate() {
-                let p = (ty * t + n / tw_px) * w + x0 + n % tw_px;
-                let dst = out.offsets[p] as usize;
-                out.hits[dst..dst + cnt as usize].copy_from_slice(&hs[at..at + cnt as usize]);
-                at += cnt as usize;
-            }
-        }
-        Ok(out)
+            offsets,
+            hits,
+        })
     }
+}
+
+/// One tile's recorded hits (see [`MeshTracer::record_hits_tiles_map`]).
+struct RecordedTile<T> {
+    /// Each pixel's hit count, row-major in the tile.
+    counts: Vec<u32>,
+    /// Where each of the tile's pixel rows' hits start in `hits`, and their end.
+    row_start: Vec<usize>,
+    hits: Vec<T>,
 }
