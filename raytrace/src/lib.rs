@@ -10,6 +10,8 @@
 pub mod backend;
 #[cfg(test)]
 mod hit_record_tests;
+#[cfg(test)]
+mod mesh_alpha_tests;
 mod mesh_bin;
 mod mesh_cands;
 #[cfg(test)]

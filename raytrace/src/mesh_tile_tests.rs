@@ -245,7 +245,7 @@ pub(crate) fn reference(
 /// Trace sample `uv` through the tile path (stop at transmittance 1e-4) and require its hits
 /// to be the reference's (stopped at `min_t`) bit for bit, as far as the reference goes;
 /// returns the reference's hits.
-fn check_sample(
+pub(crate) fn check_sample(
     tracer: &MeshTracer,
     insts: &[PreparedInstance],
     ctx: &mut TileCtx,

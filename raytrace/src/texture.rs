@@ -24,6 +24,10 @@ pub struct Texture {
     pub wrap: [Wrap; 2],
     /// Nearest-neighbour magnification/minification (sampler filter NEAREST); bilinear otherwise.
     pub nearest: bool,
+    /// Per texel `(x, y)`, row-major: every texel of the 4×4 block `x − 1 ..= x + 2`,
+    /// `y − 1 ..= y + 2` lies inside the image and has alpha exactly 0 (see
+    /// [`Texture::alpha_zero_near`]).
+    alpha_zero: Vec<bool>,
 }
 
 /// How texels are kept: an 8-bit image as its bytes (a quarter of the memory, so a sample's
@@ -93,13 +97,56 @@ impl Texture {
     }
 
     fn of(width: u32, height: u32, texels: Texels, wrap: [Wrap; 2], nearest: bool) -> Self {
-        Texture {
+        let mut t = Texture {
             width,
             height,
             texels,
             wrap,
             nearest,
+            alpha_zero: Vec::new(),
+        };
+        t.alpha_zero = t.zero_blocks();
+        t
+    }
+
+    /// [`Texture::alpha_zero`]'s blocks: whether each texel's alpha is 0, then a sliding
+    /// 4-wide "all" along rows and along columns (the block of `(x, y)` starts one texel
+    /// before it on each axis).
+    fn zero_blocks(&self) -> Vec<bool> {
+        let (w, h) = (self.width as usize, self.height as usize);
+        if w * h != self.len() || w < 4 || h < 4 {
+            return vec![false; self.len()];
         }
+        let zero: Vec<bool> = self.texels().map(|t| t.w == 0.0).collect();
+        let block = |get: &dyn Fn(usize, usize) -> bool, x: usize, y: usize, n: usize| {
+            // Texels x − 1 ..= x + 2 along an axis of n texels.
+            x >= 1 && x + 2 < n && (x - 1..=x + 2).all(|i| get(i, y))
+        };
+        let rows: Vec<bool> = (0..w * h)
+            .map(|i| block(&|x, y| zero[y * w + x], i % w, i / w, w))
+            .collect();
+        (0..w * h)
+            .map(|i| block(&|y, x| rows[y * w + x], i / w, i % w, h))
+            .collect()
+    }
+
+    /// Whether the alpha [`Texture::sample`] gives is exactly 0 at every texture coordinate
+    /// less than one texel from `uv` along each axis: the bilinear (or nearest) texels of any
+    /// such coordinate lie in the all-zero block around `uv`'s first texel, inside the image
+    /// where no wrap mode moves them, and a weighted sum of zeros is zero. Lets a caller that
+    /// found α = 0 at `uv` know it for a coordinate computed from the same barycentrics in
+    /// another order (`mesh_hit`: a triangle's other winding).
+    pub fn alpha_zero_near(&self, uv: Vec2) -> bool {
+        if self.alpha_zero.is_empty() || !uv.is_finite() {
+            return false;
+        }
+        let x = floor(uv.x as f64 * self.width as f64 - 0.5);
+        let y = floor(uv.y as f64 * self.height as f64 - 0.5);
+        let (w, h) = (self.width as f64, self.height as f64);
+        if !(x >= 0.0 && x < w && y >= 0.0 && y < h) {
+            return false;
+        }
+        self.alpha_zero[y as usize * self.width as usize + x as usize]
     }
 
     /// Number of texels.
