@@ -5,7 +5,7 @@
 //! in both windings trace to the brute-force reference's hits and images bit for bit, with
 //! the settling taken.
 
-use glam::{DVec3, Quat, Vec2, Vec3, Vec4};
+use glam::{DVec3, Vec2, Vec3, Vec4};
 
 use super::footprint::sample_offsets;
 use super::mesh_bin::TileLists;
@@ -91,13 +91,7 @@ fn textured_scene(seed: u64) -> TriScene {
     };
     for g in 0..120u32 {
         let c = Vec3::new(r.range(-1.0, 1.0), r.range(-1.0, 1.0), r.range(-1.0, 1.0));
-        let q = Quat::from_xyzw(
-            r.range(-1.0, 1.0),
-            r.range(-1.0, 1.0),
-            r.range(-1.0, 1.0),
-            r.range(-1.0, 1.0),
-        )
-        .normalize();
+        let q = r.rotation();
         let (a0, a1) = (
             q * Vec3::X * r.range(0.05, 0.4),
             q * Vec3::Y * r.range(0.05, 0.4),

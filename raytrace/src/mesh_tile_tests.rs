@@ -36,6 +36,16 @@ impl Rng {
     pub(crate) fn range(&mut self, a: f32, b: f32) -> f32 {
         a + (b - a) * self.f()
     }
+    /// A random rotation (a normalised quaternion of random components).
+    pub(crate) fn rotation(&mut self) -> Quat {
+        Quat::from_xyzw(
+            self.range(-1.0, 1.0),
+            self.range(-1.0, 1.0),
+            self.range(-1.0, 1.0),
+            self.range(-1.0, 1.0),
+        )
+        .normalize()
+    }
 }
 
 /// A fan of `n` triangles (`gid`'s; α `rgba.w` at the centre, `rim·rgba.w` at the rim), and,
@@ -91,13 +101,7 @@ pub(crate) fn random_mesh(seed: u64, n: usize, extent: f32, offset: Vec3, both: 
                 r.range(-extent, extent),
                 r.range(-extent, extent),
             );
-        let q = Quat::from_xyzw(
-            r.range(-1.0, 1.0),
-            r.range(-1.0, 1.0),
-            r.range(-1.0, 1.0),
-            r.range(-1.0, 1.0),
-        )
-        .normalize();
+        let q = r.rotation();
         let big = if g % 53 == 0 { 6.0 } else { 1.0 };
         let s = Vec3::new(r.range(0.05, 0.4), r.range(0.05, 0.4), 1.0) * extent * 0.4 * big;
         let mut rgba = Vec4::new(r.f(), r.f(), r.f(), r.range(0.1, 1.0));
