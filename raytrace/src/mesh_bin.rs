@@ -343,7 +343,9 @@ fn list_order(cands: &[Cand]) -> Vec<u32> {
     keys.par_iter().map(|&k| k as u32).collect()
 }
 
-/// Each triangle's other winding (`mesh_cands::mirror_pairs` over the mesh's groups).
+/// Each triangle's other winding (`mesh_cands::mirror_pairs` over the mesh's groups), where
+/// the two share their material too: a shade of α = 0 settles the other winding only when it
+/// samples the same texture (`MeshTracer::zero_alpha_settles`).
 fn winding_pairs(mesh: &crate::model::Mesh, blas: &crate::mesh_tracer::Blas) -> Vec<u32> {
     let mut group = vec![0u32; mesh.tris.len()];
     for p in 0..blas.run_start.len().saturating_sub(1) {
@@ -351,7 +353,15 @@ fn winding_pairs(mesh: &crate::model::Mesh, blas: &crate::mesh_tracer::Blas) -> 
             group[t] = blas.group.get(p, t);
         }
     }
-    mirror_pairs(&mesh.tris, &mesh.tri_gaussian, &group)
+    let mut pairs = mirror_pairs(&mesh.tris, &mesh.tri_gaussian, &group);
+    let material = |t: usize| mesh.tri_material.get(t);
+    for t in 0..pairs.len() {
+        let m = pairs[t];
+        if m != u32::MAX && material(t) != material(m as usize) {
+            pairs[t] = u32::MAX;
+        }
+    }
+    pairs
 }
 
 /// Each group's largest triangle side, in the mesh's units (the planarity tolerance of its
