@@ -62,13 +62,11 @@ pub(crate) fn quantise(p: [f32; 4]) -> [f32; 4] {
 /// vertex alpha by.
 pub(crate) fn hit_alpha_factor(scene: &TriScene, mesh: usize, tri: usize, bary: [f32; 3]) -> f32 {
     let m = &scene.meshes[mesh];
-    let Some(mat) = scene.materials.get(m.tri_material.get(tri) as usize) else {
+    let Some(mat) = m.material(tri, &scene.materials) else {
         return 1.0;
     };
     let mut a = mat.base_color.w;
-    if let (Some(tex), Some(uvs)) = (mat.texture.and_then(|t| scene.textures.get(t)), &m.uvs) {
-        let [i0, i1, i2] = m.tris[tri].map(|i| i as usize);
-        let uv = uvs[i0] * bary[0] + uvs[i1] * bary[1] + uvs[i2] * bary[2];
+    if let Some((tex, uv)) = m.texture_at(tri, bary, mat, &scene.textures) {
         a *= tex.sample(uv).w;
     }
     a

@@ -186,28 +186,19 @@ impl MeshTracer {
     /// This is the texture profile's corners, outside the falloff's disc: a fifth of the
     /// default export's candidates at 1080p (`docs/trace-speed-mesh.md`).
     fn zero_alpha_settles(&self, m: &crate::model::Mesh, prim: u32, bary: [f32; 3]) -> bool {
-        let Some(uvs) = &m.uvs else {
+        let tri = prim as usize;
+        let Some(mat) = m.material(tri, &self.scene.materials) else {
             return false;
         };
-        let Some(mat) = self
-            .scene
-            .materials
-            .get(m.tri_material.get(prim as usize) as usize)
-        else {
-            return false;
-        };
-        let Some(tex) = mat.texture.and_then(|t| self.scene.textures.get(t)) else {
+        let Some((tex, uv)) = m.texture_at(tri, bary, mat, &self.scene.textures) else {
             return false;
         };
         // Below f32's largest: an interpolation of them cannot overflow to ±∞ (whose product
         // with a zero alpha would be NaN, not 0).
         let bounded = |a: f32| a.abs() < 1e30;
-        let [i0, i1, i2] = m.tris[prim as usize].map(|i| i as usize);
-        if !([i0, i1, i2].iter().all(|&i| bounded(m.colors[i].w)) && bounded(mat.base_color.w)) {
-            return false;
-        }
-        let uv = uvs[i0] * bary[0] + uvs[i1] * bary[1] + uvs[i2] * bary[2];
-        tex.alpha_zero_near(uv)
+        bounded(mat.base_color.w)
+            && m.tris[tri].iter().all(|&i| bounded(m.colors[i as usize].w))
+            && tex.alpha_zero_near(uv)
     }
 }
 

@@ -563,12 +563,9 @@ impl Mesh {
         let mut c =
             self.colors[i0] * bary[0] + self.colors[i1] * bary[1] + self.colors[i2] * bary[2];
         let default = Material::default();
-        let m = materials
-            .get(self.tri_material.get(tri) as usize)
-            .unwrap_or(&default);
+        let m = self.material(tri, materials).unwrap_or(&default);
         c *= m.base_color;
-        if let (Some(tex), Some(uvs)) = (m.texture.and_then(|t| textures.get(t)), &self.uvs) {
-            let uv = uvs[i0] * bary[0] + uvs[i1] * bary[1] + uvs[i2] * bary[2];
+        if let Some((tex, uv)) = self.texture_at(tri, bary, m, textures) {
             c *= tex.sample(uv);
         }
         let a = c.w.clamp(0.0, 1.0);
@@ -584,6 +581,34 @@ impl Mesh {
             AlphaMode::Blend => a,
         };
         Vec4::new(c.x, c.y, c.z, a)
+    }
+
+    /// Triangle `tri`'s material, if its index names one.
+    #[inline]
+    pub fn material<'a>(&self, tri: usize, materials: &'a [Material]) -> Option<&'a Material> {
+        materials.get(self.tri_material.get(tri) as usize)
+    }
+
+    /// The texture material `m` samples on triangle `tri` (whose material it is) and the
+    /// texture coordinate at barycentric position `bary`: None when `m` has no texture or the
+    /// mesh no coordinates. The one place a hit's coordinate is formed, for shading and for
+    /// whatever reads the same texel again (`mesh_hit`'s zero-alpha rule, distillation's
+    /// alpha factor).
+    #[inline]
+    pub fn texture_at<'a>(
+        &self,
+        tri: usize,
+        bary: [f32; 3],
+        m: &Material,
+        textures: &'a [Texture],
+    ) -> Option<(&'a Texture, Vec2)> {
+        let tex = m.texture.and_then(|t| textures.get(t))?;
+        let uvs = self.uvs.as_ref()?;
+        let [i0, i1, i2] = self.tris[tri].map(|i| i as usize);
+        Some((
+            tex,
+            uvs[i0] * bary[0] + uvs[i1] * bary[1] + uvs[i2] * bary[2],
+        ))
     }
 
     /// Fill `tri_gaussian` with connected-component indices (vertices shared through the index

@@ -140,8 +140,8 @@ impl Texture {
         if self.alpha_zero.is_empty() || !uv.is_finite() {
             return false;
         }
-        let x = floor(uv.x as f64 * self.width as f64 - 0.5);
-        let y = floor(uv.y as f64 * self.height as f64 - 0.5);
+        let (x, y) = self.texel_coords(uv);
+        let (x, y) = (floor(x), floor(y));
         let (w, h) = (self.width as f64, self.height as f64);
         if !(x >= 0.0 && x < w && y >= 0.0 && y < h) {
             return false;
@@ -197,13 +197,22 @@ impl Texture {
         self.texel_at(yi * self.width as usize + xi)
     }
 
+    /// Texture coordinate `uv` in texels, texel centres at integers: what [`Texture::sample`]
+    /// filters and [`Texture::alpha_zero_near`] looks up, the same numbers for both.
+    #[inline(always)]
+    fn texel_coords(&self, uv: Vec2) -> (f64, f64) {
+        (
+            uv.x as f64 * self.width as f64 - 0.5,
+            uv.y as f64 * self.height as f64 - 0.5,
+        )
+    }
+
     /// Sample at texture coordinate `uv` (texel centres at (i + 0.5)/size).
     pub fn sample(&self, uv: Vec2) -> Vec4 {
         if self.is_empty() || !uv.is_finite() {
             return Vec4::ONE;
         }
-        let x = uv.x as f64 * self.width as f64 - 0.5;
-        let y = uv.y as f64 * self.height as f64 - 0.5;
+        let (x, y) = self.texel_coords(uv);
         if self.nearest {
             return self.texel(x.round() as i64, y.round() as i64);
         }
