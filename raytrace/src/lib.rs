@@ -16,6 +16,9 @@ mod mesh_bin;
 mod mesh_cands;
 #[cfg(test)]
 mod mesh_cull_tests;
+#[cfg(test)]
+mod mesh_group_tests;
+mod mesh_groups;
 pub(crate) mod mesh_hit;
 #[cfg(test)]
 mod mesh_tile_tests;

@@ -18,6 +18,7 @@ use splatbridge_scene::Camera;
 
 use crate::geom::order_bits;
 use crate::mesh_cands::{mirror_pairs, Cand, Edges};
+use crate::mesh_groups::{GroupTable, GROUP_MARK};
 use crate::mesh_tiles::TILE;
 use crate::mesh_tracer::{MeshTracer, PreparedInstance};
 
@@ -124,7 +125,9 @@ impl TileLists {
             let (blas, mesh) = (&tracer.blas[inst.mesh], &tracer.scene.meshes[inst.mesh]);
             if !(mesh.tris.is_empty() || blas.run_start.is_empty()) {
                 blas.group_extent.get_or_init(|| group_extents(mesh, blas));
-                blas.mirror.get_or_init(|| winding_pairs(mesh, blas));
+                let mirror = blas.mirror.get_or_init(|| winding_pairs(mesh, blas));
+                blas.groups
+                    .get_or_init(|| GroupTable::new(mesh, blas, mirror));
             }
         });
         let mut cands: Vec<Cand> = Vec::new();
@@ -191,13 +194,73 @@ impl TileLists {
                 *z -= 2e-3 * scale * e;
             }
             let mirror = blas.mirror.get_or_init(|| winding_pairs(mesh, blas));
+            let table = blas
+                .groups
+                .get_or_init(|| GroupTable::new(mesh, blas, mirror));
             let tris = &mesh.tris;
             let extent = w.max(h) + 1.0;
+            // The rectangle and pre-test of projected points `v` (bounds `r`) whose nearest
+            // lies at view depth `zfront`; None where no ray of the image can meet them.
+            let screen = |r: [f64; 4], zfront: f64, edges: &dyn Fn(f64) -> Edges| {
+                if !(zfront > slack) {
+                    return Some(everywhere());
+                }
+                let m =
+                    |x: f64| RECT_MARGIN + 1e-5 * x.abs() + ORIGIN_MARGIN * focal * reach / zfront;
+                let ms = r.map(m);
+                let r = [r[0] - ms[0], r[1] - ms[1], r[2] + ms[2], r[3] + ms[3]];
+                if !r.iter().all(|x| x.is_finite()) {
+                    return Some(everywhere());
+                }
+                if r[2] < 0.0 || r[3] < 0.0 || r[0] > w || r[1] > h {
+                    return None;
+                }
+                // The rectangle's margin bounds how far along each axis the test's
+                // rounding moves a crossing; twice the largest bounds its distance.
+                let margin = 2.0 * ms.iter().fold(0.0f64, |a, &b| a.max(b));
+                let rect = [down(r[0]), down(r[1]), up(r[2]), up(r[3])];
+                Some((rect, samples.may_pass(&rect, || edges(margin))?))
+            };
             let make = |p: usize, t: usize| -> Option<Cand> {
                 // The higher-indexed triangle of a winding pair goes with the lower one.
                 let pair = mirror[t];
                 if pair < t as u32 {
                     return None;
+                }
+                let g = blas.group.get(p, t);
+                let zg = gz[g as usize];
+                let zmin = down(zg - 1e-5 * zg.abs() - slack);
+                if table.is_big(g) {
+                    // One record for the whole group, made at its first triangle
+                    // (`mesh_groups`): its rectangle holds every member's.
+                    let members = table.members(g);
+                    if members[0] != t as u32 {
+                        return None;
+                    }
+                    let v = members
+                        .iter()
+                        .flat_map(|&m| tris[m as usize])
+                        .map(|i| proj[i as usize]);
+                    let (zfront, zmax) = v
+                        .clone()
+                        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
+                            (a.min(p.z), b.max(p.z))
+                        });
+                    if zmax < -slack {
+                        return None;
+                    }
+                    let (rect, edges) =
+                        screen(bounds(v.map(|p| (p.u, p.v))), zfront, &|_| Edges::ALL)?;
+                    return Some(Cand {
+                        zmin,
+                        rect,
+                        edges,
+                        verts: [glam::Vec3::ZERO; 3],
+                        inst: ii as u32,
+                        tri: t as u32,
+                        group: g,
+                        mirror: GROUP_MARK,
+                    });
                 }
                 let v = tris[t].map(|i| proj[i as usize]);
                 let zmax = v[0].z.max(v[1].z).max(v[2].z);
@@ -205,33 +268,11 @@ impl TileLists {
                 if zmax < -slack {
                     return None;
                 }
-                let g = blas.group.get(p, t);
-                let zg = gz[g as usize];
-                let zmin = down(zg - 1e-5 * zg.abs() - slack);
                 let zfront = v[0].z.min(v[1].z).min(v[2].z);
-                let (rect, edges) = if zfront > slack {
-                    let m = |x: f64| {
-                        RECT_MARGIN + 1e-5 * x.abs() + ORIGIN_MARGIN * focal * reach / zfront
-                    };
-                    let r = bounds(v.iter().map(|p| (p.u, p.v)));
-                    let ms = r.map(m);
-                    let r = [r[0] - ms[0], r[1] - ms[1], r[2] + ms[2], r[3] + ms[3]];
-                    if !r.iter().all(|x| x.is_finite()) {
-                        everywhere()
-                    } else {
-                        if r[2] < 0.0 || r[3] < 0.0 || r[0] > w || r[1] > h {
-                            return None;
-                        }
-                        // The rectangle's margin bounds how far along each axis the test's
-                        // rounding moves a crossing; twice the largest bounds its distance.
-                        let margin = 2.0 * ms.iter().fold(0.0f64, |a, &b| a.max(b));
-                        let rect = [down(r[0]), down(r[1]), up(r[2]), up(r[3])];
-                        let edges = || Edges::new(v.map(|p| (p.u, p.v)), margin, extent);
-                        (rect, samples.may_pass(&rect, edges)?)
-                    }
-                } else {
-                    everywhere()
-                };
+                let (rect, edges) =
+                    screen(bounds(v.iter().map(|p| (p.u, p.v))), zfront, &|margin| {
+                        Edges::new(v.map(|p| (p.u, p.v)), margin, extent)
+                    })?;
                 Some(Cand {
                     zmin,
                     rect,

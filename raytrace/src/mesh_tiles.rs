@@ -43,6 +43,7 @@ use crate::hit_record::{record, HitLists, RecordedHit};
 use crate::kbuffer::{Accum, KBuffer};
 use crate::mesh_bin::TileLists;
 use crate::mesh_cands::{Cand, Cold, HotChunk, LANES};
+use crate::mesh_groups::GROUP_MARK;
 use crate::mesh_hit::{Compositor, LocalRay, Query, Tested};
 use crate::mesh_tracer::{MeshTracer, PreparedInstance, TrianglePayload};
 use crate::render::{camera_ray, render_frame_tiles, RenderOptions, Stats};
@@ -320,6 +321,10 @@ impl MeshTracer {
         let Some(r) = slot.1 else {
             return;
         };
+        if e.mirror == GROUP_MARK {
+            self.group_candidate(ii, inst.mesh, &r, e.group, q, buf, cull);
+            return;
+        }
         let tested = self.test_triangle(
             ii, inst.mesh, &r, e.verts, e.group, e.tri, false, q, buf, cull,
         );
@@ -330,6 +335,68 @@ impl MeshTracer {
             let m = e.mirror;
             let tri = blas.triangle(&mesh.positions, mesh.tris[m as usize]);
             self.test_triangle(ii, inst.mesh, &r, tri, e.group, m, false, q, buf, cull);
+        }
+    }
+}
+
+impl MeshTracer {
+    /// The walk's test of a group record (`mesh_groups`): each of group `g`'s triangles the
+    /// ray may cross, by where it crosses the group plane, in ascending order, and its other
+    /// winding where the first's outcome leaves it open. The group's triangles share the hit
+    /// key, so the first outcome decided by the key decides the rest (`Tested::Decided`):
+    /// inserted, they would have a higher rank; rejected, the same key is.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(never)]
+    fn group_candidate(
+        &self,
+        ii: usize,
+        mesh: usize,
+        r: &LocalRay,
+        g: u32,
+        q: &Query,
+        buf: &mut KBuffer<TrianglePayload>,
+        cull: &mut f32,
+    ) {
+        let blas = &self.blas[mesh];
+        let m = &self.scene.meshes[mesh];
+        let (Some(table), Some(mirror)) = (blas.groups.get(), blas.mirror.get()) else {
+            return;
+        };
+        let at = match table.crossing(g, r.lo64, r.ld64) {
+            Some(None) => return,
+            Some(Some(at)) => Some(at),
+            None => None,
+        };
+        let members = table.members(g);
+        let mut test = |t: u32| {
+            let tri = blas.triangle(&m.positions, m.tris[t as usize]);
+            let tested = self.test_triangle(ii, mesh, r, tri, g, t, false, q, buf, cull);
+            let pair = mirror[t as usize];
+            if pair != u32::MAX && tested == Tested::Open {
+                let tri = blas.triangle(&m.positions, m.tris[pair as usize]);
+                return self.test_triangle(ii, mesh, r, tri, g, pair, false, q, buf, cull);
+            }
+            tested
+        };
+        match at {
+            None => {
+                for &t in members {
+                    if test(t) == Tested::Decided {
+                        return;
+                    }
+                }
+            }
+            Some(at) => {
+                for (i, mut mask) in table.masks(g, &at).enumerate() {
+                    while mask != 0 {
+                        let l = mask.trailing_zeros() as usize;
+                        mask &= mask - 1;
+                        if test(members[i * LANES + l]) == Tested::Decided {
+                            return;
+                        }
+                    }
+                }
+            }
         }
     }
 }

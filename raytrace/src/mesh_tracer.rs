@@ -144,6 +144,8 @@ pub struct Blas {
     /// Each planar group's largest triangle side (`mesh_tiles`' list keys), found on the
     /// first render through screen tiles (8 bytes a group).
     pub(crate) group_extent: std::sync::OnceLock<Vec<f64>>,
+    /// The groups binned as one record each (`mesh_groups`), found with `mirror`.
+    pub(crate) groups: std::sync::OnceLock<crate::mesh_groups::GroupTable>,
 }
 
 /// Each triangle's planar group over runs of triangles. Runs never cross Gaussians, and a
@@ -463,6 +465,7 @@ impl MeshTracer {
             group,
             mirror: std::sync::OnceLock::new(),
             group_extent: std::sync::OnceLock::new(),
+            groups: std::sync::OnceLock::new(),
         })
     }
 

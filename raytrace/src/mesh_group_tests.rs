@@ -1,0 +1,311 @@
+//! Group records (`mesh_groups`) against the brute-force reference: discs of many triangles
+//! (a centre fan and rings of quads, as the `rings` profile writes them, in both windings),
+//! some with vertices slightly off their group's plane (within `Mesh::planar_groups`'
+//! tolerance), seen face-on, obliquely and edge-on, near the origin and far from it. Every
+//! sample's hits through the tiles equal the reference's bit for bit, and so do the images; and
+//! the plane-crossing filter never leaves out a triangle the watertight test reports, on rays
+//! aimed at the triangles' vertices and edges from every side.
+
+use glam::{DQuat, DVec3, Vec3, Vec4};
+use splatbridge_scene::Camera;
+
+use super::footprint::sample_offsets;
+use super::mesh_bin::TileLists;
+use super::mesh_groups::GROUP_MARK;
+use super::mesh_hit::LocalRay;
+use super::mesh_tile_tests::{bits, blend, check_sample, reference_image, tracer, Rng};
+use super::mesh_tiles::{TileCtx, TILE};
+use super::model::{Mesh, Node, TriScene};
+use super::render::RenderOptions;
+
+/// A disc of `segments` sectors: a centre fan and `rings` rings of quads (two triangles a
+/// sector), α falling outwards, each triangle again in the other winding right after it when
+/// `both`. `wobble`: how far (relative to the radius) the rim vertices leave the plane.
+#[allow(clippy::too_many_arguments)]
+fn disc(
+    m: &mut Mesh,
+    gid: u32,
+    c: Vec3,
+    a0: Vec3,
+    a1: Vec3,
+    segments: u32,
+    rings: u32,
+    rgba: Vec4,
+    both: bool,
+    wobble: f32,
+    r: &mut Rng,
+) {
+    let base = m.positions.len() as u32;
+    let normal = a0.cross(a1).normalize_or_zero() * a0.length().max(a1.length());
+    m.positions.push(c);
+    m.colors.push(rgba);
+    for ring in 1..=rings + 1 {
+        let f = ring as f32 / (rings + 1) as f32;
+        for k in 0..segments {
+            let th = std::f32::consts::TAU * k as f32 / segments as f32;
+            let off = normal * wobble * r.range(-1.0, 1.0);
+            m.positions
+                .push(c + (a0 * th.cos() + a1 * th.sin()) * f + off);
+            m.colors
+                .push(rgba * Vec4::new(1.0, 1.0, 1.0, (1.0 - f * f).max(0.0)));
+        }
+    }
+    let at = |ring: u32, k: u32| base + 1 + ring * segments + k % segments;
+    let mut push = |t: [u32; 3]| {
+        m.tris.push(t);
+        m.tri_material.push(0);
+        m.tri_gaussian.push(gid);
+        if both {
+            m.tris.push([t[0], t[2], t[1]]);
+            m.tri_material.push(0);
+            m.tri_gaussian.push(gid);
+        }
+    };
+    for k in 0..segments {
+        push([base, at(0, k), at(0, k + 1)]);
+    }
+    for ring in 0..rings {
+        for k in 0..segments {
+            push([at(ring, k), at(ring + 1, k), at(ring + 1, k + 1)]);
+            push([at(ring, k), at(ring + 1, k + 1), at(ring, k + 1)]);
+        }
+    }
+}
+
+/// `n` random discs of 40 triangles a winding (8 sectors, 2 rings) around `offset`: every
+/// seventh repeated (equal keys), every third opaque, every fourth wobbling off its plane,
+/// every eleventh large.
+fn discs(seed: u64, n: usize, extent: f32, offset: Vec3, both: bool) -> Mesh {
+    let mut r = Rng(seed);
+    let mut m = Mesh {
+        has_gaussian_ids: true,
+        ..Mesh::default()
+    };
+    for g in 0..n {
+        let c = offset
+            + Vec3::new(
+                r.range(-extent, extent),
+                r.range(-extent, extent),
+                r.range(-extent, extent),
+            );
+        let q = r.rotation();
+        let big = if g % 11 == 0 { 4.0 } else { 1.0 };
+        let s = Vec3::new(r.range(0.1, 0.5), r.range(0.1, 0.5), 1.0) * extent * 0.4 * big;
+        let mut rgba = Vec4::new(r.f(), r.f(), r.f(), r.range(0.2, 0.9));
+        if g % 3 == 0 {
+            rgba.w = 1.0;
+        }
+        let wobble = if g % 4 == 0 { 4e-4 } else { 0.0 };
+        let copies = if g % 7 == 0 { 2 } else { 1 };
+        for _ in 0..copies {
+            let (a0, a1) = (q * Vec3::X * s.x, q * Vec3::Y * s.y);
+            disc(
+                &mut m, g as u32, c, a0, a1, 8, 2, rgba, both, wobble, &mut r,
+            );
+        }
+    }
+    m
+}
+
+/// Three nodes over two disc meshes (one rotated and scaled), around `offset`.
+fn scene(seed: u64, offset: Vec3, both: bool) -> TriScene {
+    TriScene {
+        meshes: vec![
+            discs(seed, 60, 1.0, offset, both),
+            discs(seed ^ 0x5A5A, 40, 0.6, offset, both),
+        ],
+        materials: blend(),
+        nodes: vec![
+            Node {
+                mesh: Some(0),
+                ..Node::default()
+            },
+            Node {
+                mesh: Some(1),
+                translation: DVec3::new(0.2, -0.1, 0.3),
+                rotation: DQuat::from_rotation_y(0.6),
+                scale: DVec3::new(1.0, 1.4, 0.9),
+                ..Node::default()
+            },
+            Node {
+                mesh: Some(0),
+                translation: DVec3::new(-0.4, 0.1, 0.8),
+                ..Node::default()
+            },
+        ],
+        colors_linear: seed.is_multiple_of(2),
+        ..TriScene::default()
+    }
+}
+
+/// Outside the scene, inside it, and edge-on to the horizon of a scene laid flat.
+fn cameras(offset: DVec3) -> Vec<Camera> {
+    let look = |from: DVec3, to: DVec3, fov: f64, w: u32, h: u32| {
+        Camera::look_at(offset + from, offset + to, DVec3::NEG_Y, fov, w, h).unwrap()
+    };
+    vec![
+        look(DVec3::new(0.3, -0.5, -4.0), DVec3::ZERO, 50.0, 41, 30),
+        look(
+            DVec3::new(0.1, 0.05, -0.2),
+            DVec3::new(0.0, 0.0, 1.0),
+            70.0,
+            35,
+            21,
+        ),
+        look(DVec3::new(-3.5, 0.02, 0.1), DVec3::ZERO, 40.0, 38, 26),
+    ]
+}
+
+#[test]
+fn group_hits_equal_brute_force() {
+    let opts = RenderOptions::default();
+    let (mut compared, mut groups) = (0usize, 0usize);
+    for (seed, offset, both) in [
+        (1u64, Vec3::ZERO, true),
+        (2, Vec3::ZERO, false),
+        (3, Vec3::new(1e4, -2e4, 3e4), true),
+    ] {
+        let tracer = tracer(scene(seed, offset, both));
+        let insts = tracer.prepare_list(0.0);
+        for cam in cameras(offset.as_dvec3()) {
+            for spp in [1, 4] {
+                let offsets = sample_offsets(spp);
+                let lists = TileLists::build(&tracer, &insts, &cam, &offsets);
+                groups += lists
+                    .cands
+                    .iter()
+                    .filter(|c| c.mirror == GROUP_MARK)
+                    .count();
+                for ty in 0..cam.height.div_ceil(TILE) {
+                    for tx in 0..cam.width.div_ceil(TILE) {
+                        let mut ctx = TileCtx::new(&lists, tx, ty, insts.len());
+                        for j in ty * TILE..((ty + 1) * TILE).min(cam.height) {
+                            for i in tx * TILE..((tx + 1) * TILE).min(cam.width) {
+                                for &(du, dv) in &offsets {
+                                    let (du, dv) = if spp == 1 { (0.5, 0.5) } else { (du, dv) };
+                                    let uv = (i as f64 + du, j as f64 + dv);
+                                    compared += check_sample(
+                                        &tracer,
+                                        &insts,
+                                        &mut ctx,
+                                        &cam,
+                                        uv,
+                                        opts.min_transmittance,
+                                    )
+                                    .len();
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+            for spp in [1, 4] {
+                let opts = RenderOptions {
+                    spp,
+                    ..RenderOptions::default()
+                };
+                let (got, _) = tracer.render(&cam, 0.0, &opts).unwrap();
+                let want = reference_image(&tracer, &cam, &opts);
+                assert_eq!(bits(&got), bits(&want), "seed {seed}, spp {spp}");
+            }
+        }
+    }
+    // The discs are binned as groups, and thousands of their hits were compared.
+    assert!(groups > 500, "{groups} group records");
+    assert!(compared > 10_000, "{compared} hits compared");
+}
+
+/// The filter of `GroupTable::crossing` and `masks` passes every triangle the watertight test
+/// reports: rays from random origins (near, far, grazing the plane) aimed at points on each
+/// triangle's vertices and edges, and just beside them.
+#[test]
+fn crossing_filter_keeps_every_reported_triangle() {
+    let mut r = Rng(77);
+    let (mut reported, mut filtered_out, mut grazing) = (0usize, 0usize, 0usize);
+    for (seed, offset) in [(5u64, Vec3::ZERO), (6, Vec3::new(-3e3, 2e3, 5e3))] {
+        let tracer = tracer(scene(seed, offset, true));
+        let cam = &cameras(offset.as_dvec3())[0];
+        let insts = tracer.prepare_list(0.0);
+        // Binning builds the tables.
+        TileLists::build(&tracer, &insts, cam, &sample_offsets(1));
+        let blas = &tracer.blas[0];
+        let mesh = &tracer.scene.meshes[0];
+        let table = blas.groups.get().expect("tables built");
+        let mirror = blas.mirror.get().expect("pairs found");
+        let groups = blas.planes.len() as u32;
+        for g in 0..groups {
+            if !table.is_big(g) {
+                continue;
+            }
+            let members = table.members(g);
+            for _ in 0..40 {
+                let k = (r.f() * members.len() as f32) as usize % members.len();
+                let t = members[k] as usize;
+                let [a, b, c] = blas.triangle(&mesh.positions, mesh.tris[t]);
+                // A vertex, an edge point or an inside point, nudged by up to 1e-6 of the
+                // triangle's size.
+                let (u, v) = match (r.f() * 3.0) as u32 {
+                    0 => (1.0, 0.0),
+                    1 => {
+                        let s = r.f();
+                        (s, 1.0 - s)
+                    }
+                    _ => (r.f() * 0.5, r.f() * 0.5),
+                };
+                let size = (b - a).length().max((c - a).length());
+                let nudge = Vec3::new(r.range(-1.0, 1.0), r.range(-1.0, 1.0), r.range(-1.0, 1.0))
+                    * size
+                    * 1e-6;
+                let target = (a * (1.0 - u - v) + b * u + c * v + nudge).as_dvec3();
+                // From anywhere around, or nearly in the plane (grazing).
+                let n = (b - a).cross(c - a).normalize_or_zero().as_dvec3();
+                let dir = DVec3::new(
+                    r.range(-1.0, 1.0) as f64,
+                    r.range(-1.0, 1.0) as f64,
+                    r.range(-1.0, 1.0) as f64,
+                )
+                .normalize_or_zero();
+                let dir = if r.f() < 0.3 {
+                    grazing += 1;
+                    (dir - n * dir.dot(n) + n * (r.range(-1.0, 1.0) as f64 * 1e-2))
+                        .normalize_or_zero()
+                } else {
+                    dir
+                };
+                if dir == DVec3::ZERO {
+                    continue;
+                }
+                let dist = [0.05, 1.0, 30.0][(r.f() * 3.0) as usize % 3];
+                let o = target - dir * dist;
+                let Some(ray) = LocalRay::new(o, dir) else {
+                    continue;
+                };
+                for tri in [t, mirror[t] as usize] {
+                    if tri == u32::MAX as usize {
+                        continue;
+                    }
+                    let [a, b, c] = blas.triangle(&mesh.positions, mesh.tris[tri]);
+                    if ray.wray.cover(a, b, c).is_err() {
+                        continue;
+                    }
+                    reported += 1;
+                    let kept = match table.crossing(g, ray.lo64, ray.ld64) {
+                        None => true,
+                        Some(None) => false,
+                        Some(Some(at)) => {
+                            let masks: Vec<u32> = table.masks(g, &at).collect();
+                            masks[k / 8] >> (k % 8) & 1 == 1
+                        }
+                    };
+                    filtered_out += !kept as usize;
+                }
+            }
+        }
+    }
+    assert_eq!(filtered_out, 0, "of {reported} reported");
+    // Most aimed rays are reported, grazing ones among them.
+    assert!(
+        reported > 3000 && grazing > 1000,
+        "{reported} reported, {grazing} grazing"
+    );
+}

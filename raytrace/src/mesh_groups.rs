@@ -1,0 +1,350 @@
+//! Group records for mode `mesh`'s screen tiles (`mesh_bin`, `mesh_tiles`): a planar group of
+//! many triangles (a MeshSplats fan, a `rings` disc: 8 to 80 triangles a Gaussian) is binned
+//! as one record instead of one a triangle, and a ray that reaches the record finds the
+//! group's triangles it may cross by where it crosses the group's plane.
+//!
+//! Why: every triangle's record costs binning its projection, rectangle, edge functions,
+//! sort key, tile entries and cell copies once a frame, whether a ray reaches it or not. On
+//! the `rings` export of a real capture that was half of a 1080p frame
+//! (`docs/trace-speed-mesh.md`, "Group records"). A group's triangles share its list key
+//! (the group plane's least depth) and its hit key (the group plane's distance), so at most
+//! one of them is a ray's hit: the lowest-indexed one that covers the ray and shades.
+//!
+//! Exactness: the record only chooses which triangles get the exact test
+//! (`MeshTracer::test_triangle`, the same as for a triangle's record); it must never leave
+//! out one the watertight test would report. A triangle of the group lies within `slab` of
+//! the group plane (measured over its vertices), so where the ray crosses the triangle is at
+//! most `slab·√(1 − c²)/c` sideways from where it crosses the plane (`c` the cosine between
+//! ray and normal). The watertight test decides for the f32 ray and vertices, whose
+//! rounding moves the crossing by less than `EPS·R/c` (`R` the magnitude of the local
+//! origin and the vertices). A triangle whose projection into the plane lies farther than
+//! both from the crossing point (plus the rounding of its stored 2D vertices) cannot be
+//! reported. Below `MIN_COSINE` (grazing rays) every triangle of the group is tested.
+
+use glam::DVec3;
+
+use crate::mesh_cands::LANES;
+use crate::mesh_tracer::Blas;
+use crate::model::Mesh;
+
+/// Groups of at least this many binned triangles (pair-leading, see
+/// `mesh_cands::mirror_pairs`) are binned as one record: a MeshSplats fan has 8, a `rings`
+/// disc 40, the texture profile's quad 2 (its two records keep their edge pre-test).
+pub(crate) const MIN_MEMBERS: usize = 16;
+
+/// The `mirror` field of a group record's `Cand` (no triangle index reaches it: the tile
+/// lists address records by u32 and triangles by u32 below `u32::MAX - 1`).
+pub(crate) const GROUP_MARK: u32 = u32::MAX - 1;
+
+/// Below this cosine between ray and plane normal, every triangle of the group is tested
+/// (the sideways bound grows as `1/c`).
+const MIN_COSINE: f64 = 1e-3;
+
+/// Bound on the watertight test's rounding, relative to the magnitude of the local origin
+/// and vertices: the f32 ray (origin and direction rounded from f64) and the f32 vertices
+/// relative to it each move a crossing by a few units of 2⁻²⁴ of that magnitude; the shear
+/// and the edge functions are decided exactly on those values (`tri::WRay`). 256 of them is
+/// tens of times that.
+const EPS: f64 = 256.0 / 16_777_216.0;
+
+/// One big group's frame: the plane's unit normal, a point of it and two unit axes in it,
+/// and how far the group's vertices lie off the plane.
+#[derive(Clone, Copy, Debug)]
+struct Frame {
+    /// The plane's unit normal and offset: `n·x = w`.
+    n: DVec3,
+    w: f64,
+    /// The box of the members' vertices in the frame: `[x_lo, y_lo, x_hi, y_hi]`.
+    bounds: [f64; 4],
+    origin: DVec3,
+    e1: DVec3,
+    e2: DVec3,
+    /// The largest distance of a member vertex from the group plane.
+    slab: f64,
+    /// The largest coordinate of a member vertex in the frame (the lanes' rounding).
+    reach: f64,
+}
+
+/// Per mesh, built on its first frame through the tiles: for each group of at least
+/// [`MIN_MEMBERS`] binned triangles, the triangles (ascending) and their vertices in the
+/// group plane's 2D frame.
+pub(crate) struct GroupTable {
+    /// `members[start[g]..start[g + 1]]`: group `g`'s binned triangles (empty for a small
+    /// group). Empty when no group is big.
+    start: Vec<u32>,
+    members: Vec<u32>,
+    /// Per group, its members' boxes in the group's frame, eight at a time:
+    /// `boxes[cstart[g]..cstart[g + 1]]`.
+    cstart: Vec<u32>,
+    boxes: Vec<BoxChunk>,
+    frames: Vec<Frame>,
+    /// The largest magnitude of a vertex relative to the anchor.
+    vmax: f64,
+}
+
+/// Where a ray crosses a group's plane, in its frame, and the sideways margin within which
+/// a triangle may be reported; `None` where every triangle must be tested.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Crossing {
+    x: f32,
+    y: f32,
+    margin: f32,
+}
+
+impl GroupTable {
+    /// The table of `mesh` (its BLAS `blas`, winding pairs `mirror`).
+    pub(crate) fn new(mesh: &Mesh, blas: &Blas, mirror: &[u32]) -> Self {
+        let groups = blas.planes.len();
+        let runs = blas.run_start.len().saturating_sub(1);
+        // Each triangle's group, and the binned (pair-leading) triangles per group.
+        let mut count = vec![0u32; groups + 1];
+        let mut group_of = vec![0u32; mesh.tris.len()];
+        for p in 0..runs {
+            for t in blas.run_start[p] as usize..blas.run_start[p + 1] as usize {
+                let g = blas.group.get(p, t);
+                group_of[t] = g;
+                if mirror[t] == u32::MAX || mirror[t] > t as u32 {
+                    count[g as usize + 1] += 1;
+                }
+            }
+        }
+        let big = |c: u32| c as usize >= MIN_MEMBERS;
+        let vmax = (blas.lo - blas.anchor)
+            .abs()
+            .max((blas.hi - blas.anchor).abs())
+            .length();
+        if !count.iter().any(|&c| big(c)) {
+            return GroupTable {
+                start: Vec::new(),
+                members: Vec::new(),
+                cstart: Vec::new(),
+                boxes: Vec::new(),
+                frames: Vec::new(),
+                vmax,
+            };
+        }
+        let mut start = vec![0u32; groups + 1];
+        for g in 0..groups {
+            let c = if big(count[g + 1]) { count[g + 1] } else { 0 };
+            start[g + 1] = start[g] + c;
+        }
+        let mut next = start.clone();
+        let mut members = vec![0u32; start[groups] as usize];
+        for (t, &g) in group_of.iter().enumerate() {
+            let g = g as usize;
+            let leads = mirror[t] == u32::MAX || mirror[t] > t as u32;
+            if leads && start[g + 1] > start[g] {
+                members[next[g] as usize] = t as u32;
+                next[g] += 1;
+            }
+        }
+        drop(next);
+        let vert = |i: u32| blas.relative(mesh.positions[i as usize]).as_dvec3();
+        let mut frames = Vec::with_capacity(groups);
+        let mut cstart = vec![0u32; groups + 1];
+        for g in 0..groups {
+            cstart[g + 1] = cstart[g] + (start[g + 1] - start[g]).div_ceil(LANES as u32);
+        }
+        let mut boxes = vec![BoxChunk::EMPTY; cstart[groups] as usize];
+        for g in 0..groups {
+            let (s, e) = (start[g] as usize, start[g + 1] as usize);
+            let (pn, pw) = blas.planes[g];
+            let len = pn.length();
+            if s == e || !(len > 0.0 && len.is_finite()) {
+                frames.push(Frame {
+                    n: DVec3::ZERO,
+                    w: 0.0,
+                    bounds: [0.0; 4],
+                    origin: DVec3::ZERO,
+                    e1: DVec3::ZERO,
+                    e2: DVec3::ZERO,
+                    slab: f64::INFINITY,
+                    reach: 0.0,
+                });
+                continue;
+            }
+            let n = pn / len;
+            let origin = n * (pw / len);
+            let e1 = n.any_orthonormal_vector();
+            let e2 = n.cross(e1);
+            let mut slab = 0.0f64;
+            let mut reach = 0.0f64;
+            let mut bounds = [
+                f64::INFINITY,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                f64::NEG_INFINITY,
+            ];
+            for (k, &t) in members[s..e].iter().enumerate() {
+                let mut p = [(0.0f64, 0.0f64); 3];
+                for (j, &i) in mesh.tris[t as usize].iter().enumerate() {
+                    let v = vert(i);
+                    slab = slab.max((n.dot(v) - pw / len).abs());
+                    p[j] = ((v - origin).dot(e1), (v - origin).dot(e2));
+                    reach = reach.max(p[j].0.abs()).max(p[j].1.abs());
+                    bounds = [
+                        bounds[0].min(p[j].0),
+                        bounds[1].min(p[j].1),
+                        bounds[2].max(p[j].0),
+                        bounds[3].max(p[j].1),
+                    ];
+                }
+                boxes[cstart[g] as usize + k / LANES].set(k % LANES, p);
+            }
+            // The f64 arithmetic above rounds far below a relative 1e-9 of the magnitudes
+            // involved.
+            let scale = origin.length() + vmax;
+            frames.push(Frame {
+                n,
+                w: pw / len,
+                bounds,
+                origin,
+                e1,
+                e2,
+                slab: slab * (1.0 + 1e-9) + 1e-9 * scale,
+                reach,
+            });
+        }
+        GroupTable {
+            start,
+            members,
+            cstart,
+            boxes,
+            frames,
+            vmax,
+        }
+    }
+
+    /// Whether group `g` is binned as one record.
+    #[inline]
+    pub(crate) fn is_big(&self, g: u32) -> bool {
+        let g = g as usize;
+        g + 1 < self.start.len() && self.start[g + 1] > self.start[g]
+    }
+
+    /// Group `g`'s binned triangles, ascending (the first is the one its record is made at).
+    #[inline]
+    pub(crate) fn members(&self, g: u32) -> &[u32] {
+        let g = g as usize;
+        &self.members[self.start[g] as usize..self.start[g + 1] as usize]
+    }
+
+    /// Where the local ray `o + s·d` crosses group `g`'s plane, with the margin of the module
+    /// documentation: `Some(None)` where the ray can cross none of the group's triangles
+    /// (the crossing is beyond the margin of the members' box), `None` where every triangle
+    /// must be tested.
+    #[inline]
+    pub(crate) fn crossing(&self, g: u32, o: DVec3, d: DVec3) -> Option<Option<Crossing>> {
+        let f = &self.frames[g as usize];
+        let nd = f.n.dot(d);
+        let c = (nd / d.length()).abs();
+        if !(c >= MIN_COSINE) || !f.slab.is_finite() {
+            return None;
+        }
+        let p = o + d * ((f.w - f.n.dot(o)) / nd);
+        let q = p - f.origin;
+        let (x, y) = (q.dot(f.e1), q.dot(f.e2));
+        let r = o.length() + self.vmax;
+        // The plane is `blas.planes[g]` normalised: its rounding (a relative 1e-16) is far
+        // below the last term.
+        let margin =
+            f.slab * (1.0 - c * c).max(0.0).sqrt() / c + EPS * r / c + 1e-9 * (r + p.length());
+        if !(x.is_finite() && y.is_finite() && margin.is_finite()) {
+            return None;
+        }
+        let b = &f.bounds;
+        if x + margin < b[0] || x - margin > b[2] || y + margin < b[1] || y - margin > b[3] {
+            return Some(None);
+        }
+        // The lanes evaluate `a·x + b·y + c` in f32 on coefficients rounded to f32, with
+        // `|a|, |b| ≤ 1` and `|c|` at most the members' reach plus a rounding: each of the
+        // few roundings moves the value by a relative 2⁻²⁴ of `|x| + |y| + |c|`, and 1e-6 of
+        // that sum (about 17 units) covers them, with the margin's own rounding.
+        let margin = margin + 1e-6 * (x.abs() + y.abs() + 2.0 * f.reach + margin);
+        Some(Some(Crossing {
+            x: x as f32,
+            y: y as f32,
+            margin: up(margin),
+        }))
+    }
+
+    /// The members of group `g` that a ray crossing its plane at `at` may cross: bit `l` of
+    /// the `i`-th mask is member `8i + l`, set where the crossing is within the margin of
+    /// each edge line of the member's projection into the plane (which holds the projection
+    /// of every point of the triangle; a point within the margin of the triangle is within it
+    /// of each line).
+    #[inline]
+    pub(crate) fn masks<'a>(&'a self, g: u32, at: &'a Crossing) -> impl Iterator<Item = u32> + 'a {
+        let g = g as usize;
+        self.boxes[self.cstart[g] as usize..self.cstart[g + 1] as usize]
+            .iter()
+            .map(move |c| c.mask(at))
+    }
+}
+
+/// Eight members' edges in the group's frame, field by field: `line[edge][coefficient][lane]`,
+/// `a·x + b·y + c ≥ 0` inside, `(a, b)` a unit normal, so the value is the signed distance
+/// to the edge's line (Pineda's edge functions, as `mesh_cands::Edges` in screen space).
+#[derive(Clone, Copy, Debug)]
+struct BoxChunk {
+    line: [[[f32; LANES]; 3]; 3],
+}
+
+impl BoxChunk {
+    /// No member: no crossing passes (`0·x + 0·y − ∞`).
+    const EMPTY: BoxChunk = BoxChunk {
+        line: [[[0.0; LANES], [0.0; LANES], [f32::NEG_INFINITY; LANES]]; 3],
+    };
+
+    /// Lane `l` set to the triangle `p` (its vertices in the frame). A sliver, or a triangle
+    /// whose lines cannot be formed, passes every crossing (the exact test decides).
+    fn set(&mut self, l: usize, p: [(f64, f64); 3]) {
+        let area = (p[1].0 - p[0].0) * (p[2].1 - p[0].1) - (p[1].1 - p[0].1) * (p[2].0 - p[0].0);
+        let mut lines = [[0.0f32, 0.0, f32::INFINITY]; 3];
+        if area != 0.0 && area.is_finite() {
+            for (j, line) in lines.iter_mut().enumerate() {
+                let (a, b) = (p[j], p[(j + 1) % 3]);
+                let (ex, ey) = (b.0 - a.0, b.1 - a.1);
+                let len = (ex * ex + ey * ey).sqrt();
+                // Inward unit normal: left of the edge for a counter-clockwise triangle.
+                let s = area.signum() / len;
+                let (na, nb) = (-ey * s, ex * s);
+                let c = -(na * a.0 + nb * a.1);
+                if na.is_finite() && nb.is_finite() && c.is_finite() {
+                    *line = [na as f32, nb as f32, c as f32];
+                }
+            }
+        }
+        for (e, line) in self.line.iter_mut().zip(lines) {
+            for (k, v) in line.into_iter().enumerate() {
+                e[k][l] = v;
+            }
+        }
+    }
+
+    /// Bit `l` set where lane `l`'s three lines are each within `at.margin` of the crossing
+    /// (NaN passes).
+    #[inline(always)]
+    fn mask(&self, at: &Crossing) -> u32 {
+        let mut m = 0u32;
+        let e = &self.line;
+        let lim = -at.margin;
+        for l in 0..LANES {
+            let out = (e[0][0][l] * at.x + e[0][1][l] * at.y + e[0][2][l] < lim)
+                | (e[1][0][l] * at.x + e[1][1][l] * at.y + e[1][2][l] < lim)
+                | (e[2][0][l] * at.x + e[2][1][l] * at.y + e[2][2][l] < lim);
+            m |= (!out as u32) << l;
+        }
+        m
+    }
+}
+
+/// `x` rounded to an f32 not below it.
+fn up(x: f64) -> f32 {
+    let f = x as f32;
+    if (f as f64) < x {
+        f.next_up()
+    } else {
+        f
+    }
+}
