@@ -239,6 +239,7 @@ impl TileLists {
                     }
                     let v = members
                         .iter()
+                        .take_while(|&&m| m != u32::MAX)
                         .flat_map(|&m| tris[m as usize])
                         .map(|i| proj[i as usize]);
                     let (zfront, zmax) = v
@@ -255,7 +256,7 @@ impl TileLists {
                         zmin,
                         rect,
                         edges,
-                        verts: [glam::Vec3::ZERO; 3],
+                        verts: table.record(g).pack(),
                         inst: ii as u32,
                         tri: t as u32,
                         group: g,

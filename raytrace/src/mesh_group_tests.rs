@@ -238,8 +238,9 @@ fn crossing_filter_keeps_every_reported_triangle() {
                 continue;
             }
             let members = table.members(g);
+            let count = members.iter().take_while(|&&t| t != u32::MAX).count();
             for _ in 0..40 {
-                let k = (r.f() * members.len() as f32) as usize % members.len();
+                let k = (r.f() * count as f32) as usize % count;
                 let t = members[k] as usize;
                 let [a, b, c] = blas.triangle(&mesh.positions, mesh.tris[t]);
                 // A vertex, an edge point or an inside point, nudged by up to 1e-6 of the
@@ -289,7 +290,8 @@ fn crossing_filter_keeps_every_reported_triangle() {
                         continue;
                     }
                     reported += 1;
-                    let kept = match table.crossing(g, ray.lo64, ray.ld64) {
+                    let plane = blas.planes[g as usize];
+                    let kept = match table.crossing(&table.record(g), plane, ray.lo64, ray.ld64) {
                         None => true,
                         Some(None) => false,
                         Some(Some(at)) => {

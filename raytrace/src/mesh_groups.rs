@@ -21,7 +21,7 @@
 //! both from the crossing point (plus the rounding of its stored 2D vertices) cannot be
 //! reported. Below `MIN_COSINE` (grazing rays) every triangle of the group is tested.
 
-use glam::DVec3;
+use glam::{DVec3, Vec3};
 
 use crate::mesh_cands::LANES;
 use crate::mesh_tracer::Blas;
@@ -47,37 +47,67 @@ const MIN_COSINE: f64 = 1e-3;
 /// tens of times that.
 const EPS: f64 = 256.0 / 16_777_216.0;
 
-/// One big group's frame: the plane's unit normal, a point of it and two unit axes in it,
-/// and how far the group's vertices lie off the plane.
-#[derive(Clone, Copy, Debug)]
-struct Frame {
-    /// The plane's unit normal and offset: `n·x = w`.
-    n: DVec3,
-    w: f64,
-    /// The box of the members' vertices in the frame: `[x_lo, y_lo, x_hi, y_hi]`.
-    bounds: [f64; 4],
-    origin: DVec3,
-    e1: DVec3,
-    e2: DVec3,
-    /// The largest distance of a member vertex from the group plane.
-    slab: f64,
-    /// The largest coordinate of a member vertex in the frame (the lanes' rounding).
-    reach: f64,
+/// What a group record carries (in its `Cand`'s `verts`, which a group record does not
+/// otherwise use, so a ray reads it from the tile's cell, not from the table): a point of the
+/// group (its first member's first vertex, an f32 value), the first axis of its frame (f32),
+/// how far its members' vertices lie off its plane (`slab`, rounded up), and the largest
+/// coordinate of a member vertex in its frame (`reach`, rounded up).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct RecordFrame {
+    origin: Vec3,
+    e1: Vec3,
+    slab: f32,
+    reach: f32,
+}
+
+impl RecordFrame {
+    /// No frame: every member is tested.
+    const NONE: RecordFrame = RecordFrame {
+        origin: Vec3::ZERO,
+        e1: Vec3::ZERO,
+        slab: f32::INFINITY,
+        reach: f32::INFINITY,
+    };
+
+    pub(crate) fn pack(&self) -> [Vec3; 3] {
+        [self.origin, self.e1, Vec3::new(self.slab, self.reach, 0.0)]
+    }
+
+    pub(crate) fn unpack(v: &[Vec3; 3]) -> Self {
+        RecordFrame {
+            origin: v[0],
+            e1: v[1],
+            slab: v[2].x,
+            reach: v[2].y,
+        }
+    }
+}
+
+/// The group plane's unit normal and offset, and the frame's two axes: `e1` as the record
+/// holds it, `e2` the f32 rounding of `n × e1`. The table's lines and a ray's crossing both
+/// come from these same operations on the same values, so they agree to the bit; the axes are
+/// unit and orthogonal to the normal and each other within a few 1e-8 (the f32 rounding),
+/// which [`GroupTable::crossing`] allows for.
+#[inline]
+fn axes(plane: (DVec3, f64), e1: Vec3) -> (DVec3, f64, DVec3, DVec3) {
+    let (pn, pw) = plane;
+    let len = pn.length();
+    let n = pn / len;
+    let e1 = e1.as_dvec3();
+    (n, pw / len, e1, n.cross(e1).as_vec3().as_dvec3())
 }
 
 /// Per mesh, built on its first frame through the tiles: for each group of at least
-/// [`MIN_MEMBERS`] binned triangles, the triangles (ascending) and their vertices in the
-/// group plane's 2D frame.
+/// [`MIN_MEMBERS`] binned triangles, the triangles (ascending) and their edges in the group
+/// plane's 2D frame, eight at a time, and the frame its record carries.
 pub(crate) struct GroupTable {
     /// `members[start[g]..start[g + 1]]`: group `g`'s binned triangles (empty for a small
-    /// group). Empty when no group is big.
+    /// group), padded with `u32::MAX` to a multiple of [`LANES`]. Empty when no group is big.
     start: Vec<u32>,
     members: Vec<u32>,
-    /// Per group, its members' boxes in the group's frame, eight at a time:
-    /// `boxes[cstart[g]..cstart[g + 1]]`.
-    cstart: Vec<u32>,
-    boxes: Vec<BoxChunk>,
-    frames: Vec<Frame>,
+    /// Lanes of `members`, eight at a time: chunk `k` is members `8k..8k + 8`.
+    lines: Vec<BoxChunk>,
+    frames: Vec<RecordFrame>,
     /// The largest magnitude of a vertex relative to the anchor.
     vmax: f64,
 }
@@ -117,19 +147,19 @@ impl GroupTable {
             return GroupTable {
                 start: Vec::new(),
                 members: Vec::new(),
-                cstart: Vec::new(),
-                boxes: Vec::new(),
+                lines: Vec::new(),
                 frames: Vec::new(),
                 vmax,
             };
         }
+        let lanes = LANES as u32;
         let mut start = vec![0u32; groups + 1];
         for g in 0..groups {
             let c = if big(count[g + 1]) { count[g + 1] } else { 0 };
-            start[g + 1] = start[g] + c;
+            start[g + 1] = start[g] + c.div_ceil(lanes) * lanes;
         }
         let mut next = start.clone();
-        let mut members = vec![0u32; start[groups] as usize];
+        let mut members = vec![u32::MAX; start[groups] as usize];
         for (t, &g) in group_of.iter().enumerate() {
             let g = g as usize;
             let leads = mirror[t] == u32::MAX || mirror[t] > t as u32;
@@ -139,77 +169,48 @@ impl GroupTable {
             }
         }
         drop(next);
-        let vert = |i: u32| blas.relative(mesh.positions[i as usize]).as_dvec3();
-        let mut frames = Vec::with_capacity(groups);
-        let mut cstart = vec![0u32; groups + 1];
-        for g in 0..groups {
-            cstart[g + 1] = cstart[g] + (start[g + 1] - start[g]).div_ceil(LANES as u32);
-        }
-        let mut boxes = vec![BoxChunk::EMPTY; cstart[groups] as usize];
+        let vert = |i: u32| blas.relative(mesh.positions[i as usize]);
+        let mut frames = vec![RecordFrame::NONE; groups];
+        let mut lines = vec![BoxChunk::EMPTY; members.len() / LANES];
         for g in 0..groups {
             let (s, e) = (start[g] as usize, start[g + 1] as usize);
-            let (pn, pw) = blas.planes[g];
+            let (pn, _) = blas.planes[g];
             let len = pn.length();
             if s == e || !(len > 0.0 && len.is_finite()) {
-                frames.push(Frame {
-                    n: DVec3::ZERO,
-                    w: 0.0,
-                    bounds: [0.0; 4],
-                    origin: DVec3::ZERO,
-                    e1: DVec3::ZERO,
-                    e2: DVec3::ZERO,
-                    slab: f64::INFINITY,
-                    reach: 0.0,
-                });
                 continue;
             }
-            let n = pn / len;
-            let origin = n * (pw / len);
-            let e1 = n.any_orthonormal_vector();
-            let e2 = n.cross(e1);
-            let mut slab = 0.0f64;
-            let mut reach = 0.0f64;
-            let mut bounds = [
-                f64::INFINITY,
-                f64::INFINITY,
-                f64::NEG_INFINITY,
-                f64::NEG_INFINITY,
-            ];
+            let e1 = (pn / len).any_orthonormal_vector().as_vec3();
+            let (n, w, e1d, e2d) = axes(blas.planes[g], e1);
+            let origin = vert(mesh.tris[members[s] as usize][0]);
+            let od = origin.as_dvec3();
+            let (mut slab, mut reach) = (0.0f64, 0.0f64);
             for (k, &t) in members[s..e].iter().enumerate() {
+                if t == u32::MAX {
+                    break;
+                }
                 let mut p = [(0.0f64, 0.0f64); 3];
                 for (j, &i) in mesh.tris[t as usize].iter().enumerate() {
-                    let v = vert(i);
-                    slab = slab.max((n.dot(v) - pw / len).abs());
-                    p[j] = ((v - origin).dot(e1), (v - origin).dot(e2));
+                    let v = vert(i).as_dvec3();
+                    slab = slab.max((n.dot(v) - w).abs());
+                    p[j] = ((v - od).dot(e1d), (v - od).dot(e2d));
                     reach = reach.max(p[j].0.abs()).max(p[j].1.abs());
-                    bounds = [
-                        bounds[0].min(p[j].0),
-                        bounds[1].min(p[j].1),
-                        bounds[2].max(p[j].0),
-                        bounds[3].max(p[j].1),
-                    ];
                 }
-                boxes[cstart[g] as usize + k / LANES].set(k % LANES, p);
+                lines[(s + k) / LANES].set(k % LANES, p);
             }
             // The f64 arithmetic above rounds far below a relative 1e-9 of the magnitudes
             // involved.
-            let scale = origin.length() + vmax;
-            frames.push(Frame {
-                n,
-                w: pw / len,
-                bounds,
+            let scale = od.length() + vmax;
+            frames[g] = RecordFrame {
                 origin,
                 e1,
-                e2,
-                slab: slab * (1.0 + 1e-9) + 1e-9 * scale,
-                reach,
-            });
+                slab: up(slab * (1.0 + 1e-9) + 1e-9 * scale),
+                reach: up(reach * (1.0 + 1e-9)),
+            };
         }
         GroupTable {
             start,
             members,
-            cstart,
-            boxes,
+            lines,
             frames,
             vmax,
         }
@@ -222,45 +223,62 @@ impl GroupTable {
         g + 1 < self.start.len() && self.start[g + 1] > self.start[g]
     }
 
-    /// Group `g`'s binned triangles, ascending (the first is the one its record is made at).
+    /// Group `g`'s binned triangles, ascending (the first is the one its record is made at),
+    /// padded with `u32::MAX` to a multiple of eight.
     #[inline]
     pub(crate) fn members(&self, g: u32) -> &[u32] {
         let g = g as usize;
         &self.members[self.start[g] as usize..self.start[g + 1] as usize]
     }
 
-    /// Where the local ray `o + s·d` crosses group `g`'s plane, with the margin of the module
-    /// documentation: `Some(None)` where the ray can cross none of the group's triangles
-    /// (the crossing is beyond the margin of the members' box), `None` where every triangle
-    /// must be tested.
+    /// What group `g`'s record carries ([`RecordFrame`]).
+    pub(crate) fn record(&self, g: u32) -> RecordFrame {
+        self.frames[g as usize]
+    }
+
+    /// Where the local ray `o + s·d` crosses the plane `plane` (`blas.planes[g]`) of the group
+    /// whose record carries `f`, with the margin of the module documentation: `Some(None)`
+    /// where the ray can cross none of the group's triangles (the crossing is beyond the
+    /// margin of the members' reach), `None` where every triangle must be tested.
     #[inline]
-    pub(crate) fn crossing(&self, g: u32, o: DVec3, d: DVec3) -> Option<Option<Crossing>> {
-        let f = &self.frames[g as usize];
-        let nd = f.n.dot(d);
+    pub(crate) fn crossing(
+        &self,
+        f: &RecordFrame,
+        plane: (DVec3, f64),
+        o: DVec3,
+        d: DVec3,
+    ) -> Option<Option<Crossing>> {
+        let (n, w, e1, e2) = axes(plane, f.e1);
+        let nd = n.dot(d);
         let c = (nd / d.length()).abs();
-        if !(c >= MIN_COSINE) || !f.slab.is_finite() {
+        let slab = f.slab as f64;
+        if !(c >= MIN_COSINE) || !slab.is_finite() {
             return None;
         }
-        let p = o + d * ((f.w - f.n.dot(o)) / nd);
-        let q = p - f.origin;
-        let (x, y) = (q.dot(f.e1), q.dot(f.e2));
+        let p = o + d * ((w - n.dot(o)) / nd);
+        let q = p - f.origin.as_dvec3();
+        let (x, y) = (q.dot(e1), q.dot(e2));
         let r = o.length() + self.vmax;
-        // The plane is `blas.planes[g]` normalised: its rounding (a relative 1e-16) is far
-        // below the last term.
-        let margin =
-            f.slab * (1.0 - c * c).max(0.0).sqrt() / c + EPS * r / c + 1e-9 * (r + p.length());
+        // The ray meets a member at most `slab/c` from `p`; the frame's axes, off unit and
+        // orthogonal by the f32 rounding, move that displacement's projection by less than
+        // 1e-6 of it. The plane normalised rounds by a relative 1e-16, far below the last
+        // term.
+        let margin = slab * (1.0 - c * c).max(0.0).sqrt() / c
+            + 1e-6 * slab / c
+            + EPS * r / c
+            + 1e-9 * (r + p.length());
         if !(x.is_finite() && y.is_finite() && margin.is_finite()) {
             return None;
         }
-        let b = &f.bounds;
-        if x + margin < b[0] || x - margin > b[2] || y + margin < b[1] || y - margin > b[3] {
+        let reach = f.reach as f64;
+        if x.abs() - margin > reach || y.abs() - margin > reach {
             return Some(None);
         }
         // The lanes evaluate `a·x + b·y + c` in f32 on coefficients rounded to f32, with
-        // `|a|, |b| ≤ 1` and `|c|` at most the members' reach plus a rounding: each of the
-        // few roundings moves the value by a relative 2⁻²⁴ of `|x| + |y| + |c|`, and 1e-6 of
-        // that sum (about 17 units) covers them, with the margin's own rounding.
-        let margin = margin + 1e-6 * (x.abs() + y.abs() + 2.0 * f.reach + margin);
+        // `|a|, |b| ≤ 1` and `|c|` at most twice the members' reach: each of the few
+        // roundings moves the value by a relative 2⁻²⁴ of `|x| + |y| + |c|`, and 1e-6 of that
+        // sum (about 17 units) covers them, with the margin's own rounding.
+        let margin = margin + 1e-6 * (x.abs() + y.abs() + 2.0 * reach + margin);
         Some(Some(Crossing {
             x: x as f32,
             y: y as f32,
@@ -272,11 +290,12 @@ impl GroupTable {
     /// the `i`-th mask is member `8i + l`, set where the crossing is within the margin of
     /// each edge line of the member's projection into the plane (which holds the projection
     /// of every point of the triangle; a point within the margin of the triangle is within it
-    /// of each line).
+    /// of each line). Padding lanes never pass.
     #[inline]
     pub(crate) fn masks<'a>(&'a self, g: u32, at: &'a Crossing) -> impl Iterator<Item = u32> + 'a {
         let g = g as usize;
-        self.boxes[self.cstart[g] as usize..self.cstart[g + 1] as usize]
+        let (s, e) = (self.start[g] as usize, self.start[g + 1] as usize);
+        self.lines[s / LANES..e / LANES]
             .iter()
             .map(move |c| c.mask(at))
     }

@@ -43,7 +43,7 @@ use crate::hit_record::{record, HitLists, RecordedHit};
 use crate::kbuffer::{Accum, KBuffer};
 use crate::mesh_bin::TileLists;
 use crate::mesh_cands::{Cand, Cold, HotChunk, LANES};
-use crate::mesh_groups::GROUP_MARK;
+use crate::mesh_groups::{RecordFrame, GROUP_MARK};
 use crate::mesh_hit::{Compositor, LocalRay, Query, Tested};
 use crate::mesh_tracer::{MeshTracer, PreparedInstance, TrianglePayload};
 use crate::render::{camera_ray, render_frame_tiles, RenderOptions, Stats};
@@ -322,7 +322,7 @@ impl MeshTracer {
             return;
         };
         if e.mirror == GROUP_MARK {
-            self.group_candidate(ii, inst.mesh, &r, e.group, q, buf, cull);
+            self.group_candidate(ii, inst.mesh, &r, e, q, buf, cull);
             return;
         }
         let tested = self.test_triangle(
@@ -352,7 +352,7 @@ impl MeshTracer {
         ii: usize,
         mesh: usize,
         r: &LocalRay,
-        g: u32,
+        e: &Cold,
         q: &Query,
         buf: &mut KBuffer<TrianglePayload>,
         cull: &mut f32,
@@ -362,7 +362,9 @@ impl MeshTracer {
         let (Some(table), Some(mirror)) = (blas.groups.get(), blas.mirror.get()) else {
             return;
         };
-        let at = match table.crossing(g, r.lo64, r.ld64) {
+        let g = e.group;
+        let frame = RecordFrame::unpack(&e.verts);
+        let at = match table.crossing(&frame, blas.planes[g as usize], r.lo64, r.ld64) {
             Some(None) => return,
             Some(Some(at)) => Some(at),
             None => None,
@@ -380,7 +382,7 @@ impl MeshTracer {
         };
         match at {
             None => {
-                for &t in members {
+                for &t in members.iter().take_while(|&&t| t != u32::MAX) {
                     if test(t) == Tested::Decided {
                         return;
                     }
