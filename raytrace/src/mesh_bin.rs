@@ -130,6 +130,14 @@ impl TileLists {
                     .get_or_init(|| GroupTable::new(mesh, blas, mirror));
             }
         });
+        // Small groups as one record where rays are few for the triangles (`mesh_groups`).
+        let rays = (cam.width as u64 * cam.height as u64).saturating_mul(offsets.len() as u64);
+        let triangles: u64 = insts
+            .iter()
+            .map(|i| tracer.scene.meshes[i.mesh].tris.len() as u64)
+            .sum();
+        let small_groups =
+            rays.saturating_mul(crate::mesh_groups::SMALL_GROUP_TRIANGLES_PER_RAY) <= triangles;
         let mut cands: Vec<Cand> = Vec::new();
         let mut skipped = 0;
         for (ii, inst) in insts.iter().enumerate() {
@@ -230,7 +238,7 @@ impl TileLists {
                 let g = blas.group.get(p, t);
                 let zg = gz[g as usize];
                 let zmin = down(zg - 1e-5 * zg.abs() - slack);
-                if table.is_big(g) {
+                if table.is_group(g, small_groups) {
                     // One record for the whole group, made at its first triangle
                     // (`mesh_groups`): its rectangle holds every member's.
                     let members = table.members(g);

@@ -72,10 +72,11 @@ fn disc(
     }
 }
 
-/// `n` random discs of 40 triangles a winding (8 sectors, 2 rings) around `offset`: every
-/// seventh repeated (equal keys), every third opaque, every fourth wobbling off its plane,
-/// every eleventh large.
-fn discs(seed: u64, n: usize, extent: f32, offset: Vec3, both: bool) -> Mesh {
+/// `n` random discs of `segments` sectors and `rings` rings (8 and 2: 40 triangles a
+/// winding, always a group; 6 and 0: a fan of 6, a group only in frames of few rays) around
+/// `offset`: every seventh repeated (equal keys), every third opaque, every fourth wobbling
+/// off its plane, every eleventh large.
+fn discs(seed: u64, n: usize, extent: f32, offset: Vec3, both: bool, shape: (u32, u32)) -> Mesh {
     let mut r = Rng(seed);
     let mut m = Mesh {
         has_gaussian_ids: true,
@@ -99,20 +100,22 @@ fn discs(seed: u64, n: usize, extent: f32, offset: Vec3, both: bool) -> Mesh {
         let copies = if g % 7 == 0 { 2 } else { 1 };
         for _ in 0..copies {
             let (a0, a1) = (q * Vec3::X * s.x, q * Vec3::Y * s.y);
+            let (segments, rings) = shape;
             disc(
-                &mut m, g as u32, c, a0, a1, 8, 2, rgba, both, wobble, &mut r,
+                &mut m, g as u32, c, a0, a1, segments, rings, rgba, both, wobble, &mut r,
             );
         }
     }
     m
 }
 
-/// Three nodes over two disc meshes (one rotated and scaled), around `offset`.
-fn scene(seed: u64, offset: Vec3, both: bool) -> TriScene {
+/// Three nodes over two disc meshes (one rotated and scaled), around `offset`; `n` discs in
+/// the first mesh, two thirds of that in the second.
+fn scene(seed: u64, offset: Vec3, both: bool, n: usize, shape: (u32, u32)) -> TriScene {
     TriScene {
         meshes: vec![
-            discs(seed, 60, 1.0, offset, both),
-            discs(seed ^ 0x5A5A, 40, 0.6, offset, both),
+            discs(seed, n, 1.0, offset, both, shape),
+            discs(seed ^ 0x5A5A, n * 2 / 3, 0.6, offset, both, shape),
         ],
         materials: blend(),
         nodes: vec![
@@ -156,16 +159,14 @@ fn cameras(offset: DVec3) -> Vec<Camera> {
     ]
 }
 
-#[test]
-fn group_hits_equal_brute_force() {
+/// Every sample's hits through the tiles, and the images, against the brute-force reference,
+/// for the scenes `scenes` (seed, offset, both windings); returns the hits compared and the
+/// group records binned.
+fn check_scenes(scenes: &[(u64, Vec3, bool)], n: usize, shape: (u32, u32)) -> (usize, usize) {
     let opts = RenderOptions::default();
     let (mut compared, mut groups) = (0usize, 0usize);
-    for (seed, offset, both) in [
-        (1u64, Vec3::ZERO, true),
-        (2, Vec3::ZERO, false),
-        (3, Vec3::new(1e4, -2e4, 3e4), true),
-    ] {
-        let tracer = tracer(scene(seed, offset, both));
+    for &(seed, offset, both) in scenes {
+        let tracer = tracer(scene(seed, offset, both, n, shape));
         let insts = tracer.prepare_list(0.0);
         for cam in cameras(offset.as_dvec3()) {
             for spp in [1, 4] {
@@ -210,7 +211,34 @@ fn group_hits_equal_brute_force() {
             }
         }
     }
+    (compared, groups)
+}
+
+#[test]
+fn group_hits_equal_brute_force() {
+    let (compared, groups) = check_scenes(
+        &[
+            (1, Vec3::ZERO, true),
+            (2, Vec3::ZERO, false),
+            (3, Vec3::new(1e4, -2e4, 3e4), true),
+        ],
+        60,
+        (8, 2),
+    );
     // The discs are binned as groups, and thousands of their hits were compared.
+    assert!(groups > 500, "{groups} group records");
+    assert!(compared > 10_000, "{compared} hits compared");
+}
+
+/// Fans of six triangles: one record a fan in the frames of one sample a pixel (enough
+/// triangles a ray, `SMALL_GROUP_TRIANGLES_PER_RAY`), one a triangle at four.
+#[test]
+fn small_groups_equal_brute_force() {
+    let (compared, groups) = check_scenes(
+        &[(4, Vec3::ZERO, true), (5, Vec3::ZERO, false)],
+        400,
+        (6, 0),
+    );
     assert!(groups > 500, "{groups} group records");
     assert!(compared > 10_000, "{compared} hits compared");
 }
@@ -223,7 +251,7 @@ fn crossing_filter_keeps_every_reported_triangle() {
     let mut r = Rng(77);
     let (mut reported, mut filtered_out, mut grazing) = (0usize, 0usize, 0usize);
     for (seed, offset) in [(5u64, Vec3::ZERO), (6, Vec3::new(-3e3, 2e3, 5e3))] {
-        let tracer = tracer(scene(seed, offset, true));
+        let tracer = tracer(scene(seed, offset, true, 60, (8, 2)));
         let cam = &cameras(offset.as_dvec3())[0];
         let insts = tracer.prepare_list(0.0);
         // Binning builds the tables.
@@ -234,7 +262,7 @@ fn crossing_filter_keeps_every_reported_triangle() {
         let mirror = blas.mirror.get().expect("pairs found");
         let groups = blas.planes.len() as u32;
         for g in 0..groups {
-            if !table.is_big(g) {
+            if !table.is_group(g, false) {
                 continue;
             }
             let members = table.members(g);

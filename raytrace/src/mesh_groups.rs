@@ -28,9 +28,19 @@ use crate::mesh_tracer::Blas;
 use crate::model::Mesh;
 
 /// Groups of at least this many binned triangles (pair-leading, see
-/// `mesh_cands::mirror_pairs`) are binned as one record: a MeshSplats fan has 8, a `rings`
-/// disc 40, the texture profile's quad 2 (its two records keep their edge pre-test).
-pub(crate) const MIN_MEMBERS: usize = 16;
+/// `mesh_cands::mirror_pairs`) may be binned as one record: a MeshSplats fan has 8, a `rings`
+/// disc 40, the texture profile's quad 2 (its two records keep their edge pre-test). Groups
+/// of more than [`LANES`] always are; smaller ones only in frames of few rays for their
+/// triangles ([`SMALL_GROUP_TRIANGLES_PER_RAY`]).
+pub(crate) const MIN_MEMBERS: usize = 4;
+
+/// Groups of 4 to 8 binned triangles are binned as one record in a frame whose instances
+/// hold at least this many triangles a ray (samples of every pixel). Measured on the
+/// MeshSplats export of a real capture (8 triangles a group, 5.66 M triangles, both
+/// windings): as one record a group saves its members' binning but costs each ray reaching it
+/// the crossing and reads through the table, a win at 320×240 (74 triangles a ray: 0.72 →
+/// 0.42 s) and 640×480 (18: 0.93 → 0.69 s), a loss at 1920×1080 (2.7: 1.78 → 2.07 s).
+pub(crate) const SMALL_GROUP_TRIANGLES_PER_RAY: u64 = 6;
 
 /// The `mirror` field of a group record's `Cand` (no triangle index reaches it: the tile
 /// lists address records by u32 and triangles by u32 below `u32::MAX - 1`).
@@ -216,11 +226,17 @@ impl GroupTable {
         }
     }
 
-    /// Whether group `g` is binned as one record.
+    /// Whether group `g` is binned as one record: a group of more than [`LANES`] binned
+    /// triangles, or with `small`, of at least [`MIN_MEMBERS`] (its padded member list is
+    /// one chunk).
     #[inline]
-    pub(crate) fn is_big(&self, g: u32) -> bool {
+    pub(crate) fn is_group(&self, g: u32, small: bool) -> bool {
         let g = g as usize;
-        g + 1 < self.start.len() && self.start[g + 1] > self.start[g]
+        if g + 1 >= self.start.len() {
+            return false;
+        }
+        let n = (self.start[g + 1] - self.start[g]) as usize;
+        n > LANES || (small && n > 0)
     }
 
     /// Group `g`'s binned triangles, ascending (the first is the one its record is made at),
