@@ -1,7 +1,8 @@
 //! Group records for mode `mesh`'s screen tiles (`mesh_bin`, `mesh_tiles`): a planar group of
-//! many triangles (a MeshSplats fan, a `rings` disc: 8 to 80 triangles a Gaussian) is binned
-//! as one record instead of one a triangle, and a ray that reaches the record finds the
-//! group's triangles it may cross by where it crosses the group's plane.
+//! many triangles (a `rings` disc, 40 triangles a Gaussian; a MeshSplats fan, 8, in frames of
+//! few rays for their triangles) is binned as one record instead of one a triangle, and a ray
+//! that reaches the record finds the group's triangles it may cross by where it crosses the
+//! group's plane.
 //!
 //! Why: every triangle's record costs binning its projection, rectangle, edge functions,
 //! sort key, tile entries and cell copies once a frame, whether a ray reaches it or not. On
@@ -18,8 +19,9 @@
 //! ray and normal). The watertight test decides for the f32 ray and vertices, whose
 //! rounding moves the crossing by less than `EPS·R/c` (`R` the magnitude of the local
 //! origin and the vertices). A triangle whose projection into the plane lies farther than
-//! both from the crossing point (plus the rounding of its stored 2D vertices) cannot be
-//! reported. Below `MIN_COSINE` (grazing rays) every triangle of the group is tested.
+//! both from the crossing point (plus the f32 rounding of the frame's axes and of the lanes'
+//! edge functions) cannot be reported. Below `MIN_COSINE` (grazing rays) every triangle of
+//! the group is tested.
 
 use glam::{DVec3, Vec3};
 
