@@ -9,10 +9,8 @@ use glam::{DVec3, Vec2, Vec3, Vec4};
 
 use super::footprint::sample_offsets;
 use super::mesh_bin::TileLists;
-use super::mesh_tile_tests::{bits, check_sample, reference_image, tracer, Rng};
-use super::mesh_tiles::{TileCtx, TILE};
+use super::mesh_tile_tests::{assert_image_is_reference, check_every_sample, tracer, Rng};
 use super::model::{AlphaMode, Material, Mesh, Node, TriScene};
-use super::render::RenderOptions;
 use super::texture::{Texture, Wrap};
 use splatbridge_scene::Camera;
 
@@ -157,7 +155,6 @@ fn textured_scene(seed: u64, mirror_material: u32) -> TriScene {
 /// tested on its own; settling it would lose the second's hit).
 #[test]
 fn textured_quads_equal_brute_force_with_zero_alpha_settled() {
-    let opts = RenderOptions::default();
     let cam = Camera::look_at(
         DVec3::new(0.3, -0.5, -4.0),
         DVec3::ZERO,
@@ -172,33 +169,9 @@ fn textured_quads_equal_brute_force_with_zero_alpha_settled() {
         let tracer = tracer(textured_scene(seed, mirror_material));
         let insts = tracer.prepare_list(0.0);
         let lists = TileLists::build(&tracer, &insts, &cam, &sample_offsets(1));
-        for ty in 0..cam.height.div_ceil(TILE) {
-            for tx in 0..cam.width.div_ceil(TILE) {
-                let mut ctx = TileCtx::new(&lists, tx, ty, insts.len());
-                for j in ty * TILE..((ty + 1) * TILE).min(cam.height) {
-                    for i in tx * TILE..((tx + 1) * TILE).min(cam.width) {
-                        let uv = (i as f64 + 0.5, j as f64 + 0.5);
-                        let want = check_sample(
-                            &tracer,
-                            &insts,
-                            &mut ctx,
-                            &cam,
-                            uv,
-                            opts.min_transmittance,
-                        );
-                        hits += want.len();
-                    }
-                }
-            }
-        }
+        hits += check_every_sample(&tracer, &insts, &lists, &cam, 1);
         for spp in [1, 4] {
-            let opts = RenderOptions {
-                spp,
-                ..RenderOptions::default()
-            };
-            let (got, _) = tracer.render(&cam, 0.0, &opts).unwrap();
-            let want = reference_image(&tracer, &cam, &opts);
-            assert_eq!(bits(&got), bits(&want), "seed {seed}, spp {spp}");
+            assert_image_is_reference(&tracer, &cam, spp, &format!("seed {seed}"));
         }
     }
     assert!(hits > 1000, "{hits} hits compared");

@@ -13,7 +13,9 @@ use splatbridge_scene::Camera;
 
 use super::footprint::sample_offsets;
 use super::mesh_bin::TileLists;
-use super::mesh_tile_tests::{bits, blend, random_mesh, reference_image, tracer, Rng};
+use super::mesh_tile_tests::{
+    assert_image_is_reference, bits, blend, random_mesh, reference_image, tracer, Rng,
+};
 use super::mesh_tiles::local_ray;
 use super::model::{Node, TriScene};
 use super::render::RenderOptions;
@@ -248,13 +250,7 @@ fn triangles_between_the_samples_are_never_crossed() {
                 }
             }
             total += all.len();
-            let opts = RenderOptions {
-                spp,
-                ..RenderOptions::default()
-            };
-            let (img, _) = tracer.render(&cam, 0.0, &opts).unwrap();
-            let want = reference_image(&tracer, &cam, &opts);
-            assert_eq!(bits(&img), bits(&want), "seed {seed}, {spp} spp");
+            assert_image_is_reference(&tracer, &cam, spp, &format!("seed {seed}"));
         }
     }
     // Measured: 9,116 of 13,216 records (69 %) over both scenes and sample counts; a fifth is

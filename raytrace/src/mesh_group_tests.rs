@@ -6,17 +6,17 @@
 //! the plane-crossing filter never leaves out a triangle the watertight test reports, on rays
 //! aimed at the triangles' vertices and edges from every side.
 
-use glam::{DQuat, DVec3, Vec3, Vec4};
+use glam::{DVec3, Vec3, Vec4};
 use splatbridge_scene::Camera;
 
 use super::footprint::sample_offsets;
 use super::mesh_bin::TileLists;
 use super::mesh_groups::GROUP_MARK;
 use super::mesh_hit::LocalRay;
-use super::mesh_tile_tests::{bits, blend, check_sample, reference_image, tracer, Rng};
-use super::mesh_tiles::{TileCtx, TILE};
-use super::model::{Mesh, Node, TriScene};
-use super::render::RenderOptions;
+use super::mesh_tile_tests::{
+    assert_image_is_reference, check_every_sample, ided_mesh, nodes_over, tracer, Rng,
+};
+use super::model::{Mesh, TriScene};
 
 /// A disc of `segments` sectors: a centre fan and `rings` rings of quads (two triangles a
 /// sector), α falling outwards, each triangle again in the other winding right after it when
@@ -78,17 +78,9 @@ fn disc(
 /// off its plane, every eleventh large.
 fn discs(seed: u64, n: usize, extent: f32, offset: Vec3, both: bool, shape: (u32, u32)) -> Mesh {
     let mut r = Rng(seed);
-    let mut m = Mesh {
-        has_gaussian_ids: true,
-        ..Mesh::default()
-    };
+    let mut m = ided_mesh();
     for g in 0..n {
-        let c = offset
-            + Vec3::new(
-                r.range(-extent, extent),
-                r.range(-extent, extent),
-                r.range(-extent, extent),
-            );
+        let c = r.point(offset, extent);
         let q = r.rotation();
         let big = if g % 11 == 0 { 4.0 } else { 1.0 };
         let s = Vec3::new(r.range(0.1, 0.5), r.range(0.1, 0.5), 1.0) * extent * 0.4 * big;
@@ -109,36 +101,14 @@ fn discs(seed: u64, n: usize, extent: f32, offset: Vec3, both: bool, shape: (u32
     m
 }
 
-/// Three nodes over two disc meshes (one rotated and scaled), around `offset`; `n` discs in
-/// the first mesh, two thirds of that in the second.
+/// Two disc meshes under the tile tests' four nodes, around `offset`; `n` discs in the first
+/// mesh, two thirds of that in the second.
 fn scene(seed: u64, offset: Vec3, both: bool, n: usize, shape: (u32, u32)) -> TriScene {
-    TriScene {
-        meshes: vec![
-            discs(seed, n, 1.0, offset, both, shape),
-            discs(seed ^ 0x5A5A, n * 2 / 3, 0.6, offset, both, shape),
-        ],
-        materials: blend(),
-        nodes: vec![
-            Node {
-                mesh: Some(0),
-                ..Node::default()
-            },
-            Node {
-                mesh: Some(1),
-                translation: DVec3::new(0.2, -0.1, 0.3),
-                rotation: DQuat::from_rotation_y(0.6),
-                scale: DVec3::new(1.0, 1.4, 0.9),
-                ..Node::default()
-            },
-            Node {
-                mesh: Some(0),
-                translation: DVec3::new(-0.4, 0.1, 0.8),
-                ..Node::default()
-            },
-        ],
-        colors_linear: seed.is_multiple_of(2),
-        ..TriScene::default()
-    }
+    nodes_over(
+        discs(seed, n, 1.0, offset, both, shape),
+        discs(seed ^ 0x5A5A, n * 2 / 3, 0.6, offset, both, shape),
+        seed.is_multiple_of(2),
+    )
 }
 
 /// Outside the scene, inside it, and edge-on to the horizon of a scene laid flat.
@@ -160,10 +130,9 @@ fn cameras(offset: DVec3) -> Vec<Camera> {
 }
 
 /// Every sample's hits through the tiles, and the images, against the brute-force reference,
-/// for the scenes `scenes` (seed, offset, both windings); returns the hits compared and the
-/// group records binned.
-fn check_scenes(scenes: &[(u64, Vec3, bool)], n: usize, shape: (u32, u32)) -> (usize, usize) {
-    let opts = RenderOptions::default();
+/// for the scenes `scenes` (seed, offset, both windings), with hundreds of group records
+/// binned and thousands of hits compared.
+fn check_scenes(scenes: &[(u64, Vec3, bool)], n: usize, shape: (u32, u32)) {
     let (mut compared, mut groups) = (0usize, 0usize);
     for &(seed, offset, both) in scenes {
         let tracer = tracer(scene(seed, offset, both, n, shape));
@@ -177,70 +146,38 @@ fn check_scenes(scenes: &[(u64, Vec3, bool)], n: usize, shape: (u32, u32)) -> (u
                     .iter()
                     .filter(|c| c.mirror == GROUP_MARK)
                     .count();
-                for ty in 0..cam.height.div_ceil(TILE) {
-                    for tx in 0..cam.width.div_ceil(TILE) {
-                        let mut ctx = TileCtx::new(&lists, tx, ty, insts.len());
-                        for j in ty * TILE..((ty + 1) * TILE).min(cam.height) {
-                            for i in tx * TILE..((tx + 1) * TILE).min(cam.width) {
-                                for &(du, dv) in &offsets {
-                                    let (du, dv) = if spp == 1 { (0.5, 0.5) } else { (du, dv) };
-                                    let uv = (i as f64 + du, j as f64 + dv);
-                                    compared += check_sample(
-                                        &tracer,
-                                        &insts,
-                                        &mut ctx,
-                                        &cam,
-                                        uv,
-                                        opts.min_transmittance,
-                                    )
-                                    .len();
-                                }
-                            }
-                        }
-                    }
-                }
+                compared += check_every_sample(&tracer, &insts, &lists, &cam, spp);
             }
             for spp in [1, 4] {
-                let opts = RenderOptions {
-                    spp,
-                    ..RenderOptions::default()
-                };
-                let (got, _) = tracer.render(&cam, 0.0, &opts).unwrap();
-                let want = reference_image(&tracer, &cam, &opts);
-                assert_eq!(bits(&got), bits(&want), "seed {seed}, spp {spp}");
+                assert_image_is_reference(&tracer, &cam, spp, &format!("seed {seed}"));
             }
         }
     }
-    (compared, groups)
+    // The scenes are binned as groups, and thousands of their hits were compared.
+    assert!(groups > 500, "{groups} group records");
+    assert!(compared > 10_000, "{compared} hits compared");
 }
 
 #[test]
 fn group_hits_equal_brute_force() {
-    let (compared, groups) = check_scenes(
-        &[
-            (1, Vec3::ZERO, true),
-            (2, Vec3::ZERO, false),
-            (3, Vec3::new(1e4, -2e4, 3e4), true),
-        ],
-        60,
-        (8, 2),
-    );
-    // The discs are binned as groups, and thousands of their hits were compared.
-    assert!(groups > 500, "{groups} group records");
-    assert!(compared > 10_000, "{compared} hits compared");
+    let far = Vec3::new(1e4, -2e4, 3e4);
+    let scenes = [
+        (1, Vec3::ZERO, true),
+        (2, Vec3::ZERO, false),
+        (3, far, true),
+    ];
+    check_scenes(&scenes, 60, (8, 2));
 }
 
 /// Fans of six triangles: one record a fan in the frames of one sample a pixel (enough
 /// triangles a ray, `SMALL_GROUP_TRIANGLES_PER_RAY`), one a triangle at four.
 #[test]
 fn small_groups_equal_brute_force() {
-    let (compared, groups) = check_scenes(
+    check_scenes(
         &[(4, Vec3::ZERO, true), (5, Vec3::ZERO, false)],
         400,
         (6, 0),
     );
-    assert!(groups > 500, "{groups} group records");
-    assert!(compared > 10_000, "{compared} hits compared");
 }
 
 /// The filter of `GroupTable::crossing` and `masks` passes every triangle the watertight test

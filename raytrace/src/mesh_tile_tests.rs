@@ -36,6 +36,15 @@ impl Rng {
     pub(crate) fn range(&mut self, a: f32, b: f32) -> f32 {
         a + (b - a) * self.f()
     }
+    /// A point in the box of half-size `extent` around `offset`.
+    pub(crate) fn point(&mut self, offset: Vec3, extent: f32) -> Vec3 {
+        offset
+            + Vec3::new(
+                self.range(-extent, extent),
+                self.range(-extent, extent),
+                self.range(-extent, extent),
+            )
+    }
     /// A random rotation (a normalised quaternion of random components).
     pub(crate) fn rotation(&mut self) -> Quat {
         Quat::from_xyzw(
@@ -84,23 +93,23 @@ fn fan(
     }
 }
 
+/// An empty mesh whose triangles name their Gaussians.
+pub(crate) fn ided_mesh() -> Mesh {
+    Mesh {
+        has_gaussian_ids: true,
+        ..Mesh::default()
+    }
+}
+
 /// `n` random fans in a box of half-size `extent` around `offset`: every seventh repeated
 /// exactly (equal keys), every fifth fully transparent, every third opaque (so rays stop, and
 /// the walk's early exit is exercised), some large (across the camera of [`cameras`]), with
 /// both windings when `both`.
 pub(crate) fn random_mesh(seed: u64, n: usize, extent: f32, offset: Vec3, both: bool) -> Mesh {
     let mut r = Rng(seed);
-    let mut m = Mesh {
-        has_gaussian_ids: true,
-        ..Mesh::default()
-    };
+    let mut m = ided_mesh();
     for g in 0..n {
-        let c = offset
-            + Vec3::new(
-                r.range(-extent, extent),
-                r.range(-extent, extent),
-                r.range(-extent, extent),
-            );
+        let c = r.point(offset, extent);
         let q = r.rotation();
         let big = if g % 53 == 0 { 6.0 } else { 1.0 };
         let s = Vec3::new(r.range(0.05, 0.4), r.range(0.05, 0.4), 1.0) * extent * 0.4 * big;
@@ -143,6 +152,12 @@ pub(crate) fn blend() -> Vec<Material> {
 pub(crate) fn scene(seed: u64, offset: Vec3, both: bool) -> TriScene {
     let a = random_mesh(seed, 160, 1.0, offset, both);
     let b = random_mesh(seed ^ 0xABCD, 90, 0.5, offset, both);
+    nodes_over(a, b, seed.is_multiple_of(2))
+}
+
+/// The meshes `a` and `b` under four static nodes (`a` twice, `b` rotated and scaled, one
+/// under a scaled parent), blended, with linear vertex colours when `linear`.
+pub(crate) fn nodes_over(a: Mesh, b: Mesh, linear: bool) -> TriScene {
     TriScene {
         meshes: vec![a, b],
         materials: blend(),
@@ -169,7 +184,7 @@ pub(crate) fn scene(seed: u64, offset: Vec3, both: bool) -> TriScene {
                 ..Node::default()
             },
         ],
-        colors_linear: seed.is_multiple_of(2),
+        colors_linear: linear,
         ..TriScene::default()
     }
 }
@@ -269,6 +284,35 @@ pub(crate) fn check_sample(
     want
 }
 
+/// [`check_sample`] at every sample of every pixel of `cam` through `lists` (binned for
+/// `spp` samples a pixel: the pixel centre at 1); returns the reference hits compared.
+pub(crate) fn check_every_sample(
+    tracer: &MeshTracer,
+    insts: &[PreparedInstance],
+    lists: &TileLists,
+    cam: &Camera,
+    spp: u32,
+) -> usize {
+    let min_t = RenderOptions::default().min_transmittance;
+    let offsets = sample_offsets(spp);
+    let mut compared = 0;
+    for ty in 0..cam.height.div_ceil(TILE) {
+        for tx in 0..cam.width.div_ceil(TILE) {
+            let mut ctx = TileCtx::new(lists, tx, ty, insts.len());
+            for j in ty * TILE..((ty + 1) * TILE).min(cam.height) {
+                for i in tx * TILE..((tx + 1) * TILE).min(cam.width) {
+                    for &(du, dv) in &offsets {
+                        let (du, dv) = if spp == 1 { (0.5, 0.5) } else { (du, dv) };
+                        let uv = (i as f64 + du, j as f64 + dv);
+                        compared += check_sample(tracer, insts, &mut ctx, cam, uv, min_t).len();
+                    }
+                }
+            }
+        }
+    }
+    compared
+}
+
 /// Hits as bits (distance, key, triangle, barycentrics, colour).
 fn hit_bits(h: &MeshHit) -> Vec<u32> {
     let mut v = vec![
@@ -305,6 +349,21 @@ pub(crate) fn reference_image(tracer: &MeshTracer, cam: &Camera, opts: &RenderOp
     })
     .unwrap()
     .0
+}
+
+/// The image of `cam` at `spp` samples a pixel (other options at their defaults) equals the
+/// brute-force reference's, bit for bit (`what` names the case).
+pub(crate) fn assert_image_is_reference(tracer: &MeshTracer, cam: &Camera, spp: u32, what: &str) {
+    let opts = RenderOptions {
+        spp,
+        ..RenderOptions::default()
+    };
+    let (got, _) = tracer.render(cam, 0.0, &opts).unwrap();
+    assert_eq!(
+        bits(&got),
+        bits(&reference_image(tracer, cam, &opts)),
+        "{what}, {spp} spp"
+    );
 }
 
 pub(crate) fn tracer(scene: TriScene) -> MeshTracer {
