@@ -80,8 +80,11 @@ fn zero_blocks_are_conservative() {
 
 /// Textured quads (two triangles, the texture profile's layout) in both windings, their UVs
 /// over the whole texture, at random places and angles; every fourth opaque. The second
-/// winding's material is `mirror_material`: 0, the textured one, or 1, untextured.
-fn textured_scene(seed: u64, mirror_material: u32) -> TriScene {
+/// winding's material is `mirror_material`: 0, the textured one, or 1, untextured. Each
+/// Gaussian's quad `stack` times over, in one plane, the copies' UVs shifted so that a point
+/// outside one copy's disc lies inside another's (one group of `2·stack` triangles a winding:
+/// a group record from five copies on, `mesh_groups`).
+fn textured_scene(seed: u64, mirror_material: u32, stack: u32) -> TriScene {
     let mut r = Rng(seed);
     let mut m = Mesh {
         has_gaussian_ids: true,
@@ -97,16 +100,19 @@ fn textured_scene(seed: u64, mirror_material: u32) -> TriScene {
         );
         let alpha = if g % 4 == 0 { 1.0 } else { r.range(0.2, 1.0) };
         let rgba = Vec4::new(r.f(), r.f(), r.f(), alpha);
-        let base = m.positions.len() as u32;
-        for (du, dv) in [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)] {
-            m.positions
-                .push(c + a0 * (2.0 * du - 1.0) + a1 * (2.0 * dv - 1.0));
-            m.colors.push(rgba);
-            m.uvs.as_mut().unwrap().push(Vec2::new(du, dv));
-        }
-        for t in [[0, 1, 2], [0, 2, 1], [0, 2, 3], [0, 3, 2]] {
-            m.tris.push(t.map(|i| base + i));
-            m.tri_gaussian.push(g);
+        for k in 0..stack {
+            let shift = Vec2::new(0.31, -0.17) * k as f32;
+            let base = m.positions.len() as u32;
+            for (du, dv) in [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)] {
+                m.positions
+                    .push(c + a0 * (2.0 * du - 1.0) + a1 * (2.0 * dv - 1.0));
+                m.colors.push(rgba);
+                m.uvs.as_mut().unwrap().push(Vec2::new(du, dv) + shift);
+            }
+            for t in [[0, 1, 2], [0, 2, 1], [0, 2, 3], [0, 3, 2]] {
+                m.tris.push(t.map(|i| base + i));
+                m.tri_gaussian.push(g);
+            }
         }
     }
     m.tri_material = (0..m.tris.len() as u32)
@@ -152,7 +158,9 @@ fn textured_scene(seed: u64, mirror_material: u32) -> TriScene {
 
 /// Both windings textured (their corners settle the other winding), and the second winding
 /// untextured (where the first's corner has α = 0 and the second's does not: not a pair, each
-/// tested on its own; settling it would lose the second's hit).
+/// tested on its own; settling it would lose the second's hit); and five coplanar copies of
+/// each quad with shifted UVs, one group record (`mesh_groups`), where one copy's α = 0
+/// settles its own other winding and not the copies that draw the point.
 #[test]
 fn textured_quads_equal_brute_force_with_zero_alpha_settled() {
     let cam = Camera::look_at(
@@ -165,8 +173,8 @@ fn textured_quads_equal_brute_force_with_zero_alpha_settled() {
     )
     .unwrap();
     let mut hits = 0usize;
-    for (seed, mirror_material) in [(1u64, 0), (2, 0), (3, 1)] {
-        let tracer = tracer(textured_scene(seed, mirror_material));
+    for (seed, mirror_material, stack) in [(1u64, 0, 1), (2, 0, 1), (3, 1, 1), (4, 0, 5)] {
+        let tracer = tracer(textured_scene(seed, mirror_material, stack));
         let insts = tracer.prepare_list(0.0);
         let lists = TileLists::build(&tracer, &insts, &cam, &sample_offsets(1));
         hits += check_every_sample(&tracer, &insts, &lists, &cam, 1);
@@ -178,7 +186,7 @@ fn textured_quads_equal_brute_force_with_zero_alpha_settled() {
 }
 
 /// A ray through a quad's corner, outside the falloff's disc, settles the other winding
-/// (`Tested::Decided`, nothing inserted); through its middle it is inserted; with a texture
+/// (`Tested::Settled`, nothing inserted); through its middle it is inserted; with a texture
 /// whose alpha is nowhere zero the corner's hit is inserted too.
 #[test]
 fn a_corner_outside_the_disc_settles_its_other_winding() {
@@ -220,7 +228,7 @@ fn a_corner_outside_the_disc_settles_its_other_winding() {
         let tested = t.test_triangle(0, 0, &r, v, g, 0, false, &q, &mut buf, &mut cull);
         (tested, buf.hits.len())
     };
-    let mut scene = textured_scene(3, 0);
+    let mut scene = textured_scene(3, 0, 1);
     scene.nodes.truncate(1);
     let one = |scene: TriScene| {
         super::mesh_tracer::MeshTracer::new(
@@ -232,7 +240,7 @@ fn a_corner_outside_the_disc_settles_its_other_winding() {
     };
     let t = one(scene.clone());
     // uv ≈ (0.06, 0.03): outside the disc, in a zero block (texel 3.3, 1.4 of 64).
-    assert_eq!(shoot(&t, 0.06, 0.03), (Tested::Decided, 0));
+    assert_eq!(shoot(&t, 0.06, 0.03), (Tested::Settled, 0));
     // uv ≈ (0.35, 0.3): inside the disc.
     assert_eq!(shoot(&t, 0.6, 0.05).1, 1);
     // No zero alpha anywhere: the corner is drawn, faintly, and decides nothing.

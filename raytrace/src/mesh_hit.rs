@@ -149,7 +149,7 @@ impl MeshTracer {
             // texture makes it zero whatever those bits are (`zero_alpha_settles`).
             if !(c.w > 0.0) {
                 return if refined.is_some() && self.zero_alpha_settles(m, prim, bary) {
-                    Tested::Decided
+                    Tested::Settled
                 } else {
                     Tested::Open
                 };
@@ -214,6 +214,11 @@ pub(crate) enum Tested {
     /// it: inserted, or rejected by the range, the buffer's stop or an equal key of lower
     /// rank. The other winding has the same key and a higher rank: it would be rejected.
     Decided,
+    /// A hit that shades to α = 0 where the texture's alpha is zero within a texel
+    /// (`zero_alpha_settles`): the other winding, at the same texture coordinate up to
+    /// rounding, would not be inserted either. Only the other winding: another triangle of
+    /// the group with the same key may map the point elsewhere in the texture.
+    Settled,
     /// Anything else (shading, a degenerate or in-plane case, a distance not from the plane):
     /// the other winding must be tested itself.
     Open,
