@@ -57,7 +57,7 @@ use rayon::prelude::*;
 use splatbridge_convert::vertex_colours::VertexColours;
 use splatbridge_convert::ConvertOptions;
 
-use splatbridge_raytrace::hit_record::{HitLists, RecordedHit};
+use splatbridge_raytrace::hit_record::RecordedHit;
 use splatbridge_raytrace::{BackendKind, BuildPreset, MeshTracer, RenderOptions};
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::{Camera, Frame};
@@ -436,12 +436,7 @@ impl Distiller {
             Some(c) => {
                 let mut lists = self.tracer.record_hits(cam, time, k, tr)?;
                 c.reorder(scene, &mut lists, cam, time);
-                HitLists {
-                    hits: lists.hits.par_iter().map(rec).collect(),
-                    width: lists.width,
-                    height: lists.height,
-                    offsets: lists.offsets,
-                }
+                lists.map(rec)
             }
             // Each hit made a `Rec` as the lists are assembled (no list of every hit in the
             // tracer's form).

@@ -69,6 +69,19 @@ impl<H> HitLists<H> {
     pub fn pixel(&self, p: usize) -> &[H] {
         &self.hits[self.offsets[p] as usize..self.offsets[p + 1] as usize]
     }
+
+    /// The same lists with each hit as `f` makes it (in parallel, in order).
+    pub fn map<T: Send, F: Fn(&H) -> T + Sync>(self, f: F) -> HitLists<T>
+    where
+        H: Sync,
+    {
+        HitLists {
+            width: self.width,
+            height: self.height,
+            hits: self.hits.par_iter().map(&f).collect(),
+            offsets: self.offsets,
+        }
+    }
 }
 
 impl MeshTracer {
@@ -140,13 +153,9 @@ impl MeshTracer {
         if self.tiles_pay(time, cam.width as u64 * cam.height as u64) {
             return self.record_hits_tiles_map(cam, time, min_transmittance, map);
         }
-        let lists = self.record_hits_per_ray(cam, time, k, min_transmittance)?;
-        Ok(HitLists {
-            width: lists.width,
-            height: lists.height,
-            hits: lists.hits.par_iter().map(&map).collect(),
-            offsets: lists.offsets,
-        })
+        Ok(self
+            .record_hits_per_ray(cam, time, k, min_transmittance)?
+            .map(map))
     }
 
     /// [`MeshTracer::record_hits`] ray by ray through the BVHs and k-buffer rounds.

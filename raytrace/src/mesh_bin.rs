@@ -17,7 +17,7 @@ use rayon::prelude::*;
 use splatbridge_scene::Camera;
 
 use crate::geom::order_bits;
-use crate::mesh_cands::{mirror_pairs, Cand, Edges};
+use crate::mesh_cands::{leads, mirror_pairs, Cand, Edges};
 use crate::mesh_groups::{GroupTable, GROUP_MARK};
 use crate::mesh_tiles::TILE;
 use crate::mesh_tracer::{MeshTracer, PreparedInstance};
@@ -76,7 +76,7 @@ fn down(x: f64) -> f32 {
 }
 
 /// `x` rounded to an f32 not below it.
-fn up(x: f64) -> f32 {
+pub(crate) fn up(x: f64) -> f32 {
     let f = x as f32;
     if (f as f64) < x {
         f.next_up()
@@ -231,10 +231,10 @@ impl TileLists {
             };
             let make = |p: usize, t: usize| -> Option<Cand> {
                 // The higher-indexed triangle of a winding pair goes with the lower one.
-                let pair = mirror[t];
-                if pair < t as u32 {
+                if !leads(mirror, t) {
                     return None;
                 }
+                let pair = mirror[t];
                 let g = blas.group.get(p, t);
                 let zg = gz[g as usize];
                 let zmin = down(zg - 1e-5 * zg.abs() - slack);
@@ -397,12 +397,7 @@ fn list_order(cands: &[Cand]) -> Vec<u32> {
 /// the two share their material too: a shade of α = 0 settles the other winding only when it
 /// samples the same texture (`MeshTracer::zero_alpha_settles`).
 fn winding_pairs(mesh: &crate::model::Mesh, blas: &crate::mesh_tracer::Blas) -> Vec<u32> {
-    let mut group = vec![0u32; mesh.tris.len()];
-    for p in 0..blas.run_start.len().saturating_sub(1) {
-        for t in blas.run_start[p] as usize..blas.run_start[p + 1] as usize {
-            group[t] = blas.group.get(p, t);
-        }
-    }
+    let group = blas.triangle_groups(mesh.tris.len());
     let mut pairs = mirror_pairs(&mesh.tris, &mesh.tri_gaussian, &group);
     let material = |t: usize| mesh.tri_material.get(t);
     for t in 0..pairs.len() {

@@ -91,6 +91,13 @@ pub(crate) fn mirror_pairs(tris: &[[u32; 3]], gaussian: &[u32], group: &[u32]) -
     partner
 }
 
+/// Whether triangle `t` is binned (and tested first) for its winding pair: it has no other
+/// winding (`mirror[t] == u32::MAX`) or has the lower index of the two.
+#[inline]
+pub(crate) fn leads(mirror: &[u32], t: usize) -> bool {
+    mirror[t] == u32::MAX || mirror[t] > t as u32
+}
+
 /// The pre-test's data: `[a, b, c]` per edge, `a·u + b·v + c ≥ 0` for every pixel whose ray
 /// the watertight test may report; `[0, 0, +∞]` where no edge can be formed (a triangle
 /// reaching the camera plane, a degenerate edge).

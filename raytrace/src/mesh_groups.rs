@@ -25,7 +25,8 @@
 
 use glam::{DVec3, Vec3};
 
-use crate::mesh_cands::LANES;
+use crate::mesh_bin::up;
+use crate::mesh_cands::{leads, LANES};
 use crate::mesh_tracer::Blas;
 use crate::model::Mesh;
 
@@ -118,7 +119,7 @@ pub(crate) struct GroupTable {
     start: Vec<u32>,
     members: Vec<u32>,
     /// Lanes of `members`, eight at a time: chunk `k` is members `8k..8k + 8`.
-    lines: Vec<BoxChunk>,
+    lines: Vec<LineChunk>,
     frames: Vec<RecordFrame>,
     /// The largest magnitude of a vertex relative to the anchor.
     vmax: f64,
@@ -137,17 +138,12 @@ impl GroupTable {
     /// The table of `mesh` (its BLAS `blas`, winding pairs `mirror`).
     pub(crate) fn new(mesh: &Mesh, blas: &Blas, mirror: &[u32]) -> Self {
         let groups = blas.planes.len();
-        let runs = blas.run_start.len().saturating_sub(1);
         // Each triangle's group, and the binned (pair-leading) triangles per group.
+        let group_of = blas.triangle_groups(mesh.tris.len());
         let mut count = vec![0u32; groups + 1];
-        let mut group_of = vec![0u32; mesh.tris.len()];
-        for p in 0..runs {
-            for t in blas.run_start[p] as usize..blas.run_start[p + 1] as usize {
-                let g = blas.group.get(p, t);
-                group_of[t] = g;
-                if mirror[t] == u32::MAX || mirror[t] > t as u32 {
-                    count[g as usize + 1] += 1;
-                }
+        for (t, &g) in group_of.iter().enumerate() {
+            if leads(mirror, t) {
+                count[g as usize + 1] += 1;
             }
         }
         let big = |c: u32| c as usize >= MIN_MEMBERS;
@@ -174,8 +170,7 @@ impl GroupTable {
         let mut members = vec![u32::MAX; start[groups] as usize];
         for (t, &g) in group_of.iter().enumerate() {
             let g = g as usize;
-            let leads = mirror[t] == u32::MAX || mirror[t] > t as u32;
-            if leads && start[g + 1] > start[g] {
+            if leads(mirror, t) && start[g + 1] > start[g] {
                 members[next[g] as usize] = t as u32;
                 next[g] += 1;
             }
@@ -183,7 +178,7 @@ impl GroupTable {
         drop(next);
         let vert = |i: u32| blas.relative(mesh.positions[i as usize]);
         let mut frames = vec![RecordFrame::NONE; groups];
-        let mut lines = vec![BoxChunk::EMPTY; members.len() / LANES];
+        let mut lines = vec![LineChunk::EMPTY; members.len() / LANES];
         for g in 0..groups {
             let (s, e) = (start[g] as usize, start[g + 1] as usize);
             let (pn, _) = blas.planes[g];
@@ -323,13 +318,13 @@ impl GroupTable {
 /// `a·x + b·y + c ≥ 0` inside, `(a, b)` a unit normal, so the value is the signed distance
 /// to the edge's line (Pineda's edge functions, as `mesh_cands::Edges` in screen space).
 #[derive(Clone, Copy, Debug)]
-struct BoxChunk {
+struct LineChunk {
     line: [[[f32; LANES]; 3]; 3],
 }
 
-impl BoxChunk {
+impl LineChunk {
     /// No member: no crossing passes (`0·x + 0·y − ∞`).
-    const EMPTY: BoxChunk = BoxChunk {
+    const EMPTY: LineChunk = LineChunk {
         line: [[[0.0; LANES], [0.0; LANES], [f32::NEG_INFINITY; LANES]]; 3],
     };
 
@@ -373,15 +368,5 @@ impl BoxChunk {
             m |= (!out as u32) << l;
         }
         m
-    }
-}
-
-/// `x` rounded to an f32 not below it.
-fn up(x: f64) -> f32 {
-    let f = x as f32;
-    if (f as f64) < x {
-        f.next_up()
-    } else {
-        f
     }
 }

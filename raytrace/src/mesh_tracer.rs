@@ -192,6 +192,18 @@ impl GroupIds {
 }
 
 impl Blas {
+    /// Each of the mesh's `n` triangles' planar group (over runs of triangles; 0 for a
+    /// triangle no run holds), expanded from [`Blas::group`].
+    pub(crate) fn triangle_groups(&self, n: usize) -> Vec<u32> {
+        let mut group = vec![0u32; n];
+        for p in 0..self.run_start.len().saturating_sub(1) {
+            for t in self.run_start[p] as usize..self.run_start[p + 1] as usize {
+                group[t] = self.group.get(p, t);
+            }
+        }
+        group
+    }
+
     /// A vertex position relative to the anchor, in f32 (what the hit test sees).
     #[inline]
     pub fn relative(&self, p: Vec3) -> Vec3 {
