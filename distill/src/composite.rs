@@ -11,20 +11,27 @@
 //! (`R_{n−1} = bg`, `R_{i−1} = c_i·α_i + (1 − α_i)·R_i`), `∂C/∂c_i = α_i·T_i` and
 //! `∂C/∂α_i = T_i·(c_i − R_i)`, which needs no division by `1 − α_i` (stable at α = 1).
 //!
-//! A hit is 20 bytes (the global triangle, its barycentrics and alpha factor; the triangle's
-//! vertices are looked up in the view's shared table), so a fit keeps its views' hits in
-//! memory rather than re-tracing them each step. A step shades each hit once: the forward
-//! pass keeps what it shaded ([`render_shaded_into`]) for the backward pass
+//! A hit is 20 bytes (its triangle, barycentrics and alpha factor), so a fit keeps its views'
+//! hits in memory rather than re-tracing them each step. A step shades each hit once: the
+//! forward pass keeps what it shaded ([`render_shaded_into`]) for the backward pass
 //! ([`hit_gradients_into`]), the same numbers [`hit_gradients`] computes again.
-
-use std::sync::Arc;
+//!
+//! Each view numbers its own triangles and vertices in the order its hits first reach them
+//! ([`ViewHits::new`]). A pass copies the view's vertices' parameters (or gradients) out of
+//! the mesh's arrays once, works on that compact copy, and the scatter writes the gradients
+//! back: a pixel's hits and its neighbours' then read a few nearby cache lines instead of a
+//! triangle table and vertex arrays of the whole mesh, each hit's loads waiting on memory.
+//! The numbers are the same: every value read is the mesh's own, and each vertex's gradient
+//! receives the same additions in the same order, starting from its value in the mesh's
+//! array (tested against passes over the global arrays).
 
 use glam::Vec3;
 use rayon::prelude::*;
 use splatbridge_raytrace::prefetch;
 use splatbridge_scene::srgb;
 
-/// One recorded hit: the global triangle (an index into [`ViewHits::tris`]).
+/// One recorded hit: its triangle (an index into [`ViewHits::tris`]), barycentrics and the
+/// material × texture alpha at the hit.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Rec {
     pub tri: u32,
@@ -33,7 +40,8 @@ pub struct Rec {
     pub fa: f32,
 }
 
-/// Hit lists of one view, row-major pixels.
+/// Hit lists of one view, row-major pixels, with the view's own numbering of the triangles
+/// and vertices its hits reach.
 #[derive(Clone, Debug, Default)]
 pub struct ViewHits {
     pub width: u32,
@@ -42,20 +50,77 @@ pub struct ViewHits {
     /// `hits.len()` (what the passes' per-hit buffers are indexed by).
     pub offsets: Vec<u64>,
     pub hits: Vec<Rec>,
-    /// Global vertex indices of every triangle of the mesh, shared by all views.
-    pub tris: Arc<Vec<[u32; 3]>>,
+    /// The view's triangles in the order its hits first reach them, each as three indices
+    /// into `verts`.
+    tris: Vec<[u32; 3]>,
+    /// The mesh's vertex of each of the view's vertices, in the order its triangles first
+    /// reach them.
+    verts: Vec<u32>,
 }
 
 impl ViewHits {
-    /// Bytes of this view's own hit lists (the shared triangle table not counted).
-    pub fn bytes(&self) -> u64 {
-        (self.hits.len() * std::mem::size_of::<Rec>() + self.offsets.len() * 8) as u64
+    /// A view's lists from hits whose `tri` indexes the mesh's triangles `mesh_tris` (global
+    /// vertex indices; `vertices` of them): renumbered in the order the hits reach them.
+    pub fn new(
+        width: u32,
+        height: u32,
+        offsets: Vec<u64>,
+        mut hits: Vec<Rec>,
+        mesh_tris: &[[u32; 3]],
+        vertices: usize,
+    ) -> Self {
+        const NEW: u32 = u32::MAX;
+        let mut tri_at = vec![NEW; mesh_tris.len()];
+        let mut vert_at = vec![NEW; vertices];
+        let (mut tris, mut verts) = (Vec::new(), Vec::new());
+        for h in &mut hits {
+            let t = &mut tri_at[h.tri as usize];
+            if *t == NEW {
+                *t = tris.len() as u32;
+                tris.push(mesh_tris[h.tri as usize].map(|v| {
+                    let at = &mut vert_at[v as usize];
+                    if *at == NEW {
+                        *at = verts.len() as u32;
+                        verts.push(v);
+                    }
+                    *at
+                }));
+            }
+            h.tri = *t;
+        }
+        ViewHits {
+            width,
+            height,
+            offsets,
+            hits,
+            tris,
+            verts,
+        }
     }
 
-    /// The global vertices of a hit's triangle.
+    /// Bytes of this view's own hit lists and numbering.
+    pub fn bytes(&self) -> u64 {
+        (self.hits.len() * std::mem::size_of::<Rec>()
+            + self.offsets.len() * 8
+            + self.tris.len() * 12
+            + self.verts.len() * 4) as u64
+    }
+
+    /// The mesh's vertices of a hit's triangle.
     #[inline]
     pub fn verts(&self, h: &Rec) -> [u32; 3] {
+        self.local(h).map(|v| self.verts[v as usize])
+    }
+
+    /// The view's vertices of a hit's triangle.
+    #[inline]
+    fn local(&self, h: &Rec) -> [u32; 3] {
         self.tris[h.tri as usize]
+    }
+
+    /// The mesh's values (parameters or gradients) of the view's vertices.
+    fn gather(&self, of: &[[f32; 4]]) -> Vec<[f32; 4]> {
+        self.verts.iter().map(|&v| of[v as usize]).collect()
     }
 
     /// Pixel p's hits' indices.
@@ -64,19 +129,18 @@ impl ViewHits {
     }
 
     /// Hint the cache to fetch what the hit `AHEAD` after hit `i` reads (its triangle's entry)
-    /// and the vertex parameters of the hit `AHEAD / 2` after it (whose triangle entry was
-    /// asked for earlier). Hits of neighbouring pixels land on scattered triangles of a mesh
-    /// whose parameters do not fit in the cache, so each hit's two dependent loads would
-    /// otherwise wait on memory in turn.
+    /// and the view's vertex values of the hit `AHEAD / 2` after it (whose triangle entry was
+    /// asked for earlier): most are near the ones just read, the first reach of a triangle
+    /// is not.
     #[inline(always)]
-    fn prefetch(&self, i: usize, params: &[[f32; 4]]) {
+    fn prefetch(&self, i: usize, local: &[[f32; 4]]) {
         const AHEAD: usize = 16;
         if let Some(h) = self.hits.get(i + AHEAD) {
             prefetch::at(&self.tris, h.tri as usize);
         }
         if let Some(h) = self.hits.get(i + AHEAD / 2) {
-            for v in self.verts(h) {
-                prefetch::at(params, v as usize);
+            for v in self.local(h) {
+                prefetch::at(local, v as usize);
             }
         }
     }
@@ -221,10 +285,13 @@ fn render_rows(
 ) -> Vec<f32> {
     let w = view.width as usize;
     let h = view.height as usize;
+    let local = view.gather(params);
+    let params = &local[..];
     let mut img = vec![0.0f32; 3 * w * h];
     let rows: Vec<Option<&mut [Shaded]>> = match shaded {
         Some(buf) => {
-            buf.clear();
+            // Every entry is written below: only a longer buffer than the last view's is
+            // initialised (a step's largest cost but the shading itself, when it was all).
             buf.resize(view.hits.len(), Shaded::default());
             row_slices(view, buf).into_iter().map(Some).collect()
         }
@@ -240,7 +307,7 @@ fn render_rows(
                 let hits = &view.hits[a..b];
                 let shade_hit = |(k, h): (usize, &Rec)| {
                     view.prefetch(a + k, params);
-                    shade(h, view.verts(h), params, s)
+                    shade(h, view.local(h), params, s)
                 };
                 let c = match sh.as_deref_mut() {
                     Some(sh) => {
@@ -283,8 +350,13 @@ pub fn hit_gradients_into(
     out: &mut Vec<[f32; 4]>,
 ) {
     let w = view.width as usize;
-    out.clear();
+    // Every entry is written below (each pixel's hits by its backward pass).
     out.resize(view.hits.len(), [0.0; 4]);
+    // Parameters are read only to shade again.
+    let local = match shaded {
+        Some(_) => Vec::new(),
+        None => view.gather(params),
+    };
     row_slices(view, out)
         .into_par_iter()
         .enumerate()
@@ -299,7 +371,7 @@ pub fn hit_gradients_into(
                     None => {
                         scratch.clear();
                         let hits = &view.hits[a..b];
-                        scratch.extend(hits.iter().map(|h| shade(h, view.verts(h), params, s)));
+                        scratch.extend(hits.iter().map(|h| shade(h, view.local(h), &local, s)));
                         &scratch
                     }
                 };
@@ -311,16 +383,21 @@ pub fn hit_gradients_into(
 
 /// Add the gradient of the loss with respect to every vertex's RGBA to `grad`, given the
 /// per-hit gradients of [`hit_gradients`]. The scatter to vertices runs in hit order, so the
-/// sum does not depend on the thread count.
+/// sum does not depend on the thread count; it adds into a copy of the view's vertices'
+/// gradients and writes them back, the same additions in the same order as into `grad`.
 pub fn scatter(view: &ViewHits, dh: &[[f32; 4]], grad: &mut [[f32; 4]]) {
+    let mut local = view.gather(grad);
     for (i, (hit, d)) in view.hits.iter().zip(dh).enumerate() {
         // The same two dependent loads as shading, into the gradient's rows.
-        view.prefetch(i, grad);
-        for (&v, &b) in view.verts(hit).iter().zip(&hit.bary) {
-            for (gc, dc) in grad[v as usize].iter_mut().zip(d) {
+        view.prefetch(i, &local);
+        for (&v, &b) in view.local(hit).iter().zip(&hit.bary) {
+            for (gc, dc) in local[v as usize].iter_mut().zip(d) {
                 *gc += b * dc;
             }
         }
+    }
+    for (&v, g) in view.verts.iter().zip(local) {
+        grad[v as usize] = g;
     }
 }
 
@@ -328,9 +405,13 @@ pub fn scatter(view: &ViewHits, dh: &[[f32; 4]], grad: &mut [[f32; 4]]) {
 mod tests {
     use super::*;
 
-    /// A view of random hits over random triangles, with colours and alphas outside [0, 1]
-    /// (both clamps), empty pixels and pixels of one and many hits.
-    fn random_view(seed: u64) -> (ViewHits, Vec<[f32; 4]>) {
+    type RandomView = (ViewHits, Vec<[f32; 4]>, Vec<Rec>, Vec<[u32; 3]>);
+
+    /// A view of random hits over random triangles (of 50 vertices, some repeated within a
+    /// triangle), with colours and alphas outside [0, 1] (both clamps), empty pixels and
+    /// pixels of one and many hits: the view, the parameters, and the hits as numbered by
+    /// the mesh with its triangles.
+    fn random_view(seed: u64) -> RandomView {
         let mut state = seed;
         let mut next = move || {
             state = state
@@ -369,14 +450,8 @@ mod tests {
             }
             offsets.push(hits.len() as u64);
         }
-        let view = ViewHits {
-            width: w,
-            height: h,
-            offsets,
-            hits,
-            tris: Arc::new(tris),
-        };
-        (view, params)
+        let view = ViewHits::new(w, h, offsets, hits.clone(), &tris, nv);
+        (view, params, hits, tris)
     }
 
     /// The per-pixel formula, written out: C = Σ c_i·α_i·Π_{j<i}(1 − α_j) + bg·Π(1 − α_j).
@@ -429,7 +504,7 @@ mod tests {
     #[test]
     fn shaded_passes_equal_the_plain_ones_and_the_formula() {
         for (seed, encode) in [(1, true), (2, false), (3, true)] {
-            let (view, params) = random_view(seed);
+            let (view, params, _, _) = random_view(seed);
             let s = Shading {
                 encode,
                 background: Vec3::new(0.2, 0.5, 0.9),
@@ -467,6 +542,125 @@ mod tests {
                 .zip(b.iter().flatten())
                 .all(|(x, y)| x.to_bits() == y.to_bits()));
             assert!(a.iter().flatten().any(|x| *x != 0.0));
+        }
+    }
+
+    /// The passes as they read the mesh's own arrays, hit by hit: every hit's triangle and
+    /// vertices looked up in the mesh's tables (the slow reference of the view's numbering).
+    struct Global<'a> {
+        view: &'a ViewHits,
+        hits: &'a [Rec],
+        tris: &'a [[u32; 3]],
+    }
+
+    impl Global<'_> {
+        fn shaded(&self, p: usize, params: &[[f32; 4]], s: &Shading) -> Vec<Shaded> {
+            self.hits[self.view.range(p)]
+                .iter()
+                .map(|h| shade(h, self.tris[h.tri as usize], params, s))
+                .collect()
+        }
+
+        fn render(&self, params: &[[f32; 4]], s: &Shading) -> Vec<f32> {
+            let n = (self.view.width * self.view.height) as usize;
+            (0..n)
+                .flat_map(|p| pixel(self.shaded(p, params, s).into_iter(), s).to_array())
+                .collect()
+        }
+
+        fn hit_gradients(&self, params: &[[f32; 4]], s: &Shading, dimg: &[f32]) -> Vec<[f32; 4]> {
+            let mut out = vec![[0.0; 4]; self.hits.len()];
+            let n = (self.view.width * self.view.height) as usize;
+            for p in 0..n {
+                let g = Vec3::new(dimg[3 * p], dimg[3 * p + 1], dimg[3 * p + 2]);
+                let r = self.view.range(p);
+                pixel_backward(
+                    &self.shaded(p, params, s),
+                    s,
+                    g,
+                    &mut Vec::new(),
+                    &mut out[r],
+                );
+            }
+            out
+        }
+
+        fn scatter(&self, dh: &[[f32; 4]], grad: &mut [[f32; 4]]) {
+            for (hit, d) in self.hits.iter().zip(dh) {
+                for (&v, &b) in self.tris[hit.tri as usize].iter().zip(&hit.bary) {
+                    for (gc, dc) in grad[v as usize].iter_mut().zip(d) {
+                        *gc += b * dc;
+                    }
+                }
+            }
+        }
+    }
+
+    fn same_bits(a: &[f32], b: &[f32]) -> bool {
+        a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
+    }
+
+    /// Through the view's own numbering, the image, the per-hit gradients and the scatter
+    /// (into a gradient already holding other views' sums) are bit for bit those of the
+    /// passes over the mesh's arrays; vertices the view does not reach keep their gradient.
+    #[test]
+    fn the_view_numbering_changes_no_bit() {
+        for (seed, encode) in [(4, true), (5, false), (6, true), (7, true)] {
+            let (view, params, hits, tris) = random_view(seed);
+            let global = Global {
+                view: &view,
+                hits: &hits,
+                tris: &tris,
+            };
+            // Renumbered: fewer or as many triangles and vertices as the mesh has.
+            assert!(view.tris.len() <= tris.len() && view.verts.len() <= params.len());
+            for (h, g) in view.hits.iter().zip(&hits) {
+                assert_eq!(view.verts(h), tris[g.tri as usize]);
+            }
+            let s = Shading {
+                encode,
+                background: Vec3::new(0.1, 0.3, 0.8),
+            };
+            let img = global.render(&params, &s);
+            assert!(same_bits(&render(&view, &params, &s), &img));
+            // Buffers of an earlier, longer view: every entry the passes read is written.
+            let stale = Shaded {
+                c: Vec3::splat(f32::NAN),
+                dc: Vec3::splat(7.0),
+                a: 0.5,
+                da: f32::NAN,
+            };
+            let mut shaded = vec![stale; view.hits.len() + 9];
+            assert!(same_bits(
+                &render_shaded_into(&view, &params, &s, &mut shaded),
+                &img
+            ));
+            let dimg: Vec<f32> = (0..img.len())
+                .map(|i| ((i * 29 % 13) as f32 - 6.0) / 5.0)
+                .collect();
+            let want = global.hit_gradients(&params, &s, &dimg);
+            assert_eq!(shaded.len(), view.hits.len());
+            let mut got = vec![[f32::NAN; 4]; view.hits.len() + 5];
+            hit_gradients_into(&view, &params, Some(&shaded), &s, &dimg, &mut got);
+            assert!(same_bits(want.as_flattened(), got.as_flattened()));
+            let got = hit_gradients(&view, &params, &s, &dimg);
+            assert!(same_bits(want.as_flattened(), got.as_flattened()));
+            // A gradient holding earlier views' sums, some of them large enough that the
+            // order of the additions shows in the last bits.
+            let before: Vec<[f32; 4]> = (0..params.len())
+                .map(|i| [0.0f32; 4].map(|_| ((i * 7919 % 97) as f32 - 48.0) * 0.37))
+                .collect();
+            let (mut a, mut b) = (before.clone(), before.clone());
+            global.scatter(&want, &mut a);
+            scatter(&view, &want, &mut b);
+            assert!(same_bits(a.as_flattened(), b.as_flattened()));
+            let reached: std::collections::HashSet<u32> = view.verts.iter().copied().collect();
+            for (v, (x, y)) in before.iter().zip(&b).enumerate() {
+                if !reached.contains(&(v as u32)) {
+                    assert_eq!(x, y);
+                }
+            }
+            assert!(reached.len() < params.len(), "some vertex is not reached");
         }
     }
 }

@@ -159,10 +159,10 @@ pub struct Distiller {
     tracer: MeshTracer,
     /// First global vertex of each mesh.
     base: Vec<usize>,
-    /// First global triangle of each mesh, and every triangle's global vertices (what a
-    /// recorded hit's triangle index refers to).
+    /// First global triangle of each mesh, and every triangle's global vertices (what the
+    /// tracer's hits are numbered by, before each view numbers its own: `ViewHits::new`).
     tri_base: Vec<u32>,
-    tris: std::sync::Arc<Vec<[u32; 3]>>,
+    tris: Vec<[u32; 3]>,
     params: Vec<[f32; 4]>,
     /// Per-Gaussian parameters, when the fit moves those instead of `params`.
     tied: Option<Tied>,
@@ -296,7 +296,7 @@ impl Distiller {
             tracer,
             base,
             tri_base,
-            tris: std::sync::Arc::new(tris),
+            tris,
             params,
             report: DistillReport {
                 views: cameras.len(),
@@ -442,13 +442,14 @@ impl Distiller {
             // tracer's form).
             None => self.tracer.record_hits_map(cam, time, k, tr, rec)?,
         };
-        Ok(ViewHits {
-            width: lists.width,
-            height: lists.height,
-            offsets: lists.offsets,
-            hits: lists.hits,
-            tris: self.tris.clone(),
-        })
+        Ok(ViewHits::new(
+            lists.width,
+            lists.height,
+            lists.offsets,
+            lists.hits,
+            &self.tris,
+            self.params.len(),
+        ))
     }
 
     /// The vertex RGBA being fitted (linear RGB as the file stores it, alpha), in the
