@@ -59,7 +59,7 @@ pub fn blur(x: &[f64], w: usize, h: usize) -> Vec<f64> {
         .zip(tmp.chunks_exact_mut(w.max(1)))
         .take(h)
     {
-        for col in (0..w).filter(|c| !inner.contains(c)) {
+        for col in (0..inner.start).chain(inner.end..w) {
             let lo = col.saturating_sub(r);
             let hi = (col + r).min(w - 1);
             let mut a = 0.0;
@@ -68,7 +68,10 @@ pub fn blur(x: &[f64], w: usize, h: usize) -> Vec<f64> {
             }
             tr[col] = a;
         }
-        for (k, &gk) in g.iter().enumerate().filter(|_| !inner.is_empty()) {
+        if inner.is_empty() {
+            continue;
+        }
+        for (k, &gk) in g.iter().enumerate() {
             let src = &xr[inner.start + k - r..];
             for (o, v) in tr[inner.clone()].iter_mut().zip(src) {
                 *o += gk * v;

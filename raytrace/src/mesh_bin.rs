@@ -132,12 +132,8 @@ impl TileLists {
         });
         // Small groups as one record where rays are few for the triangles (`mesh_groups`).
         let rays = (cam.width as u64 * cam.height as u64).saturating_mul(offsets.len() as u64);
-        let triangles: u64 = insts
-            .iter()
-            .map(|i| tracer.scene.meshes[i.mesh].tris.len() as u64)
-            .sum();
-        let small_groups =
-            rays.saturating_mul(crate::mesh_groups::SMALL_GROUP_TRIANGLES_PER_RAY) <= triangles;
+        let small_groups = rays.saturating_mul(crate::mesh_groups::SMALL_GROUP_TRIANGLES_PER_RAY)
+            <= tracer.triangles_of(insts);
         let mut cands: Vec<Cand> = Vec::new();
         let mut skipped = 0;
         for (ii, inst) in insts.iter().enumerate() {
@@ -247,7 +243,6 @@ impl TileLists {
                     }
                     let v = members
                         .iter()
-                        .take_while(|&&m| m != u32::MAX)
                         .flat_map(|&m| tris[m as usize])
                         .map(|i| proj[i as usize]);
                     let (zfront, zmax) = v

@@ -191,10 +191,7 @@ impl GroupTable {
             let origin = vert(mesh.tris[members[s] as usize][0]);
             let od = origin.as_dvec3();
             let (mut slab, mut reach) = (0.0f64, 0.0f64);
-            for (k, &t) in members[s..e].iter().enumerate() {
-                if t == u32::MAX {
-                    break;
-                }
+            for (k, &t) in unpadded(&members[s..e]).iter().enumerate() {
                 let mut p = [(0.0f64, 0.0f64); 3];
                 for (j, &i) in mesh.tris[t as usize].iter().enumerate() {
                     let v = vert(i).as_dvec3();
@@ -236,12 +233,12 @@ impl GroupTable {
         n > LANES || (small && n > 0)
     }
 
-    /// Group `g`'s binned triangles, ascending (the first is the one its record is made at),
-    /// padded with `u32::MAX` to a multiple of eight.
+    /// Group `g`'s binned triangles, ascending (the first is the one its record is made at);
+    /// member `8i + l` is lane `l` of [`GroupTable::masks`]'s `i`-th mask.
     #[inline]
     pub(crate) fn members(&self, g: u32) -> &[u32] {
         let g = g as usize;
-        &self.members[self.start[g] as usize..self.start[g + 1] as usize]
+        unpadded(&self.members[self.start[g] as usize..self.start[g + 1] as usize])
     }
 
     /// What group `g`'s record carries ([`RecordFrame`]).
@@ -312,6 +309,14 @@ impl GroupTable {
             .iter()
             .map(move |c| c.mask(at))
     }
+}
+
+/// A group's members without the `u32::MAX` that pads them to whole chunks (fewer than
+/// [`LANES`] at its end).
+#[inline]
+fn unpadded(members: &[u32]) -> &[u32] {
+    let pad = members.iter().rev().take_while(|&&t| t == u32::MAX).count();
+    &members[..members.len() - pad]
 }
 
 /// Eight members' edges in the group's frame, field by field: `line[edge][coefficient][lane]`,

@@ -194,12 +194,8 @@ impl MeshTracer {
             return false;
         }
         let insts = self.prepare_list(time);
-        let triangles: u64 = insts
-            .iter()
-            .map(|i| self.scene.meshes[i.mesh].tris.len() as u64)
-            .sum();
         insts.len() >= crate::instances::MIN_INSTANCES
-            || rays.saturating_mul(TRIANGLES_PER_RAY) >= triangles
+            || rays.saturating_mul(TRIANGLES_PER_RAY) >= self.triangles_of(&insts)
     }
 
     /// Render `cam` at `time` through the tile lists.
@@ -382,7 +378,7 @@ impl MeshTracer {
         };
         match at {
             None => {
-                for &t in members.iter().take_while(|&&t| t != u32::MAX) {
+                for &t in members {
                     if test(t) == Tested::Decided {
                         return;
                     }

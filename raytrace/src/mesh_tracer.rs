@@ -487,6 +487,14 @@ impl MeshTracer {
         Instances::new(self.prepare_list(t), self.backend)
     }
 
+    /// How many triangles the instances `insts` draw (a mesh counted once per instance).
+    pub(crate) fn triangles_of(&self, insts: &[PreparedInstance]) -> u64 {
+        insts
+            .iter()
+            .map(|i| self.scene.meshes[i.mesh].tris.len() as u64)
+            .sum()
+    }
+
     /// The instances visible at `t` in node order, without the top-level structure.
     pub fn prepare_list(&self, t: f64) -> Vec<PreparedInstance> {
         self.scene
