@@ -276,3 +276,53 @@ fn crossing_filter_keeps_every_reported_triangle() {
         "{reported} reported, {grazing} grazing"
     );
 }
+
+/// A one-node mesh of discs decides on the tiles by its records, each disc of more than 16
+/// triangles counted as `GROUP_RECORD_WEIGHT`, not by its triangles; a mesh of small groups
+/// (fans of 6) by its triangles, as before. The count is checked against one made group by
+/// group over every triangle's plane (`Mesh::planar_groups`, the groups the BVH keeps), and
+/// the switch against it at exactly a 25th.
+#[test]
+fn one_node_meshes_count_large_groups_as_records() {
+    use super::backend::{BackendKind, BuildPreset};
+    use super::mesh_groups::GROUP_RECORD_WEIGHT;
+    use super::mesh_tiles::TRIANGLES_PER_RAY;
+    use super::mesh_tracer::MeshTracer;
+    use super::model::Node;
+    // Every seventh disc is drawn twice over in its group: 12 triangles for a fan of 6 in
+    // one winding, still a small group.
+    let cases = [
+        ((8, 3), true, true),
+        ((8, 3), false, true),
+        ((6, 0), false, false),
+    ];
+    for (shape, both, large) in cases {
+        let mut scene = nodes_over(
+            discs(5, 60, 1.0, Vec3::ZERO, both, shape),
+            ided_mesh(),
+            false,
+        );
+        scene.meshes.truncate(1);
+        scene.nodes = vec![Node {
+            mesh: Some(0),
+            ..Node::default()
+        }];
+        let (groups, count) = scene.meshes[0].planar_groups();
+        let n = scene.meshes[0].tris.len() as u64;
+        let t = MeshTracer::new(scene, BackendKind::Obvhs, BuildPreset::Medium).unwrap();
+        let reference: u64 = (0..count)
+            .map(|g| groups.iter().filter(|&&x| x == g).count() as u64)
+            .map(|c| if c > 16 { GROUP_RECORD_WEIGHT } else { c })
+            .sum();
+        let records = t.records_of(&t.prepare_list(0.0));
+        assert_eq!(records, reference, "{shape:?} both {both}");
+        // Discs of 56 or 112 triangles are far fewer records (though every fourth disc,
+        // whose rim leaves the plane, splits into groups of its own); fans of 6 or 12 are not.
+        assert_eq!(records < n / 2, large, "{records} records, {n} triangles");
+        if !large {
+            assert_eq!(records, n);
+        }
+        let switch = records.div_ceil(TRIANGLES_PER_RAY);
+        assert!(!t.tiles_pay(0.0, switch - 1) && t.tiles_pay(0.0, switch));
+    }
+}

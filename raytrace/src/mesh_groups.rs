@@ -45,6 +45,17 @@ pub(crate) const MIN_MEMBERS: usize = 4;
 /// 0.42 s) and 640×480 (18: 0.93 → 0.69 s), a loss at 1920×1080 (2.7: 1.78 → 2.07 s).
 pub(crate) const SMALL_GROUP_TRIANGLES_PER_RAY: u64 = 6;
 
+/// What a group of more than 2·[`LANES`] triangles counts for when a one-node render decides
+/// whether the screen tiles pay (`MeshTracer::tiles_pay`: rays against records): as many
+/// records as this, not as its triangles. Its record is binned once a frame, but its first
+/// frame also builds the group table (a serial pass over every triangle) and each ray that
+/// reaches it pays the crossing and the table's reads. Measured on the `rings` export of a
+/// real capture as one node (14.15 M triangles in 353,775 groups of 40, single `trace`,
+/// wall time, per-ray path → tiles): 320×240 4.9 → 5.4 s, 640×480 9.3 → 6.05 s, so the
+/// single frame breaks even near 110 k rays; 8 puts the switch at 113 k
+/// (`docs/trace-speed-mesh.md`, "One-node meshes of large groups").
+pub(crate) const GROUP_RECORD_WEIGHT: u64 = 8;
+
 /// The `mirror` field of a group record's `Cand` (no triangle index reaches it: the tile
 /// lists address records by u32 and triangles by u32 below `u32::MAX - 1`).
 pub(crate) const GROUP_MARK: u32 = u32::MAX - 1;

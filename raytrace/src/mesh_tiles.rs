@@ -185,17 +185,29 @@ impl MeshTracer {
     /// Whether a render at `time` of `rays` rays (pixels × samples) takes the tile path: where
     /// it applies ([`MeshTracer::tiles_apply`]) and either the scene has at least
     /// [`crate::instances::MIN_INSTANCES`] instances (the per-ray path's two-level traversal is
-    /// its slowest case) or the rays are at least a [`TRIANGLES_PER_RAY`]-th of the triangles.
-    /// Binning costs a pass over every triangle a frame, which a one-node mesh's own BVH does
-    /// not need; past that many rays the one pass a ray pays for it
-    /// (`docs/trace-speed-mesh.md`, "Every layout through the tiles").
+    /// its slowest case) or the rays are at least a [`TRIANGLES_PER_RAY`]-th of the records
+    /// binning makes ([`MeshTracer::records_of`]: the triangles, with each planar group of
+    /// more than 16 triangles counted as a few). Binning costs a pass over every record a frame,
+    /// which a one-node mesh's own BVH does not need; past that many rays the one pass a ray
+    /// pays for it (`docs/trace-speed-mesh.md`, "Every layout through the tiles", and "One-node
+    /// meshes of large groups" for the groups).
     pub fn tiles_pay(&self, time: f64, rays: u64) -> bool {
         if !self.tiles_apply() {
             return false;
         }
         let insts = self.prepare_list(time);
         insts.len() >= crate::instances::MIN_INSTANCES
-            || rays.saturating_mul(TRIANGLES_PER_RAY) >= self.triangles_of(&insts)
+            || rays.saturating_mul(TRIANGLES_PER_RAY) >= self.records_of(&insts)
+    }
+
+    /// The records binning the instances `insts` makes, as far as
+    /// [`Blas::binned_records`](crate::mesh_tracer::Blas::binned_records)
+    /// tells it (a mesh counted once per instance).
+    pub(crate) fn records_of(&self, insts: &[PreparedInstance]) -> u64 {
+        insts
+            .iter()
+            .map(|i| self.blas[i.mesh].binned_records(self.scene.meshes[i.mesh].tris.len()))
+            .sum()
     }
 
     /// Render `cam` at `time` through the tile lists.

@@ -146,6 +146,9 @@ pub struct Blas {
     pub(crate) group_extent: std::sync::OnceLock<Vec<f64>>,
     /// The groups binned as one record each (`mesh_groups`), found with `mirror`.
     pub(crate) groups: std::sync::OnceLock<crate::mesh_groups::GroupTable>,
+    /// What binning this mesh costs, in records ([`Blas::binned_records`]), found when a
+    /// render first asks whether the tiles pay (8 bytes a mesh).
+    pub(crate) records: std::sync::OnceLock<u64>,
 }
 
 /// Each triangle's planar group over runs of triangles. Runs never cross Gaussians, and a
@@ -192,6 +195,36 @@ impl GroupIds {
 }
 
 impl Blas {
+    /// What binning this mesh of `n` triangles costs the screen tiles, in records, as far as
+    /// the groups decide it without the winding pairs: a group of more than twice
+    /// [`crate::mesh_cands::LANES`] triangles has more than `LANES` pair-leading members
+    /// whatever its windings (each pair has one leader), so it is one record
+    /// (`mesh_groups::GroupTable::is_group`), counted as
+    /// [`crate::mesh_groups::GROUP_RECORD_WEIGHT`]; every other triangle counts as one, as
+    /// if binned on its own. The triangle count itself for a mesh without such groups (every
+    /// export but `rings`), and never more.
+    pub(crate) fn binned_records(&self, n: usize) -> u64 {
+        *self.records.get_or_init(|| {
+            let mut per_group = vec![0u64; self.planes.len()];
+            let mut in_runs = 0u64;
+            for p in 0..self.run_start.len().saturating_sub(1) {
+                for t in self.run_start[p] as usize..self.run_start[p + 1] as usize {
+                    if let Some(c) = per_group.get_mut(self.group.get(p, t) as usize) {
+                        *c += 1;
+                        in_runs += 1;
+                    }
+                }
+            }
+            let big = 2 * crate::mesh_cands::LANES as u64;
+            let weight = crate::mesh_groups::GROUP_RECORD_WEIGHT;
+            let grouped: u64 = per_group
+                .iter()
+                .map(|&c| if c > big { weight.min(c) } else { c })
+                .sum();
+            grouped + (n as u64).saturating_sub(in_runs)
+        })
+    }
+
     /// Each of the mesh's `n` triangles' planar group (over runs of triangles; 0 for a
     /// triangle no run holds), expanded from [`Blas::group`].
     pub(crate) fn triangle_groups(&self, n: usize) -> Vec<u32> {
@@ -478,6 +511,7 @@ impl MeshTracer {
             mirror: std::sync::OnceLock::new(),
             group_extent: std::sync::OnceLock::new(),
             groups: std::sync::OnceLock::new(),
+            records: std::sync::OnceLock::new(),
         })
     }
 
