@@ -56,6 +56,10 @@ pub(crate) const SMALL_GROUP_TRIANGLES_PER_RAY: u64 = 6;
 /// (`docs/trace-speed-mesh.md`, "One-node meshes of large groups").
 pub(crate) const GROUP_RECORD_WEIGHT: u64 = 8;
 
+// Such a group never counts for more than its triangles, so no mesh takes the tiles less
+// often than by its triangle count.
+const _: () = assert!(GROUP_RECORD_WEIGHT <= 2 * LANES as u64);
+
 /// The `mirror` field of a group record's `Cand` (no triangle index reaches it: the tile
 /// lists address records by u32 and triangles by u32 below `u32::MAX - 1`).
 pub(crate) const GROUP_MARK: u32 = u32::MAX - 1;

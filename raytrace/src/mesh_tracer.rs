@@ -207,32 +207,36 @@ impl Blas {
         *self.records.get_or_init(|| {
             let mut per_group = vec![0u64; self.planes.len()];
             let mut in_runs = 0u64;
-            for p in 0..self.run_start.len().saturating_sub(1) {
-                for t in self.run_start[p] as usize..self.run_start[p + 1] as usize {
-                    if let Some(c) = per_group.get_mut(self.group.get(p, t) as usize) {
-                        *c += 1;
-                        in_runs += 1;
-                    }
-                }
+            for (_, g) in self.run_groups() {
+                per_group[g as usize] += 1;
+                in_runs += 1;
             }
             let big = 2 * crate::mesh_cands::LANES as u64;
             let weight = crate::mesh_groups::GROUP_RECORD_WEIGHT;
             let grouped: u64 = per_group
                 .iter()
-                .map(|&c| if c > big { weight.min(c) } else { c })
+                .map(|&c| if c > big { weight } else { c })
                 .sum();
             grouped + (n as u64).saturating_sub(in_runs)
         })
+    }
+
+    /// Each triangle a run holds, with its planar group, in the mesh's order.
+    fn run_groups(&self) -> impl Iterator<Item = (usize, u32)> + '_ {
+        self.run_start
+            .windows(2)
+            .enumerate()
+            .flat_map(move |(p, w)| {
+                (w[0] as usize..w[1] as usize).map(move |t| (t, self.group.get(p, t)))
+            })
     }
 
     /// Each of the mesh's `n` triangles' planar group (over runs of triangles; 0 for a
     /// triangle no run holds), expanded from [`Blas::group`].
     pub(crate) fn triangle_groups(&self, n: usize) -> Vec<u32> {
         let mut group = vec![0u32; n];
-        for p in 0..self.run_start.len().saturating_sub(1) {
-            for t in self.run_start[p] as usize..self.run_start[p + 1] as usize {
-                group[t] = self.group.get(p, t);
-            }
+        for (t, g) in self.run_groups() {
+            group[t] = g;
         }
         group
     }
