@@ -164,8 +164,17 @@ pub struct Shaded {
     da: f32,
 }
 
+/// Shade hit `i` of a view (`h`), its next hits' loads asked for first. Inlined into the
+/// pass's loop: as a call its four-float halves of [`Shaded`] went back through the stack,
+/// written by scalar stores and read by a vector load that cannot take them forwarded.
+#[inline(always)]
+fn shade_at(view: &ViewHits, i: usize, h: &Rec, params: &[[f32; 4]], s: &Shading) -> Shaded {
+    view.prefetch(i, params);
+    shade(h, view.local(h), params, s)
+}
+
 /// Shade one hit whose triangle's vertices are `verts`.
-#[inline]
+#[inline(always)]
 fn shade(h: &Rec, verts: [u32; 3], params: &[[f32; 4]], s: &Shading) -> Shaded {
     let mut x = [0.0f32; 4];
     for (&v, &b) in verts.iter().zip(&h.bary) {
@@ -305,19 +314,20 @@ fn render_rows(
             for col in 0..w {
                 let std::ops::Range { start: a, end: b } = view.range(row * w + col);
                 let hits = &view.hits[a..b];
-                let shade_hit = |(k, h): (usize, &Rec)| {
-                    view.prefetch(a + k, params);
-                    shade(h, view.local(h), params, s)
-                };
                 let c = match sh.as_deref_mut() {
                     Some(sh) => {
                         let px = &mut sh[a - first..b - first];
-                        for (slot, hit) in px.iter_mut().zip(hits.iter().enumerate()) {
-                            *slot = shade_hit(hit);
+                        for (k, (slot, h)) in px.iter_mut().zip(hits).enumerate() {
+                            *slot = shade_at(view, a + k, h, params, s);
                         }
                         pixel(px.iter().copied(), s)
                     }
-                    None => pixel(hits.iter().enumerate().map(shade_hit), s),
+                    None => pixel(
+                        hits.iter()
+                            .enumerate()
+                            .map(|(k, h)| shade_at(view, a + k, h, params, s)),
+                        s,
+                    ),
                 };
                 out[3 * col..3 * col + 3].copy_from_slice(&c.to_array());
             }
