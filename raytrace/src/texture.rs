@@ -2,7 +2,7 @@
 //! at `(i + ½)/size`, bilinear (or nearest, for a NEAREST sampler) filtering, and the
 //! sampler's wrap mode per axis (glTF 2.0 §5.26: REPEAT, CLAMP_TO_EDGE, MIRRORED_REPEAT).
 
-use glam::{Vec2, Vec4};
+use glam::{Vec2, Vec3, Vec4};
 
 use crate::model::srgb_to_linear;
 
@@ -38,6 +38,11 @@ pub struct Texture {
 enum Texels {
     Float(Vec<Vec4>),
     Byte(Vec<[u8; 4]>, &'static ByteDecode),
+    /// An 8-bit image whose RGB bytes are the same in every texel (the falloff texture of
+    /// every texture export is white): its alphas, and the one colour decoded. A texel reads
+    /// one byte and one table entry instead of four of each, and the image is a quarter the
+    /// size again; the values are the [`Texels::Byte`] ones.
+    Alpha(Vec<u8>, Vec3, &'static ByteDecode),
 }
 
 /// The one decode table every byte texture reads.
@@ -92,7 +97,14 @@ impl Texture {
         wrap: [Wrap; 2],
         nearest: bool,
     ) -> Self {
-        let texels = Texels::Byte(texels, &BYTE_DECODE);
+        let d = &*BYTE_DECODE;
+        let texels = match texels.first() {
+            Some(&[r, g, b, _]) if texels.iter().all(|t| t[..3] == [r, g, b]) => {
+                let rgb = Vec3::new(d.rgb[r as usize], d.rgb[g as usize], d.rgb[b as usize]);
+                Texels::Alpha(texels.iter().map(|t| t[3]).collect(), rgb, d)
+            }
+            _ => Texels::Byte(texels, d),
+        };
         Self::of(width, height, texels, wrap, nearest)
     }
 
@@ -154,6 +166,7 @@ impl Texture {
         match &self.texels {
             Texels::Float(t) => t.len(),
             Texels::Byte(t, _) => t.len(),
+            Texels::Alpha(t, _, _) => t.len(),
         }
     }
 
@@ -168,6 +181,7 @@ impl Texture {
         match &self.texels {
             Texels::Float(t) => t[i],
             Texels::Byte(t, d) => d.get(t[i]),
+            Texels::Alpha(t, rgb, d) => rgb.extend(d.alpha[t[i] as usize]),
         }
     }
 
@@ -329,12 +343,13 @@ mod tests {
         }
     }
     /// An 8-bit texture samples as the float texture of the same decode does, bit for bit: every
-    /// byte value, every wrap mode, bilinear and nearest, inside and across the edges.
+    /// byte value, every wrap mode, bilinear and nearest, inside and across the edges; also
+    /// where every texel has the same colour bytes (kept as alphas and one colour).
     #[test]
     fn byte_texels_sample_as_their_decoded_floats() {
         let (w, h) = (16u32, 16u32);
         // Every byte value appears in every channel (16·16 texels, four channels rotated).
-        let bytes: Vec<[u8; 4]> = (0..w * h)
+        let rotated: Vec<[u8; 4]> = (0..w * h)
             .map(|i| {
                 let b = i as u8;
                 [
@@ -345,6 +360,24 @@ mod tests {
                 ]
             })
             .collect();
+        let one_colour = |rgb: [u8; 3]| -> Vec<[u8; 4]> {
+            rotated
+                .iter()
+                .map(|t| [rgb[0], rgb[1], rgb[2], t[3]])
+                .collect()
+        };
+        for (bytes, alpha_only) in [
+            (rotated.clone(), false),
+            (one_colour([255, 255, 255]), true),
+            (one_colour([17, 200, 3]), true),
+        ] {
+            let t = Texture::from_bytes(w, h, bytes.clone(), [Wrap::Clamp; 2], false);
+            assert_eq!(matches!(t.texels, Texels::Alpha(..)), alpha_only);
+            byte_texels_sample_as(&bytes, w, h);
+        }
+    }
+
+    fn byte_texels_sample_as(bytes: &[[u8; 4]], w: u32, h: u32) {
         let unorm = |b: u8| b as f32 / 255.0;
         let floats: Vec<Vec4> = bytes
             .iter()
@@ -362,7 +395,7 @@ mod tests {
         for wrap in [Wrap::Clamp, Wrap::Repeat, Wrap::Mirror] {
             for nearest in [false, true] {
                 let f = Texture::from_texels(w, h, floats.clone(), [wrap, wrap], nearest);
-                let b = Texture::from_bytes(w, h, bytes.clone(), [wrap, wrap], nearest);
+                let b = Texture::from_bytes(w, h, bytes.to_vec(), [wrap, wrap], nearest);
                 assert_eq!(b.len(), f.len());
                 assert!(b.texels().zip(f.texels()).all(|(p, q)| p == q));
                 for _ in 0..3000 {
