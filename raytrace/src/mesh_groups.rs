@@ -24,6 +24,7 @@
 //! the group is tested.
 
 use glam::{DVec3, Vec3};
+use rayon::prelude::*;
 
 use crate::mesh_bin::up;
 use crate::mesh_cands::{leads, LANES};
@@ -194,38 +195,54 @@ impl GroupTable {
         let vert = |i: u32| blas.relative(mesh.positions[i as usize]);
         let mut frames = vec![RecordFrame::NONE; groups];
         let mut lines = vec![LineChunk::EMPTY; members.len() / LANES];
+        // Each group's chunks, in group order: the groups are independent and filled in
+        // parallel (the table's first frame was a serial pass over every triangle).
+        let mut chunks: Vec<&mut [LineChunk]> = Vec::with_capacity(groups);
+        let mut rest = &mut lines[..];
         for g in 0..groups {
-            let (s, e) = (start[g] as usize, start[g + 1] as usize);
-            let (pn, _) = blas.planes[g];
-            let len = pn.length();
-            if s == e || !(len > 0.0 && len.is_finite()) {
-                continue;
-            }
-            let e1 = (pn / len).any_orthonormal_vector().as_vec3();
-            let (n, w, e1d, e2d) = axes(blas.planes[g], e1);
-            let origin = vert(mesh.tris[members[s] as usize][0]);
-            let od = origin.as_dvec3();
-            let (mut slab, mut reach) = (0.0f64, 0.0f64);
-            for (k, &t) in unpadded(&members[s..e]).iter().enumerate() {
-                let mut p = [(0.0f64, 0.0f64); 3];
-                for (j, &i) in mesh.tris[t as usize].iter().enumerate() {
-                    let v = vert(i).as_dvec3();
-                    slab = slab.max((n.dot(v) - w).abs());
-                    p[j] = ((v - od).dot(e1d), (v - od).dot(e2d));
-                    reach = reach.max(p[j].0.abs()).max(p[j].1.abs());
-                }
-                lines[(s + k) / LANES].set(k % LANES, p);
-            }
-            // The f64 arithmetic above rounds far below a relative 1e-9 of the magnitudes
-            // involved.
-            let scale = od.length() + vmax;
-            frames[g] = RecordFrame {
-                origin,
-                e1,
-                slab: up(slab * (1.0 + 1e-9) + 1e-9 * scale),
-                reach: up(reach * (1.0 + 1e-9)),
-            };
+            let n = ((start[g + 1] - start[g]) as usize) / LANES;
+            let (mine, tail) = std::mem::take(&mut rest).split_at_mut(n);
+            chunks.push(mine);
+            rest = tail;
         }
+        let members_ref = &members;
+        frames
+            .par_iter_mut()
+            .zip(chunks.into_par_iter())
+            .enumerate()
+            .with_min_len(256)
+            .for_each(|(g, (frame, lines))| {
+                let (s, e) = (start[g] as usize, start[g + 1] as usize);
+                let (pn, _) = blas.planes[g];
+                let len = pn.length();
+                if s == e || !(len > 0.0 && len.is_finite()) {
+                    return;
+                }
+                let e1 = (pn / len).any_orthonormal_vector().as_vec3();
+                let (n, w, e1d, e2d) = axes(blas.planes[g], e1);
+                let origin = vert(mesh.tris[members_ref[s] as usize][0]);
+                let od = origin.as_dvec3();
+                let (mut slab, mut reach) = (0.0f64, 0.0f64);
+                for (k, &t) in unpadded(&members_ref[s..e]).iter().enumerate() {
+                    let mut p = [(0.0f64, 0.0f64); 3];
+                    for (j, &i) in mesh.tris[t as usize].iter().enumerate() {
+                        let v = vert(i).as_dvec3();
+                        slab = slab.max((n.dot(v) - w).abs());
+                        p[j] = ((v - od).dot(e1d), (v - od).dot(e2d));
+                        reach = reach.max(p[j].0.abs()).max(p[j].1.abs());
+                    }
+                    lines[k / LANES].set(k % LANES, p);
+                }
+                // The f64 arithmetic above rounds far below a relative 1e-9 of the magnitudes
+                // involved.
+                let scale = od.length() + vmax;
+                *frame = RecordFrame {
+                    origin,
+                    e1,
+                    slab: up(slab * (1.0 + 1e-9) + 1e-9 * scale),
+                    reach: up(reach * (1.0 + 1e-9)),
+                };
+            });
         GroupTable {
             start,
             members,
