@@ -7,7 +7,7 @@
 //! Why: every triangle's record costs binning its projection, rectangle, edge functions,
 //! sort key, tile entries and cell copies once a frame, whether a ray reaches it or not. On
 //! the `rings` export of a real capture that was half of a 1080p frame
-//! (`docs/trace-speed-mesh.md`, "Group records"). A group's triangles share its list key
+//! (`docs/trace-speed-groups.md`, "Group records"). A group's triangles share its list key
 //! (the group plane's least depth) and its hit key (the group plane's distance), so at most
 //! one of them is a ray's hit: the lowest-indexed one that covers the ray and shades.
 //!
@@ -54,7 +54,7 @@ pub(crate) const SMALL_GROUP_TRIANGLES_PER_RAY: u64 = 6;
 /// real capture as one node (14.15 M triangles in 353,775 groups of 40, single `trace`,
 /// wall time, per-ray path → tiles): 320×240 4.9 → 5.4 s, 640×480 9.3 → 6.05 s, so the
 /// single frame breaks even near 110 k rays; 8 puts the switch at 113 k
-/// (`docs/trace-speed-mesh.md`, "One-node meshes of large groups").
+/// (`docs/trace-speed-groups.md`, "One-node meshes of large groups").
 pub(crate) const GROUP_RECORD_WEIGHT: u64 = 8;
 
 // Such a group never counts for more than its triangles, so no mesh takes the tiles less

@@ -189,8 +189,8 @@ impl MeshTracer {
     /// binning makes ([`MeshTracer::records_of`]: the triangles, with each planar group of
     /// more than 16 triangles counted as a few). Binning costs a pass over every record a frame,
     /// which a one-node mesh's own BVH does not need; past that many rays the one pass a ray
-    /// pays for it (`docs/trace-speed-mesh.md`, "Every layout through the tiles", and "One-node
-    /// meshes of large groups" for the groups).
+    /// pays for it (`docs/trace-speed-mesh.md`, "Every layout through the tiles", and
+    /// `docs/trace-speed-groups.md`, "One-node meshes of large groups", for the groups).
     pub fn tiles_pay(&self, time: f64, rays: u64) -> bool {
         if !self.tiles_apply() {
             return false;
