@@ -45,7 +45,7 @@ use crate::geom::{ray_box, transformed_box};
 pub use crate::instances::Instances;
 pub use crate::kbuffer::Key;
 use crate::kbuffer::{self, Hit, KBuffer, Payload};
-use crate::mesh_hit::{Compositor, LocalRay, Query};
+use crate::mesh_hit::{Compositor, LocalRay, Query, Tested};
 use crate::model::{Mesh, TriScene};
 use crate::render::{render_frame_spp, PixelOut, RenderOptions, Stats};
 use splatbridge_scene::{Camera, Frame};
@@ -618,9 +618,20 @@ impl MeshTracer {
                     } else {
                         let p = blas.accel.slots().map_or(s, |m| m[s] as usize);
                         let (start, end) = (blas.run_start[p], blas.run_start[p + 1]);
+                        // A group's triangles share the hit key: once one of them is decided
+                        // by it (inserted, or rejected by the range, the stop or an equal key),
+                        // the run's later ones of the same group, of higher index, would be
+                        // rejected (the tile path's rule, `mesh_tiles::group_candidate`).
+                        let mut decided = None;
                         for t in start as usize..end as usize {
+                            let g = blas.group.get(p, t);
+                            if decided == Some(g) {
+                                continue;
+                            }
                             let v = blas.triangle(&mesh.positions, mesh.tris[t]);
-                            test(v, blas.group.get(p, t), t as u32, false, cull);
+                            if test(v, g, t as u32, false, cull) == Tested::Decided {
+                                decided = Some(g);
+                            }
                         }
                     }
                 });
