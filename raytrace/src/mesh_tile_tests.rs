@@ -314,7 +314,7 @@ pub(crate) fn check_every_sample(
 }
 
 /// Hits as bits (distance, key, triangle, barycentrics, colour).
-fn hit_bits(h: &MeshHit) -> Vec<u32> {
+pub(crate) fn hit_bits(h: &MeshHit) -> Vec<u32> {
     let mut v = vec![
         h.t.to_bits(),
         h.gaussian,

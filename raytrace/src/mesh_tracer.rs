@@ -609,6 +609,12 @@ impl MeshTracer {
             let mut test = |v: [Vec3; 3], g: u32, prim: u32, reported: bool, cull: &mut f32| {
                 self.test_triangle(ii, inst.mesh, &r, v, g, prim, reported, &q, buf, cull)
             };
+            // A group's triangles share the hit key: once one of them is decided by it
+            // (inserted, or rejected by the range, the stop or an equal key), its triangles of
+            // higher index would be rejected (the tile path's rule,
+            // `mesh_tiles::group_candidate`). The last such group and triangle, over the runs
+            // in the order the walk reaches them (a disc's runs come one after another).
+            let mut decided: Option<(u32, usize)> = None;
             blas.accel
                 .traverse_slots(lo, ld, t_from, cull0, &mut |slot, reported, cull| {
                     let s = slot as usize;
@@ -618,19 +624,14 @@ impl MeshTracer {
                     } else {
                         let p = blas.accel.slots().map_or(s, |m| m[s] as usize);
                         let (start, end) = (blas.run_start[p], blas.run_start[p + 1]);
-                        // A group's triangles share the hit key: once one of them is decided
-                        // by it (inserted, or rejected by the range, the stop or an equal key),
-                        // the run's later ones of the same group, of higher index, would be
-                        // rejected (the tile path's rule, `mesh_tiles::group_candidate`).
-                        let mut decided = None;
                         for t in start as usize..end as usize {
                             let g = blas.group.get(p, t);
-                            if decided == Some(g) {
+                            if decided.is_some_and(|(dg, dt)| dg == g && t > dt) {
                                 continue;
                             }
                             let v = blas.triangle(&mesh.positions, mesh.tris[t]);
                             if test(v, g, t as u32, false, cull) == Tested::Decided {
-                                decided = Some(g);
+                                decided = Some((g, t));
                             }
                         }
                     }
