@@ -170,9 +170,10 @@ fn group_hits_equal_brute_force() {
 }
 
 /// The per-ray path (`MeshTracer::collect_instance`, which stops a group at its first
-/// decided triangle, across the runs of a disc) gives the brute-force reference's hits bit for
-/// bit (but the colour, which `all_hits` leaves unshaded), triangle index included, on discs spread over several runs and on repeated discs
-/// (equal keys, where the lower-indexed copy must win whichever run the walk reaches first).
+/// decided triangle, across the runs of a disc) gives the brute-force reference's hits bit
+/// for bit, triangle index included (all but the colour, which `all_hits` leaves unshaded),
+/// on discs spread over several runs and on repeated discs (equal keys, where the
+/// lower-indexed copy must win whichever run the walk reaches first).
 #[test]
 fn per_ray_group_rule_equals_brute_force() {
     use super::mesh_tile_tests::reference;
