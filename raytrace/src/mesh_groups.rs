@@ -49,10 +49,10 @@ pub(crate) const SMALL_GROUP_TRIANGLES_PER_RAY: u64 = 6;
 /// What a group of more than 2·[`LANES`] triangles counts for when a one-node render decides
 /// whether the screen tiles pay (`MeshTracer::tiles_pay`: rays against records): as many
 /// records as this, not as its triangles. Its record is binned once a frame, but its first
-/// frame also builds the group table (a serial pass over every triangle) and each ray that
-/// reaches it pays the crossing and the table's reads. Measured on the `rings` export of a
-/// real capture as one node (14.15 M triangles in 353,775 groups of 40, single `trace`,
-/// wall time, per-ray path → tiles): 320×240 4.9 → 5.4 s, 640×480 9.3 → 6.05 s, so the
+/// frame also builds the group table (a pass over every triangle) and each ray that reaches
+/// it pays the crossing and the table's reads. Measured on the `rings` export of a real
+/// capture as one node (14.15 M triangles in 353,775 groups of 40, single `trace`, wall time,
+/// per-ray path → tiles, with the table then built on one thread): 320×240 4.9 → 5.4 s, 640×480 9.3 → 6.05 s, so the
 /// single frame breaks even near 110 k rays; 8 puts the switch at 113 k
 /// (`docs/trace-speed-groups.md`, "One-node meshes of large groups").
 pub(crate) const GROUP_RECORD_WEIGHT: u64 = 8;
@@ -205,7 +205,6 @@ impl GroupTable {
             chunks.push(mine);
             rest = tail;
         }
-        let members_ref = &members;
         frames
             .par_iter_mut()
             .zip(chunks.into_par_iter())
@@ -220,10 +219,10 @@ impl GroupTable {
                 }
                 let e1 = (pn / len).any_orthonormal_vector().as_vec3();
                 let (n, w, e1d, e2d) = axes(blas.planes[g], e1);
-                let origin = vert(mesh.tris[members_ref[s] as usize][0]);
+                let origin = vert(mesh.tris[members[s] as usize][0]);
                 let od = origin.as_dvec3();
                 let (mut slab, mut reach) = (0.0f64, 0.0f64);
-                for (k, &t) in unpadded(&members_ref[s..e]).iter().enumerate() {
+                for (k, &t) in unpadded(&members[s..e]).iter().enumerate() {
                     let mut p = [(0.0f64, 0.0f64); 3];
                     for (j, &i) in mesh.tris[t as usize].iter().enumerate() {
                         let v = vert(i).as_dvec3();
