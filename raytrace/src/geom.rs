@@ -53,3 +53,21 @@ pub(crate) fn order_bits(z: f32) -> u32 {
         b | 0x8000_0000
     }
 }
+
+/// `x.floor()` without the library call where the target has no rounding instruction: the
+/// integer part, one less for a negative non-integer, exact while `|x| < 2⁵²` (every such
+/// f64 integer converts to i64 and back exactly); `f64::floor` beyond.
+#[inline]
+pub(crate) fn floor(x: f64) -> f64 {
+    if x.abs() < 4_503_599_627_370_496.0 {
+        let t = x as i64 as f64;
+        if t > x {
+            t - 1.0
+        } else {
+            // floor(−0) is −0.
+            t.copysign(x)
+        }
+    } else {
+        x.floor()
+    }
+}

@@ -16,7 +16,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 use splatbridge_scene::Camera;
 
-use crate::geom::order_bits;
+use crate::geom::{floor, order_bits};
 use crate::mesh_cands::{leads, mirror_pairs, Cand, Edges};
 use crate::mesh_groups::{GroupTable, GROUP_MARK};
 use crate::mesh_tiles::TILE;
@@ -302,7 +302,7 @@ impl TileLists {
         let order = list_order(&cands);
         // Tiles a rectangle touches (an infinite one touches every tile), once per record.
         let span = |lo: f32, hi: f32, n: usize| {
-            let tile = |x: f32| (x as f64 / TILE as f64).floor().clamp(0.0, (n - 1) as f64);
+            let tile = |x: f32| floor(x as f64 / TILE as f64).clamp(0.0, (n - 1) as f64);
             (tile(lo) as u32, tile(hi) as u32)
         };
         let spans: Vec<[u32; 4]> = cands

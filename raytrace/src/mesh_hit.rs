@@ -9,9 +9,10 @@ use glam::{DVec3, Vec3, Vec4};
 
 use crate::kbuffer::{Accum, Hit, KBuffer, Key};
 use crate::mesh_tracer::{MeshTracer, TrianglePayload};
-use crate::model::{linear_to_srgb, srgb_to_linear};
+use crate::model::srgb_to_linear;
 use crate::render::{Compositing, PixelOut, RenderOptions};
 use crate::tri::{Miss, WRay};
+use splatbridge_scene::srgb::encode_unit;
 
 /// A world ray carried into an instance's frame: origin relative to the mesh's anchor and
 /// direction in f64 (plane distances, barycentrics) and the f32 watertight ray.
@@ -259,11 +260,11 @@ impl<'a> Compositor<'a> {
         if a > 0.0 {
             let mut rgb = rgba.truncate().clamp(Vec3::ZERO, Vec3::ONE);
             if self.to_display {
-                rgb = Vec3::new(
-                    linear_to_srgb(rgb.x),
-                    linear_to_srgb(rgb.y),
-                    linear_to_srgb(rgb.z),
-                );
+                // The table encode (`scene::srgb`: within one ulp of the encode rounded once,
+                // where `powf`'s f32 formula is within three) of a clamped colour: the encode
+                // distillation's model of this compositing uses, bit for bit, at a fraction
+                // of `powf`'s cost (3 % of a 1080p frame of a MeshSplats export).
+                rgb = Vec3::new(encode_unit(rgb.x), encode_unit(rgb.y), encode_unit(rgb.z));
             } else if self.to_linear {
                 rgb = Vec3::new(
                     srgb_to_linear(rgb.x),
@@ -299,11 +300,7 @@ impl<'a> Compositor<'a> {
                 srgb_to_linear(bg.z),
             ) * tr;
             let l = lin.clamp(Vec3::ZERO, Vec3::ONE);
-            out.rgb = Vec3::new(
-                linear_to_srgb(l.x),
-                linear_to_srgb(l.y),
-                linear_to_srgb(l.z),
-            );
+            out.rgb = Vec3::new(encode_unit(l.x), encode_unit(l.y), encode_unit(l.z));
         }
         out.alpha = 1.0 - tr;
         out.depth = self.acc.depth();

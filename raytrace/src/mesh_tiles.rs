@@ -38,7 +38,7 @@ use splatbridge_scene::{Camera, Frame};
 use crate::backend::BackendKind;
 use crate::error::Result;
 use crate::footprint::sample_offsets;
-use crate::geom::ray_box;
+use crate::geom::{floor, ray_box};
 use crate::hit_record::{record, HitLists, RecordedHit};
 use crate::kbuffer::{Accum, KBuffer};
 use crate::mesh_bin::TileLists;
@@ -415,9 +415,7 @@ impl MeshTracer {
 fn cell_of(x0: u32, y0: u32, uv: (f64, f64)) -> usize {
     let n = TILE / CELL;
     let c = |x: f64, origin: u32| {
-        ((x - origin as f64) / CELL as f64)
-            .floor()
-            .clamp(0.0, (n - 1) as f64) as u32
+        floor((x - origin as f64) / CELL as f64).clamp(0.0, (n - 1) as f64) as u32
     };
     let (cx, cy) = (c(uv.0, x0), c(uv.1, y0));
     (cy * n + cx) as usize

@@ -35,10 +35,7 @@ pub(crate) fn split_cells<E: Copy>(
 pub(crate) fn cell_span(lo: f32, hi: f32, origin: f64, cell: u32, n: usize) -> (usize, usize) {
     // Cell c spans [origin + c·cell, origin + (c + 1)·cell] in image coordinates; in f64
     // the offset of an f32 coordinate is exact, so no rectangle loses its cell.
-    let c = |x: f32| {
-        ((x as f64 - origin) / cell as f64)
-            .floor()
-            .clamp(0.0, (n - 1) as f64)
-    };
+    let c =
+        |x: f32| crate::geom::floor((x as f64 - origin) / cell as f64).clamp(0.0, (n - 1) as f64);
     (c(lo) as usize, c(hi) as usize)
 }

@@ -4,6 +4,7 @@
 
 use glam::{Vec2, Vec3, Vec4};
 
+use crate::geom::floor;
 use crate::model::srgb_to_linear;
 
 /// Texture coordinate wrap mode (glTF sampler).
@@ -257,24 +258,6 @@ impl Texture {
             )
         };
         a0.lerp(a1, fx).lerp(b0.lerp(b1, fx), fy)
-    }
-}
-
-/// `x.floor()` without the library call where the target has no rounding instruction: the
-/// integer part, one less for a negative non-integer, exact while `|x| < 2⁵²` (every such
-/// f64 integer converts to i64 and back exactly); `f64::floor` beyond.
-#[inline]
-fn floor(x: f64) -> f64 {
-    if x.abs() < 4_503_599_627_370_496.0 {
-        let t = x as i64 as f64;
-        if t > x {
-            t - 1.0
-        } else {
-            // floor(−0) is −0.
-            t.copysign(x)
-        }
-    } else {
-        x.floor()
     }
 }
 
