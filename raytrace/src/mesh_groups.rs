@@ -52,9 +52,9 @@ pub(crate) const SMALL_GROUP_TRIANGLES_PER_RAY: u64 = 6;
 /// frame also builds the group table (a pass over every triangle) and each ray that reaches
 /// it pays the crossing and the table's reads. Measured on the `rings` export of a real
 /// capture as one node (14.15 M triangles in 353,775 groups of 40, single `trace`, wall time,
-/// per-ray path → tiles, with the table then built on one thread): 320×240 4.9 → 5.4 s, 640×480 9.3 → 6.05 s, so the
-/// single frame breaks even near 110 k rays; 8 puts the switch at 113 k
-/// (`docs/trace-speed-groups.md`, "One-node meshes of large groups").
+/// per-ray path → tiles, with the table then built on one thread): 320×240 4.9 → 5.4 s,
+/// 640×480 9.3 → 6.05 s, so the single frame breaks even near 110 k rays; 8 puts the switch
+/// at 113 k (`docs/trace-speed-groups.md`, "One-node meshes of large groups").
 pub(crate) const GROUP_RECORD_WEIGHT: u64 = 8;
 
 // Such a group never counts for more than its triangles, so no mesh takes the tiles less

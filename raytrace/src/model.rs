@@ -547,7 +547,7 @@ pub fn sample_channel(c: &Channel, t: f64) -> [f64; 4] {
 
 /// The sRGB transfer functions (encode for colours clamped to [0, 1]; decode for base-colour
 /// texture RGB, as glTF's sRGB textures are decoded).
-pub use splatbridge_scene::srgb::{decode as srgb_to_linear, encode as linear_to_srgb};
+pub use splatbridge_scene::srgb::decode as srgb_to_linear;
 
 impl Mesh {
     /// RGBA at barycentric position `bary` of triangle `tri`, as an unlit BLEND viewer shades it:

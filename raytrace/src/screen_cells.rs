@@ -2,6 +2,8 @@
 //! by the two tile paths (`gaussian::tiles` for Gaussians, `mesh_tiles` for triangles): a ray
 //! then scans only the entries whose screen rectangles reach its cell, in the tile's order.
 
+use crate::geom::floor;
+
 /// Tile `(tx, ty)`'s `list` (tiles of `tile` pixels) split into its cells, row-major, each in
 /// the list's order; `rect(e)` is an entry's `[x0, y0, x1, y1]` in image coordinates. Both
 /// tile paths lay their cells out flat with [`cell_span`]; this is their tests' reference.
@@ -35,7 +37,6 @@ pub(crate) fn split_cells<E: Copy>(
 pub(crate) fn cell_span(lo: f32, hi: f32, origin: f64, cell: u32, n: usize) -> (usize, usize) {
     // Cell c spans [origin + c·cell, origin + (c + 1)·cell] in image coordinates; in f64
     // the offset of an f32 coordinate is exact, so no rectangle loses its cell.
-    let c =
-        |x: f32| crate::geom::floor((x as f64 - origin) / cell as f64).clamp(0.0, (n - 1) as f64);
+    let c = |x: f32| floor((x as f64 - origin) / cell as f64).clamp(0.0, (n - 1) as f64);
     (c(lo) as usize, c(hi) as usize)
 }
