@@ -1,0 +1,126 @@
+//! How close a view-independent export can come to native splatting at distillation's
+//! held-back views: the measurement behind `docs/distill.md`, "What one colour a point can
+//! reach".
+//!
+//! `cargo run --release --example sh_ceiling -- SCENE [WxH,…]` takes the held-back views
+//! `accuracy --only distill` measures (one per class of `views::HELD_BACK_CLASSES` and size,
+//! apart from the default fitting and validation views) and prints, per view, the PSNR
+//! against native splatting (full SH) of: the undistilled MeshSplats default, the
+//! undistilled default export (texture profile), and native splatting with SH clipped to
+//! degree 0. The last is the same Gaussians drawn by the same renderer with one colour a
+//! Gaussian, the mean of its view-dependent colour over all directions (the SH functions of
+//! degree ≥ 1 integrate to zero over the sphere). Over views spread around a scene no colour
+//! fixed per point does much better on average: the per-point colour that minimises the mean
+//! squared error over directions is that mean. So "SH0 − MeshSplats" bounds what fitting one
+//! colour (and opacity) a vertex can gain on average over the views, whatever the mesh's
+//! shape error, unless the fit also removes error native-with-SH0 keeps (footprint, shape:
+//! both are native's own here).
+//!
+//! An example rather than a CLI subcommand: it is an instrument of the documentation.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use splatbridge::distill::{native_targets_sh, views, DistillOptions, Distiller};
+use splatbridge_convert::{ConvertOptions, Profile};
+use splatbridge_scene::dynamic::DynamicScene;
+use splatbridge_scene::formats::load;
+use splatbridge_scene::metrics::psnr;
+use splatbridge_scene::ply::ReadOptions;
+use splatbridge_scene::{Camera, Frame};
+
+fn plain(
+    scene: &DynamicScene,
+    profile: Profile,
+    cams: &[Camera],
+    refs: &[Frame],
+) -> anyhow::Result<Vec<f64>> {
+    let convert = ConvertOptions {
+        profile,
+        ..ConvertOptions::default()
+    };
+    let opts = DistillOptions {
+        footprint: false,
+        ..DistillOptions::default()
+    };
+    // The distiller as the tracer of the plain mesh (one tiny fitting view), as `accuracy`.
+    let tiny = views::window_of(&cams[0], (8, 6), 0.5, 0.5);
+    let mut d = Distiller::new(scene, &convert, std::slice::from_ref(&tiny), &opts)?;
+    cams.iter()
+        .zip(refs)
+        .map(|(c, r)| Ok(psnr(&d.render(c)?, r)?))
+        .collect()
+}
+
+fn run(args: &[String]) -> anyhow::Result<()> {
+    anyhow::ensure!(!args.is_empty(), "usage: SCENE [WxH,…]");
+    let sizes: Vec<(u32, u32)> = match args.get(1) {
+        Some(s) => s
+            .split(',')
+            .map(|wh| {
+                let (w, h) = wh
+                    .split_once('x')
+                    .ok_or_else(|| anyhow::anyhow!("size {wh}"))?;
+                Ok((w.parse()?, h.parse()?))
+            })
+            .collect::<anyhow::Result<_>>()?,
+        None => vec![(320, 240), (640, 480), (1920, 1080)],
+    };
+    let (scene, _) = load(&PathBuf::from(&args[0]), &ReadOptions::default())?;
+    let cloud = scene.composite(0.0);
+    let fit = views::sphere(
+        &cloud,
+        splatbridge::distill::DEFAULT_VIEWS,
+        &views::DEFAULT_SIZES,
+        views::WINDOW,
+    )?;
+    let n = fit.windows.len();
+    let validation = splatbridge::distill::run::ViewRequest::default().validation;
+    let val = views::sphere_range(
+        &cloud,
+        n..n + validation,
+        &views::DEFAULT_SIZES,
+        views::WINDOW,
+    )?;
+    let avoid: Vec<Camera> = fit.frames.iter().chain(&val.frames).cloned().collect();
+    let held = views::held_back_classes(&cloud, &sizes, 1, &avoid)?;
+    let cams: Vec<Camera> = held.iter().map(|h| h.camera.clone()).collect();
+    let times = vec![0.0; cams.len()];
+    let full = native_targets_sh(&scene, &cams, &times, 3)?;
+    let dc = native_targets_sh(&scene, &cams, &times, 0)?;
+    let ms = plain(&scene, Profile::MeshSplats, &cams, &full)?;
+    let tex = plain(&scene, Profile::Texture, &cams, &full)?;
+    println!("view\tmeshsplats\ttexture\tnative SH0\tSH0 − meshsplats");
+    let mut headroom = Vec::new();
+    for (i, h) in held.iter().enumerate() {
+        let sh0 = psnr(&dc[i], &full[i])?;
+        headroom.push(sh0 - ms[i]);
+        println!(
+            "{}\t{:.2}\t{:.2}\t{:.2}\t{:+.2}",
+            h.camera.name,
+            ms[i],
+            tex[i],
+            sh0,
+            sh0 - ms[i]
+        );
+    }
+    headroom.sort_by(f64::total_cmp);
+    println!(
+        "headroom over the MeshSplats default: worst {:+.2}, median {:+.2}, best {:+.2} dB",
+        headroom[0],
+        headroom[headroom.len() / 2],
+        headroom[headroom.len() - 1]
+    );
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    match run(&args) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::from(2)
+        }
+    }
+}
