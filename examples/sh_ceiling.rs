@@ -21,36 +21,13 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use splatbridge::distill::{native_targets_sh, views, DistillOptions, Distiller};
-use splatbridge_convert::{ConvertOptions, Profile};
-use splatbridge_scene::dynamic::DynamicScene;
+use splatbridge::distill::{native_targets_sh, views};
+use splatbridge::measure::accuracy_distill::plain_export_psnr;
+use splatbridge_convert::Profile;
 use splatbridge_scene::formats::load;
 use splatbridge_scene::metrics::psnr;
 use splatbridge_scene::ply::ReadOptions;
-use splatbridge_scene::{Camera, Frame};
-
-fn plain(
-    scene: &DynamicScene,
-    profile: Profile,
-    cams: &[Camera],
-    refs: &[Frame],
-) -> anyhow::Result<Vec<f64>> {
-    let convert = ConvertOptions {
-        profile,
-        ..ConvertOptions::default()
-    };
-    let opts = DistillOptions {
-        footprint: false,
-        ..DistillOptions::default()
-    };
-    // The distiller as the tracer of the plain mesh (one tiny fitting view), as `accuracy`.
-    let tiny = views::window_of(&cams[0], (8, 6), 0.5, 0.5);
-    let mut d = Distiller::new(scene, &convert, std::slice::from_ref(&tiny), &opts)?;
-    cams.iter()
-        .zip(refs)
-        .map(|(c, r)| Ok(psnr(&d.render(c)?, r)?))
-        .collect()
-}
+use splatbridge_scene::Camera;
 
 fn run(args: &[String]) -> anyhow::Result<()> {
     anyhow::ensure!(!args.is_empty(), "usage: SCENE [WxH,…]");
@@ -88,8 +65,8 @@ fn run(args: &[String]) -> anyhow::Result<()> {
     let times = vec![0.0; cams.len()];
     let full = native_targets_sh(&scene, &cams, &times, 3)?;
     let dc = native_targets_sh(&scene, &cams, &times, 0)?;
-    let ms = plain(&scene, Profile::MeshSplats, &cams, &full)?;
-    let tex = plain(&scene, Profile::Texture, &cams, &full)?;
+    let ms = plain_export_psnr(&scene, Profile::MeshSplats, &cams, &full)?;
+    let tex = plain_export_psnr(&scene, Profile::Texture, &cams, &full)?;
     println!("view\tmeshsplats\ttexture\tnative SH0\tSH0 − meshsplats");
     let mut headroom = Vec::new();
     for (i, h) in held.iter().enumerate() {

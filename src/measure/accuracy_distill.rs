@@ -15,6 +15,7 @@ use std::path::Path;
 
 use anyhow::Context;
 use splatbridge_convert::{ConvertOptions, Profile};
+use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::{Camera, Frame};
 
 use crate::distill::run::worst_and_median;
@@ -99,6 +100,17 @@ fn plain_psnr(
     cams: &[Camera],
     refs: &[Frame],
 ) -> anyhow::Result<Vec<f64>> {
+    plain_export_psnr(s.scene, profile, cams, refs)
+}
+
+/// PSNR of the plain (undistilled, unwidened) export of `profile` of `scene` against `refs`
+/// at each camera of `cams` (also `examples/sh_ceiling.rs`).
+pub fn plain_export_psnr(
+    scene: &DynamicScene,
+    profile: Profile,
+    cams: &[Camera],
+    refs: &[Frame],
+) -> anyhow::Result<Vec<f64>> {
     let convert = ConvertOptions {
         profile,
         ..ConvertOptions::default()
@@ -109,7 +121,7 @@ fn plain_psnr(
     };
     // One tiny view: the distiller is used here only as the tracer of the plain mesh.
     let tiny = views::window_of(&cams[0], (8, 6), 0.5, 0.5);
-    let mut d = Distiller::new(s.scene, &convert, std::slice::from_ref(&tiny), &opts)?;
+    let mut d = Distiller::new(scene, &convert, std::slice::from_ref(&tiny), &opts)?;
     psnr_at(&mut d, cams, refs)
 }
 
