@@ -418,13 +418,16 @@ fn the_footprint_widened_fit_beats_the_plain_one_on_small_gaussians() {
 /// differ where the scene has view-dependent colour.
 #[test]
 fn target_sh_degree_caps_the_targets_sh() {
+    use splatbridge_hybrid::native::NEAR_REFERENCE;
     let cloud = distill_common::view_dependent_cloud();
     let dc: Vec<glam::Vec3> = cloud.sh.iter().step_by(4).copied().collect();
     let scene = DynamicScene::from_static(cloud.clone());
     let cams = views::orbit(&cloud, 4, 0..2, 32, 24).unwrap();
     let times = [0.0, 0.0];
-    let full = splatbridge::distill::native_targets_sh(&scene, &cams, &times, 3).unwrap();
-    let capped = splatbridge::distill::native_targets_sh(&scene, &cams, &times, 0).unwrap();
+    let full =
+        splatbridge::distill::native_targets_sh(&scene, &cams, &times, 3, NEAR_REFERENCE).unwrap();
+    let capped =
+        splatbridge::distill::native_targets_sh(&scene, &cams, &times, 0, NEAR_REFERENCE).unwrap();
     let mut flat = cloud;
     flat.sh_degree = 0;
     flat.sh = dc;

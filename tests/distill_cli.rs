@@ -149,6 +149,10 @@ fn bad_distillation_options_exit_2_naming_the_option() {
         "--distill-alpha-step=-1",
         "--distill-alpha-step=nan",
         "--distill-fit-sh-degree=4",
+        "--distill-near=0",
+        "--distill-near=-0.1",
+        "--distill-near=inf",
+        "--distill-near=nan",
         "--distill-log",
     ] {
         let r = run(&[

@@ -119,7 +119,7 @@ impl Distiller {
         if self.opts.positions || cameras.is_empty() {
             return Ok(());
         }
-        let native = targets::native_options(self.opts.target_sh_degree);
+        let native = targets::native_options(self.opts.target_sh_degree, self.opts.target_near);
         let mut r = splatbridge_hybrid::native::Renderer::new();
         let mut frames = Vec::with_capacity(cameras.len());
         for (cam, &t) in cameras.iter().zip(times) {

@@ -289,7 +289,10 @@ impl Distiller {
         let centres = (opts.order == HitOrder::Splat).then(|| Centres::new(&tri));
         let fitted_positions = opts.positions.then(|| positions::Positions::new(&tri));
         let tracer = MeshTracer::new(tri, BackendKind::default(), BuildPreset::default())?;
-        let native = native_options(opts.fit_sh_degree.unwrap_or(opts.target_sh_degree));
+        let native = native_options(
+            opts.fit_sh_degree.unwrap_or(opts.target_sh_degree),
+            opts.target_near,
+        );
         let (mut targets_seconds, mut record_seconds) = (0.0, 0.0);
         let mut renderer = splatbridge_hybrid::native::Renderer::new();
         let mut d = Distiller {

@@ -70,6 +70,13 @@ pub struct DistillOptions {
     /// targets view-independent, so a fit to them measures what view-dependence costs a
     /// mesh (docs/distill.md, "Where the remaining error is").
     pub target_sh_degree: u8,
+    /// Native splatting's near plane for every target and reference of the fit (fitting,
+    /// validation and held-back views): Gaussians at view depth `z ≤ target_near` are
+    /// dropped from them. The reference's 0.2 is in scene units; a mesh has no such cull
+    /// (a viewer clips triangles at its camera's near plane, 0.01 in the cameras
+    /// splatbridge writes), so where close views bring Gaussians within 0.2 of the camera
+    /// the targets show holes the export cannot and should not have.
+    pub target_near: f32,
     /// Highest SH degree of the fitting views' targets, when not `target_sh_degree`; the
     /// validation views and held-back references keep `target_sh_degree`.
     pub fit_sh_degree: Option<u8>,
@@ -125,6 +132,7 @@ impl Default for DistillOptions {
             guard_tolerance_db: crate::guard::TOLERANCE_DB,
             patience: crate::guard::PATIENCE,
             target_sh_degree: 3,
+            target_near: splatbridge_hybrid::native::NEAR_REFERENCE,
             fit_sh_degree: None,
             order: HitOrder::Ray,
             positions: false,
@@ -176,6 +184,12 @@ impl DistillOptions {
             return bad(format!(
                 "--distill-record-k {} is outside 1..=1024",
                 self.record_k
+            ));
+        }
+        if !(self.target_near > 0.0 && self.target_near.is_finite()) {
+            return bad(format!(
+                "--distill-near {} must be positive and finite",
+                self.target_near
             ));
         }
         if !(self.record_transmittance > 0.0 && self.record_transmittance < 1.0) {

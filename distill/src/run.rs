@@ -261,7 +261,13 @@ pub fn distill_export(
     // over the poses it was fitted for.
     let held: Vec<Camera> = views.held.iter().map(|h| h.camera.clone()).collect();
     let held_times = opts.view_times(held.len());
-    let held_targets = native_targets_sh(scene, &held, &held_times, opts.target_sh_degree)?;
+    let held_targets = native_targets_sh(
+        scene,
+        &held,
+        &held_times,
+        opts.target_sh_degree,
+        opts.target_near,
+    )?;
     let before = psnr_each(&mut d, &held, &held_times, &held_targets)?;
     d.run(on_step)?;
     // Where no step ran, or the guard went back to the start (its iteration-0 snapshot, the

@@ -61,22 +61,20 @@ pub fn native_targets_at(
     cameras: &[Camera],
     times: &[f64],
 ) -> Result<Vec<Frame>> {
-    native_targets_sh(
-        scene,
-        cameras,
-        times,
-        NativeOptions::default().sh_degree_cap,
-    )
+    let native = NativeOptions::default();
+    native_targets_sh(scene, cameras, times, native.sh_degree_cap, native.near)
 }
 
-/// [`native_targets_at`] with SH up to degree `sh_degree`.
+/// [`native_targets_at`] with SH up to degree `sh_degree` and Gaussians at view depth
+/// `z ≤ near` dropped.
 pub fn native_targets_sh(
     scene: &DynamicScene,
     cameras: &[Camera],
     times: &[f64],
     sh_degree: u8,
+    near: f32,
 ) -> Result<Vec<Frame>> {
-    let native = native_options(sh_degree);
+    let native = native_options(sh_degree, near);
     let mut r = splatbridge_hybrid::native::Renderer::new();
     let mut out = Vec::with_capacity(cameras.len());
     let mut cached: Option<(f64, splatbridge_scene::GaussianCloud)> = None;
@@ -91,10 +89,12 @@ pub fn native_targets_sh(
     Ok(out)
 }
 
-/// Native splatting's reference settings with SH up to degree `sh_degree`.
-pub(crate) fn native_options(sh_degree: u8) -> NativeOptions {
+/// Native splatting's reference settings with SH up to degree `sh_degree` and the near plane
+/// `near`.
+pub(crate) fn native_options(sh_degree: u8, near: f32) -> NativeOptions {
     NativeOptions {
         sh_degree_cap: sh_degree,
+        near,
         ..NativeOptions::default()
     }
 }

@@ -81,6 +81,10 @@ pub struct Args {
     /// guard refuses an iteration.
     #[arg(long, value_name = "DB", default_value_t = splatbridge::distill::DistillOptions::default().guard_tolerance_db, value_parser = super::common::parse_non_negative)]
     pub distill_guard_tolerance: f64,
+    /// Native splatting's near plane for the distill rows' targets and held-back references
+    /// (as `convert --distill-near`).
+    #[arg(long, value_name = "Z", default_value_t = splatbridge::distill::DistillOptions::default().target_near, value_parser = super::common::parse_positive_f32)]
+    pub distill_near: f32,
     /// Iterations of the distill rows' fits.
     #[arg(long, value_name = "K", default_value_t = splatbridge::distill::DistillOptions::default().iterations)]
     pub distill_iterations: usize,
@@ -212,6 +216,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 footprint_quantile: args.distill_footprint_quantile,
                 params: args.distill_params.mode(),
                 guard_tolerance_db: args.distill_guard_tolerance,
+                target_near: args.distill_near,
                 ..Default::default()
             },
             ..Default::default()

@@ -167,6 +167,14 @@ pub fn parse_transmittance(s: &str) -> Result<f32, String> {
     }
 }
 
+/// A finite f32 > 0.
+pub fn parse_positive_f32(s: &str) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("{s:?} is not a number > 0")),
+    }
+}
+
 /// A finite number ≥ 0.
 pub fn parse_non_negative(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {

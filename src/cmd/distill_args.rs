@@ -135,6 +135,12 @@ pub struct DistillArgs {
     /// measures against view-independent colour, to see what view-dependence costs.
     #[arg(long, value_name = "D", default_value_t = 3, value_parser = clap::value_parser!(u8).range(0..=3), requires = "distill")]
     pub distill_sh_degree: u8,
+    /// Native splatting's near plane (view depth, scene units) for the fit's targets and
+    /// held-back references: Gaussians at `z ≤ Z` are dropped from them, as native drops them
+    /// (the reference's 0.2). A mesh has no such cull, so close views of a scene small in
+    /// scene units show holes in the targets that the export does not have.
+    #[arg(long, value_name = "Z", default_value_t = DistillOptions::default().target_near, value_parser = super::common::parse_positive_f32, requires = "distill")]
+    pub distill_near: f32,
     /// Highest SH degree of the fitting views' targets alone (validation and held-back views
     /// keep --distill-sh-degree).
     #[arg(long, value_name = "D", value_parser = clap::value_parser!(u8).range(0..=3), requires = "distill")]
@@ -211,6 +217,7 @@ impl DistillArgs {
             guard_tolerance_db: self.distill_guard_tolerance,
             patience: self.distill_patience,
             target_sh_degree: self.distill_sh_degree,
+            target_near: self.distill_near,
             fit_sh_degree: self.distill_fit_sh_degree,
             lr_colour: self.distill_colour_step,
             lr_alpha: self.distill_alpha_step,

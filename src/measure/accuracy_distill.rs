@@ -19,7 +19,7 @@ use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::{Camera, Frame};
 
 use crate::distill::run::worst_and_median;
-use crate::distill::{native_targets, views, DistillOptions, Distiller};
+use crate::distill::{native_targets_sh, views, DistillOptions, Distiller};
 use crate::measure::accuracy::Sweep;
 use crate::measure::report::plot::{self, Point};
 use crate::measure::report::Record;
@@ -147,7 +147,9 @@ pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<Distill
     let avoid: Vec<Camera> = fit.frames.iter().chain(&val.frames).cloned().collect();
     let held = views::held_back_classes(cloud, &cfg.sizes, cfg.per_class, &avoid)?;
     let cams: Vec<Camera> = held.iter().map(|h| h.camera.clone()).collect();
-    let refs = native_targets(scene, s.time, &cams)?;
+    let o = &cfg.options;
+    let times = vec![s.time; cams.len()];
+    let refs = native_targets_sh(scene, &cams, &times, o.target_sh_degree, o.target_near)?;
     let default_psnr = plain_psnr(s, Profile::MeshSplats, &cams, &refs)?;
     let last = cfg.checkpoints.iter().copied().max().unwrap_or(0);
     let mut out = DistillRows {
