@@ -94,6 +94,28 @@ fn splat_order_distillation_says_so_in_the_export() {
     assert!(how.contains("splat order"), "{how}");
 }
 
+/// A near plane other than the reference's is said in the export's note and beside the
+/// held-back figures; the reference's is not mentioned.
+#[test]
+fn a_targets_near_plane_says_so_in_the_export() {
+    let dir = temp_dir("distill-cli", "near");
+    let note = |out: &Path| {
+        let d = glb_json(&std::fs::read(out).unwrap());
+        d["asset"]["extras"]["splatbridge"]["options"]["distilled"]
+            .as_str()
+            .unwrap_or_else(|| panic!("no distillation note in {}", d["asset"]))
+            .to_string()
+    };
+    let out = dir.join("street_near.glb");
+    let stderr = distil_street(&out, &["--distill-near", "0.05", "--iterations", "1"]);
+    assert!(stderr.contains("views, near plane 0.05)"), "{stderr}");
+    assert!(note(&out).contains("near plane at 0.05"), "{}", note(&out));
+    let plain = dir.join("street_reference_near.glb");
+    let stderr = distil_street(&plain, &["--iterations", "1"]);
+    assert!(!stderr.contains("near plane"), "{stderr}");
+    assert!(!note(&plain).contains("near plane"), "{}", note(&plain));
+}
+
 /// Position fitting's bad settings exit 2 naming the option: a negative step, and the
 /// texture profile (the default for glTF), whose opacity comes from a texture.
 #[test]

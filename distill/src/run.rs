@@ -289,10 +289,19 @@ pub fn distill_export(
     }
     let report = d.report();
     // The measurement-only and optional parts of the fit, said after the loss.
+    // A near plane other than the reference's is said with the targets it changed.
+    let near = (opts.target_near != splatbridge_hybrid::native::NEAR_REFERENCE).then(|| {
+        format!(
+            " against native with its near plane at {}",
+            opts.target_near
+        )
+    });
     let what_else = [
-        opts.positions.then_some(" with positions"),
-        (opts.order == super::HitOrder::Splat)
-            .then_some(" composited in splat order (a measurement: viewers draw ray order)"),
+        opts.positions.then(|| " with positions".to_string()),
+        (opts.order == super::HitOrder::Splat).then(|| {
+            " composited in splat order (a measurement: viewers draw ray order)".to_string()
+        }),
+        near,
     ]
     .into_iter()
     .flatten()
