@@ -67,10 +67,11 @@ fn run(args: &[String]) -> anyhow::Result<()> {
     let full = native_targets_sh(&scene, &cams, &times, 3, near)?;
     let dc = native_targets_sh(&scene, &cams, &times, 0, near)?;
     let ms = plain_export_psnr(&scene, Profile::MeshSplats, &cams, &full)?;
-    // The same against native with a near plane of 0.01 (the exported cameras' znear): what
-    // the reference's near cull at 0.2 scene units takes out of close views.
-    let full_near = native_targets_sh(&scene, &cams, &times, 3, 0.01)?;
-    let dc_near = native_targets_sh(&scene, &cams, &times, 0, 0.01)?;
+    // The same against native at the exported cameras' near plane (0.01): what the
+    // reference's near cull at 0.2 scene units takes out of close views.
+    let znear = splatbridge_convert::gltf_doc::CAMERA_ZNEAR as f32;
+    let full_near = native_targets_sh(&scene, &cams, &times, 3, znear)?;
+    let dc_near = native_targets_sh(&scene, &cams, &times, 0, znear)?;
     let ms_near = plain_export_psnr(&scene, Profile::MeshSplats, &cams, &full_near)?;
     let tex = plain_export_psnr(&scene, Profile::Texture, &cams, &full)?;
     println!(

@@ -87,6 +87,9 @@ impl DocBuilder {
 /// glTF camera frame from an OpenCV camera: glTF cameras look down −Z with +Y up, OpenCV
 /// cameras down +Z with +Y down, so the camera-to-world rotation gains a 180° turn about
 /// the camera's x axis. Returns (translation, rotation x,y,z,w, camera JSON).
+/// The near plane (`znear`, scene units) of the perspective cameras splatbridge writes.
+pub const CAMERA_ZNEAR: f64 = 0.01;
+
 pub fn camera_node(cam: &Camera) -> ([f32; 3], [f32; 4], Value) {
     let c2w = cam.cam_to_world() * DMat3::from_diagonal(DVec3::new(1.0, -1.0, -1.0));
     let q = DQuat::from_mat3(&c2w).normalize();
@@ -94,7 +97,7 @@ pub fn camera_node(cam: &Camera) -> ([f32; 3], [f32; 4], Value) {
     let json = json!({
         "type": "perspective",
         "name": cam.name,
-        "perspective": {"yfov": yfov, "aspectRatio": cam.width as f64 / cam.height as f64, "znear": 0.01},
+        "perspective": {"yfov": yfov, "aspectRatio": cam.width as f64 / cam.height as f64, "znear": CAMERA_ZNEAR},
         "extras": {"opencv": {"width": cam.width, "height": cam.height, "fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy}}
     });
     (

@@ -66,7 +66,7 @@ use composite::{Rec, Shading, ViewHits};
 pub use loss::Loss;
 use mesh::{check_white, hit_alpha_factor, quantise, vertex_gaussians};
 use optim::{adam, batch_views, mean_pixels};
-pub use options::DistillOptions;
+pub use options::{near_unless_reference, DistillOptions};
 use order::Centres;
 pub use order::HitOrder;
 use targets::native_options;

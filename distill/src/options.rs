@@ -141,6 +141,11 @@ impl Default for DistillOptions {
     }
 }
 
+/// `near` where it is not the reference's near plane: what a fit's note and report say.
+pub fn near_unless_reference(near: f32) -> Option<f32> {
+    (near != splatbridge_hybrid::native::NEAR_REFERENCE).then_some(near)
+}
+
 impl DistillOptions {
     /// The scene time of each of `n` views: `times` in turn, or `time`.
     pub fn view_times(&self, n: usize) -> Vec<f64> {

@@ -290,12 +290,8 @@ pub fn distill_export(
     let report = d.report();
     // The measurement-only and optional parts of the fit, said after the loss.
     // A near plane other than the reference's is said with the targets it changed.
-    let near = (opts.target_near != splatbridge_hybrid::native::NEAR_REFERENCE).then(|| {
-        format!(
-            " against native with its near plane at {}",
-            opts.target_near
-        )
-    });
+    let near = super::near_unless_reference(opts.target_near)
+        .map(|z| format!(" against native with its near plane at {z}"));
     let what_else = [
         opts.positions.then(|| " with positions".to_string()),
         (opts.order == super::HitOrder::Splat).then(|| {

@@ -57,11 +57,8 @@ pub fn print(out: &Outcome, args: &DistillArgs) {
         );
     }
     if let (Some((a, b)), Some((worst, median))) = (out.held_back, out.held_back_change) {
-        let near = if args.distill_near == splatbridge_hybrid::native::NEAR_REFERENCE {
-            String::new()
-        } else {
-            format!(", near plane {}", args.distill_near)
-        };
+        let near = splatbridge::distill::near_unless_reference(args.distill_near)
+            .map_or(String::new(), |z| format!(", near plane {z}"));
         eprintln!(
             "  held-back PSNR against native ({} views{near}): {a:.2} dB → {b:.2} dB (change: worst {worst:+.2}, median {median:+.2} dB)",
             out.held_back_views

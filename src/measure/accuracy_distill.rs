@@ -93,16 +93,6 @@ pub struct DistillRows {
     pub fit_description: String,
 }
 
-/// PSNR of the plain (undistilled, unwidened) export of `profile` at each camera.
-fn plain_psnr(
-    s: &Sweep<'_>,
-    profile: Profile,
-    cams: &[Camera],
-    refs: &[Frame],
-) -> anyhow::Result<Vec<f64>> {
-    plain_export_psnr(s.scene, profile, cams, refs)
-}
-
 /// PSNR of the plain (undistilled, unwidened) export of `profile` of `scene` against `refs`
 /// at each camera of `cams` (also `examples/sh_ceiling.rs`).
 pub fn plain_export_psnr(
@@ -150,7 +140,7 @@ pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<Distill
     let o = &cfg.options;
     let times = vec![s.time; cams.len()];
     let refs = native_targets_sh(scene, &cams, &times, o.target_sh_degree, o.target_near)?;
-    let default_psnr = plain_psnr(s, Profile::MeshSplats, &cams, &refs)?;
+    let default_psnr = plain_export_psnr(scene, Profile::MeshSplats, &cams, &refs)?;
     let last = cfg.checkpoints.iter().copied().max().unwrap_or(0);
     let mut out = DistillRows {
         curve: Vec::new(),
@@ -185,7 +175,7 @@ pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<Distill
         let plain = if profile == Profile::MeshSplats {
             default_psnr.clone()
         } else {
-            plain_psnr(s, profile, &cams, &refs)?
+            plain_export_psnr(scene, profile, &cams, &refs)?
         };
         let convert = ConvertOptions {
             profile,
