@@ -376,6 +376,36 @@ fn accuracy_distill_sweep_fits_the_named_profiles() {
     assert!(!stdout.contains("rings it=") && !stdout.contains("texture it="));
     let md = std::fs::read_to_string(out.join("distill.md")).unwrap();
     assert!(md.contains("| meshsplats | all views | 6 |"), "{md}");
+    // Every view's start column is the fit's start: its mean is the it=0 checkpoint's
+    // mean PSNR (`accuracy.json`, unrounded). The column is printed to 0.01 dB, so the mean
+    // of its six values is within 0.005 of the true mean.
+    let starts: Vec<f64> = md
+        .split("## Every view")
+        .nth(1)
+        .expect("the per-view table")
+        .lines()
+        .filter(|l| l.starts_with("| meshsplats | "))
+        .map(|l| l.split('|').nth(5).unwrap().trim().parse().unwrap())
+        .collect();
+    assert_eq!(starts.len(), 6, "{md}");
+    let json: Value =
+        serde_json::from_slice(&std::fs::read(out.join("accuracy.json")).unwrap()).unwrap();
+    let start_mean = json
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|r| {
+            r["value"]
+                .as_str()
+                .is_some_and(|v| v.starts_with("meshsplats it=0 "))
+        })
+        .and_then(|r| r["psnr"].as_f64())
+        .expect("the it=0 record");
+    let mean = starts.iter().sum::<f64>() / 6.0;
+    assert!(
+        (mean - start_mean).abs() <= 0.005,
+        "{mean} against {start_mean}: {md}"
+    );
     // The guard's log: the start, then every 10 steps and the end.
     for it in [0, 10, 12] {
         assert!(md.contains(&format!("| meshsplats | {it} | ")), "{md}");

@@ -71,7 +71,9 @@ pub struct CurvePoint {
 }
 
 /// One held-back view of one profile's fit: PSNR of the MeshSplats default, of the plain
-/// export of the profile, and of the fit at its end.
+/// export of the profile, of the fit's start (the mesh made from the widened Gaussians,
+/// colours as converted) and of the fit at its end. Start against plain is what the
+/// footprint widening did to the view; distilled against start, what the fit did.
 #[derive(Clone, Debug)]
 pub struct ViewResult {
     pub profile: String,
@@ -79,6 +81,7 @@ pub struct ViewResult {
     pub camera: String,
     pub default_psnr: f64,
     pub plain_psnr: f64,
+    pub start_psnr: f64,
     pub distilled_psnr: f64,
 }
 
@@ -192,8 +195,12 @@ pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<Distill
         let triangles = d.triangles();
         let mut fit_seconds = 0.0;
         d.validate()?;
+        let mut start: Vec<f64> = Vec::new();
         loop {
             let it = d.history.len();
+            if it == 0 && !cfg.checkpoints.contains(&0) {
+                start = psnr_at(&mut d, &cams, &refs)?;
+            }
             if it >= last {
                 d.validate()?;
                 d.keep_best();
@@ -201,6 +208,9 @@ pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<Distill
             if cfg.checkpoints.contains(&it) {
                 let seconds = d.elapsed();
                 let psnr = psnr_at(&mut d, &cams, &refs)?;
+                if it == 0 {
+                    start = psnr.clone();
+                }
                 let mut r = record(
                     name,
                     &format!("{name} it={it} ({seconds:.1} s)"),
@@ -216,15 +226,14 @@ pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<Distill
                     baseline: false,
                 });
                 if it >= last {
-                    for ((h, &p), (&dp, &pp)) in
-                        held.iter().zip(&psnr).zip(default_psnr.iter().zip(&plain))
-                    {
+                    for (i, (h, &p)) in held.iter().zip(&psnr).enumerate() {
                         out.views.push(ViewResult {
                             profile: name.into(),
                             class: h.class.clone(),
                             camera: h.camera.name.clone(),
-                            default_psnr: dp,
-                            plain_psnr: pp,
+                            default_psnr: default_psnr[i],
+                            plain_psnr: plain[i],
+                            start_psnr: start[i],
                             distilled_psnr: p,
                         });
                     }
@@ -297,7 +306,7 @@ pub fn write_curve(out: &Path, what: &str, rows: &DistillRows) -> anyhow::Result
         "# Distillation on held-back views\n\n{what}. Fitting: {}. No held-back view is within \
          {}° of a fitting or validation view.\n\n![PSNR against distillation time](psnr_vs_distill_time.png)\n\n\
          ## Per class\n\nPSNR against native in dB; changes are of the distilled export, worst / median over the class's views.\n\n\
-         | profile | class | views | MeshSplats default (median) | plain export (median) | distilled (median) | vs default worst / median | vs plain worst / median |\n|---|---|---|---|---|---|---|---|\n",
+         | profile | class | views | MeshSplats default (median) | plain export (median) | start (median) | distilled (median) | vs default worst / median | vs plain worst / median | start vs plain worst / median |\n|---|---|---|---|---|---|---|---|---|---|\n",
         rows.fit_description,
         views::MIN_APART_DEG
     );
@@ -334,11 +343,13 @@ pub fn write_curve(out: &Path, what: &str, rows: &DistillRows) -> anyhow::Result
         };
         let (dw, dm) = wm(&|v| v.distilled_psnr - v.default_psnr);
         let (pw, pm) = wm(&|v| v.distilled_psnr - v.plain_psnr);
+        let (sw, sm) = wm(&|v| v.start_psnr - v.plain_psnr);
         md += &format!(
-            "| {p} | {c} | {} | {:.2} | {:.2} | {:.2} | {dw:+.2} / {dm:+.2} | {pw:+.2} / {pm:+.2} |\n",
+            "| {p} | {c} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {dw:+.2} / {dm:+.2} | {pw:+.2} / {pm:+.2} | {sw:+.2} / {sm:+.2} |\n",
             vs.len(),
             med(&|v| v.default_psnr),
             med(&|v| v.plain_psnr),
+            med(&|v| v.start_psnr),
             med(&|v| v.distilled_psnr),
         );
     }
@@ -363,11 +374,11 @@ pub fn write_curve(out: &Path, what: &str, rows: &DistillRows) -> anyhow::Result
             );
         }
     }
-    md += "\n## Every view\n\n| profile | view | default | plain | distilled |\n|---|---|---|---|---|\n";
+    md += "\n## Every view\n\nStart: the mesh made from the widened Gaussians with the colours as converted, before the first step.\n\n| profile | view | default | plain | start | distilled |\n|---|---|---|---|---|---|\n";
     for v in &rows.views {
         md += &format!(
-            "| {} | {} | {:.2} | {:.2} | {:.2} |\n",
-            v.profile, v.camera, v.default_psnr, v.plain_psnr, v.distilled_psnr
+            "| {} | {} | {:.2} | {:.2} | {:.2} | {:.2} |\n",
+            v.profile, v.camera, v.default_psnr, v.plain_psnr, v.start_psnr, v.distilled_psnr
         );
     }
     let path = out.join("distill.md");
