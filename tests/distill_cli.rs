@@ -411,6 +411,19 @@ fn accuracy_distill_sweep_fits_the_named_profiles() {
         assert!(md.contains(&format!("| meshsplats | {it} | ")), "{md}");
     }
     assert!(out.join("psnr_vs_distill_time.png").exists());
+    // The view that gains least, for a person to look at: native, plain and distilled at the
+    // held-back size, linked from the report; the plain image is the plain export's, not
+    // the distilled one (they differ: the fit moved the colours).
+    let img = |what: &str| {
+        let f = format!("worst_meshsplats_{what}.png");
+        assert!(md.contains(&format!("]({f})")), "{md}");
+        splatbridge_scene::image_io::load_png(&out.join(f)).unwrap()
+    };
+    let (native, plain, distilled) = (img("native"), img("plain"), img("distilled"));
+    for f in [&native, &plain, &distilled] {
+        assert_eq!((f.width, f.height), (40, 30));
+    }
+    assert_ne!(plain.rgb, distilled.rgb);
 
     let bad = dir.join("bad");
     let r = run(&[

@@ -85,8 +85,23 @@ pub struct ViewResult {
     pub distilled_psnr: f64,
 }
 
+/// The held-back view where a profile's fit gains least over its plain export (or loses
+/// most), rendered for a person to look at: native splatting, the plain export and the
+/// distilled export, with their PSNRs against native.
+pub struct WorstView {
+    pub profile: String,
+    pub camera: String,
+    pub plain_psnr: f64,
+    pub distilled_psnr: f64,
+    pub native: Frame,
+    pub plain: Frame,
+    pub distilled: Frame,
+}
+
 /// What the distillation rows measured.
 pub struct DistillRows {
+    /// Per profile, its worst held-back view against the plain export.
+    pub worst: Vec<WorstView>,
     pub curve: Vec<CurvePoint>,
     pub views: Vec<ViewResult>,
     /// Per profile: set-up seconds (targets, hit recording), fitting seconds, kept iteration.
@@ -104,6 +119,13 @@ pub fn plain_export_psnr(
     cams: &[Camera],
     refs: &[Frame],
 ) -> anyhow::Result<Vec<f64>> {
+    let mut d = plain_tracer(scene, profile, &cams[0])?;
+    psnr_at(&mut d, cams, refs)
+}
+
+/// A tracer of the plain (undistilled, unwidened) export of `profile` of `scene`: a
+/// distiller that never steps, made with one tiny view of `cam`.
+fn plain_tracer(scene: &DynamicScene, profile: Profile, cam: &Camera) -> anyhow::Result<Distiller> {
     let convert = ConvertOptions {
         profile,
         ..ConvertOptions::default()
@@ -112,10 +134,13 @@ pub fn plain_export_psnr(
         footprint: false,
         ..DistillOptions::default()
     };
-    // One tiny view: the distiller is used here only as the tracer of the plain mesh.
-    let tiny = views::window_of(&cams[0], (8, 6), 0.5, 0.5);
-    let mut d = Distiller::new(scene, &convert, std::slice::from_ref(&tiny), &opts)?;
-    psnr_at(&mut d, cams, refs)
+    let tiny = views::window_of(cam, (8, 6), 0.5, 0.5);
+    Ok(Distiller::new(
+        scene,
+        &convert,
+        std::slice::from_ref(&tiny),
+        &opts,
+    )?)
 }
 
 fn psnr_at(d: &mut Distiller, cams: &[Camera], refs: &[Frame]) -> anyhow::Result<Vec<f64>> {
@@ -146,6 +171,7 @@ pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<Distill
     let default_psnr = plain_export_psnr(scene, Profile::MeshSplats, &cams, &refs)?;
     let last = cfg.checkpoints.iter().copied().max().unwrap_or(0);
     let mut out = DistillRows {
+        worst: Vec::new(),
         curve: Vec::new(),
         views: Vec::new(),
         timing: Vec::new(),
@@ -226,6 +252,20 @@ pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<Distill
                     baseline: false,
                 });
                 if it >= last {
+                    let worst = (0..psnr.len())
+                        .min_by(|&a, &b| (psnr[a] - plain[a]).total_cmp(&(psnr[b] - plain[b])));
+                    if let Some(i) = worst {
+                        let cam = &cams[i];
+                        out.worst.push(WorstView {
+                            profile: name.into(),
+                            camera: cam.name.clone(),
+                            plain_psnr: plain[i],
+                            distilled_psnr: psnr[i],
+                            native: refs[i].clone(),
+                            plain: plain_tracer(scene, profile, cam)?.render(cam)?,
+                            distilled: d.render(cam)?,
+                        });
+                    }
                     for (i, (h, &p)) in held.iter().zip(&psnr).enumerate() {
                         out.views.push(ViewResult {
                             profile: name.into(),
@@ -379,6 +419,30 @@ pub fn write_curve(out: &Path, what: &str, rows: &DistillRows) -> anyhow::Result
         md += &format!(
             "| {} | {} | {:.2} | {:.2} | {:.2} | {:.2} |\n",
             v.profile, v.camera, v.default_psnr, v.plain_psnr, v.start_psnr, v.distilled_psnr
+        );
+    }
+    if !rows.worst.is_empty() {
+        md += "\n## The view that gains least\n\nPer profile, the held-back view where the distilled export gains least over the plain export (or loses most): native splatting, the plain export, the distilled export.\n";
+    }
+    for w in &rows.worst {
+        let mut cells = Vec::new();
+        for (what, frame) in [
+            ("native", &w.native),
+            ("plain", &w.plain),
+            ("distilled", &w.distilled),
+        ] {
+            let file = format!("worst_{}_{what}.png", w.profile);
+            splatbridge_scene::image_io::save_frame(&out.join(&file), frame)?;
+            cells.push(format!("![{what}]({file})"));
+        }
+        md += &format!(
+            "\n{}, {}: plain {:.2} dB, distilled {:.2} dB ({:+.2}).\n\n| native | plain | distilled |\n|---|---|---|\n| {} |\n",
+            w.profile,
+            w.camera,
+            w.plain_psnr,
+            w.distilled_psnr,
+            w.distilled_psnr - w.plain_psnr,
+            cells.join(" | ")
         );
     }
     let path = out.join("distill.md");
