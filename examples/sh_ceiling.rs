@@ -111,10 +111,12 @@ fn run(args: &[String]) -> anyhow::Result<()> {
         views::WINDOW,
     )?;
     let n = fit.windows.len();
-    let validation = splatbridge::distill::run::ViewRequest::default().validation;
-    let val = views::sphere_range(
+    let req = splatbridge::distill::run::ViewRequest::default();
+    let val = views::validation_views(
         &cloud,
-        n..n + validation,
+        n,
+        req.validation,
+        req.validation_fine,
         &views::DEFAULT_SIZES,
         views::WINDOW,
     )?;

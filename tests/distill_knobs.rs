@@ -299,3 +299,45 @@ fn the_targets_near_plane_reaches_the_fitting_and_validation_targets() {
     );
     assert_ne!(val_far, reference.1, "the validation targets lost theirs");
 }
+
+/// `--distill-validation-fine N` adds N validation views at the `sphere:N` fitting views'
+/// fine end, after the others: the nearest distance (0.5× the orbit's) and the largest size
+/// the export is made for, whatever the order `--distill-for` names them in. The street's
+/// default `orbit:4` views take none (`the_distill_log_holds_every_validation_…`: three
+/// names with the default of two fine-end views).
+#[test]
+fn fine_end_validation_views_are_the_nearest_and_largest() {
+    let dir = temp_dir("distill-knobs", "fine");
+    let scene = cli_common::street();
+    let (out, log) = (dir.join("street.glb"), dir.join("fit.json"));
+    cli_common::ok(&[
+        "convert",
+        scene.as_str(),
+        "--distill",
+        "--views",
+        "sphere:3",
+        "--distill-for",
+        "64x48,48x36",
+        "--distill-width",
+        "32",
+        "--distill-height",
+        "24",
+        "--held-back",
+        "0",
+        "--iterations",
+        "0",
+        "--distill-validation",
+        "2",
+        "--distill-validation-fine",
+        "1",
+        "--distill-log",
+        path(&log),
+        "-o",
+        path(&out),
+    ]);
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&log).unwrap()).unwrap();
+    let names: Vec<String> = serde_json::from_value(v["validation_names"].clone()).unwrap();
+    assert_eq!(names.len(), 3, "{names:?}");
+    assert!(names[2].contains("0.50×, 64×48 "), "{names:?}");
+    assert!(names[..2].iter().all(|n| !n.contains("0.50×")), "{names:?}");
+}

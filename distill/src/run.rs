@@ -48,6 +48,10 @@ pub struct ViewRequest {
     pub held_size: Option<(u32, u32)>,
     /// Validation views ([`super::guard`]), from the fitting distribution, never fitted.
     pub validation: usize,
+    /// Validation views at the fine end of the fitting distribution (its nearest distance
+    /// and largest size, [`views::fine_end_range`]), after the `validation` ones; only with
+    /// `sphere:N` fitting views (user and scene cameras are the range themselves).
+    pub validation_fine: usize,
     /// Scene times a dynamic scene is fitted at (evenly over its time range, start and end
     /// included), given to the views in turn; static scenes use their start.
     pub times: usize,
@@ -64,10 +68,14 @@ impl Default for ViewRequest {
             held_back: views::HELD_BACK_CLASSES.len(),
             held_size: None,
             validation: 8,
+            validation_fine: DEFAULT_VALIDATION_FINE,
             times: 4,
         }
     }
 }
+
+/// Fine-end validation views by default ([`ViewRequest::validation_fine`]).
+pub const DEFAULT_VALIDATION_FINE: usize = 2;
 
 /// The views of a distillation.
 #[derive(Clone, Debug, Default)]
@@ -142,7 +150,12 @@ pub fn resolve_views(scene: &DynamicScene, time: f64, req: &ViewRequest) -> Resu
         views::windows_of(&cloud, &cams, per, window)
     };
     let n = fit.windows.len();
-    let validation = views::sphere_range(&cloud, n..n + req.validation, &sizes, window)?;
+    let fine = if spec.starts_with("sphere:") {
+        req.validation_fine
+    } else {
+        0
+    };
+    let validation = views::validation_views(&cloud, n, req.validation, fine, &sizes, window)?;
     let held = match parse_camera_list(&spec).ok().as_deref() {
         Some([CameraListItem::Orbit(k)]) if req.held_back > 0 => {
             let (w, h) = req.held_size.unwrap_or(window);

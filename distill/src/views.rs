@@ -124,13 +124,15 @@ fn r_sequence<const D: usize>(i: usize) -> [f64; D] {
 /// (uniform in sin, so uniform in area over the band), any azimuth, a distance in
 /// [`FIT_DISTANCES`], the size `sizes[i mod len]`, seen through a `window`-sized window over
 /// the view's content ([`content_window`], the sequence's fourth and fifth coordinates
-/// pick the place). Returns the window and the whole view.
+/// pick the place). Returns the window and the whole view. `fine`: the view at the range's
+/// fine end instead, the nearest distance and the largest size (by pixels) of `sizes`.
 fn sphere_view(
     cloud: &GaussianCloud,
     f: &Frame,
     i: usize,
     sizes: &[(u32, u32)],
     window: (u32, u32),
+    fine: bool,
 ) -> SResult<(Camera, Camera)> {
     let [a, b, c, u, v] = r_sequence::<5>(i);
     let (s0, s1) = (
@@ -138,8 +140,15 @@ fn sphere_view(
         FIT_ELEVATIONS.1.to_radians().sin(),
     );
     let el = (s0 + (s1 - s0) * a).asin().to_degrees();
-    let factor = FIT_DISTANCES.0 + (FIT_DISTANCES.1 - FIT_DISTANCES.0) * c;
-    let (w, h) = sizes[i % sizes.len()];
+    let (factor, (w, h)) = if fine {
+        let largest = sizes.iter().copied().max_by_key(|&(w, h)| u64::from(w) * u64::from(h));
+        (FIT_DISTANCES.0, largest.unwrap_or(sizes[0]))
+    } else {
+        (
+            FIT_DISTANCES.0 + (FIT_DISTANCES.1 - FIT_DISTANCES.0) * c,
+            sizes[i % sizes.len()],
+        )
+    };
     let mut cam = f.camera(f.direction(el, 360.0 * b), factor, w, h)?;
     cam.name = format!("sphere {i}: {el:.0}°, {factor:.2}×, {w}×{h}");
     Ok((content_window(cloud, &cam, window, u, v), cam))
@@ -172,13 +181,55 @@ pub fn sphere_range(
     sizes: &[(u32, u32)],
     window: (u32, u32),
 ) -> SResult<Windows> {
+    views_of(cloud, range, sizes, window, false)
+}
+
+/// Views `range` of the fitting distribution moved to its fine end: each at the nearest
+/// distance ([`FIT_DISTANCES`]) and the largest of `sizes`, where a view shows the most
+/// detail the export is made for. Validation views of this kind see what the fitting views,
+/// mostly small or far, rarely do: a fit that learns the blur of small views and loses at
+/// 1080p close-ups (`docs/distill-fine-end.md`).
+pub fn fine_end_range(
+    cloud: &GaussianCloud,
+    range: std::ops::Range<usize>,
+    sizes: &[(u32, u32)],
+    window: (u32, u32),
+) -> SResult<Windows> {
+    views_of(cloud, range, sizes, window, true)
+}
+
+/// The validation views of a fit whose fitting views took points `0..n`: `count` views of
+/// the fitting distribution, then `fine` at its fine end ([`fine_end_range`]), from the
+/// points after the fitting ones, so none is ever fitted.
+pub fn validation_views(
+    cloud: &GaussianCloud,
+    n: usize,
+    count: usize,
+    fine: usize,
+    sizes: &[(u32, u32)],
+    window: (u32, u32),
+) -> SResult<Windows> {
+    let mut v = sphere_range(cloud, n..n + count, sizes, window)?;
+    let f = fine_end_range(cloud, n + count..n + count + fine, sizes, window)?;
+    v.windows.extend(f.windows);
+    v.frames.extend(f.frames);
+    Ok(v)
+}
+
+fn views_of(
+    cloud: &GaussianCloud,
+    range: std::ops::Range<usize>,
+    sizes: &[(u32, u32)],
+    window: (u32, u32),
+    fine: bool,
+) -> SResult<Windows> {
     if sizes.is_empty() {
         return Err(SceneError::Invalid("no image size to fit".into()));
     }
     let f = Frame::around(cloud)?;
     let mut out = Windows::default();
     for i in range {
-        let (w, c) = sphere_view(cloud, &f, i, sizes, window)?;
+        let (w, c) = sphere_view(cloud, &f, i, sizes, window, fine)?;
         out.windows.push(w);
         out.frames.push(c);
     }
@@ -489,6 +540,32 @@ mod tests {
             );
         }
         c
+    }
+
+    /// Validation views: the distribution's points after the fitting ones, then the fine
+    /// end's, each at the nearest distance and the largest size (by pixels, whatever the
+    /// order of `sizes`), and never the same camera as a fitting or sphere validation view.
+    #[test]
+    fn fine_end_views_are_the_nearest_and_largest() {
+        let c = cloud();
+        let f = Frame::around(&c).unwrap();
+        let sizes = [(640, 480), (1920, 1080), (320, 240)];
+        let fit = sphere(&c, 12, &sizes, WINDOW).unwrap();
+        let v = validation_views(&c, 12, 4, 3, &sizes, WINDOW).unwrap();
+        assert_eq!((v.windows.len(), v.frames.len()), (7, 7));
+        assert_eq!(v.frames[..4], sphere_range(&c, 12..16, &sizes, WINDOW).unwrap().frames[..]);
+        for (w, frame) in v.windows[4..].iter().zip(&v.frames[4..]) {
+            assert_eq!((frame.width, frame.height), (1920, 1080));
+            let d = (frame.centre - f.centre).length() / f.distance;
+            // The camera is placed at centre + direction·distance·factor in f64.
+            assert!((d - FIT_DISTANCES.0).abs() < 1e-9, "{d}");
+            assert_eq!((w.width, w.height), WINDOW);
+        }
+        for a in &v.frames[4..] {
+            for b in fit.frames.iter().chain(&v.frames[..4]) {
+                assert!(f.angle_deg(a, b) > 1e-6 || a.width != b.width, "{} and {}", a.name, b.name);
+            }
+        }
     }
 
     /// A window's pixels are the full camera's: the ray through window pixel (x, y) is the

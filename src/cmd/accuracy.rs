@@ -77,6 +77,10 @@ pub struct Args {
     /// is kept).
     #[arg(long, value_name = "N", default_value_t = splatbridge::distill::run::ViewRequest::default().validation)]
     pub distill_validation: usize,
+    /// Validation views of the distill rows' fits at the fitting views' fine end (nearest
+    /// distance, largest size), after the --distill-validation ones.
+    #[arg(long, value_name = "N", default_value_t = splatbridge::distill::run::ViewRequest::default().validation_fine)]
+    pub distill_validation_fine: usize,
     /// How far (dB) a validation view may fall below its start before the distill rows'
     /// guard refuses an iteration.
     #[arg(long, value_name = "DB", default_value_t = splatbridge::distill::DistillOptions::default().guard_tolerance_db, value_parser = super::common::parse_non_negative)]
@@ -210,6 +214,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             per_class: args.distill_per_class.max(1),
             checkpoints: vec![0, it / 3, it],
             validation: args.distill_validation,
+            validation_fine: args.distill_validation_fine,
             options: splatbridge::distill::DistillOptions {
                 iterations: it,
                 footprint: args.distill_footprint == super::distill_args::OnOff::On,

@@ -72,6 +72,11 @@ pub struct DistillArgs {
     /// where it started.
     #[arg(long, value_name = "N", default_value_t = ViewRequest::default().validation, requires = "distill")]
     pub distill_validation: usize,
+    /// Validation views at the fine end of the `sphere:N` fitting views (their nearest
+    /// distance and largest size), after the --distill-validation ones: a 1080p close-up
+    /// that the small fitting views' fit would make worse refuses the step.
+    #[arg(long, value_name = "N", default_value_t = ViewRequest::default().validation_fine, requires = "distill")]
+    pub distill_validation_fine: usize,
     #[arg(long, value_enum, default_value = "l1-ssim", requires = "distill")]
     pub distill_loss: LossArg,
     /// Held-back views measured before and after: one per class (elevation, distance) in
@@ -243,6 +248,7 @@ impl DistillArgs {
             held_back: self.held_back,
             held_size: self.held_back_size,
             validation: self.distill_validation,
+            validation_fine: self.distill_validation_fine,
             times: self.distill_times,
         };
         let pb = super::common::progress(self.iterations as u64, "distilling");

@@ -201,6 +201,7 @@ pub fn run(
             height: cfg.height,
             held_back: cfg.views,
             validation: 0,
+            validation_fine: 0,
             times: 1,
             ..ViewRequest::default()
         },
@@ -292,6 +293,7 @@ pub fn run(
                 held_back: 0,
                 // The demo's figures are of the orbit fit as its report states it.
                 validation: 0,
+                validation_fine: 0,
                 times: 1,
                 ..ViewRequest::default()
             };

@@ -38,6 +38,8 @@ pub struct DistillSweep {
     pub per_class: usize,
     /// Validation views.
     pub validation: usize,
+    /// Validation views at the fitting distribution's fine end.
+    pub validation_fine: usize,
     /// Iterations at which the held-back views are measured (ascending; the last is where
     /// the fit ends and keeps its best validated iteration).
     pub checkpoints: Vec<usize>,
@@ -53,6 +55,7 @@ impl Default for DistillSweep {
             sizes: vec![(320, 240), (640, 480)],
             per_class: 1,
             validation: crate::distill::run::ViewRequest::default().validation,
+            validation_fine: crate::distill::run::ViewRequest::default().validation_fine,
             checkpoints: vec![0, 20, 60],
             options: DistillOptions::default(),
         }
@@ -161,7 +164,14 @@ pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<Distill
     };
     let fit = views::sphere(cloud, cfg.views, &sizes, views::WINDOW)?;
     let n = fit.windows.len();
-    let val = views::sphere_range(cloud, n..n + cfg.validation, &sizes, views::WINDOW)?;
+    let val = views::validation_views(
+        cloud,
+        n,
+        cfg.validation,
+        cfg.validation_fine,
+        &sizes,
+        views::WINDOW,
+    )?;
     let avoid: Vec<Camera> = fit.frames.iter().chain(&val.frames).cloned().collect();
     let held = views::held_back_classes(cloud, &cfg.sizes, cfg.per_class, &avoid)?;
     let cams: Vec<Camera> = held.iter().map(|h| h.camera.clone()).collect();
