@@ -141,7 +141,10 @@ fn sphere_view(
     );
     let el = (s0 + (s1 - s0) * a).asin().to_degrees();
     let (factor, (w, h)) = if fine {
-        let largest = sizes.iter().copied().max_by_key(|&(w, h)| u64::from(w) * u64::from(h));
+        let largest = sizes
+            .iter()
+            .copied()
+            .max_by_key(|&(w, h)| u64::from(w) * u64::from(h));
         (FIT_DISTANCES.0, largest.unwrap_or(sizes[0]))
     } else {
         (
@@ -553,7 +556,10 @@ mod tests {
         let fit = sphere(&c, 12, &sizes, WINDOW).unwrap();
         let v = validation_views(&c, 12, 4, 3, &sizes, WINDOW).unwrap();
         assert_eq!((v.windows.len(), v.frames.len()), (7, 7));
-        assert_eq!(v.frames[..4], sphere_range(&c, 12..16, &sizes, WINDOW).unwrap().frames[..]);
+        assert_eq!(
+            v.frames[..4],
+            sphere_range(&c, 12..16, &sizes, WINDOW).unwrap().frames[..]
+        );
         for (w, frame) in v.windows[4..].iter().zip(&v.frames[4..]) {
             assert_eq!((frame.width, frame.height), (1920, 1080));
             let d = (frame.centre - f.centre).length() / f.distance;
@@ -563,7 +569,12 @@ mod tests {
         }
         for a in &v.frames[4..] {
             for b in fit.frames.iter().chain(&v.frames[..4]) {
-                assert!(f.angle_deg(a, b) > 1e-6 || a.width != b.width, "{} and {}", a.name, b.name);
+                assert!(
+                    f.angle_deg(a, b) > 1e-6 || a.width != b.width,
+                    "{} and {}",
+                    a.name,
+                    b.name
+                );
             }
         }
     }
