@@ -31,16 +31,16 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use glam::Vec3;
 use splatbridge::distill::{native_targets_sh, render_native, views};
 use splatbridge::measure::accuracy_distill::plain_export_psnr;
+use splatbridge_convert::classify::Frame;
 use splatbridge_convert::Profile;
 use splatbridge_hybrid::native::RenderOptions as NativeOptions;
 use splatbridge_scene::formats::load;
 use splatbridge_scene::metrics::psnr;
 use splatbridge_scene::ply::ReadOptions;
 use splatbridge_scene::sh::{hemisphere_mean_raw, SH_C0};
-use splatbridge_scene::{Camera, Frame, GaussianCloud};
+use splatbridge_scene::{Camera, Frame as Image, GaussianCloud};
 
 /// `cloud` with SH degree 0 and each Gaussian's DC term the hemisphere mean of its SH colour
 /// on the side of its plane that `cam` sees.
@@ -49,15 +49,8 @@ fn side_colours(cloud: &GaussianCloud, cam: &Camera) -> GaussianCloud {
     let degree = cloud.sh_degree;
     let sh = (0..cloud.len())
         .map(|i| {
-            let s = cloud.scale(i);
-            let k = if s.x <= s.y && s.x <= s.z {
-                Vec3::X
-            } else if s.y <= s.z {
-                Vec3::Y
-            } else {
-                Vec3::Z
-            };
-            let n = cloud.unit_rotation(i) * k;
+            // The normal of the plane the converter puts the Gaussian's quad in.
+            let n = Frame::of(cloud, i).normal();
             // The view direction native's SH takes, centre to mean: the hemisphere of
             // directions on its side of the plane is the one about ±n it falls in.
             let a = if n.dot(cloud.means[i] - centre) >= 0.0 {
@@ -76,7 +69,7 @@ fn side_colours(cloud: &GaussianCloud, cam: &Camera) -> GaussianCloud {
 }
 
 /// Native renders of `cloud` at `cams`, each Gaussian with the colour of the side it shows.
-fn native_sides(cloud: &GaussianCloud, cams: &[Camera], near: f32) -> anyhow::Result<Vec<Frame>> {
+fn native_sides(cloud: &GaussianCloud, cams: &[Camera], near: f32) -> anyhow::Result<Vec<Image>> {
     let opts = NativeOptions {
         sh_degree_cap: 0,
         near,

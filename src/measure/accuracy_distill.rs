@@ -231,22 +231,22 @@ pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<Distill
         let triangles = d.triangles();
         let mut fit_seconds = 0.0;
         d.validate()?;
-        let mut start: Vec<f64> = Vec::new();
+        // The fit's start (the widened mesh, colours as converted): every view's start
+        // column, and the it=0 checkpoint's figures.
+        let start = psnr_at(&mut d, &cams, &refs)?;
         loop {
             let it = d.history.len();
-            if it == 0 && !cfg.checkpoints.contains(&0) {
-                start = psnr_at(&mut d, &cams, &refs)?;
-            }
             if it >= last {
                 d.validate()?;
                 d.keep_best();
             }
             if cfg.checkpoints.contains(&it) {
                 let seconds = d.elapsed();
-                let psnr = psnr_at(&mut d, &cams, &refs)?;
-                if it == 0 {
-                    start = psnr.clone();
-                }
+                let psnr = if it == 0 {
+                    start.clone()
+                } else {
+                    psnr_at(&mut d, &cams, &refs)?
+                };
                 let mut r = record(
                     name,
                     &format!("{name} it={it} ({seconds:.1} s)"),
@@ -272,6 +272,8 @@ pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<Distill
                             plain_psnr: plain[i],
                             distilled_psnr: psnr[i],
                             native: refs[i].clone(),
+                            // Built again for one view rather than held through the fit
+                            // (the plain mesh's memory beside the fitted one's).
                             plain: plain_tracer(scene, profile, cam)?.render(cam)?,
                             distilled: d.render(cam)?,
                         });
