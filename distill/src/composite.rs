@@ -28,7 +28,9 @@
 use glam::Vec3;
 use rayon::prelude::*;
 use splatbridge_raytrace::prefetch;
-use splatbridge_scene::srgb;
+
+use crate::shade::{self, shade, shade_with, Lanes};
+pub use crate::shade::{Shaded, Shading};
 
 /// One recorded hit: its triangle (an index into [`ViewHits::tris`]), barycentrics and the
 /// material × texture alpha at the hit.
@@ -146,70 +148,21 @@ impl ViewHits {
     }
 }
 
-/// How the hit colours are encoded for blending.
-#[derive(Clone, Copy, Debug)]
-pub struct Shading {
-    /// Vertex colours are linear and each hit is sRGB-encoded before blending.
-    pub encode: bool,
-    pub background: Vec3,
-}
-
-/// One shaded hit: display colour, its slope per channel (∂c/∂x, 0 where clamped), α, and
-/// the unclamped α's slope `∂α/∂(Σ b·A)` (0 where clamped).
-#[derive(Clone, Copy, Debug, Default)]
-pub struct Shaded {
-    c: Vec3,
-    dc: Vec3,
-    a: f32,
-    da: f32,
-}
-
-/// Shade hit `i` of a view (`h`), its next hits' loads asked for first. Inlined into the
-/// pass's loop: as a call its four-float halves of [`Shaded`] went back through the stack,
-/// written by scalar stores and read by a vector load that cannot take them forwarded.
+/// Shade hit `i` of a view (`h`), its next hits' loads asked for first, with `channels` (the
+/// scalar or the AVX2 build, [`shade::Lanes`]). Inlined into the pass's loop: as a call its
+/// four-float halves of [`Shaded`] went back through the stack, written by scalar stores and
+/// read by a vector load that cannot take them forwarded.
 #[inline(always)]
-fn shade_at(view: &ViewHits, i: usize, h: &Rec, params: &[[f32; 4]], s: &Shading) -> Shaded {
+fn shade_at(
+    view: &ViewHits,
+    i: usize,
+    h: &Rec,
+    params: &[[f32; 4]],
+    s: &Shading,
+    channels: impl Fn([f32; 4], bool) -> ([f32; 4], [f32; 4]),
+) -> Shaded {
     view.prefetch(i, params);
-    shade(h, view.local(h), params, s)
-}
-
-/// Shade one hit whose triangle's vertices are `verts`.
-#[inline(always)]
-fn shade(h: &Rec, verts: [u32; 3], params: &[[f32; 4]], s: &Shading) -> Shaded {
-    let mut x = [0.0f32; 4];
-    for (&v, &b) in verts.iter().zip(&h.bary) {
-        for (xc, pc) in x.iter_mut().zip(&params[v as usize]) {
-            *xc += b * pc;
-        }
-    }
-    let mut c = [0.0f32; 3];
-    let mut dc = [0.0f32; 3];
-    for ((&v, cc), dd) in x.iter().zip(c.iter_mut()).zip(dc.iter_mut()) {
-        let inside = (0.0..=1.0).contains(&v);
-        let v = v.clamp(0.0, 1.0);
-        // Each branch's value is computed and one selected: colours near black and at the
-        // clamps would mispredict branches in this loop over every hit of every view.
-        let (enc, slope) = if s.encode {
-            // Within one ulp of the encode rounded once (`scene::srgb` tests it on every
-            // float), at a fraction of `powf`'s cost. The slope from the encoded value: above
-            // the linear toe, d/dx (1.055·x^(1/2.4) − 0.055) = (c + 0.055) / (2.4·x), without
-            // a second powf.
-            let enc = srgb::encode_unit(v);
-            let power = (enc + 0.055) / (2.4 * v);
-            (enc, if v <= 0.003_130_8 { 12.92 } else { power })
-        } else {
-            (v, 1.0)
-        };
-        *cc = enc;
-        *dd = if inside { slope } else { 0.0 };
-    }
-    let a = h.fa * x[3];
-    Shaded {
-        c: Vec3::from_array(c),
-        dc: Vec3::from_array(dc),
-        a: a.clamp(0.0, 1.0),
-        da: if (0.0..=1.0).contains(&a) { h.fa } else { 0.0 },
-    }
+    shade_with(h, view.local(h), params, s, channels)
 }
 
 /// The pixel colour of one pixel's shaded hits.
@@ -250,7 +203,7 @@ fn pixel_backward(
 
 /// The image of a view (interleaved RGB).
 pub fn render(view: &ViewHits, params: &[[f32; 4]], s: &Shading) -> Vec<f32> {
-    render_rows(view, params, s, None)
+    render_rows(view, params, s, None, Lanes::best())
 }
 
 /// Views with more hits than this are shaded twice a step instead of keeping their shaded
@@ -282,7 +235,7 @@ pub fn render_shaded_into(
     s: &Shading,
     shaded: &mut Vec<Shaded>,
 ) -> Vec<f32> {
-    render_rows(view, params, s, Some(shaded))
+    render_rows(view, params, s, Some(shaded), Lanes::best())
 }
 
 /// Rows composited in parallel, each pixel's hits shaded into `shaded` when given.
@@ -291,6 +244,7 @@ fn render_rows(
     params: &[[f32; 4]],
     s: &Shading,
     shaded: Option<&mut Vec<Shaded>>,
+    lanes: Lanes,
 ) -> Vec<f32> {
     let w = view.width as usize;
     let h = view.height as usize;
@@ -309,30 +263,87 @@ fn render_rows(
     img.par_chunks_mut(3 * w.max(1))
         .zip(rows.into_par_iter())
         .enumerate()
-        .for_each(|(row, (out, mut sh))| {
-            let first = view.offsets[row * w] as usize;
-            for col in 0..w {
-                let std::ops::Range { start: a, end: b } = view.range(row * w + col);
-                let hits = &view.hits[a..b];
-                let c = match sh.as_deref_mut() {
-                    Some(sh) => {
-                        let px = &mut sh[a - first..b - first];
-                        for (k, (slot, h)) in px.iter_mut().zip(hits).enumerate() {
-                            *slot = shade_at(view, a + k, h, params, s);
-                        }
-                        pixel(px.iter().copied(), s)
-                    }
-                    None => pixel(
-                        hits.iter()
-                            .enumerate()
-                            .map(|(k, h)| shade_at(view, a + k, h, params, s)),
-                        s,
-                    ),
-                };
-                out[3 * col..3 * col + 3].copy_from_slice(&c.to_array());
+        .for_each(|(row, (out, sh))| {
+            let r = Row {
+                view,
+                row,
+                params,
+                s,
+            };
+            match lanes {
+                Lanes::Scalar => r.composite(out, sh, shade::channels),
+                // SAFETY: `Lanes::Avx2` is made only where the CPU has AVX2 (`Lanes::best`).
+                #[cfg(target_arch = "x86_64")]
+                Lanes::Avx2(t) => unsafe { r.composite_avx2(out, sh, &t) },
             }
         });
     img
+}
+
+/// One row of a view's forward pass.
+struct Row<'a> {
+    view: &'a ViewHits,
+    row: usize,
+    params: &'a [[f32; 4]],
+    s: &'a Shading,
+}
+
+impl Row<'_> {
+    /// Composite the row's pixels into `out` (interleaved RGB), each hit shaded by
+    /// `channels` and kept in `sh` (the row's range of the shaded buffer) when given.
+    #[inline(always)]
+    fn composite(
+        &self,
+        out: &mut [f32],
+        mut sh: Option<&mut [Shaded]>,
+        channels: impl Fn([f32; 4], bool) -> ([f32; 4], [f32; 4]) + Copy,
+    ) {
+        let Row {
+            view,
+            row,
+            params,
+            s,
+        } = *self;
+        let w = view.width as usize;
+        let first = view.offsets[row * w] as usize;
+        for col in 0..w {
+            let std::ops::Range { start: a, end: b } = view.range(row * w + col);
+            let hits = &view.hits[a..b];
+            let c = match sh.as_deref_mut() {
+                Some(sh) => {
+                    let px = &mut sh[a - first..b - first];
+                    for (k, (slot, h)) in px.iter_mut().zip(hits).enumerate() {
+                        *slot = shade_at(view, a + k, h, params, s, channels);
+                    }
+                    pixel(px.iter().copied(), s)
+                }
+                None => pixel(
+                    hits.iter()
+                        .enumerate()
+                        .map(|(k, h)| shade_at(view, a + k, h, params, s, channels)),
+                    s,
+                ),
+            };
+            out[3 * col..3 * col + 3].copy_from_slice(&c.to_array());
+        }
+    }
+
+    /// [`Row::composite`] compiled for AVX2, the channels in four lanes
+    /// ([`shade::channels_avx2`]): the same bits.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn composite_avx2(
+        &self,
+        out: &mut [f32],
+        sh: Option<&mut [Shaded]>,
+        t: &splatbridge_scene::srgb::EncodeTables,
+    ) {
+        // SAFETY: AVX2 is present (this function's contract).
+        self.composite(out, sh, |x, e| unsafe { shade::channels_avx2(x, e, t) });
+    }
 }
 
 /// Per hit of a view, in hit order, the loss gradient with respect to its interpolated linear
@@ -552,6 +563,40 @@ mod tests {
                 .zip(b.iter().flatten())
                 .all(|(x, y)| x.to_bits() == y.to_bits()));
             assert!(a.iter().flatten().any(|x| *x != 0.0));
+        }
+    }
+
+    /// The forward pass with its channels in AVX2 lanes gives the scalar pass's image and
+    /// shaded hits, bit for bit: random views whose colours and alphas lie beyond both clamps,
+    /// with and without the encode, keeping the shaded hits and not.
+    #[test]
+    fn avx2_forward_is_the_scalar_forward() {
+        let lanes = Lanes::best();
+        if matches!(lanes, Lanes::Scalar) {
+            eprintln!("skipped: no AVX2 on this CPU");
+            return;
+        }
+        let bits =
+            |x: &Shaded| [x.c.x, x.c.y, x.c.z, x.dc.x, x.dc.y, x.dc.z, x.a, x.da].map(f32::to_bits);
+        for (seed, encode) in [(11, true), (12, false), (13, true)] {
+            let (view, params, _, _) = random_view(seed);
+            let s = Shading {
+                encode,
+                background: Vec3::new(0.3, 0.1, 0.7),
+            };
+            let (mut a, mut b) = (Vec::new(), Vec::new());
+            let ia = render_rows(&view, &params, &s, Some(&mut a), Lanes::Scalar);
+            let ib = render_rows(&view, &params, &s, Some(&mut b), lanes);
+            assert!(same_bits(&ia, &ib), "seed {seed}");
+            assert_eq!(a.len(), b.len());
+            assert!(
+                a.iter().zip(&b).all(|(x, y)| bits(x) == bits(y)),
+                "seed {seed}"
+            );
+            let ic = render_rows(&view, &params, &s, None, lanes);
+            assert!(same_bits(&ia, &ic), "seed {seed}");
+            // The views hold clamped channels (slope 0) and unclamped ones.
+            assert!(a.iter().any(|x| x.dc.x == 0.0) && a.iter().any(|x| x.dc.x > 0.0));
         }
     }
 

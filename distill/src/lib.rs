@@ -46,6 +46,7 @@ pub mod options;
 pub mod order;
 pub mod positions;
 pub mod run;
+mod shade;
 mod step;
 pub mod targets;
 pub mod tied;
