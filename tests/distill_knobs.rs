@@ -341,3 +341,47 @@ fn fine_end_validation_views_are_the_nearest_and_largest() {
     assert!(names[2].contains("0.50×, 64×48 "), "{names:?}");
     assert!(names[..2].iter().all(|n| !n.contains("0.50×")), "{names:?}");
 }
+
+/// `--distill-fit-fine N` adds N fitting views to `sphere:M` (the report counts M + N views),
+/// and none to a camera list such as `orbit:4` (four windows a view, as without it).
+#[test]
+fn fine_end_fitting_views_are_added_to_the_sphere_only() {
+    let dir = temp_dir("distill-knobs", "fit-fine");
+    let scene = cli_common::street();
+    let views_of = |views: &str, fine: &str| {
+        let (out, log) = (
+            dir.join(format!("{}-{fine}.glb", views.replace(':', "-"))),
+            dir.join(format!("{}-{fine}.json", views.replace(':', "-"))),
+        );
+        cli_common::ok(&[
+            "convert",
+            scene.as_str(),
+            "--distill",
+            "--views",
+            views,
+            "--distill-for",
+            "64x48",
+            "--distill-width",
+            "32",
+            "--distill-height",
+            "24",
+            "--held-back",
+            "0",
+            "--iterations",
+            "0",
+            "--distill-validation",
+            "0",
+            "--distill-fit-fine",
+            fine,
+            "--distill-log",
+            path(&log),
+            "-o",
+            path(&out),
+        ]);
+        let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&log).unwrap()).unwrap();
+        v["report"]["views"].as_u64().unwrap()
+    };
+    assert_eq!(views_of("sphere:3", "0"), 3);
+    assert_eq!(views_of("sphere:3", "2"), 5);
+    assert_eq!(views_of("orbit:4", "3"), views_of("orbit:4", "0"));
+}

@@ -46,6 +46,9 @@ pub struct ViewRequest {
     pub held_back: usize,
     /// Held-back image size; default 320×240 (the orbit's fitting size for `orbit:N`).
     pub held_size: Option<(u32, u32)>,
+    /// Fitting views at the fine end of the distribution (its nearest distance and largest
+    /// size, [`views::sphere_with_fine`]), after the `sphere:N` ones; only with `sphere:N`.
+    pub fit_fine: usize,
     /// Validation views ([`super::guard`]), from the fitting distribution, never fitted.
     pub validation: usize,
     /// Validation views at the fine end of the fitting distribution (its nearest distance
@@ -67,12 +70,18 @@ impl Default for ViewRequest {
             cameras: Vec::new(),
             held_back: views::HELD_BACK_CLASSES.len(),
             held_size: None,
+            fit_fine: DEFAULT_FIT_FINE,
             validation: 8,
             validation_fine: DEFAULT_VALIDATION_FINE,
             times: 4,
         }
     }
 }
+
+/// Fine-end fitting views by default ([`ViewRequest::fit_fine`]), beside the 48 of
+/// `sphere:48`: measured on the shared scenes in `docs/distill-fine-end.md` ("Fitting the fine
+/// end").
+pub const DEFAULT_FIT_FINE: usize = 8;
 
 /// Fine-end validation views by default ([`ViewRequest::validation_fine`]).
 pub const DEFAULT_VALIDATION_FINE: usize = 2;
@@ -113,7 +122,7 @@ pub fn resolve_views(scene: &DynamicScene, time: f64, req: &ViewRequest) -> Resu
             .ok_or_else(|| {
                 super::DistillError::Invalid(format!("'{spec}' is not sphere:N with N in 1..=4096"))
             })?;
-        views::sphere(&cloud, n, &sizes, window)?
+        views::sphere_with_fine(&cloud, n, req.fit_fine, &sizes, window)?
     } else {
         let cams = if spec == "cameras.json" {
             req.cameras.clone()

@@ -176,6 +176,25 @@ pub fn sphere(
     sphere_range(cloud, 0..n, sizes, window)
 }
 
+/// `n` fitting views over the view sphere ([`sphere`]) and `fine` more at the distribution's
+/// fine end ([`fine_end_range`], the points after them): the nearest distance at the largest
+/// size, which a fit through small windows of mostly small or far views otherwise sees
+/// rarely, and makes worse (`docs/distill-fine-end.md`). Validation views take the points
+/// after these.
+pub fn sphere_with_fine(
+    cloud: &GaussianCloud,
+    n: usize,
+    fine: usize,
+    sizes: &[(u32, u32)],
+    window: (u32, u32),
+) -> SResult<Windows> {
+    let mut w = sphere_range(cloud, 0..n, sizes, window)?;
+    let f = fine_end_range(cloud, n..n + fine, sizes, window)?;
+    w.windows.extend(f.windows);
+    w.frames.extend(f.frames);
+    Ok(w)
+}
+
 /// Views `range` of the fitting distribution: validation views take the points after the
 /// fitting ones, so they are never fitted and fall where the fit's views do.
 pub fn sphere_range(
@@ -577,6 +596,46 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// The fine-end fitting views follow the sphere's, each at the nearest distance and the
+    /// largest size, from the distribution's points after the sphere's: none is a sphere
+    /// view's camera, and the validation views taken after them are none of theirs.
+    #[test]
+    fn fine_end_fitting_views_follow_the_sphere() {
+        let c = cloud();
+        let f = Frame::around(&c).unwrap();
+        let sizes = [(320, 240), (1920, 1080), (640, 480)];
+        let plain = sphere(&c, 12, &sizes, WINDOW).unwrap();
+        let fit = sphere_with_fine(&c, 12, 3, &sizes, WINDOW).unwrap();
+        assert_eq!((fit.windows.len(), fit.frames.len()), (15, 15));
+        assert_eq!(fit.frames[..12], plain.frames[..]);
+        assert_eq!(fit.windows[..12], plain.windows[..]);
+        assert_eq!(
+            fit.frames[12..],
+            fine_end_range(&c, 12..15, &sizes, WINDOW).unwrap().frames[..]
+        );
+        for frame in &fit.frames[12..] {
+            assert_eq!((frame.width, frame.height), (1920, 1080));
+            let d = (frame.centre - f.centre).length() / f.distance;
+            // The camera is placed at centre + direction·distance·factor in f64.
+            assert!((d - FIT_DISTANCES.0).abs() < 1e-9, "{d}");
+        }
+        let v = validation_views(&c, fit.windows.len(), 4, 2, &sizes, WINDOW).unwrap();
+        for a in &v.frames {
+            for b in &fit.frames {
+                assert!(
+                    f.angle_deg(a, b) > 1e-6 || a.width != b.width,
+                    "{} and {}",
+                    a.name,
+                    b.name
+                );
+            }
+        }
+        assert_eq!(
+            sphere_with_fine(&c, 12, 0, &sizes, WINDOW).unwrap().frames,
+            plain.frames
+        );
     }
 
     /// A window's pixels are the full camera's: the ray through window pixel (x, y) is the

@@ -73,6 +73,10 @@ pub struct Args {
     /// What the distill rows' fits move: per-vertex or per-Gaussian colour and opacity.
     #[arg(long, value_enum, default_value = "vertex")]
     pub distill_params: super::distill_args::ParamsArg,
+    /// Fitting views of the distill rows' fits at the sphere's fine end (nearest distance,
+    /// largest size), after its 48.
+    #[arg(long, value_name = "N", default_value_t = splatbridge::distill::run::ViewRequest::default().fit_fine)]
+    pub distill_fit_fine: usize,
     /// Validation views of the distill rows' fits (the guard; 0: none, the last iteration
     /// is kept).
     #[arg(long, value_name = "N", default_value_t = splatbridge::distill::run::ViewRequest::default().validation)]
@@ -213,6 +217,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             sizes: args.distill_sizes.clone(),
             per_class: args.distill_per_class.max(1),
             checkpoints: vec![0, it / 3, it],
+            fit_fine: args.distill_fit_fine,
             validation: args.distill_validation,
             validation_fine: args.distill_validation_fine,
             options: splatbridge::distill::DistillOptions {

@@ -68,6 +68,10 @@ pub struct DistillArgs {
     /// sizes of --camera views, else 320×240, 640×480, 1280×720 and 1920×1080.
     #[arg(long, value_name = "WxH", value_delimiter = ',', value_parser = super::convert::parse_wxh, requires = "distill")]
     pub distill_for: Vec<(u32, u32)>,
+    /// Fitting views at the fine end of `sphere:N` (its nearest distance at the largest size),
+    /// after its N: the 1080p close-ups a fit through small windows would otherwise make worse.
+    #[arg(long, value_name = "N", default_value_t = ViewRequest::default().fit_fine, requires = "distill")]
+    pub distill_fit_fine: usize,
     /// Validation views (never fitted) that pick the iteration kept: none may end below
     /// where it started.
     #[arg(long, value_name = "N", default_value_t = ViewRequest::default().validation, requires = "distill")]
@@ -247,6 +251,7 @@ impl DistillArgs {
             cameras,
             held_back: self.held_back,
             held_size: self.held_back_size,
+            fit_fine: self.distill_fit_fine,
             validation: self.distill_validation,
             validation_fine: self.distill_validation_fine,
             times: self.distill_times,

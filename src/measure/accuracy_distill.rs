@@ -36,6 +36,8 @@ pub struct DistillSweep {
     pub sizes: Vec<(u32, u32)>,
     /// Held-back views per class and size.
     pub per_class: usize,
+    /// Fitting views at the fine end, after the sphere's.
+    pub fit_fine: usize,
     /// Validation views.
     pub validation: usize,
     /// Validation views at the fitting distribution's fine end.
@@ -54,6 +56,7 @@ impl Default for DistillSweep {
             fit_sizes: Vec::new(),
             sizes: vec![(320, 240), (640, 480)],
             per_class: 1,
+            fit_fine: crate::distill::run::ViewRequest::default().fit_fine,
             validation: crate::distill::run::ViewRequest::default().validation,
             validation_fine: crate::distill::run::ViewRequest::default().validation_fine,
             checkpoints: vec![0, 20, 60],
@@ -162,7 +165,7 @@ pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<Distill
     } else {
         cfg.fit_sizes.clone()
     };
-    let fit = views::sphere(cloud, cfg.views, &sizes, views::WINDOW)?;
+    let fit = views::sphere_with_fine(cloud, cfg.views, cfg.fit_fine, &sizes, views::WINDOW)?;
     let n = fit.windows.len();
     let val = views::validation_views(
         cloud,
@@ -187,8 +190,13 @@ pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<Distill
         timing: Vec::new(),
         validation: Vec::new(),
         fit_description: format!(
-            "sphere:{} through {}×{} windows of views at {}, {} validation views; {} held-back views ({} per class and size)",
+            "sphere:{}{} through {}×{} windows of views at {}, {} validation views{}; {} held-back views ({} per class and size)",
             cfg.views,
+            if cfg.fit_fine > 0 {
+                format!(" and {} views at its fine end", cfg.fit_fine)
+            } else {
+                String::new()
+            },
             views::WINDOW.0,
             views::WINDOW.1,
             sizes
@@ -197,6 +205,11 @@ pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<Distill
                 .collect::<Vec<_>>()
                 .join(", "),
             cfg.validation,
+            if cfg.validation_fine > 0 {
+                format!(" and {} at the fine end", cfg.validation_fine)
+            } else {
+                String::new()
+            },
             cams.len(),
             cfg.per_class
         ),
