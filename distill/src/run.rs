@@ -95,7 +95,8 @@ pub struct ResolvedViews {
     pub validation: Vec<Camera>,
     /// Held-back views, with their class.
     pub held: Vec<views::HeldBack>,
-    /// What `auto` chose, for the report.
+    /// What `auto` chose, for the report, with the fine-end fitting views when there are
+    /// any ("sphere:48 + 8 fine-end").
     pub spec: String,
 }
 
@@ -159,11 +160,8 @@ pub fn resolve_views(scene: &DynamicScene, time: f64, req: &ViewRequest) -> Resu
         views::windows_of(&cloud, &cams, per, window)
     };
     let n = fit.windows.len();
-    let fine = if spec.starts_with("sphere:") {
-        req.validation_fine
-    } else {
-        0
-    };
+    let sphere = spec.starts_with("sphere:");
+    let fine = if sphere { req.validation_fine } else { 0 };
     let validation = views::validation_views(&cloud, n, req.validation, fine, &sizes, window)?;
     let held = match parse_camera_list(&spec).ok().as_deref() {
         Some([CameraListItem::Orbit(k)]) if req.held_back > 0 => {
@@ -196,6 +194,11 @@ pub fn resolve_views(scene: &DynamicScene, time: f64, req: &ViewRequest) -> Resu
             taken
         }
         _ => Vec::new(),
+    };
+    let spec = if sphere && req.fit_fine > 0 {
+        format!("{spec} + {} fine-end", req.fit_fine)
+    } else {
+        spec
     };
     Ok(ResolvedViews {
         fit,
