@@ -300,24 +300,16 @@ fn the_targets_near_plane_reaches_the_fitting_and_validation_targets() {
     assert_ne!(val_far, reference.1, "the validation targets lost theirs");
 }
 
-/// `--distill-validation-fine N` adds N validation views at the `sphere:N` fitting views'
-/// fine end, after the others: the nearest distance (0.5× the orbit's) and the largest size
-/// the export is made for, whatever the order `--distill-for` names them in. The street's
-/// default `orbit:4` views take none (`the_distill_log_holds_every_validation_…`: three
-/// names with the default of two fine-end views).
-#[test]
-fn fine_end_validation_views_are_the_nearest_and_largest() {
-    let dir = temp_dir("distill-knobs", "fine");
+/// The `--distill-log` of a zero-step distillation of the street through 32×24 windows, with
+/// no held-back views, and `flags` (the views and the knobs a test varies) after those.
+fn small_fit_log(name: &str, flags: &[&str]) -> serde_json::Value {
+    let dir = temp_dir("distill-knobs", name);
     let scene = cli_common::street();
     let (out, log) = (dir.join("street.glb"), dir.join("fit.json"));
-    cli_common::ok(&[
+    let mut args = vec![
         "convert",
         scene.as_str(),
         "--distill",
-        "--views",
-        "sphere:3",
-        "--distill-for",
-        "64x48,48x36",
         "--distill-width",
         "32",
         "--distill-height",
@@ -326,16 +318,36 @@ fn fine_end_validation_views_are_the_nearest_and_largest() {
         "0",
         "--iterations",
         "0",
-        "--distill-validation",
-        "2",
-        "--distill-validation-fine",
-        "1",
         "--distill-log",
         path(&log),
         "-o",
         path(&out),
-    ]);
-    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&log).unwrap()).unwrap();
+    ];
+    args.extend_from_slice(flags);
+    cli_common::ok(&args);
+    serde_json::from_slice(&std::fs::read(&log).unwrap()).unwrap()
+}
+
+/// `--distill-validation-fine N` adds N validation views at the `sphere:N` fitting views'
+/// fine end, after the others: the nearest distance (0.5× the orbit's) and the largest size
+/// the export is made for, whatever the order `--distill-for` names them in. The street's
+/// default `orbit:4` views take none (`the_distill_log_holds_every_validation_…`: three
+/// names with the default of two fine-end views).
+#[test]
+fn fine_end_validation_views_are_the_nearest_and_largest() {
+    let v = small_fit_log(
+        "fine",
+        &[
+            "--views",
+            "sphere:3",
+            "--distill-for",
+            "64x48,48x36",
+            "--distill-validation",
+            "2",
+            "--distill-validation-fine",
+            "1",
+        ],
+    );
     let names: Vec<String> = serde_json::from_value(v["validation_names"].clone()).unwrap();
     assert_eq!(names.len(), 3, "{names:?}");
     assert!(names[2].contains("0.50×, 64×48 "), "{names:?}");
@@ -346,40 +358,21 @@ fn fine_end_validation_views_are_the_nearest_and_largest() {
 /// and none to a camera list such as `orbit:4` (four windows a view, as without it).
 #[test]
 fn fine_end_fitting_views_are_added_to_the_sphere_only() {
-    let dir = temp_dir("distill-knobs", "fit-fine");
-    let scene = cli_common::street();
     let views_of = |views: &str, fine: &str| {
-        let (out, log) = (
-            dir.join(format!("{}-{fine}.glb", views.replace(':', "-"))),
-            dir.join(format!("{}-{fine}.json", views.replace(':', "-"))),
-        );
-        cli_common::ok(&[
-            "convert",
-            scene.as_str(),
-            "--distill",
+        let name = format!("fit-fine-{}-{fine}", views.replace(':', "-"));
+        let flags = [
             "--views",
             views,
             "--distill-for",
             "64x48",
-            "--distill-width",
-            "32",
-            "--distill-height",
-            "24",
-            "--held-back",
-            "0",
-            "--iterations",
-            "0",
             "--distill-validation",
             "0",
             "--distill-fit-fine",
             fine,
-            "--distill-log",
-            path(&log),
-            "-o",
-            path(&out),
-        ]);
-        let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&log).unwrap()).unwrap();
-        v["report"]["views"].as_u64().unwrap()
+        ];
+        small_fit_log(&name, &flags)["report"]["views"]
+            .as_u64()
+            .unwrap()
     };
     assert_eq!(views_of("sphere:3", "0"), 3);
     assert_eq!(views_of("sphere:3", "2"), 5);
