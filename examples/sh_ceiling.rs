@@ -97,14 +97,17 @@ fn run(args: &[String]) -> anyhow::Result<()> {
     };
     let (scene, _) = load(&PathBuf::from(&args[0]), &ReadOptions::default())?;
     let cloud = scene.composite(0.0);
-    let fit = views::sphere(
+    // The fitting and validation views `accuracy --only distill` takes at its defaults, so
+    // the held-back views are its views.
+    let req = splatbridge::distill::run::ViewRequest::default();
+    let fit = views::sphere_with_fine(
         &cloud,
         splatbridge::distill::DEFAULT_VIEWS,
+        req.fit_fine,
         &views::DEFAULT_SIZES,
         views::WINDOW,
     )?;
     let n = fit.windows.len();
-    let req = splatbridge::distill::run::ViewRequest::default();
     let val = views::validation_views(
         &cloud,
         n,
