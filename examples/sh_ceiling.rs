@@ -31,8 +31,8 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use splatbridge::distill::{native_targets_sh, render_native, views};
-use splatbridge::measure::accuracy_distill::plain_export_psnr;
+use splatbridge::distill::{native_targets_sh, render_native};
+use splatbridge::measure::accuracy_distill::{plain_export_psnr, sweep_views, DistillSweep};
 use splatbridge_convert::classify::Frame;
 use splatbridge_convert::Profile;
 use splatbridge_hybrid::native::RenderOptions as NativeOptions;
@@ -97,27 +97,12 @@ fn run(args: &[String]) -> anyhow::Result<()> {
     };
     let (scene, _) = load(&PathBuf::from(&args[0]), &ReadOptions::default())?;
     let cloud = scene.composite(0.0);
-    // The fitting and validation views `accuracy --only distill` takes at its defaults, so
-    // the held-back views are its views.
-    let req = splatbridge::distill::run::ViewRequest::default();
-    let fit = views::sphere_with_fine(
-        &cloud,
-        splatbridge::distill::DEFAULT_VIEWS,
-        req.fit_fine,
-        &views::DEFAULT_SIZES,
-        views::WINDOW,
-    )?;
-    let n = fit.windows.len();
-    let val = views::validation_views(
-        &cloud,
-        n,
-        req.validation,
-        req.validation_fine,
-        &views::DEFAULT_SIZES,
-        views::WINDOW,
-    )?;
-    let avoid: Vec<Camera> = fit.frames.iter().chain(&val.frames).cloned().collect();
-    let held = views::held_back_classes(&cloud, &sizes, 1, &avoid)?;
+    // The held-back views `accuracy --only distill` measures at its defaults.
+    let sweep = DistillSweep {
+        sizes: sizes.clone(),
+        ..DistillSweep::default()
+    };
+    let held = sweep_views(&cloud, &sweep)?.held;
     let cams: Vec<Camera> = held.iter().map(|h| h.camera.clone()).collect();
     let times = vec![0.0; cams.len()];
     let near = splatbridge_hybrid::native::NEAR_REFERENCE;

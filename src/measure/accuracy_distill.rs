@@ -16,7 +16,7 @@ use std::path::Path;
 use anyhow::Context;
 use splatbridge_convert::{ConvertOptions, Profile};
 use splatbridge_scene::dynamic::DynamicScene;
-use splatbridge_scene::{Camera, Frame};
+use splatbridge_scene::{Camera, Frame, GaussianCloud};
 
 use crate::distill::run::worst_and_median;
 use crate::distill::{native_targets_sh, views, DistillOptions, Distiller};
@@ -156,27 +156,57 @@ fn psnr_at(d: &mut Distiller, cams: &[Camera], refs: &[Frame]) -> anyhow::Result
         .collect()
 }
 
-/// Fit each profile on the sphere's views and measure the held-back classes.
-pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<DistillRows> {
-    let scene = s.scene;
-    let cloud = s.cloud();
+/// The views of a sweep of `cloud`: the fitting views (the sphere's and its fine end's), the
+/// validation views after them, and the held-back classes apart from both
+/// (`examples/sh_ceiling.rs` measures at the same held-back views).
+pub struct SweepViews {
+    pub fit: views::Windows,
+    pub validation: views::Windows,
+    pub held: Vec<views::HeldBack>,
+    /// The sizes the fit is made for.
+    pub sizes: Vec<(u32, u32)>,
+}
+
+/// [`SweepViews`] of `cloud` for `cfg`.
+pub fn sweep_views(cloud: &GaussianCloud, cfg: &DistillSweep) -> anyhow::Result<SweepViews> {
     let sizes: Vec<(u32, u32)> = if cfg.fit_sizes.is_empty() {
         views::DEFAULT_SIZES.to_vec()
     } else {
         cfg.fit_sizes.clone()
     };
     let fit = views::sphere_with_fine(cloud, cfg.views, cfg.fit_fine, &sizes, views::WINDOW)?;
-    let n = fit.windows.len();
-    let val = views::validation_views(
+    let validation = views::validation_views(
         cloud,
-        n,
+        fit.windows.len(),
         cfg.validation,
         cfg.validation_fine,
         &sizes,
         views::WINDOW,
     )?;
-    let avoid: Vec<Camera> = fit.frames.iter().chain(&val.frames).cloned().collect();
+    let avoid: Vec<Camera> = fit
+        .frames
+        .iter()
+        .chain(&validation.frames)
+        .cloned()
+        .collect();
     let held = views::held_back_classes(cloud, &cfg.sizes, cfg.per_class, &avoid)?;
+    Ok(SweepViews {
+        fit,
+        validation,
+        held,
+        sizes,
+    })
+}
+
+/// Fit each profile on the sphere's views and measure the held-back classes.
+pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<DistillRows> {
+    let scene = s.scene;
+    let SweepViews {
+        fit,
+        validation: val,
+        held,
+        sizes,
+    } = sweep_views(s.cloud(), cfg)?;
     let cams: Vec<Camera> = held.iter().map(|h| h.camera.clone()).collect();
     let o = &cfg.options;
     let times = vec![s.time; cams.len()];
