@@ -12,8 +12,8 @@ use splatbridge_scene::{Camera, Frame, GaussianCloud};
 
 use crate::bin::{bin_tiles, depth_key, depth_order, Bins};
 pub use crate::project::Extent;
-use crate::project::{project_one, Culled, Projected, Splat, ViewParams};
-use crate::raster::{rasterize, BlendParams};
+use crate::project::{project_one, Culled, Projected, Splat, ViewParams, TILE};
+use crate::raster::{rasterize_region, BlendParams};
 
 /// The reference's α clamp.
 pub const ALPHA_CLAMP_REFERENCE: f32 = 0.99;
@@ -210,10 +210,54 @@ impl Renderer {
         camera: &Camera,
         opts: &RenderOptions,
     ) -> Result<(Frame, RenderStats), RenderError> {
+        self.render_tiles(cloud, camera, opts, None)
+    }
+
+    /// The `w`×`h` window at pixel (`x0`, `y0`) of [`Renderer::render`]'s frame, bit for
+    /// bit, rendering only the tiles that hold it: a Gaussian is projected as for the whole
+    /// frame (the Jacobian clamp is the frame's), and only those whose tile rectangle meets
+    /// the window's tiles are coloured, sorted, binned and blended. A tile's list is the
+    /// frame's list of that tile (the depth order restricted to its members), so its pixels
+    /// are the frame's. The counters count the window's Gaussians and blends only.
+    pub fn render_window(
+        &mut self,
+        cloud: &GaussianCloud,
+        camera: &Camera,
+        opts: &RenderOptions,
+        [x0, y0, w, h]: [u32; 4],
+    ) -> Result<(Frame, RenderStats), RenderError> {
+        let inside = |a: u32, n: u32, of: u32| n > 0 && a.checked_add(n).is_some_and(|e| e <= of);
+        if !(inside(x0, w, camera.width) && inside(y0, h, camera.height)) {
+            return Err(RenderError::Option(format!(
+                "window {w}×{h} at ({x0}, {y0}) is not inside the {}×{} frame",
+                camera.width, camera.height
+            )));
+        }
+        let tiles = ViewParams::new(camera, opts.near as f64).tiles_of(x0, y0, w, h);
+        let (region, stats) = self.render_tiles(cloud, camera, opts, Some(tiles))?;
+        let (ox, oy) = (tiles[0] * TILE, tiles[1] * TILE);
+        let frame = region
+            .crop(x0 - ox, y0 - oy, w, h)
+            .expect("the region's tiles hold the window");
+        Ok((frame, stats))
+    }
+
+    /// [`Renderer::render`] of the tiles `[x0, y0, x1, y1)` only (None: every tile), the frame
+    /// holding their pixels ([`rasterize_region`]).
+    fn render_tiles(
+        &mut self,
+        cloud: &GaussianCloud,
+        camera: &Camera,
+        opts: &RenderOptions,
+        tiles: Option<[u32; 4]>,
+    ) -> Result<(Frame, RenderStats), RenderError> {
         camera.validate()?;
         cloud.check_shape()?;
         opts.validate()?;
-        let view = ViewParams::new(camera, opts.near as f64);
+        let mut view = ViewParams::new(camera, opts.near as f64);
+        if let Some(t) = tiles {
+            view.clip = t;
+        }
         let mut stats = RenderStats {
             gaussians: cloud.len(),
             ..Default::default()
@@ -260,11 +304,12 @@ impl Renderer {
             background: opts.background,
             exhaustive: opts.exhaustive,
         };
-        let (frame, blends) = rasterize(
+        let (frame, blends) = rasterize_region(
             &self.splats,
             &self.bins,
             camera.width,
             camera.height,
+            view.clip,
             &params,
         );
         let t4 = Instant::now();

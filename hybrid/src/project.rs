@@ -105,6 +105,10 @@ pub struct ViewParams {
     pub centre: DVec3,
     pub world_to_cam: DMat3,
     pub grid: [u32; 2],
+    /// The tiles rendered, `[x0, y0, x1, y1)` within `grid` (all of it unless a window of the
+    /// frame is rendered, [`crate::native::Renderer::render_window`]): a Gaussian whose tile
+    /// rectangle misses them is [`Culled::Offscreen`] before its colour is evaluated.
+    pub clip: [u32; 4],
     pub near: f64,
 }
 
@@ -122,9 +126,32 @@ impl ViewParams {
             centre: cam.centre,
             world_to_cam: cam.world_to_cam,
             grid: [cam.width.div_ceil(TILE), cam.height.div_ceil(TILE)],
+            clip: [0, 0, cam.width.div_ceil(TILE), cam.height.div_ceil(TILE)],
             near,
         }
     }
+
+    /// The tiles that hold pixels `[x0, x0 + w) × [y0, y0 + h)` of the frame (clamped to it).
+    pub fn tiles_of(&self, x0: u32, y0: u32, w: u32, h: u32) -> [u32; 4] {
+        let [gx, gy] = self.grid;
+        let end = |a: u32, n: u32, g: u32| a.saturating_add(n).div_ceil(TILE).min(g);
+        [
+            (x0 / TILE).min(gx),
+            (y0 / TILE).min(gy),
+            end(x0, w, gx),
+            end(y0, h, gy),
+        ]
+    }
+}
+
+/// `rect ∩ clip` (both `[x0, y0, x1, y1)`); empty when `x1 ≤ x0` or `y1 ≤ y0`.
+pub fn clip_rect(rect: [u32; 4], clip: [u32; 4]) -> [u32; 4] {
+    [
+        rect[0].max(clip[0]),
+        rect[1].max(clip[1]),
+        rect[2].min(clip[2]),
+        rect[3].min(clip[3]),
+    ]
 }
 
 /// The reference's `getRect`: tiles touched by the square of half-size `radius` around `(x, y)`,
@@ -234,7 +261,8 @@ pub fn project_one(
     }
     // The reference holds the radius in an int; saturate rather than wrap.
     let radius = radius_f.min(i32::MAX as f64) as i32;
-    let rect = get_rect(x, y, radius, view.grid);
+    // The whole grid's clip leaves the rectangle as it is (it is clamped to the grid).
+    let rect = clip_rect(get_rect(x, y, radius, view.grid), view.clip);
     if rect[2] <= rect[0] || rect[3] <= rect[1] {
         return Err(Culled::Offscreen);
     }

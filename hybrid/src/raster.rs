@@ -263,17 +263,37 @@ pub fn rasterize(
     height: u32,
     params: &BlendParams,
 ) -> (Frame, u64) {
+    let tiles = [0, 0, width.div_ceil(TILE), height.div_ceil(TILE)];
+    rasterize_region(splats, bins, width, height, tiles, params)
+}
+
+/// [`rasterize`] of the tiles `[x0, y0, x1, y1)` of a `width`×`height` frame only: the frame
+/// returned holds their pixels (from pixel `(16·x0, 16·y0)`, clipped to the frame), each
+/// blended exactly as the whole frame's.
+pub fn rasterize_region(
+    splats: &[Splat],
+    bins: &Bins,
+    width: u32,
+    height: u32,
+    tiles: [u32; 4],
+    params: &BlendParams,
+) -> (Frame, u64) {
     let gx = width.div_ceil(TILE) as usize;
-    let gy = height.div_ceil(TILE) as usize;
-    let mut order: Vec<usize> = (0..gx * gy).collect();
+    let [tx0, ty0, tx1, ty1] = tiles.map(|t| t as usize);
+    let (ox, oy) = (tx0 * T, ty0 * T);
+    let fw = (tx1 * T).min(width as usize).saturating_sub(ox);
+    let fh = (ty1 * T).min(height as usize).saturating_sub(oy);
+    let mut order: Vec<usize> = (ty0..ty1.max(ty0))
+        .flat_map(|ty| (tx0..tx1.max(tx0)).map(move |tx| ty * gx + tx))
+        .collect();
     order.sort_by_key(|&t| Reverse(bins.tile(t).len()));
-    let mut frame = Frame::new(width, height);
+    let mut frame = Frame::new(fw as u32, fh as u32);
     let planes = FramePlanes {
         rgb: frame.rgb.as_mut_ptr(),
         alpha: frame.alpha.as_mut_ptr(),
         depth: frame.depth.as_mut_ptr(),
-        width: width as usize,
-        height: height as usize,
+        width: fw,
+        height: fh,
     };
     let blends: u64 = order
         .into_par_iter()
@@ -293,8 +313,9 @@ pub fn rasterize(
                 &mut st,
             );
             // SAFETY: each tile index appears once in `order`, so each pixel is written once;
-            // `frame` lives until after the parallel loop.
-            unsafe { planes.write_tile(px0, py0, &st, params.background) };
+            // the tile lies in the region, so its pixels lie in `frame` (clipped as the whole
+            // frame clips them); `frame` lives until after the parallel loop.
+            unsafe { planes.write_tile(px0 - ox, py0 - oy, &st, params.background) };
             n
         })
         .sum();

@@ -38,6 +38,24 @@ impl Frame {
         [self.rgb[i], self.rgb[i + 1], self.rgb[i + 2]]
     }
 
+    /// The `w`×`h` window at (`x0`, `y0`); None unless it lies within the frame.
+    pub fn crop(&self, x0: u32, y0: u32, w: u32, h: u32) -> Option<Frame> {
+        let fits = |a: u32, n: u32, of: u32| a.checked_add(n).is_some_and(|e| e <= of);
+        if !(fits(x0, w, self.width) && fits(y0, h, self.height)) {
+            return None;
+        }
+        let mut out = Frame::new(w, h);
+        let (fw, n) = (self.width as usize, w as usize);
+        for y in 0..h as usize {
+            let src = (y + y0 as usize) * fw + x0 as usize;
+            let dst = y * n;
+            out.rgb[3 * dst..3 * (dst + n)].copy_from_slice(&self.rgb[3 * src..3 * (src + n)]);
+            out.alpha[dst..dst + n].copy_from_slice(&self.alpha[src..src + n]);
+            out.depth[dst..dst + n].copy_from_slice(&self.depth[src..src + n]);
+        }
+        Some(out)
+    }
+
     /// True when every value of every plane is finite.
     pub fn is_finite(&self) -> bool {
         self.rgb
