@@ -65,7 +65,7 @@ use splatbridge_scene::{Camera, Frame};
 
 use composite::{Rec, Shading, ViewHits};
 pub use loss::Loss;
-use mesh::{check_white, hit_alpha_factor, quantise, vertex_gaussians};
+use mesh::{check_white, quantise, vertex_gaussians};
 use optim::{adam, batch_views, mean_pixels};
 pub use options::{near_unless_reference, DistillOptions};
 use order::Centres;
@@ -431,7 +431,7 @@ impl Distiller {
         let rec = |h: &RecordedHit| Rec {
             tri: self.tri_base[h.mesh as usize] + h.tri,
             bary: h.bary,
-            fa: hit_alpha_factor(scene, h.mesh as usize, h.tri as usize, h.bary),
+            fa: h.alpha_factor,
         };
         let (k, tr) = (self.opts.record_k, self.opts.record_transmittance);
         let lists = match &self.centres {

@@ -58,20 +58,6 @@ pub(crate) fn quantise(p: [f32; 4]) -> [f32; 4] {
     p.map(|x| (x.clamp(0.0, 1.0) * 65535.0).round() / 65535.0)
 }
 
-/// The material and texture alpha of a hit: what `Mesh::shade` multiplies the interpolated
-/// vertex alpha by.
-pub(crate) fn hit_alpha_factor(scene: &TriScene, mesh: usize, tri: usize, bary: [f32; 3]) -> f32 {
-    let m = &scene.meshes[mesh];
-    let Some(mat) = m.material(tri, &scene.materials) else {
-        return 1.0;
-    };
-    let mut a = mat.base_color.w;
-    if let Some((tex, uv)) = m.texture_at(tri, bary, mat, &scene.textures) {
-        a *= tex.sample(uv).w;
-    }
-    a
-}
-
 /// The fit assumes the materials and textures leave colour alone (white, as splatbridge
 /// writes them) and blend: the vertex colour is the hit's colour.
 pub(crate) fn check_white(scene: &TriScene) -> Result<()> {

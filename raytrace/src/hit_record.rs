@@ -28,6 +28,9 @@ pub struct RecordedHit {
     pub bary: [f32; 3],
     /// World ray parameter.
     pub t: f32,
+    /// What the hit's material and texture multiply its interpolated vertex α by (the base
+    /// colour's α times the texture's at the hit), for consumers that change vertex α.
+    pub alpha_factor: f32,
 }
 
 /// Every pixel's hits, row-major: pixel `p`'s hits are `hits[offsets[p]..offsets[p + 1]]`;
@@ -40,7 +43,8 @@ pub struct HitLists<H = RecordedHit> {
     pub hits: Vec<H>,
 }
 
-/// Record hit `h` of mesh `mesh` where it shades to α > 0, and composite its α into `acc`:
+/// Record hit `h` of mesh `mesh` (shaded with [`KBuffer::record_alpha`]) where it shades to
+/// α > 0, and composite its α into `acc`:
 /// true once the transmittance is below `min_transmittance`, where recording stops (the rule
 /// of both recorders, per ray and through the tiles).
 #[inline]
@@ -60,6 +64,7 @@ pub(crate) fn record(
         tri: h.payload.tri,
         bary: h.payload.bary,
         t: h.t,
+        alpha_factor: h.payload.rgba.x,
     });
     acc.add(glam::Vec3::ZERO, a, h.t);
     acc.tr < min_transmittance
@@ -98,6 +103,7 @@ impl MeshTracer {
     ) {
         let mut acc = Accum::default();
         buf.shade_on_insert = true;
+        buf.record_alpha = true;
         // The transmittance reached, for the buffer's stop (`KBuffer::stop`): the same rule as
         // below, so nothing beyond the stopping hit is collected.
         let tr = std::cell::Cell::new(acc.tr);
@@ -119,6 +125,7 @@ impl MeshTracer {
             },
         );
         buf.shade_on_insert = false;
+        buf.record_alpha = false;
         buf.stop = None;
     }
 

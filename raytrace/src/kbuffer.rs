@@ -64,6 +64,11 @@ pub struct KBuffer<P> {
     /// Shade hits as they are found and keep only those with α > 0 (mode mesh compositing;
     /// see `MeshTracer::trace`). Off for hit enumeration, which reports every crossing.
     pub shade_on_insert: bool,
+    /// With `shade_on_insert`, shade a mesh hit's α and the factor its material and texture
+    /// multiply the vertex α by, not its colour: the payload's RGBA is (factor, 0, 0, α)
+    /// (`Mesh::shade_alpha`). Hit recording (`hit_record`) keeps the factor and composites
+    /// no colour.
+    pub record_alpha: bool,
     /// Compositing's stop, when the buffer feeds a compositing walk: the transmittance `T`
     /// before this round's hits and the threshold below which the ray stops. The first
     /// buffered hit (in key order) with `T·Π(1 − α) < threshold` is where both tracers stop
@@ -89,6 +94,7 @@ impl<P: Payload> KBuffer<P> {
             hits: Vec::with_capacity(k + 1),
             candidates: 0,
             shade_on_insert: false,
+            record_alpha: false,
             stop: None,
             stop_key: None,
             trs: Vec::new(),
@@ -104,6 +110,7 @@ impl<P: Payload> KBuffer<P> {
             hits: Vec::new(),
             candidates: 0,
             shade_on_insert: false,
+            record_alpha: false,
             stop: None,
             stop_key: None,
             trs: Vec::new(),

@@ -252,3 +252,106 @@ fn a_corner_outside_the_disc_settles_its_other_winding() {
     let t = one(scene);
     assert_eq!(shoot(&t, 0.06, 0.03).1, 1);
 }
+
+/// `Mesh::shade_alpha` (hit recording's shading) against `Mesh::shade`: the same α bit for
+/// bit, and a factor that is the base colour's α times the texture's at the point, for every
+/// alpha mode, without a material, with and without a texture, at random points and at the
+/// texture's edges.
+#[test]
+fn recording_alpha_is_the_shaded_alpha() {
+    let mut scene = textured_scene(5, 1, 1);
+    scene.materials[0].base_color.w = 0.7;
+    scene.materials[1].base_color.w = 1.3;
+    scene.materials.push(Material {
+        base_color: Vec4::new(1.0, 1.0, 1.0, 0.6),
+        texture: Some(0),
+        alpha_mode: AlphaMode::Mask(0.25),
+    });
+    scene.materials.push(Material {
+        alpha_mode: AlphaMode::Opaque,
+        ..scene.materials[0].clone()
+    });
+    let mut r = Rng(9);
+    let m = &scene.meshes[0];
+    let mut checked = 0;
+    // Material 4 does not exist: the default (white, opaque).
+    for mat in 0..5u32 {
+        let mut mesh = m.clone();
+        mesh.tri_material = vec![mat; mesh.tris.len()].into();
+        for t in 0..mesh.tris.len() {
+            for k in 0..6 {
+                let bary = match k {
+                    0 => [1.0, 0.0, 0.0],
+                    1 => [0.0, 0.5, 0.5],
+                    _ => {
+                        let (a, b) = (r.f(), r.f());
+                        let (a, b) = if a + b > 1.0 {
+                            (1.0 - a, 1.0 - b)
+                        } else {
+                            (a, b)
+                        };
+                        [1.0 - a - b, a, b]
+                    }
+                };
+                let (mats, texs) = (&scene.materials, &scene.textures);
+                let (a, factor) = mesh.shade_alpha(t, bary, mats, texs);
+                let want = mesh.shade(t, bary, mats, texs).w;
+                assert_eq!(a.to_bits(), want.to_bits(), "material {mat}, {t}, {bary:?}");
+                let want_factor = match mats.get(mat as usize) {
+                    None => 1.0,
+                    Some(x) => {
+                        let tex = x.texture.map_or(1.0, |i| {
+                            let [i0, i1, i2] = mesh.tris[t].map(|v| v as usize);
+                            let uvs = mesh.uvs.as_ref().unwrap();
+                            let uv = uvs[i0] * bary[0] + uvs[i1] * bary[1] + uvs[i2] * bary[2];
+                            texs[i].sample(uv).w
+                        });
+                        x.base_color.w * tex
+                    }
+                };
+                assert_eq!(
+                    factor.to_bits(),
+                    want_factor.to_bits(),
+                    "material {mat}, {t}"
+                );
+                checked += 1;
+            }
+        }
+    }
+    assert!(checked > 10_000, "{checked}");
+}
+
+/// Recorded hits (through the tiles and ray by ray) carry `shade_alpha`'s factor of their own
+/// triangle and barycentrics (their α is `shade`'s, checked above, so the lists are those a
+/// full shading records).
+#[test]
+fn recorded_hits_carry_their_alpha_factor() {
+    let cam = Camera::look_at(
+        DVec3::new(0.3, -0.5, -4.0),
+        DVec3::ZERO,
+        DVec3::NEG_Y,
+        50.0,
+        45,
+        35,
+    )
+    .unwrap();
+    let mut scene = textured_scene(6, 1, 1);
+    scene.materials[0].base_color.w = 0.8;
+    let tracer = tracer(scene);
+    let mut textured = 0;
+    for lists in [
+        tracer.record_hits(&cam, 0.0, 16, 1e-4).unwrap(),
+        tracer.record_hits_per_ray(&cam, 0.0, 16, 1e-4).unwrap(),
+    ] {
+        assert!(lists.hits.len() > 500, "{} hits", lists.hits.len());
+        for h in &lists.hits {
+            let m = &tracer.scene.meshes[h.mesh as usize];
+            let (mats, texs) = (&tracer.scene.materials, &tracer.scene.textures);
+            let (_, factor) = m.shade_alpha(h.tri as usize, h.bary, mats, texs);
+            assert_eq!(h.alpha_factor.to_bits(), factor.to_bits());
+            textured += (factor != 0.8 && factor != 1.0) as usize;
+        }
+    }
+    // The factor is the texture's at the hit, not only the material's.
+    assert!(textured > 100, "{textured}");
+}

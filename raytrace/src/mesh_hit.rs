@@ -139,12 +139,13 @@ impl MeshTracer {
             (None, None) => return Tested::Open,
         };
         let rgba = if buf.shade_on_insert {
-            let c = m.shade(
-                prim as usize,
-                bary,
-                &self.scene.materials,
-                &self.scene.textures,
-            );
+            let (mats, texs) = (&self.scene.materials, &self.scene.textures);
+            let c = if buf.record_alpha {
+                let (a, factor) = m.shade_alpha(prim as usize, bary, mats, texs);
+                Vec4::new(factor, 0.0, 0.0, a)
+            } else {
+                m.shade(prim as usize, bary, mats, texs)
+            };
             // The other winding's barycentrics are the same numbers computed in another order:
             // its shade may differ in the last bits, so its α is not decided here, unless the
             // texture makes it zero whatever those bits are (`zero_alpha_settles`).

@@ -475,7 +475,11 @@ impl MeshTracer {
         let tiles: Vec<RecordedTile<T>> = (0..tw * th)
             .into_par_iter()
             .map_init(
-                || (TileCtx::empty(insts.len()), Vec::new()),
+                || {
+                    let mut ctx = TileCtx::empty(insts.len());
+                    ctx.buf.record_alpha = true;
+                    (ctx, Vec::new())
+                },
                 |(ctx, scratch), k| {
                     let (tx, ty) = (k % tw, k / tw);
                     ctx.fill(&lists, tx as u32, ty as u32);

@@ -583,6 +583,45 @@ impl Mesh {
         Vec4::new(c.x, c.y, c.z, a)
     }
 
+    /// [`Mesh::shade`]'s α (the same operations on the same lane, so the same bits) and the
+    /// factor its material and texture multiply the interpolated vertex α by (the base
+    /// colour's α times the texture's; 1 without a material), from one texture sample.
+    pub fn shade_alpha(
+        &self,
+        tri: usize,
+        bary: [f32; 3],
+        materials: &[Material],
+        textures: &[Texture],
+    ) -> (f32, f32) {
+        let [i0, i1, i2] = self.tris[tri].map(|i| i as usize);
+        let mut a =
+            self.colors[i0].w * bary[0] + self.colors[i1].w * bary[1] + self.colors[i2].w * bary[2];
+        let Some(m) = self.material(tri, materials) else {
+            // The default material: white and opaque.
+            return (1.0, 1.0);
+        };
+        let mut factor = m.base_color.w;
+        a *= m.base_color.w;
+        if let Some((tex, uv)) = self.texture_at(tri, bary, m, textures) {
+            let t = tex.sample(uv).w;
+            a *= t;
+            factor *= t;
+        }
+        let a = a.clamp(0.0, 1.0);
+        let a = match m.alpha_mode {
+            AlphaMode::Opaque => 1.0,
+            AlphaMode::Mask(cut) => {
+                if a >= cut {
+                    1.0
+                } else {
+                    0.0
+                }
+            }
+            AlphaMode::Blend => a,
+        };
+        (a, factor)
+    }
+
     /// Triangle `tri`'s material, if its index names one.
     #[inline]
     pub fn material<'a>(&self, tri: usize, materials: &'a [Material]) -> Option<&'a Material> {
