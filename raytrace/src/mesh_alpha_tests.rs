@@ -156,14 +156,9 @@ fn textured_scene(seed: u64, mirror_material: u32, stack: u32) -> TriScene {
     }
 }
 
-/// Both windings textured (their corners settle the other winding), and the second winding
-/// untextured (where the first's corner has α = 0 and the second's does not: not a pair, each
-/// tested on its own; settling it would lose the second's hit); and five coplanar copies of
-/// each quad with shifted UVs, one group record (`mesh_groups`), where one copy's α = 0
-/// settles its own other winding and not the copies that draw the point.
-#[test]
-fn textured_quads_equal_brute_force_with_zero_alpha_settled() {
-    let cam = Camera::look_at(
+/// A camera before `textured_scene`'s quads, 45×35 pixels.
+fn quads_camera() -> Camera {
+    Camera::look_at(
         DVec3::new(0.3, -0.5, -4.0),
         DVec3::ZERO,
         DVec3::NEG_Y,
@@ -171,7 +166,17 @@ fn textured_quads_equal_brute_force_with_zero_alpha_settled() {
         45,
         35,
     )
-    .unwrap();
+    .unwrap()
+}
+
+/// Both windings textured (their corners settle the other winding), and the second winding
+/// untextured (where the first's corner has α = 0 and the second's does not: not a pair, each
+/// tested on its own; settling it would lose the second's hit); and five coplanar copies of
+/// each quad with shifted UVs, one group record (`mesh_groups`), where one copy's α = 0
+/// settles its own other winding and not the copies that draw the point.
+#[test]
+fn textured_quads_equal_brute_force_with_zero_alpha_settled() {
+    let cam = quads_camera();
     let mut hits = 0usize;
     for (seed, mirror_material, stack) in [(1u64, 0, 1), (2, 0, 1), (3, 1, 1), (4, 0, 5)] {
         let tracer = tracer(textured_scene(seed, mirror_material, stack));
@@ -326,15 +331,7 @@ fn recording_alpha_is_the_shaded_alpha() {
 /// full shading records).
 #[test]
 fn recorded_hits_carry_their_alpha_factor() {
-    let cam = Camera::look_at(
-        DVec3::new(0.3, -0.5, -4.0),
-        DVec3::ZERO,
-        DVec3::NEG_Y,
-        50.0,
-        45,
-        35,
-    )
-    .unwrap();
+    let cam = quads_camera();
     let mut scene = textured_scene(6, 1, 1);
     scene.materials[0].base_color.w = 0.8;
     let tracer = tracer(scene);

@@ -23,6 +23,26 @@ pub enum AlphaMode {
     Blend,
 }
 
+impl AlphaMode {
+    /// The α a fragment of shaded alpha `a` (material, texture and vertex alphas multiplied)
+    /// is drawn with: `a` clamped to [0, 1], then this mode's rule.
+    #[inline]
+    pub fn alpha(self, a: f32) -> f32 {
+        let a = a.clamp(0.0, 1.0);
+        match self {
+            AlphaMode::Opaque => 1.0,
+            AlphaMode::Mask(cut) => {
+                if a >= cut {
+                    1.0
+                } else {
+                    0.0
+                }
+            }
+            AlphaMode::Blend => a,
+        }
+    }
+}
+
 /// A material reduced to what an unlit BLEND viewer uses.
 #[derive(Clone, Debug)]
 pub struct Material {
@@ -568,19 +588,7 @@ impl Mesh {
         if let Some((tex, uv)) = self.texture_at(tri, bary, m, textures) {
             c *= tex.sample(uv);
         }
-        let a = c.w.clamp(0.0, 1.0);
-        let a = match m.alpha_mode {
-            AlphaMode::Opaque => 1.0,
-            AlphaMode::Mask(cut) => {
-                if a >= cut {
-                    1.0
-                } else {
-                    0.0
-                }
-            }
-            AlphaMode::Blend => a,
-        };
-        Vec4::new(c.x, c.y, c.z, a)
+        Vec4::new(c.x, c.y, c.z, m.alpha_mode.alpha(c.w))
     }
 
     /// [`Mesh::shade`]'s α (the same operations on the same lane, so the same bits) and the
@@ -607,19 +615,7 @@ impl Mesh {
             a *= t;
             factor *= t;
         }
-        let a = a.clamp(0.0, 1.0);
-        let a = match m.alpha_mode {
-            AlphaMode::Opaque => 1.0,
-            AlphaMode::Mask(cut) => {
-                if a >= cut {
-                    1.0
-                } else {
-                    0.0
-                }
-            }
-            AlphaMode::Blend => a,
-        };
-        (a, factor)
+        (m.alpha_mode.alpha(a), factor)
     }
 
     /// Triangle `tri`'s material, if its index names one.
