@@ -51,7 +51,7 @@ fn held_back_views_off_the_fitting_set_improve_and_none_degrades() {
     let window = (96, 72);
     let fit = views::sphere(cloud, 24, &sizes, window).unwrap();
     let val = views::sphere_range(cloud, 24..30, &sizes, window).unwrap();
-    let avoid: Vec<Camera> = fit.frames.iter().chain(&val.frames).cloned().collect();
+    let avoid = [&fit.frames[..], &val.frames];
     // Held back at sizes of their own, neither fitted: 80×60 and 160×120.
     let held = views::held_back_classes(cloud, &[(80, 60), (160, 120)], 1, &avoid).unwrap();
     let cams: Vec<Camera> = held.iter().map(|h| h.camera.clone()).collect();

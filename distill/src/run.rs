@@ -175,12 +175,7 @@ pub fn resolve_views(scene: &DynamicScene, time: f64, req: &ViewRequest) -> Resu
                 .collect()
         }
         _ if req.held_back > 0 => {
-            let avoid: Vec<Camera> = fit
-                .frames
-                .iter()
-                .chain(&validation.frames)
-                .cloned()
-                .collect();
+            let avoid = [&fit.frames[..], &validation.frames];
             let size = req.held_size.unwrap_or((320, 240));
             let per = req.held_back.div_ceil(views::HELD_BACK_CLASSES.len());
             let all = views::held_back_classes(&cloud, &[size], per, &avoid)?;

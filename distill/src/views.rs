@@ -456,12 +456,12 @@ pub const HELD_BACK_CLASSES: [(f64, f64); 6] = [
 
 /// `per_class` held-back views of every class in [`HELD_BACK_CLASSES`] at every size of
 /// `sizes`, spread in azimuth, each turned until its direction is at least [`MIN_APART_DEG`]
-/// from every camera of `avoid` (the fitting and validation views).
+/// from every camera of every set in `avoid` (the fitting views, the validation views).
 pub fn held_back_classes(
     cloud: &GaussianCloud,
     sizes: &[(u32, u32)],
     per_class: usize,
-    avoid: &[Camera],
+    avoid: &[&[Camera]],
 ) -> SResult<Vec<HeldBack>> {
     let f = Frame::around(cloud)?;
     let mut out = Vec::new();
@@ -481,6 +481,7 @@ pub fn held_back_classes(
                 let probe = f.camera(f.direction(el, az), factor, 8, 6)?;
                 if avoid
                     .iter()
+                    .flat_map(|set| set.iter())
                     .all(|a| f.angle_deg(&probe, a) >= MIN_APART_DEG)
                 {
                     chosen = Some(az);
@@ -758,7 +759,7 @@ mod tests {
         for s in DEFAULT_SIZES {
             assert!(set.frames.iter().any(|c| (c.width, c.height) == s), "{s:?}");
         }
-        let held = held_back_classes(&c, &[(320, 240)], 3, &fit).unwrap();
+        let held = held_back_classes(&c, &[(320, 240)], 3, &[&fit]).unwrap();
         assert_eq!(held.len(), HELD_BACK_CLASSES.len() * 3);
         for h in &held {
             let nearest = fit

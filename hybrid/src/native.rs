@@ -233,30 +233,24 @@ impl Renderer {
                 camera.width, camera.height
             )));
         }
-        let tiles = ViewParams::new(camera, opts.near as f64).tiles_of(x0, y0, w, h);
-        let (region, stats) = self.render_tiles(cloud, camera, opts, Some(tiles))?;
-        let (ox, oy) = (tiles[0] * TILE, tiles[1] * TILE);
-        let frame = region
-            .crop(x0 - ox, y0 - oy, w, h)
-            .expect("the region's tiles hold the window");
-        Ok((frame, stats))
+        self.render_tiles(cloud, camera, opts, Some([x0, y0, w, h]))
     }
 
-    /// [`Renderer::render`] of the tiles `[x0, y0, x1, y1)` only (None: every tile), the frame
-    /// holding their pixels ([`rasterize_region`]).
+    /// [`Renderer::render`] of the tiles that hold the pixel window `[x0, y0, w, h]` (None:
+    /// every tile, the whole frame), the window cut from their pixels.
     fn render_tiles(
         &mut self,
         cloud: &GaussianCloud,
         camera: &Camera,
         opts: &RenderOptions,
-        tiles: Option<[u32; 4]>,
+        window: Option<[u32; 4]>,
     ) -> Result<(Frame, RenderStats), RenderError> {
         camera.validate()?;
         cloud.check_shape()?;
         opts.validate()?;
         let mut view = ViewParams::new(camera, opts.near as f64);
-        if let Some(t) = tiles {
-            view.clip = t;
+        if let Some([x0, y0, w, h]) = window {
+            view.clip = view.tiles_of(x0, y0, w, h);
         }
         let mut stats = RenderStats {
             gaussians: cloud.len(),
@@ -312,6 +306,13 @@ impl Renderer {
             view.clip,
             &params,
         );
+        // The region's pixels start at its first tile's; the window lies within them.
+        let frame = match window {
+            Some([x0, y0, w, h]) => frame
+                .crop(x0 - view.clip[0] * TILE, y0 - view.clip[1] * TILE, w, h)
+                .expect("the region's tiles hold the window"),
+            None => frame,
+        };
         let t4 = Instant::now();
         stats.blends = blends;
         stats.times = PhaseTimes {

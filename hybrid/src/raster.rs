@@ -283,8 +283,8 @@ pub fn rasterize_region(
     let (ox, oy) = (tx0 * T, ty0 * T);
     let fw = (tx1 * T).min(width as usize).saturating_sub(ox);
     let fh = (ty1 * T).min(height as usize).saturating_sub(oy);
-    let mut order: Vec<usize> = (ty0..ty1.max(ty0))
-        .flat_map(|ty| (tx0..tx1.max(tx0)).map(move |tx| ty * gx + tx))
+    let mut order: Vec<usize> = (ty0..ty1)
+        .flat_map(|ty| (tx0..tx1).map(move |tx| ty * gx + tx))
         .collect();
     order.sort_by_key(|&t| Reverse(bins.tile(t).len()));
     let mut frame = Frame::new(fw as u32, fh as u32);

@@ -183,12 +183,7 @@ pub fn sweep_views(cloud: &GaussianCloud, cfg: &DistillSweep) -> anyhow::Result<
         &sizes,
         views::WINDOW,
     )?;
-    let avoid: Vec<Camera> = fit
-        .frames
-        .iter()
-        .chain(&validation.frames)
-        .cloned()
-        .collect();
+    let avoid = [&fit.frames[..], &validation.frames];
     let held = views::held_back_classes(cloud, &cfg.sizes, cfg.per_class, &avoid)?;
     Ok(SweepViews {
         fit,
