@@ -49,6 +49,22 @@ pub const TOLERANCE_DB: f64 = 1e-3;
 /// `donut` stopped after 40 and 30 of 60 steps.
 pub const PATIENCE: usize = 2;
 
+/// A validation view's PSNR of `img` against `target` (interleaved RGB, each clamped to
+/// [0, 1]), capped at [`CAP_DB`].
+pub(crate) fn capped_psnr(img: &[f32], target: &[f32]) -> f64 {
+    let n = img.len().max(1) as f64;
+    let mse: f64 = img
+        .iter()
+        .zip(target)
+        .map(|(&a, &b)| {
+            let d = (a.clamp(0.0, 1.0) - b.clamp(0.0, 1.0)) as f64;
+            d * d
+        })
+        .sum::<f64>()
+        / n;
+    (-10.0 * mse.max(1e-20).log10()).min(CAP_DB)
+}
+
 /// The parameters of an admissible iteration.
 struct Snapshot {
     iteration: usize,
@@ -89,6 +105,13 @@ pub struct Validation {
     /// Whether no view is below its start by more than the fit's tolerance
     /// ([`DistillOptions::guard_tolerance_db`](crate::DistillOptions), default [`TOLERANCE_DB`]).
     pub admissible: bool,
+}
+
+impl Guard {
+    /// The validation views.
+    pub(crate) fn views(&self) -> &[View] {
+        &self.views
+    }
 }
 
 impl Validation {
@@ -153,18 +176,10 @@ impl Distiller {
             .iter()
             .filter_map(|v| {
                 let hits = v.hits.as_ref()?;
-                let img = composite::render(hits, &q, &self.shading);
-                let n = img.len().max(1) as f64;
-                let mse: f64 = img
-                    .iter()
-                    .zip(&v.target)
-                    .map(|(&a, &b)| {
-                        let d = (a.clamp(0.0, 1.0) - b.clamp(0.0, 1.0)) as f64;
-                        d * d
-                    })
-                    .sum::<f64>()
-                    / n;
-                Some((-10.0 * mse.max(1e-20).log10()).min(CAP_DB))
+                Some(capped_psnr(
+                    &composite::render(hits, &q, &self.shading),
+                    &v.target,
+                ))
             })
             .collect()
     }

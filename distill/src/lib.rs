@@ -44,6 +44,7 @@ mod mesh;
 pub mod optim;
 pub mod options;
 pub mod order;
+pub mod plain;
 pub mod positions;
 pub mod run;
 mod shade;
@@ -147,6 +148,26 @@ pub struct DistillReport {
     pub backtracked: Option<(usize, usize)>,
 }
 
+/// The export `convert` writes of `mesh_scene`, without fitted colours, built in memory and
+/// loaded by the tracer in the capture frame (the native targets' frame).
+pub(crate) fn export_mesh(
+    mesh_scene: &DynamicScene,
+    convert: &ConvertOptions,
+) -> Result<splatbridge_raytrace::TriScene> {
+    let mut fit_opts = convert.clone();
+    fit_opts.vertex_colours = None;
+    let (bytes, _) = splatbridge_convert::glb_bytes(mesh_scene, None, &fit_opts)?;
+    let mut tri = splatbridge_raytrace::scene_load::load_glb_bytes(
+        &bytes,
+        std::path::Path::new("<distillation mesh>"),
+    )?;
+    drop(bytes);
+    // The cameras are in the capture frame, like the native targets.
+    tri.to_capture_frame();
+    check_white(&tri)?;
+    Ok(tri)
+}
+
 pub(crate) struct View {
     camera: Camera,
     time: f64,
@@ -231,17 +252,7 @@ impl Distiller {
                     .into(),
             ));
         }
-        let mut fit_opts = convert.clone();
-        fit_opts.vertex_colours = None;
-        let (bytes, _) = splatbridge_convert::glb_bytes(mesh_scene, None, &fit_opts)?;
-        let mut tri = splatbridge_raytrace::scene_load::load_glb_bytes(
-            &bytes,
-            std::path::Path::new("<distillation mesh>"),
-        )?;
-        drop(bytes);
-        // The cameras are in the capture frame, like the native targets.
-        tri.to_capture_frame();
-        check_white(&tri)?;
+        let tri = export_mesh(mesh_scene, convert)?;
         let shading = Shading {
             encode: tri.colors_linear,
             background: RenderOptions::default().background,

@@ -10,6 +10,7 @@ use splatbridge_scene::camera_spec::{
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::Camera;
 
+use super::plain::{FloorCheck, Undistilled};
 use super::{native_targets_sh, views, DistillOptions, DistillReport, Distiller, Result};
 
 /// `n` times evenly over the scene's time range, start and end included (the start alone
@@ -207,7 +208,8 @@ pub fn resolve_views(scene: &DynamicScene, time: f64, req: &ViewRequest) -> Resu
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Outcome {
     pub report: DistillReport,
-    /// Mean PSNR against native on the held-back views before and after fitting.
+    /// Mean PSNR against native on the held-back views of the export without distillation
+    /// ("before": `convert` without `--distill`) and of the export written.
     pub held_back: Option<(f64, f64)>,
     /// The held-back views' change in PSNR (dB): worst and median.
     pub held_back_change: Option<(f64, f64)>,
@@ -220,9 +222,12 @@ pub struct Outcome {
     /// The validation views' and the held-back views' names (where and how large).
     pub validation_names: Vec<String>,
     pub held_back_names: Vec<String>,
-    /// Each held-back view's PSNR against native before and after fitting, dB.
+    /// Each held-back view's PSNR against native without distillation and as written, dB.
     pub held_back_before: Vec<f64>,
     pub held_back_after: Vec<f64>,
+    /// The kept fit against the undistilled export on the validation views, where the
+    /// mesh was widened ([`super::plain`]).
+    pub undistilled: Option<FloorCheck>,
 }
 
 /// For `--views auto` on a scene without cameras of its own: the cameras of a 3DGS
@@ -288,15 +293,39 @@ pub fn distill_export(
         opts.target_sh_degree,
         opts.target_near,
     )?;
-    let before = psnr_each(&mut d, &held, &held_times, &held_targets)?;
+    // With a widened mesh, the export without distillation is measured as well: on the
+    // held-back views (their "before"), and on the validation views, against which the
+    // fit's result is checked once it is kept (`plain`). Its tracer is dropped before the
+    // fit.
+    let (before, undistilled_validation) = match &widened {
+        Some(_) => {
+            let undistilled = Undistilled::new(scene, convert, &opts)?;
+            let mut before = Vec::with_capacity(held.len());
+            for ((c, &time), t) in held.iter().zip(&held_times).zip(&held_targets) {
+                let img = undistilled.render_at(c, time)?;
+                before.push(splatbridge_scene::metrics::psnr(&img, t)?);
+            }
+            let validation = (d.report().validation_views > 0)
+                .then(|| d.validation_psnr_of(&undistilled))
+                .transpose()?;
+            (before, validation)
+        }
+        None => (psnr_each(&mut d, &held, &held_times, &held_targets)?, None),
+    };
     d.run(on_step)?;
-    // Where no step ran, or the guard went back to the start (its iteration-0 snapshot, the
-    // colours just measured), the held-back images are the ones of `before`, bit for bit: the
-    // same colours on the same mesh (moved positions change the mesh).
     let r = d.report();
-    let at_start =
-        !opts.positions && (r.iterations == 0 || (r.validation_views > 0 && r.kept_iteration == 0));
-    let after = if at_start {
+    // Where the kept result is below the undistilled export at a validation view, that
+    // export is written (`plain`): its held-back images are the ones of `before`.
+    let floor = undistilled_validation.map(|u| d.check_floor(u));
+    let to_undistilled = floor.as_ref().is_some_and(|c| c.kept_undistilled);
+    // Where no step ran, or the guard went back to the start (its iteration-0 snapshot, the
+    // colours just measured) of a mesh that was not widened, the held-back images are the
+    // ones of `before` too, bit for bit: the same colours on the same mesh (moved positions
+    // change the mesh).
+    let at_start = widened.is_none()
+        && !opts.positions
+        && (r.iterations == 0 || (r.validation_views > 0 && r.kept_iteration == 0));
+    let after = if to_undistilled || at_start {
         before.clone()
     } else {
         psnr_each(&mut d, &held, &held_times, &held_targets)?
@@ -304,7 +333,7 @@ pub fn distill_export(
     let mean = |x: &[f64]| x.iter().sum::<f64>() / x.len().max(1) as f64;
     let change: Vec<f64> = after.iter().zip(&before).map(|(a, b)| a - b).collect();
     let colours = d.vertex_colours()?;
-    if let Some(w) = widened {
+    if let (Some(w), false) = (widened, to_undistilled) {
         *scene = w;
     }
     let report = d.report();
@@ -356,7 +385,17 @@ pub fn distill_export(
             String::new()
         }
     );
-    convert.vertex_colours = Some(Arc::new(colours));
+    let description = match floor.as_ref().and_then(FloorCheck::worst) {
+        Some((view, change)) if to_undistilled => format!(
+            "{description}; the undistilled export written (validation view {} {:.3} dB below it)",
+            view + 1,
+            -change
+        ),
+        _ => description,
+    };
+    if !to_undistilled {
+        convert.vertex_colours = Some(Arc::new(colours));
+    }
     convert.distilled = Some(description.clone());
     Ok(Outcome {
         report,
@@ -370,6 +409,7 @@ pub fn distill_export(
         held_back_names: held.iter().map(|c| c.name.clone()).collect(),
         held_back_before: before,
         held_back_after: after,
+        undistilled: floor,
     })
 }
 

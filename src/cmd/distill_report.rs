@@ -5,7 +5,7 @@ use splatbridge::distill::run::Outcome;
 use super::distill_args::DistillArgs;
 
 /// Print the fit's summary to stderr: views, set-up, validation, backtrack, stop, the guard's
-/// refusal and the held-back change.
+/// refusal, the check against the undistilled export and the held-back change.
 pub fn print(out: &Outcome, args: &DistillArgs) {
     let r = &out.report;
     eprintln!("distilled: {}", out.description);
@@ -55,6 +55,23 @@ pub fn print(out: &Outcome, args: &DistillArgs) {
             view + 1,
             -change,
         );
+    }
+    if let Some(f) = &out.undistilled {
+        if let Some((view, change)) = f.worst() {
+            if f.kept_undistilled {
+                eprintln!(
+                    "  the undistilled export is written: iteration {} is {:.3} dB below it at validation view {} (the widened mesh loses there; --distill-footprint off fits the undistilled mesh)",
+                    r.kept_iteration,
+                    -change,
+                    view + 1
+                );
+            } else {
+                eprintln!(
+                    "  against the undistilled export: validation views {change:+.3} dB at worst (view {})",
+                    view + 1
+                );
+            }
+        }
     }
     if let (Some((a, b)), Some((worst, median))) = (out.held_back, out.held_back_change) {
         let near = splatbridge::distill::near_unless_reference(args.distill_near)

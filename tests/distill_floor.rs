@@ -1,0 +1,99 @@
+//! The undistilled export as the floor of what `distill_export` writes (`distill::plain`):
+//! where the kept fit is below the export without distillation at a validation view, that
+//! export is written, and its held-back figures are the "before" of every report.
+
+mod distill_common;
+
+use distill_common::opts;
+use splatbridge::distill::run::{distill_export, ViewRequest};
+use splatbridge::distill::DistillOptions;
+use splatbridge_convert::Profile;
+use splatbridge_scene::dynamic::DynamicScene;
+use splatbridge_scene::fixtures::large;
+
+fn small_scene(n: usize) -> DynamicScene {
+    DynamicScene::from_static(large(n, 7))
+}
+
+/// Views over the sphere at two sizes, 48×36 and 192×144 (each fitted through a 48×36
+/// window), three validation views of the same distribution and two held-back views.
+fn two_sizes() -> ViewRequest {
+    ViewRequest {
+        spec: "sphere:6".into(),
+        width: 48,
+        height: 36,
+        sizes: vec![(48, 36), (192, 144)],
+        held_back: 2,
+        held_size: Some((192, 144)),
+        fit_fine: 0,
+        validation: 3,
+        validation_fine: 1,
+        times: 1,
+        ..ViewRequest::default()
+    }
+}
+
+/// Widened for the coarsest view that sees each Gaussian (footprint quantile 1: the 48×36
+/// views' low-pass, 16 times the 192×144 views' in area), the mesh blurs what the large
+/// validation views see sharp, and with no step to make up for it the kept start is below the
+/// undistilled export there: `distill_export` hands back the scene as it was (not widened),
+/// no fitted colours, and held-back figures that are the undistilled export's before and
+/// after. It fails when the check is skipped (the widened scene comes back).
+#[test]
+fn the_undistilled_export_is_written_where_the_fit_is_below_it() {
+    let original = small_scene(1500);
+    let mut scene = original.clone();
+    let mut convert = opts(Profile::MeshSplats);
+    let d_opts = DistillOptions {
+        iterations: 0,
+        footprint_quantile: 1.0,
+        ..DistillOptions::default()
+    };
+    let out = distill_export(&mut scene, &mut convert, &two_sizes(), &d_opts, |_| {}).unwrap();
+    let floor = out.undistilled.as_ref().expect("a widened fit is checked");
+    assert_eq!(floor.change.len(), 4, "{floor:?}");
+    assert!(floor.kept_undistilled, "{floor:?}");
+    let (_, worst) = floor.worst().unwrap();
+    assert!(worst < -d_opts.guard_tolerance_db, "{floor:?}");
+    assert_eq!(
+        scene.static_gaussians.log_scales, original.static_gaussians.log_scales,
+        "the scene written is the one given"
+    );
+    assert!(convert.vertex_colours.is_none());
+    assert_eq!(out.held_back_before, out.held_back_after);
+    assert!(
+        out.description.contains("the undistilled export written"),
+        "{}",
+        out.description
+    );
+}
+
+/// Without the footprint the mesh fitted is the undistilled export's, so nothing is checked
+/// and the fitted colours are handed back; with it at its default (quantile 0, the most
+/// detailed view's low-pass) on the same views, the check runs and its verdict follows its
+/// figures.
+#[test]
+fn the_check_runs_where_the_mesh_was_widened() {
+    for footprint in [false, true] {
+        let mut scene = small_scene(1500);
+        let mut convert = opts(Profile::MeshSplats);
+        let d_opts = DistillOptions {
+            iterations: 10,
+            footprint,
+            ..DistillOptions::default()
+        };
+        let out = distill_export(&mut scene, &mut convert, &two_sizes(), &d_opts, |_| {}).unwrap();
+        match &out.undistilled {
+            None => {
+                assert!(!footprint);
+                assert!(convert.vertex_colours.is_some());
+            }
+            Some(f) => {
+                assert!(footprint);
+                let below = f.change.iter().any(|&c| c < -d_opts.guard_tolerance_db);
+                assert_eq!(f.kept_undistilled, below, "{f:?}");
+                assert_eq!(convert.vertex_colours.is_none(), f.kept_undistilled);
+            }
+        }
+    }
+}
