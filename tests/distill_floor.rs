@@ -38,7 +38,8 @@ fn two_sizes() -> ViewRequest {
 /// validation views see sharp, and with no step to make up for it the kept start is below the
 /// undistilled export there: `distill_export` hands back the scene as it was (not widened),
 /// no fitted colours, and held-back figures that are the undistilled export's before and
-/// after. It fails when the check is skipped (the widened scene comes back).
+/// after. It fails when the check is skipped (the widened scene comes back); `floor: false`
+/// skips it.
 #[test]
 fn the_undistilled_export_is_written_where_the_fit_is_below_it() {
     let original = small_scene(1500);
@@ -66,6 +67,20 @@ fn the_undistilled_export_is_written_where_the_fit_is_below_it() {
         "{}",
         out.description
     );
+    // Without the floor, the same fit hands back the widened scene and its colours.
+    let mut scene = original.clone();
+    let mut convert = opts(Profile::MeshSplats);
+    let no_floor = DistillOptions {
+        floor: false,
+        ..d_opts
+    };
+    let out = distill_export(&mut scene, &mut convert, &two_sizes(), &no_floor, |_| {}).unwrap();
+    assert!(out.undistilled.is_none());
+    assert_ne!(
+        scene.static_gaussians.log_scales,
+        original.static_gaussians.log_scales
+    );
+    assert!(convert.vertex_colours.is_some());
 }
 
 /// Without the footprint the mesh fitted is the undistilled export's, so nothing is checked

@@ -305,7 +305,7 @@ pub fn distill_export(
                 let img = undistilled.render_at(c, time)?;
                 before.push(splatbridge_scene::metrics::psnr(&img, t)?);
             }
-            let validation = (d.report().validation_views > 0)
+            let validation = (opts.floor && d.report().validation_views > 0)
                 .then(|| d.validation_psnr_of(&undistilled))
                 .transpose()?;
             (before, validation)

@@ -135,6 +135,12 @@ pub struct DistillArgs {
     /// iteration; the default refuses any real loss.
     #[arg(long, value_name = "DB", default_value_t = DistillOptions::default().guard_tolerance_db, value_parser = super::common::parse_non_negative, requires = "distill")]
     pub distill_guard_tolerance: f64,
+    /// Check the kept result of the widened mesh against the export without distillation on
+    /// the validation views, and write that export where the result is below it at one of
+    /// them (off: write the kept result, and skip tracing the undistilled export from the
+    /// validation views).
+    #[arg(long, value_enum, default_value = "on", requires = "distill")]
+    pub distill_floor: OnOff,
     /// Validations in a row (10 steps apart) without progress, after which the fit stops:
     /// none finds a better admissible iteration or a refused one closer to admissible than
     /// before (0: run every iteration).
@@ -224,6 +230,7 @@ impl DistillArgs {
             footprint: self.distill_footprint == OnOff::On,
             footprint_quantile: self.distill_footprint_quantile,
             guard_tolerance_db: self.distill_guard_tolerance,
+            floor: self.distill_floor == OnOff::On,
             patience: self.distill_patience,
             target_sh_degree: self.distill_sh_degree,
             target_near: self.distill_near,
