@@ -682,6 +682,41 @@ impl Distiller {
         Ok(self.tracer.render(cam, time, &opts)?.0)
     }
 
+    /// PSNR against native of the fitted mesh traced from each of `cameras` (at `times`,
+    /// against `targets`): [`Distiller::render_at`]'s images, a view at a time per thread
+    /// where they are traced (one after another in splat order, which records each view).
+    pub fn psnr_each(
+        &mut self,
+        cameras: &[Camera],
+        times: &[f64],
+        targets: &[Frame],
+    ) -> Result<Vec<f64>> {
+        let views = cameras.iter().zip(times).zip(targets);
+        if self.centres.is_some() {
+            return views
+                .map(|((c, &time), t)| {
+                    let img = self.render_at(c, time)?;
+                    Ok(splatbridge_scene::metrics::psnr(&img, t)?)
+                })
+                .collect();
+        }
+        self.apply();
+        let opts = RenderOptions {
+            k: self.opts.k,
+            ..RenderOptions::default()
+        };
+        let tracer = &self.tracer;
+        cameras
+            .par_iter()
+            .zip(times)
+            .zip(targets)
+            .map(|((c, &time), t)| {
+                let img = tracer.render(c, time, &opts)?.0;
+                Ok(splatbridge_scene::metrics::psnr(&img, t)?)
+            })
+            .collect()
+    }
+
     /// The fitted colours as the writers take them.
     pub fn vertex_colours(&self) -> Result<VertexColours> {
         let per_vertex = vertex_gaussians(&self.tracer.scene);

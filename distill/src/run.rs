@@ -300,17 +300,13 @@ pub fn distill_export(
     let (before, undistilled_validation) = match &widened {
         Some(_) => {
             let undistilled = Undistilled::new(scene, convert, &opts)?;
-            let mut before = Vec::with_capacity(held.len());
-            for ((c, &time), t) in held.iter().zip(&held_times).zip(&held_targets) {
-                let img = undistilled.render_at(c, time)?;
-                before.push(splatbridge_scene::metrics::psnr(&img, t)?);
-            }
+            let before = undistilled.psnr_each(&held, &held_times, &held_targets)?;
             let validation = (opts.floor && d.report().validation_views > 0)
                 .then(|| d.validation_psnr_of(&undistilled))
                 .transpose()?;
             (before, validation)
         }
-        None => (psnr_each(&mut d, &held, &held_times, &held_targets)?, None),
+        None => (d.psnr_each(&held, &held_times, &held_targets)?, None),
     };
     d.run(on_step)?;
     let r = d.report();
@@ -328,7 +324,7 @@ pub fn distill_export(
     let after = if to_undistilled || at_start {
         before.clone()
     } else {
-        psnr_each(&mut d, &held, &held_times, &held_targets)?
+        d.psnr_each(&held, &held_times, &held_targets)?
     };
     let mean = |x: &[f64]| x.iter().sum::<f64>() / x.len().max(1) as f64;
     let change: Vec<f64> = after.iter().zip(&before).map(|(a, b)| a - b).collect();
@@ -411,21 +407,6 @@ pub fn distill_export(
         held_back_after: after,
         undistilled: floor,
     })
-}
-
-/// PSNR of the fitted mesh against `targets` from each of `cameras`.
-fn psnr_each(
-    d: &mut Distiller,
-    cameras: &[Camera],
-    times: &[f64],
-    targets: &[splatbridge_scene::Frame],
-) -> Result<Vec<f64>> {
-    let mut out = Vec::with_capacity(cameras.len());
-    for ((c, &time), t) in cameras.iter().zip(times).zip(targets) {
-        let img = d.render_at(c, time)?;
-        out.push(splatbridge_scene::metrics::psnr(&img, t)?);
-    }
-    Ok(out)
 }
 
 /// The whole views' sizes, distinct, in order ("320×240, 1920×1080").
