@@ -4,21 +4,20 @@
 mod distill_common;
 
 use splatbridge::distill::run::{distill_export, ViewRequest};
-use splatbridge::distill::{
-    mean_psnr, native_targets, views, DistillOptions, Distiller, Loss, ParamMode,
-};
+use splatbridge::distill::{mean_psnr, views, DistillOptions, Distiller, Loss, ParamMode};
 use splatbridge_convert::Profile;
 use splatbridge_raytrace::RenderOptions;
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::fixtures::large;
-use splatbridge_scene::{Camera, Frame};
+use splatbridge_scene::Camera;
 
 fn small_scene(n: usize) -> DynamicScene {
     DynamicScene::from_static(large(n, 7))
 }
 
 use distill_common::{
-    grad_scale, largest, opts, refit, small_request, trace_export, worst_difference,
+    grad_scale, largest, opts, refit, small_request, street_fit_and_held_back, trace_export,
+    worst_difference,
 };
 
 /// Analytic gradient of the loss through front-to-back compositing against central
@@ -118,19 +117,6 @@ fn recorded_hits_composite_to_the_traced_image() {
             );
         }
     }
-}
-
-/// The street fixture (3,000 Gaussians, objects in their pose at t = 0), 8 fitting orbit views
-/// and 4 held-back views between them at 64×48, and native's images at the held-back views.
-fn street_fit_and_held_back() -> (DynamicScene, Vec<Camera>, Vec<Camera>, Vec<Frame>) {
-    let scene = splatbridge_scene::fixtures::street_with(
-        &splatbridge_scene::fixtures::StreetParams::new(3, 3000),
-    );
-    let cloud = scene.composite(0.0);
-    let fit = views::orbit(&cloud, 8, 0..8, 64, 48).unwrap();
-    let held = views::held_back(&cloud, 8, 4, 64, 48).unwrap();
-    let targets = native_targets(&scene, 0.0, &held).unwrap();
-    (scene, fit, held, targets)
 }
 
 /// Fitting on an orbit raises PSNR on held-back views (between the fitting views) of the

@@ -119,15 +119,9 @@ fn the_check_runs_where_the_mesh_was_widened() {
 /// splat order, with the colours of the fit as it stands.
 #[test]
 fn psnr_each_is_render_at_measured_view_by_view() {
-    use splatbridge::distill::{native_targets, views, HitOrder};
+    use splatbridge::distill::HitOrder;
     // The street fixture's orbit, which a fit of 20 steps visibly changes between its views.
-    let scene = splatbridge_scene::fixtures::street_with(
-        &splatbridge_scene::fixtures::StreetParams::new(3, 3000),
-    );
-    let cloud = scene.composite(0.0);
-    let fit = views::orbit(&cloud, 8, 0..8, 64, 48).unwrap();
-    let held = views::held_back(&cloud, 8, 4, 64, 48).unwrap();
-    let targets = native_targets(&scene, 0.0, &held).unwrap();
+    let (scene, fit, held, targets) = distill_common::street_fit_and_held_back();
     let times = vec![0.0; held.len()];
     for order in [HitOrder::Ray, HitOrder::Splat] {
         let d_opts = DistillOptions {

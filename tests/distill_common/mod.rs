@@ -8,7 +8,7 @@ use splatbridge::distill::{DistillOptions, Distiller};
 use splatbridge_convert::{ConvertOptions, Profile};
 use splatbridge_raytrace::{BackendKind, BuildPreset, MeshTracer};
 use splatbridge_scene::dynamic::DynamicScene;
-use splatbridge_scene::{Camera, GaussianCloud};
+use splatbridge_scene::{Camera, Frame, GaussianCloud};
 
 /// The converter's defaults with `profile`.
 pub fn opts(profile: Profile) -> ConvertOptions {
@@ -135,4 +135,17 @@ pub fn view_dependent_cloud() -> GaussianCloud {
         })
         .collect();
     cloud
+}
+
+/// The street fixture (3,000 Gaussians, objects in their pose at t = 0), 8 fitting orbit views
+/// and 4 held-back views between them at 64×48, and native's images at the held-back views.
+pub fn street_fit_and_held_back() -> (DynamicScene, Vec<Camera>, Vec<Camera>, Vec<Frame>) {
+    let scene = splatbridge_scene::fixtures::street_with(
+        &splatbridge_scene::fixtures::StreetParams::new(3, 3000),
+    );
+    let cloud = scene.composite(0.0);
+    let fit = splatbridge::distill::views::orbit(&cloud, 8, 0..8, 64, 48).unwrap();
+    let held = splatbridge::distill::views::held_back(&cloud, 8, 4, 64, 48).unwrap();
+    let targets = splatbridge::distill::native_targets(&scene, 0.0, &held).unwrap();
+    (scene, fit, held, targets)
 }
