@@ -441,3 +441,74 @@ fn accuracy_distill_sweep_fits_the_named_profiles() {
     assert!(stderr.contains("--distill-profiles"), "{stderr}");
     assert!(!bad.exists(), "an output was written");
 }
+
+/// `accuracy --only distill` reports as distilled what `convert --distill` writes: widened
+/// for the coarsest fitting view (quantile 1) of 24×18 and 96×72 views, with no step, the
+/// start is below the plain export at the large validation views, so with the floor every
+/// view's distilled figure is the plain export's, and without it the start's, which differs
+/// from the plain export's.
+#[test]
+fn accuracy_distill_reports_the_floor_as_convert_writes_it() {
+    let dir = temp_dir("distill-cli", "accuracy-floor");
+    let scene = street();
+    let columns = |floor: &str| -> Vec<(f64, f64, f64)> {
+        let out = dir.join(floor);
+        ok(&[
+            "accuracy",
+            scene.as_str(),
+            "--only",
+            "distill",
+            "--distill-profiles",
+            "meshsplats",
+            "--cameras",
+            "orbit:2",
+            "--width",
+            "32",
+            "--height",
+            "24",
+            "--distill-for",
+            "24x18,96x72",
+            "--distill-sizes",
+            "96x72",
+            "--distill-iterations",
+            "0",
+            "--distill-footprint-quantile",
+            "1",
+            "--distill-floor",
+            floor,
+            "-o",
+            path(&out),
+        ]);
+        let md = std::fs::read_to_string(out.join("distill.md")).unwrap();
+        md.split("## Every view")
+            .nth(1)
+            .expect("the per-view table")
+            .lines()
+            .filter(|l| l.starts_with("| meshsplats | "))
+            .map(|l| {
+                let c: Vec<f64> = l
+                    .split('|')
+                    .skip(4)
+                    .take(3)
+                    .map(|x| x.trim().parse().unwrap())
+                    .collect();
+                (c[0], c[1], c[2])
+            })
+            .collect()
+    };
+    let on = columns("on");
+    assert_eq!(on.len(), 6, "{on:?}");
+    assert!(
+        on.iter().all(|(plain, _, distilled)| plain == distilled),
+        "{on:?}"
+    );
+    let off = columns("off");
+    assert!(
+        off.iter().all(|(_, start, distilled)| start == distilled),
+        "{off:?}"
+    );
+    assert!(
+        off.iter().any(|(plain, _, distilled)| plain != distilled),
+        "{off:?}"
+    );
+}

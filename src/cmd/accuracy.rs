@@ -66,6 +66,10 @@ pub struct Args {
     /// as they are (off).
     #[arg(long, value_enum, default_value = "on")]
     pub distill_footprint: super::distill_args::OnOff,
+    /// Report the undistilled export as the distilled one where the kept fit is below it at
+    /// a validation view, as `convert --distill` writes it (on), or the kept fit (off).
+    #[arg(long, value_enum, default_value = "on")]
+    pub distill_floor: super::distill_args::OnOff,
     /// Which footprint of the views that see a Gaussian the distilled meshes widen it by
     /// (0 the smallest, 1 the largest).
     #[arg(long, value_name = "Q", default_value_t = splatbridge::distill::DistillOptions::default().footprint_quantile, value_parser = super::common::parse_unit)]
@@ -223,6 +227,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             options: splatbridge::distill::DistillOptions {
                 iterations: it,
                 footprint: args.distill_footprint == super::distill_args::OnOff::On,
+                floor: args.distill_floor == super::distill_args::OnOff::On,
                 footprint_quantile: args.distill_footprint_quantile,
                 params: args.distill_params.mode(),
                 guard_tolerance_db: args.distill_guard_tolerance,

@@ -8,8 +8,10 @@
 //! [`views::MIN_APART_DEG`] from every fitting and validation view. Every view is measured
 //! against three meshes: the undistilled MeshSplats default (the plain export), the plain
 //! export of the profile fitted, and the fit at each checkpoint (iteration 0 is the fit's
-//! start, the mesh widened for the fitting views). The distribution over views, worst and
-//! median, is reported per class, not only the mean.
+//! start, the mesh widened for the fitting views). At the last checkpoint the distilled
+//! export is what `convert --distill` writes: the kept fit, or the plain export where the
+//! kept fit is below it at a validation view (`distill::plain`, `--distill-floor`). The
+//! distribution over views, worst and median, is reported per class, not only the mean.
 
 use std::path::Path;
 
@@ -18,6 +20,7 @@ use splatbridge_convert::{ConvertOptions, Profile};
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::{Camera, Frame, GaussianCloud};
 
+use crate::distill::plain::Undistilled;
 use crate::distill::run::worst_and_median;
 use crate::distill::{native_targets_sh, views, DistillOptions, Distiller};
 use crate::measure::accuracy::Sweep;
@@ -272,15 +275,25 @@ pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<Distill
         // The fit's start (the widened mesh, colours as converted): every view's start
         // column, and the it=0 checkpoint's figures.
         let start = psnr_at(&mut d, &cams, &refs)?;
+        // Whether the result is the undistilled export, as `convert --distill` decides it
+        // (`distill::plain`): the kept fit below it at a validation view.
+        let mut to_undistilled = false;
         loop {
             let it = d.history.len();
             if it >= last {
                 d.validate()?;
                 d.keep_best();
+                if opts.floor && opts.footprint && !d.validation_log().is_empty() {
+                    let undistilled = Undistilled::new(scene, &convert, &opts)?;
+                    let check = d.check_floor(d.validation_psnr_of(&undistilled)?);
+                    to_undistilled = check.kept_undistilled;
+                }
             }
             if cfg.checkpoints.contains(&it) {
                 let seconds = d.elapsed();
-                let psnr = if it == 0 {
+                let psnr = if to_undistilled {
+                    plain.clone()
+                } else if it == 0 {
                     start.clone()
                 } else {
                     psnr_at(&mut d, &cams, &refs)?
@@ -313,7 +326,11 @@ pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<Distill
                             // Built again for one view rather than held through the fit
                             // (the plain mesh's memory beside the fitted one's).
                             plain: plain_tracer(scene, profile, cam)?.render(cam)?,
-                            distilled: d.render(cam)?,
+                            distilled: if to_undistilled {
+                                plain_tracer(scene, profile, cam)?.render(cam)?
+                            } else {
+                                d.render(cam)?
+                            },
                         });
                     }
                     for (i, (h, &p)) in held.iter().zip(&psnr).enumerate() {
@@ -464,7 +481,7 @@ pub fn write_curve(out: &Path, what: &str, rows: &DistillRows) -> anyhow::Result
             );
         }
     }
-    md += "\n## Every view\n\nStart: the mesh made from the widened Gaussians with the colours as converted, before the first step.\n\n| profile | view | default | plain | start | distilled |\n|---|---|---|---|---|---|\n";
+    md += "\n## Every view\n\nStart: the mesh made from the widened Gaussians with the colours as converted, before the first step. Distilled: what `convert --distill` writes (the plain export where the kept fit is below it at a validation view, unless `--distill-floor off`).\n\n| profile | view | default | plain | start | distilled |\n|---|---|---|---|---|---|\n";
     for v in &rows.views {
         md += &format!(
             "| {} | {} | {:.2} | {:.2} | {:.2} | {:.2} |\n",
