@@ -66,7 +66,7 @@ use splatbridge_scene::{Camera, Frame};
 
 use composite::{Rec, Shading, ViewHits};
 pub use loss::Loss;
-use mesh::{check_white, quantise, vertex_gaussians};
+use mesh::{export_mesh, quantise, vertex_gaussians};
 use optim::{adam, batch_views, mean_pixels};
 pub use options::{near_unless_reference, DistillOptions};
 use order::Centres;
@@ -146,26 +146,6 @@ pub struct DistillReport {
     /// The iteration whose refused validation sent the fit back to the best admissible one
     /// with ε raised ([`DistillOptions::eps_backtrack_pixels`]), and that iteration.
     pub backtracked: Option<(usize, usize)>,
-}
-
-/// The export `convert` writes of `mesh_scene`, without fitted colours, built in memory and
-/// loaded by the tracer in the capture frame (the native targets' frame).
-pub(crate) fn export_mesh(
-    mesh_scene: &DynamicScene,
-    convert: &ConvertOptions,
-) -> Result<splatbridge_raytrace::TriScene> {
-    let mut fit_opts = convert.clone();
-    fit_opts.vertex_colours = None;
-    let (bytes, _) = splatbridge_convert::glb_bytes(mesh_scene, None, &fit_opts)?;
-    let mut tri = splatbridge_raytrace::scene_load::load_glb_bytes(
-        &bytes,
-        std::path::Path::new("<distillation mesh>"),
-    )?;
-    drop(bytes);
-    // The cameras are in the capture frame, like the native targets.
-    tri.to_capture_frame();
-    check_white(&tri)?;
-    Ok(tri)
 }
 
 pub(crate) struct View {

@@ -1,11 +1,31 @@
-//! The fitted mesh as the tracer holds it: each vertex's Gaussian, the Gaussians' centres,
-//! the file's colour quantisation, the alpha factor of a hit's material and texture, and the
-//! check that materials leave the vertex colour alone.
+//! The fitted mesh as the tracer holds it: the export built in memory and loaded, each
+//! vertex's Gaussian, the Gaussians' centres, the file's colour quantisation, the alpha
+//! factor of a hit's material and texture, and the check that materials leave the vertex
+//! colour alone.
 
 use glam::Vec3;
+use splatbridge_convert::ConvertOptions;
 use splatbridge_raytrace::model::TriScene;
+use splatbridge_scene::dynamic::DynamicScene;
 
 use super::{DistillError, Result};
+
+/// The export `convert` writes of `mesh_scene`, without fitted colours, built in memory and
+/// loaded by the tracer in the capture frame (the native targets' frame).
+pub(crate) fn export_mesh(mesh_scene: &DynamicScene, convert: &ConvertOptions) -> Result<TriScene> {
+    let mut fit_opts = convert.clone();
+    fit_opts.vertex_colours = None;
+    let (bytes, _) = splatbridge_convert::glb_bytes(mesh_scene, None, &fit_opts)?;
+    let mut tri = splatbridge_raytrace::scene_load::load_glb_bytes(
+        &bytes,
+        std::path::Path::new("<distillation mesh>"),
+    )?;
+    drop(bytes);
+    // The cameras are in the capture frame, like the native targets.
+    tri.to_capture_frame();
+    check_white(&tri)?;
+    Ok(tri)
+}
 
 /// The Gaussians of one mesh: each id's index in `centres`, and the centres themselves (the
 /// mean of the vertices carrying the id; `ids` gives each vertex's, from

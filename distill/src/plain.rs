@@ -19,7 +19,8 @@ use splatbridge_raytrace::{BackendKind, BuildPreset, MeshTracer, RenderOptions};
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::{Camera, Frame};
 
-use crate::{export_mesh, guard, DistillOptions, Distiller, Result};
+use crate::mesh::export_mesh;
+use crate::{guard, DistillOptions, Distiller, Result};
 
 /// The export of a scene without distillation, traced as the fit's views are.
 pub struct Undistilled {
