@@ -335,28 +335,18 @@ fn accuracy_distill_sweep_fits_the_named_profiles() {
     let dir = temp_dir("distill-cli", "accuracy");
     let out = dir.join("acc");
     let scene = street();
-    let r = ok(&[
-        "accuracy",
-        scene.as_str(),
-        "--only",
-        "distill",
-        "--distill-profiles",
-        "meshsplats",
-        "--cameras",
-        "orbit:2",
-        "--width",
-        "32",
-        "--height",
-        "24",
-        "--distill-for",
-        "48x36",
-        "--distill-sizes",
-        "40x30",
-        "--distill-iterations",
-        "12",
-        "-o",
-        path(&out),
-    ]);
+    let r = accuracy_distill(
+        &scene,
+        &out,
+        &[
+            "--distill-for",
+            "48x36",
+            "--distill-sizes",
+            "40x30",
+            "--distill-iterations",
+            "12",
+        ],
+    );
     let stdout = String::from_utf8_lossy(&r.stdout);
     let psnr = |it: usize| -> f64 {
         let line = stdout
@@ -379,14 +369,7 @@ fn accuracy_distill_sweep_fits_the_named_profiles() {
     // Every view's start column is the fit's start: its mean is the it=0 checkpoint's
     // mean PSNR (`accuracy.json`, unrounded). The column is printed to 0.01 dB, so the mean
     // of its six values is within 0.005 of the true mean.
-    let starts: Vec<f64> = md
-        .split("## Every view")
-        .nth(1)
-        .expect("the per-view table")
-        .lines()
-        .filter(|l| l.starts_with("| meshsplats | "))
-        .map(|l| l.split('|').nth(5).unwrap().trim().parse().unwrap())
-        .collect();
+    let starts: Vec<f64> = every_view(&md).iter().map(|c| c[2]).collect();
     assert_eq!(starts.len(), 6, "{md}");
     let json: Value =
         serde_json::from_slice(&std::fs::read(out.join("accuracy.json")).unwrap()).unwrap();
@@ -453,48 +436,24 @@ fn accuracy_distill_reports_the_floor_as_convert_writes_it() {
     let scene = street();
     let columns = |floor: &str| -> Vec<(f64, f64, f64)> {
         let out = dir.join(floor);
-        ok(&[
-            "accuracy",
-            scene.as_str(),
-            "--only",
-            "distill",
-            "--distill-profiles",
-            "meshsplats",
-            "--cameras",
-            "orbit:2",
-            "--width",
-            "32",
-            "--height",
-            "24",
-            "--distill-for",
-            "24x18,96x72",
-            "--distill-sizes",
-            "96x72",
-            "--distill-iterations",
-            "0",
-            "--distill-footprint-quantile",
-            "1",
-            "--distill-floor",
-            floor,
-            "-o",
-            path(&out),
-        ]);
+        accuracy_distill(
+            &scene,
+            &out,
+            &[
+                "--distill-for",
+                "24x18,96x72",
+                "--distill-sizes",
+                "96x72",
+                "--distill-iterations",
+                "0",
+                "--distill-footprint-quantile",
+                "1",
+                "--distill-floor",
+                floor,
+            ],
+        );
         let md = std::fs::read_to_string(out.join("distill.md")).unwrap();
-        md.split("## Every view")
-            .nth(1)
-            .expect("the per-view table")
-            .lines()
-            .filter(|l| l.starts_with("| meshsplats | "))
-            .map(|l| {
-                let c: Vec<f64> = l
-                    .split('|')
-                    .skip(4)
-                    .take(3)
-                    .map(|x| x.trim().parse().unwrap())
-                    .collect();
-                (c[0], c[1], c[2])
-            })
-            .collect()
+        every_view(&md).iter().map(|c| (c[1], c[2], c[3])).collect()
     };
     let on = columns("on");
     assert_eq!(on.len(), 6, "{on:?}");
@@ -511,4 +470,46 @@ fn accuracy_distill_reports_the_floor_as_convert_writes_it() {
         off.iter().any(|(plain, _, distilled)| plain != distilled),
         "{off:?}"
     );
+}
+
+/// `accuracy SCENE --only distill` of the MeshSplats profile from two 32×24 orbit cameras
+/// into `out`, with `extra` options; it must succeed.
+fn accuracy_distill(scene: &str, out: &Path, extra: &[&str]) -> std::process::Output {
+    let mut args = vec![
+        "accuracy",
+        scene,
+        "--only",
+        "distill",
+        "--distill-profiles",
+        "meshsplats",
+        "--cameras",
+        "orbit:2",
+        "--width",
+        "32",
+        "--height",
+        "24",
+    ];
+    args.extend_from_slice(extra);
+    args.extend(["-o", path(out)]);
+    ok(&args)
+}
+
+/// The MeshSplats rows of `distill.md`'s per-view table: default, plain, start and distilled
+/// PSNR of each view.
+fn every_view(md: &str) -> Vec<[f64; 4]> {
+    md.split("## Every view")
+        .nth(1)
+        .expect("the per-view table")
+        .lines()
+        .filter(|l| l.starts_with("| meshsplats | "))
+        .map(|l| {
+            let c: Vec<f64> = l
+                .split('|')
+                .skip(3)
+                .take(4)
+                .map(|x| x.trim().parse().unwrap())
+                .collect();
+            [c[0], c[1], c[2], c[3]]
+        })
+        .collect()
 }

@@ -71,11 +71,11 @@ use optim::{adam, batch_views, mean_pixels};
 pub use options::{near_unless_reference, DistillOptions};
 use order::Centres;
 pub use order::HitOrder;
-use targets::native_options;
 pub use targets::{
     mean_psnr, mean_psnr_at, native_targets, native_targets_at, native_targets_sh, render_native,
     widen_for_fit,
 };
+use targets::{native_options, psnr_views};
 pub use tied::ParamMode;
 pub use tied::Tied;
 
@@ -671,9 +671,11 @@ impl Distiller {
         times: &[f64],
         targets: &[Frame],
     ) -> Result<Vec<f64>> {
-        let views = cameras.iter().zip(times).zip(targets);
         if self.centres.is_some() {
-            return views
+            return cameras
+                .iter()
+                .zip(times)
+                .zip(targets)
                 .map(|((c, &time), t)| {
                     let img = self.render_at(c, time)?;
                     Ok(splatbridge_scene::metrics::psnr(&img, t)?)
@@ -686,15 +688,9 @@ impl Distiller {
             ..RenderOptions::default()
         };
         let tracer = &self.tracer;
-        cameras
-            .par_iter()
-            .zip(times)
-            .zip(targets)
-            .map(|((c, &time), t)| {
-                let img = tracer.render(c, time, &opts)?.0;
-                Ok(splatbridge_scene::metrics::psnr(&img, t)?)
-            })
-            .collect()
+        psnr_views(cameras, times, targets, |c, time| {
+            Ok(tracer.render(c, time, &opts)?.0)
+        })
     }
 
     /// The fitted colours as the writers take them.

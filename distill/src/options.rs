@@ -66,7 +66,7 @@ pub struct DistillOptions {
     /// the validation views, and write that export where the result is below it
     /// ([`crate::plain`]): what never lets distillation make a validation view worse than
     /// not distilling, at the cost of tracing the undistilled export from each validation
-    /// view (6 s of 70 on `fourth_st`, docs/distill.md).
+    /// view (4 s of 67 on `fourth_st`, docs/distill.md).
     pub floor: bool,
     /// Validations in a row ([`crate::guard::EVERY`] steps apart) without progress (no better
     /// admissible iteration, no refused one closer to admissible), after which the fit stops

@@ -20,6 +20,7 @@ use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::{Camera, Frame};
 
 use crate::mesh::export_mesh;
+use crate::targets::psnr_views;
 use crate::{guard, DistillOptions, Distiller, Result};
 
 /// The export of a scene without distillation, traced as the fit's views are.
@@ -51,15 +52,7 @@ impl Undistilled {
         times: &[f64],
         targets: &[Frame],
     ) -> Result<Vec<f64>> {
-        cameras
-            .par_iter()
-            .zip(times)
-            .zip(targets)
-            .map(|((c, &time), t)| {
-                let img = self.render_at(c, time)?;
-                Ok(splatbridge_scene::metrics::psnr(&img, t)?)
-            })
-            .collect()
+        psnr_views(cameras, times, targets, |c, time| self.render_at(c, time))
     }
 
     /// The export traced from `cam` at scene time `time`.

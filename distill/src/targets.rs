@@ -7,6 +7,8 @@ use splatbridge_hybrid::native::RenderOptions as NativeOptions;
 use splatbridge_scene::dynamic::DynamicScene;
 use splatbridge_scene::{Camera, Frame};
 
+use rayon::prelude::*;
+
 use super::{DistillOptions, Distiller, Result};
 
 /// The scene the mesh is made from for `cameras` (whole views, not windows): `scene` widened
@@ -47,12 +49,24 @@ pub fn mean_psnr_at(
     times: &[f64],
     targets: &[Frame],
 ) -> Result<f64> {
-    let mut s = 0.0;
-    for ((c, &time), t) in cameras.iter().zip(times).zip(targets) {
-        let img = d.render_at(c, time)?;
-        s += splatbridge_scene::metrics::psnr(&img, t)?;
-    }
-    Ok(s / cameras.len().max(1) as f64)
+    let each = d.psnr_each(cameras, times, targets)?;
+    Ok(each.iter().sum::<f64>() / cameras.len().max(1) as f64)
+}
+
+/// PSNR against native of `render`'s image from each of `cameras` (at `times`, against
+/// `targets`), a view at a time per thread: a small image's tiles do not keep two cores busy.
+pub(crate) fn psnr_views(
+    cameras: &[Camera],
+    times: &[f64],
+    targets: &[Frame],
+    render: impl Fn(&Camera, f64) -> Result<Frame> + Sync,
+) -> Result<Vec<f64>> {
+    cameras
+        .par_iter()
+        .zip(times)
+        .zip(targets)
+        .map(|((c, &time), t)| Ok(splatbridge_scene::metrics::psnr(&render(c, time)?, t)?))
+        .collect()
 }
 
 /// Native targets of `scene` from `cameras`, camera i at scene time `times[i]`.

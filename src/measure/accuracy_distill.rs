@@ -121,34 +121,27 @@ pub struct DistillRows {
 }
 
 /// PSNR of the plain (undistilled, unwidened) export of `profile` of `scene` against `refs`
-/// at each camera of `cams` (also `examples/sh_ceiling.rs`).
+/// at each camera of `cams` (also `examples/sh_ceiling.rs`), traced at the fit's default time.
 pub fn plain_export_psnr(
     scene: &DynamicScene,
     profile: Profile,
     cams: &[Camera],
     refs: &[Frame],
 ) -> anyhow::Result<Vec<f64>> {
-    let mut d = plain_tracer(scene, profile, &cams[0])?;
-    psnr_at(&mut d, cams, refs)
+    let times = vec![DistillOptions::default().time; cams.len()];
+    Ok(plain_export(scene, profile)?.psnr_each(cams, &times, refs)?)
 }
 
-/// A tracer of the plain (undistilled, unwidened) export of `profile` of `scene`: a
-/// distiller that never steps, made with one tiny view of `cam`.
-fn plain_tracer(scene: &DynamicScene, profile: Profile, cam: &Camera) -> anyhow::Result<Distiller> {
+/// The plain (undistilled, unwidened) export of `profile` of `scene`, traced as the fit traces.
+fn plain_export(scene: &DynamicScene, profile: Profile) -> anyhow::Result<Undistilled> {
     let convert = ConvertOptions {
         profile,
         ..ConvertOptions::default()
     };
-    let opts = DistillOptions {
-        footprint: false,
-        ..DistillOptions::default()
-    };
-    let tiny = views::window_of(cam, (8, 6), 0.5, 0.5);
-    Ok(Distiller::new(
+    Ok(Undistilled::new(
         scene,
         &convert,
-        std::slice::from_ref(&tiny),
-        &opts,
+        &DistillOptions::default(),
     )?)
 }
 
@@ -283,7 +276,7 @@ pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<Distill
             if it >= last {
                 d.validate()?;
                 d.keep_best();
-                if opts.floor && opts.footprint && !d.validation_log().is_empty() {
+                if opts.floor && opts.footprint && d.report().validation_views > 0 {
                     let undistilled = Undistilled::new(scene, &convert, &opts)?;
                     let check = d.check_floor(d.validation_psnr_of(&undistilled)?);
                     to_undistilled = check.kept_undistilled;
@@ -317,20 +310,22 @@ pub fn distill_rows(s: &Sweep<'_>, cfg: &DistillSweep) -> anyhow::Result<Distill
                         .min_by(|&a, &b| (psnr[a] - plain[a]).total_cmp(&(psnr[b] - plain[b])));
                     if let Some(i) = worst {
                         let cam = &cams[i];
+                        // Built again for one view rather than held through the fit (the
+                        // plain mesh's memory beside the fitted one's).
+                        let plain_image = plain_export(scene, profile)?
+                            .render_at(cam, DistillOptions::default().time)?;
                         out.worst.push(WorstView {
                             profile: name.into(),
                             camera: cam.name.clone(),
                             plain_psnr: plain[i],
                             distilled_psnr: psnr[i],
                             native: refs[i].clone(),
-                            // Built again for one view rather than held through the fit
-                            // (the plain mesh's memory beside the fitted one's).
-                            plain: plain_tracer(scene, profile, cam)?.render(cam)?,
                             distilled: if to_undistilled {
-                                plain_tracer(scene, profile, cam)?.render(cam)?
+                                plain_image.clone()
                             } else {
                                 d.render(cam)?
                             },
+                            plain: plain_image,
                         });
                     }
                     for (i, (h, &p)) in held.iter().zip(&psnr).enumerate() {
