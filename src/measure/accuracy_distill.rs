@@ -122,6 +122,9 @@ pub struct DistillRows {
 
 /// PSNR of the plain (undistilled, unwidened) export of `profile` of `scene` against `refs`
 /// at each camera of `cams` (also `examples/sh_ceiling.rs`), traced at the fit's default time.
+/// `accuracy` sweeps a static scene (a dynamic one's composite at `--time`, `cmd::accuracy`),
+/// so the time traced at does not move the figures: the sweep's time is already in the
+/// Gaussians.
 pub fn plain_export_psnr(
     scene: &DynamicScene,
     profile: Profile,
