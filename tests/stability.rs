@@ -105,6 +105,49 @@ fn camera_inside_a_gaussian() {
     assert!(f.is_finite() && f.alpha.iter().all(|a| (0.0..=1.0).contains(a)));
 }
 
+/// A lone Gaussian (and a cluster whose means nearly coincide) is framed by what it covers:
+/// every orbit camera stands outside its 3σ reach and beyond native's near plane, and the
+/// image shows it: opaque at the centre, background at the corners. Around the means alone,
+/// the cameras stood 2e-6 from the mean, inside the Gaussian and within the near plane, and
+/// native drew only background (tried).
+#[test]
+fn a_lone_gaussian_is_framed_by_its_extent() {
+    use splatbridge_scene::camera::OrbitRig;
+    let mut c = GaussianCloud::new(0);
+    let mean = Vec3::new(0.3, -1.0, 2.0);
+    gaussian(
+        &mut c,
+        mean,
+        Vec3::new(0.05, 0.02, 0.04),
+        Quat::IDENTITY,
+        0.95,
+        Vec3::new(0.2, 0.8, 0.6),
+    );
+    let rig = OrbitRig {
+        width: 64,
+        height: 48,
+        ..OrbitRig::default()
+    };
+    for cam in rig.cameras(&c, 8).unwrap() {
+        let d = (cam.centre - mean.as_dvec3()).length();
+        // Outside the Gaussian's 3σ (0.15) and beyond native's near plane (0.2).
+        let reach = 3.0 * 0.05f64;
+        assert!(d > reach.max(0.2), "{}: {d}", cam.name);
+        let f = native_checked(&c, &cam, &cam.name);
+        let a = |x: u32, y: u32| f.alpha[(y * f.width + x) as usize];
+        // 0.5: the centre's α is the Gaussian's 0.95 at its mean; the corners lie beyond
+        // 3σ, where 3DGS draws nothing above 1/255.
+        assert!(a(32, 24) > 0.5, "{}: {}", cam.name, a(32, 24));
+        assert!(
+            [a(0, 0), a(63, 0), a(0, 47), a(63, 47)]
+                .iter()
+                .all(|&v| v < 1.0 / 255.0),
+            "{}",
+            cam.name
+        );
+    }
+}
+
 #[test]
 fn scene_1e5_units_from_the_origin_matches_the_same_scene_at_the_origin() {
     let base = native_ref::random_cloud(60, 7);

@@ -48,10 +48,10 @@ pub struct Frame {
 }
 
 impl Frame {
-    /// The frame of the default orbit rig around the robust bounds of `cloud`.
+    /// The frame of the default orbit rig around the view bounds of `cloud` (`GaussianCloud::view_bounds`).
     pub fn around(cloud: &GaussianCloud) -> SResult<Frame> {
         let rig = OrbitRig::default();
-        let (lo, hi) = cloud.robust_bounds(rig.percentile).ok_or_else(|| {
+        let (lo, hi) = cloud.view_bounds(rig.percentile).ok_or_else(|| {
             SceneError::Invalid("cannot place views around an empty scene".into())
         })?;
         let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
@@ -504,7 +504,7 @@ pub fn held_back_classes(
     Ok(out)
 }
 
-/// Cameras `i·step + offset` of the `n`-camera orbit around the robust bounds of `cloud`, at
+/// Cameras `i·step + offset` of the `n`-camera orbit around the view bounds of `cloud`, at
 /// `width`×`height` (the CLI's orbit: up −y, 50° field of view, 20° elevation).
 pub fn orbit(
     cloud: &GaussianCloud,
@@ -519,7 +519,7 @@ pub fn orbit(
         ..OrbitRig::default()
     };
     let (lo, hi) = cloud
-        .robust_bounds(rig.percentile)
+        .view_bounds(rig.percentile)
         .ok_or_else(|| SceneError::Invalid("cannot place an orbit around an empty scene".into()))?;
     pick.map(|i| rig.camera_around(lo.as_dvec3(), hi.as_dvec3(), n, i))
         .collect()

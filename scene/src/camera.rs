@@ -404,10 +404,11 @@ impl Default for OrbitRig {
 }
 
 impl OrbitRig {
-    /// `n` cameras evenly spaced in azimuth around the robust centre of `means`, far enough that
-    /// the robust bounding sphere fills the vertical field of view.
+    /// `n` cameras evenly spaced in azimuth around the centre of `cloud`'s view bounds
+    /// ([`crate::GaussianCloud::view_bounds`]), far enough that their bounding sphere fills
+    /// the vertical field of view.
     pub fn cameras(&self, cloud: &crate::GaussianCloud, n: usize) -> Result<Vec<Camera>> {
-        let (lo, hi) = cloud.robust_bounds(self.percentile).ok_or_else(|| {
+        let (lo, hi) = cloud.view_bounds(self.percentile).ok_or_else(|| {
             SceneError::Invalid("cannot place an orbit around an empty scene".into())
         })?;
         self.cameras_around(lo.as_dvec3(), hi.as_dvec3(), n)
@@ -420,10 +421,10 @@ impl OrbitRig {
             .collect()
     }
 
-    /// Camera `index` of the `n`-camera orbit around the robust bounds of `cloud`, built alone
+    /// Camera `index` of the `n`-camera orbit around the view bounds of `cloud`, built alone
     /// (no other camera of the rig is allocated, so `n` may be huge).
     pub fn camera(&self, cloud: &crate::GaussianCloud, n: usize, index: usize) -> Result<Camera> {
-        let (lo, hi) = cloud.robust_bounds(self.percentile).ok_or_else(|| {
+        let (lo, hi) = cloud.view_bounds(self.percentile).ok_or_else(|| {
             SceneError::Invalid("cannot place an orbit around an empty scene".into())
         })?;
         self.camera_around(lo.as_dvec3(), hi.as_dvec3(), n, index)

@@ -270,7 +270,7 @@ impl CameraRequest {
                     check_orbit_n(&format!("orbit:{n}"), *n)?;
                     let (lo, hi) =
                         src.cloud
-                            .robust_bounds(self.rig().percentile)
+                            .view_bounds(self.rig().percentile)
                             .ok_or_else(|| {
                                 SceneError::Invalid(
                                     "cannot place an orbit around an empty scene".into(),

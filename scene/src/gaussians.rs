@@ -38,6 +38,10 @@ pub struct GaussianCloud {
     pub object_ids: Option<Vec<u32>>,
 }
 
+/// How far a Gaussian's drawn footprint reaches, in its largest standard deviations: the
+/// 3σ extent 3DGS bounds its splats by. [`GaussianCloud::view_bounds`] frames at least this.
+pub const VIEW_REACH_SIGMAS: f32 = 3.0;
+
 /// The logistic sigmoid, exact at ±inf (returns 1 and 0).
 #[inline]
 pub fn sigmoid(x: f32) -> f32 {
@@ -307,6 +311,42 @@ impl GaussianCloud {
         Some(it.fold((first, first), |(lo, hi), &p| (lo.min(p), hi.max(p))))
     }
 
+    /// The bounds views are placed around (orbits, distillation's view sphere):
+    /// [`GaussianCloud::robust_bounds`], grown about their centre where their half-diagonal is
+    /// below [`VIEW_REACH_SIGMAS`] times the median Gaussian's largest standard deviation.
+    /// A scene whose means nearly coincide (one Gaussian, a tight cluster of large ones) is
+    /// then framed by what its Gaussians cover, and no camera is placed inside them (around
+    /// the means alone, an orbit's camera sat 2e-6 from a lone Gaussian, inside it and
+    /// within native splatting's near plane). A scene spread wider than its Gaussians keeps
+    /// its robust bounds bit for bit. `None` when empty.
+    pub fn view_bounds(&self, p: f32) -> Option<(Vec3, Vec3)> {
+        let (lo, hi) = self.robust_bounds(p)?;
+        let half = 0.5 * (hi - lo).length();
+        let reach = VIEW_REACH_SIGMAS * self.median_largest_sigma();
+        if !(reach.is_finite() && half < reach) {
+            return Some((lo, hi));
+        }
+        // A cube of half-side r/√3 has the half-diagonal r.
+        let (c, r) = (0.5 * (lo + hi), Vec3::splat(reach / 3f32.sqrt()));
+        Some((c - r, c + r))
+    }
+
+    /// The median over the Gaussians of the largest of their three standard deviations
+    /// (finite ones only); 0 when there is none.
+    pub fn median_largest_sigma(&self) -> f32 {
+        let mut v: Vec<f32> = self
+            .log_scales
+            .iter()
+            .map(|l| l.max_element().exp())
+            .filter(|s| s.is_finite())
+            .collect();
+        if v.is_empty() {
+            return 0.0;
+        }
+        let mid = v.len() / 2;
+        *v.select_nth_unstable_by(mid, f32::total_cmp).1
+    }
+
     /// Robust bounds: per-axis percentiles `p` and `1 − p` of the means (e.g. p = 0.02), so far
     /// outliers (floaters, sky Gaussians) do not decide the framing. `None` when empty.
     pub fn robust_bounds(&self, p: f32) -> Option<(Vec3, Vec3)> {
@@ -428,5 +468,54 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A cloud of `n` Gaussians with means `mean(i)` and the same largest σ `sigma`.
+    fn cloud_of(n: usize, mean: impl Fn(usize) -> Vec3, sigma: f32) -> GaussianCloud {
+        let mut c = GaussianCloud::new(0);
+        for i in 0..n {
+            c.push(
+                mean(i),
+                Vec3::new(sigma.ln(), (0.1 * sigma).ln(), (0.5 * sigma).ln()),
+                Quat::IDENTITY,
+                2.0,
+                &[Vec3::ZERO],
+            );
+        }
+        c
+    }
+
+    /// Means that nearly coincide are framed by the Gaussians' 3σ: the half-diagonal becomes
+    /// exactly 3 × the median largest σ, about the same centre; a cloud spread wider than
+    /// that keeps its robust bounds bit for bit, and an empty one has none.
+    #[test]
+    fn view_bounds_frame_what_the_gaussians_cover() {
+        let one = cloud_of(1, |_| Vec3::new(1.0, -2.0, 3.0), 0.05);
+        let (lo, hi) = one.view_bounds(0.02).unwrap();
+        let half = 0.5 * (hi - lo).length();
+        // 1e-6 relative: the cube's side is reach/√3 rounded once, and its diagonal
+        // recomputed in f32.
+        assert!((half - 0.15).abs() <= 0.15 * 1e-6, "{half}");
+        assert!(
+            (0.5 * (lo + hi) - Vec3::new(1.0, -2.0, 3.0))
+                .abs()
+                .max_element()
+                < 1e-6
+        );
+
+        // A tight cluster of large Gaussians: the median σ decides, not the outlier.
+        let mut tight = cloud_of(9, |i| Vec3::splat(i as f32 * 1e-4), 0.2);
+        tight.log_scales[0] = Vec3::splat(50.0f32.ln());
+        let (lo, hi) = tight.view_bounds(0.02).unwrap();
+        assert!((0.5 * (hi - lo).length() - 0.6).abs() < 1e-5);
+
+        let spread = cloud_of(50, |i| Vec3::new(i as f32, (i * i) as f32 * 0.1, 0.0), 0.05);
+        assert_eq!(spread.view_bounds(0.02), spread.robust_bounds(0.02));
+
+        // Non-finite scales are left out of the median; none at all keeps the means' bounds.
+        let mut bad = cloud_of(1, |_| Vec3::ZERO, 0.05);
+        bad.log_scales[0] = Vec3::splat(f32::INFINITY);
+        assert_eq!(bad.view_bounds(0.02), bad.robust_bounds(0.02));
+        assert_eq!(GaussianCloud::new(0).view_bounds(0.02), None);
     }
 }

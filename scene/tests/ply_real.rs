@@ -141,3 +141,24 @@ fn real_file_rewrites_bit_exactly_in_every_format() {
         assert_eq!(bits(&back), bits(&cloud), "{format:?}");
     }
 }
+
+/// The real captures are spread far wider than their Gaussians, so the bounds views are
+/// placed around are their robust bounds bit for bit: the rule that frames a lone Gaussian
+/// by its extent (`GaussianCloud::view_bounds`) moves no camera of a real scene.
+#[test]
+#[cfg_attr(
+    not(real_data),
+    ignore = "needs the shared real scenes (../shared/data/real)"
+)]
+fn real_scenes_are_framed_by_their_robust_bounds() {
+    let dir = real_dir();
+    for (name, _, _) in TABLE {
+        let (cloud, _) = read_ply(&dir.join(name), &ReadOptions::default()).unwrap();
+        let robust = cloud.robust_bounds(0.02).unwrap();
+        assert_eq!(cloud.view_bounds(0.02), Some(robust), "{name}");
+        // By a margin: the half-diagonals are 20–60 times 3σ of the median Gaussian
+        // (fourth_st 0.169 against 0.0024, tile_lod1 2.83 against 0.11).
+        let half = 0.5 * (robust.1 - robust.0).length();
+        assert!(half > 10.0 * 3.0 * cloud.median_largest_sigma(), "{name}");
+    }
+}
