@@ -48,13 +48,12 @@ pub struct Frame {
 }
 
 impl Frame {
-    /// The frame of the default orbit rig around the view bounds of `cloud` (`GaussianCloud::view_bounds`).
+    /// The frame of the default orbit rig around `cloud` (its bounds: [`OrbitRig::bounds`]).
     pub fn around(cloud: &GaussianCloud) -> SResult<Frame> {
         let rig = OrbitRig::default();
-        let (lo, hi) = cloud.view_bounds(rig.percentile).ok_or_else(|| {
-            SceneError::Invalid("cannot place views around an empty scene".into())
-        })?;
-        let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
+        let (lo, hi) = rig
+            .bounds(cloud)
+            .map_err(|_| SceneError::Invalid("cannot place views around an empty scene".into()))?;
         let centre = 0.5 * (lo + hi);
         let radius = (0.5 * (hi - lo).length()).max(1e-6);
         let up = rig.up.as_dvec3().normalize();
@@ -518,11 +517,8 @@ pub fn orbit(
         height,
         ..OrbitRig::default()
     };
-    let (lo, hi) = cloud
-        .view_bounds(rig.percentile)
-        .ok_or_else(|| SceneError::Invalid("cannot place an orbit around an empty scene".into()))?;
-    pick.map(|i| rig.camera_around(lo.as_dvec3(), hi.as_dvec3(), n, i))
-        .collect()
+    let (lo, hi) = rig.bounds(cloud)?;
+    pick.map(|i| rig.camera_around(lo, hi, n, i)).collect()
 }
 
 /// `m` held-back views of an `n`-camera fitting orbit: half-way between fitting cameras,

@@ -408,10 +408,17 @@ impl OrbitRig {
     /// ([`crate::GaussianCloud::view_bounds`]), far enough that their bounding sphere fills
     /// the vertical field of view.
     pub fn cameras(&self, cloud: &crate::GaussianCloud, n: usize) -> Result<Vec<Camera>> {
+        let (lo, hi) = self.bounds(cloud)?;
+        self.cameras_around(lo, hi, n)
+    }
+
+    /// The bounds the rig's orbits frame around `cloud`: its view bounds at the rig's
+    /// percentile ([`crate::GaussianCloud::view_bounds`]). An error for an empty scene.
+    pub fn bounds(&self, cloud: &crate::GaussianCloud) -> Result<(DVec3, DVec3)> {
         let (lo, hi) = cloud.view_bounds(self.percentile).ok_or_else(|| {
             SceneError::Invalid("cannot place an orbit around an empty scene".into())
         })?;
-        self.cameras_around(lo.as_dvec3(), hi.as_dvec3(), n)
+        Ok((lo.as_dvec3(), hi.as_dvec3()))
     }
 
     /// Orbit around explicit bounds.
@@ -424,10 +431,8 @@ impl OrbitRig {
     /// Camera `index` of the `n`-camera orbit around the view bounds of `cloud`, built alone
     /// (no other camera of the rig is allocated, so `n` may be huge).
     pub fn camera(&self, cloud: &crate::GaussianCloud, n: usize, index: usize) -> Result<Camera> {
-        let (lo, hi) = cloud.view_bounds(self.percentile).ok_or_else(|| {
-            SceneError::Invalid("cannot place an orbit around an empty scene".into())
-        })?;
-        self.camera_around(lo.as_dvec3(), hi.as_dvec3(), n, index)
+        let (lo, hi) = self.bounds(cloud)?;
+        self.camera_around(lo, hi, n, index)
     }
 
     /// Camera `i` of the `n`-camera orbit around explicit bounds; `cameras_around` is this for

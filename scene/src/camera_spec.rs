@@ -268,16 +268,9 @@ impl CameraRequest {
             match item {
                 CameraListItem::Orbit(n) => {
                     check_orbit_n(&format!("orbit:{n}"), *n)?;
-                    let (lo, hi) =
-                        src.cloud
-                            .view_bounds(self.rig().percentile)
-                            .ok_or_else(|| {
-                                SceneError::Invalid(
-                                    "cannot place an orbit around an empty scene".into(),
-                                )
-                            })?;
                     let rig = self.rig();
-                    for cam in rig.cameras_around(lo.as_dvec3(), hi.as_dvec3(), *n)? {
+                    let (lo, hi) = rig.bounds(src.cloud)?;
+                    for cam in rig.cameras_around(lo, hi, *n)? {
                         self.check_budget(&cam)?;
                         cams.push(cam);
                     }

@@ -152,13 +152,15 @@ fn real_file_rewrites_bit_exactly_in_every_format() {
 )]
 fn real_scenes_are_framed_by_their_robust_bounds() {
     let dir = real_dir();
+    let p = splatbridge_scene::camera::OrbitRig::default().percentile;
     for (name, _, _) in TABLE {
         let (cloud, _) = read_ply(&dir.join(name), &ReadOptions::default()).unwrap();
-        let robust = cloud.robust_bounds(0.02).unwrap();
-        assert_eq!(cloud.view_bounds(0.02), Some(robust), "{name}");
+        let robust = cloud.robust_bounds(p).unwrap();
+        assert_eq!(cloud.view_bounds(p), Some(robust), "{name}");
         // By a margin: the half-diagonals are 20–60 times 3σ of the median Gaussian
         // (fourth_st 0.169 against 0.0024, tile_lod1 2.83 against 0.11).
         let half = 0.5 * (robust.1 - robust.0).length();
-        assert!(half > 10.0 * 3.0 * cloud.median_largest_sigma(), "{name}");
+        let reach = splatbridge_scene::gaussians::VIEW_REACH_SIGMAS * cloud.median_largest_sigma();
+        assert!(half > 10.0 * reach, "{name}");
     }
 }
