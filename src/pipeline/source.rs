@@ -111,12 +111,17 @@ pub fn is_mesh_file(p: &Path) -> bool {
 }
 
 /// A points-only cloud of mesh vertices, to frame orbit cameras around a triangle scene.
+///
+/// The points have no extent of their own (scale 0): the triangles they span are the extent,
+/// so the orbit frames the vertices' robust bounds. A unit scale here made
+/// [`GaussianCloud::view_bounds`] grow every scene smaller than 3 units across to a 3-unit
+/// reach, and a capture's export was traced from 17 times too far.
 fn frame_cloud(scene: &TriScene, t: f64) -> GaussianCloud {
     let n: usize = scene.meshes.iter().map(|m| m.positions.len()).sum();
     let pts = scene.sample_points(t, n.div_ceil(200_000).max(1));
     let mut c = GaussianCloud::with_capacity(0, pts.len());
     for p in pts {
-        c.push_activated(p.as_vec3(), Vec3::ONE, Quat::IDENTITY, 0.5, Vec3::ONE);
+        c.push_activated(p.as_vec3(), Vec3::ZERO, Quat::IDENTITY, 0.5, Vec3::ONE);
     }
     c
 }
