@@ -47,6 +47,11 @@ impl Instances {
         Instances { list, top: None }
     }
 
+    /// The instances, in order.
+    pub(crate) fn list(&self) -> &[PreparedInstance] {
+        &self.list
+    }
+
     /// Whether rays go through the top-level structure.
     pub fn has_top_level(&self) -> bool {
         self.top.is_some()

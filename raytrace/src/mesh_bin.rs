@@ -119,17 +119,7 @@ impl TileLists {
         let tw = cam.width.div_ceil(TILE) as usize;
         let th = cam.height.div_ceil(TILE) as usize;
         let focal = cam.fx.max(cam.fy);
-        // Each mesh's group sizes and winding pairs, found on its first frame: side by side
-        // over the meshes (each is one serial pass over its triangles).
-        insts.par_iter().for_each(|inst| {
-            let (blas, mesh) = (&tracer.blas[inst.mesh], &tracer.scene.meshes[inst.mesh]);
-            if !(mesh.tris.is_empty() || blas.run_start.is_empty()) {
-                blas.group_extent.get_or_init(|| group_extents(mesh, blas));
-                let mirror = blas.mirror.get_or_init(|| winding_pairs(mesh, blas));
-                blas.groups
-                    .get_or_init(|| GroupTable::new(mesh, blas, mirror));
-            }
-        });
+        tracer.prepare_groups(insts, true);
         // Small groups as one record where rays are few for the triangles (`mesh_groups`).
         let rays = (cam.width as u64 * cam.height as u64).saturating_mul(offsets.len() as u64);
         let small_groups = rays.saturating_mul(crate::mesh_groups::SMALL_GROUP_TRIANGLES_PER_RAY)
@@ -386,6 +376,25 @@ fn list_order(cands: &[Cand]) -> Vec<u32> {
         .collect();
     keys.par_sort_unstable();
     keys.par_iter().map(|&k| k as u32).collect()
+}
+
+impl MeshTracer {
+    /// Each instanced mesh's winding pairs and group table (and, with `extents`, its groups'
+    /// extents, which only binning reads), found on its first frame that needs them: side by
+    /// side over the meshes (each is one serial pass over its triangles).
+    pub(crate) fn prepare_groups(&self, insts: &[PreparedInstance], extents: bool) {
+        insts.par_iter().for_each(|inst| {
+            let (blas, mesh) = (&self.blas[inst.mesh], &self.scene.meshes[inst.mesh]);
+            if !(mesh.tris.is_empty() || blas.run_start.is_empty()) {
+                if extents {
+                    blas.group_extent.get_or_init(|| group_extents(mesh, blas));
+                }
+                let mirror = blas.mirror.get_or_init(|| winding_pairs(mesh, blas));
+                blas.groups
+                    .get_or_init(|| GroupTable::new(mesh, blas, mirror));
+            }
+        });
+    }
 }
 
 /// Each triangle's other winding (`mesh_cands::mirror_pairs` over the mesh's groups), where

@@ -74,11 +74,16 @@ fn disc(
 
 /// `n` random discs of `segments` sectors and `rings` rings (8 and 2: 40 triangles a
 /// winding, always a group; 6 and 0: a fan of 6, a group only in frames of few rays) around
-/// `offset`: every seventh repeated (equal keys), every third opaque, every fourth wobbling
-/// off its plane, every eleventh large.
+/// `offset`: every seventh repeated (equal keys), some flat ones twinned under another
+/// Gaussian (equal distances, other keys), every third opaque, every fourth wobbling off its
+/// plane, every eleventh large.
 fn discs(seed: u64, n: usize, extent: f32, offset: Vec3, both: bool, shape: (u32, u32)) -> Mesh {
     let mut r = Rng(seed);
     let mut m = ided_mesh();
+    // Flat discs twinned under another Gaussian (their triangles again, over the same
+    // vertices, after every disc): the same plane distance under another key, which a round
+    // that ended at the first must not skip.
+    let mut twins = Vec::new();
     for g in 0..n {
         let c = r.point(offset, extent);
         let q = r.rotation();
@@ -90,12 +95,23 @@ fn discs(seed: u64, n: usize, extent: f32, offset: Vec3, both: bool, shape: (u32
         }
         let wobble = if g % 4 == 0 { 4e-4 } else { 0.0 };
         let copies = if g % 7 == 0 { 2 } else { 1 };
+        let first = m.tris.len();
         for _ in 0..copies {
             let (a0, a1) = (q * Vec3::X * s.x, q * Vec3::Y * s.y);
             let (segments, rings) = shape;
             disc(
                 &mut m, g as u32, c, a0, a1, segments, rings, rgba, both, wobble, &mut r,
             );
+        }
+        if g % 13 == 5 && copies == 1 && wobble == 0.0 {
+            twins.push((first, m.tris.len(), g as u32 + 100_000));
+        }
+    }
+    for (a, b, gid) in twins {
+        for t in a..b {
+            m.tris.push(m.tris[t]);
+            m.tri_material.push(m.tri_material.get(t));
+            m.tri_gaussian.push(gid);
         }
     }
     m
@@ -173,37 +189,90 @@ fn group_hits_equal_brute_force() {
 /// decided triangle, across the runs of a disc) gives the brute-force reference's hits bit
 /// for bit, triangle index included (all but the colour, which `all_hits` leaves unshaded),
 /// on discs spread over several runs and on repeated discs (equal keys, where the
-/// lower-indexed copy must win whichever run the walk reaches first).
+/// lower-indexed copy must win whichever run the walk reaches first): run by run, and through
+/// the group table once it is built (`MeshTracer::prepare_groups`: each group's members by
+/// the plane crossing, skipped where the plane lies beyond the cull distance or before the
+/// round's last key). Buffers of 16 hits: with fewer the per-ray path keeps the first-found
+/// of equal keys at the buffer's end (`mesh_tiles`' module documentation), which the images
+/// below allow for.
 #[test]
 fn per_ray_group_rule_equals_brute_force() {
     use super::mesh_tile_tests::reference;
     use super::render::camera_ray;
     let min_t = super::render::RenderOptions::default().min_transmittance;
-    let mut compared = 0usize;
+    let (mut compared, mut grouped) = (0usize, 0usize);
     for (seed, shape) in [(6, (8, 2)), (7, (6, 0)), (8, (8, 3))] {
         for both in [false, true] {
             let tracer = tracer(scene(seed, Vec3::ZERO, both, 60, shape));
             let insts = tracer.prepare(0.0);
-            for cam in cameras(DVec3::ZERO) {
-                for j in 0..cam.height {
-                    for i in 0..cam.width {
-                        let (o, d) = camera_ray(&cam, i as f64 + 0.5, j as f64 + 0.5);
-                        let want = reference(&tracer, 0.0, o, d, min_t);
-                        let got = tracer.all_hits(&insts, o, d, 16);
-                        assert!(got.len() >= want.len(), "seed {seed} ({i}, {j}) lost hits");
-                        // `all_hits` does not shade: distance, key, triangle and barycentrics.
-                        for (g, w) in got.iter().zip(&want) {
-                            let (g, w) = (hit_bits(g), hit_bits(w));
-                            assert_eq!(g[..8], w[..8], "seed {seed} ({i}, {j})");
+            for table in [false, true] {
+                if table {
+                    tracer.prepare_groups(insts.list(), false);
+                    let t = tracer.blas[0].groups.get().expect("the table is built");
+                    grouped += (0..tracer.blas[0].planes.len() as u32)
+                        .filter(|&g| t.is_group(g, true))
+                        .count();
+                }
+                for cam in cameras(DVec3::ZERO) {
+                    for j in 0..cam.height {
+                        for i in 0..cam.width {
+                            let (o, d) = camera_ray(&cam, i as f64 + 0.5, j as f64 + 0.5);
+                            let want = reference(&tracer, 0.0, o, d, min_t);
+                            for k in [16] {
+                                let got = tracer.all_hits(&insts, o, d, k);
+                                let at = format!("seed {seed} ({i}, {j}) k {k} table {table}");
+                                assert!(got.len() >= want.len(), "{at}: lost hits");
+                                // `all_hits` does not shade: distance, key, triangle and
+                                // barycentrics.
+                                for (g, w) in got.iter().zip(&want) {
+                                    let (g, w) = (hit_bits(g), hit_bits(w));
+                                    assert_eq!(g[..8], w[..8], "{at}");
+                                }
+                                compared += want.len();
+                            }
                         }
-                        compared += want.len();
                     }
                 }
             }
         }
     }
-    // 8,966 hits on these scenes: a floor that fails if the cameras stop seeing the discs.
-    assert!(compared > 5_000, "{compared} hits compared");
+    // 17,932 hits on these scenes: a floor that fails if the cameras stop seeing the discs,
+    // and the discs are tested through the table.
+    assert!(compared > 10_000, "{compared} hits compared");
+    assert!(grouped > 100, "{grouped} groups in the tables");
+}
+
+/// The per-ray path's images of discs (through the group table, which `render_per_ray`
+/// builds) against the tiles' (the brute-force reference's, `check_scenes`), with buffers of
+/// 1, 4 and 16 hits, so rays take many rounds and the table's members are skipped by the
+/// last round's key. 1e-6: the per-ray path keeps the first-found of equal keys at a full
+/// buffer's end, whose barycentrics are another triangle's of the same disc (or the other
+/// winding's) and move the colour by an ulp or two (`mesh_tile_tests`, the same bound).
+#[test]
+fn per_ray_images_of_discs_match_the_tiles() {
+    use super::render::RenderOptions;
+    for (seed, both) in [(9, true), (10, false)] {
+        let tracer = tracer(scene(seed, Vec3::ZERO, both, 60, (8, 2)));
+        for cam in cameras(DVec3::ZERO) {
+            for k in [1, 4, 16] {
+                let opts = RenderOptions {
+                    k,
+                    ..RenderOptions::default()
+                };
+                let (a, _) = tracer.render_tiles(&cam, 0.0, &opts).unwrap();
+                let (b, _) = tracer.render_per_ray(&cam, 0.0, &opts).unwrap();
+                let worst = a
+                    .rgb
+                    .iter()
+                    .zip(&b.rgb)
+                    .chain(a.alpha.iter().zip(&b.alpha))
+                    .map(|(x, y)| (x - y).abs())
+                    .fold(0.0f32, f32::max);
+                assert!(worst <= 1e-6, "seed {seed} k = {k}: {worst}");
+                assert!(a.alpha.iter().any(|&x| x > 0.5), "the discs are seen");
+            }
+        }
+    }
 }
 
 /// Fans of six triangles: one record a fan in the frames of one sample a pixel (enough

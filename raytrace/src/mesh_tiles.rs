@@ -365,14 +365,45 @@ impl MeshTracer {
         buf: &mut KBuffer<TrianglePayload>,
         cull: &mut f32,
     ) {
+        let frame = RecordFrame::unpack(&e.verts);
+        self.group_test(ii, mesh, r, e.group, &frame, q, buf, cull);
+    }
+
+    /// [`MeshTracer::group_candidate`]'s test of group `g` of `mesh` (instance `ii`), whose
+    /// record carries `frame`: every member the ray may cross and its other winding where the
+    /// first's outcome leaves it open, up to the first outcome the key decides. The per-ray
+    /// path tests a run's large groups this way too (`MeshTracer::collect_instance`).
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn group_test(
+        &self,
+        ii: usize,
+        mesh: usize,
+        r: &LocalRay,
+        g: u32,
+        frame: &RecordFrame,
+        q: &Query,
+        buf: &mut KBuffer<TrianglePayload>,
+        cull: &mut f32,
+    ) {
         let blas = &self.blas[mesh];
         let m = &self.scene.meshes[mesh];
         let (Some(table), Some(mirror)) = (blas.groups.get(), blas.mirror.get()) else {
             return;
         };
-        let g = e.group;
-        let frame = RecordFrame::unpack(&e.verts);
-        let at = match table.crossing(&frame, blas.planes[g as usize], r.lo64, r.ld64) {
+        // Every member's hit is keyed by the group plane's distance where that is finite
+        // (`test_triangle`, the same arithmetic): beyond the cull distance, before the
+        // query's range or at most the last round's key, each would be rejected by the key
+        // alone, so none is tested (the buffer ends as it would).
+        let (pn, pw) = blas.planes[g as usize];
+        let tp = (pw - pn.dot(r.lo64)) / pn.dot(r.ld64);
+        if tp.is_finite() {
+            let t = tp as f32 + 0.0;
+            let before_after = q.after.is_some_and(|a| t < f32::from_bits(a.0));
+            if t > *cull || t < q.tmin || before_after {
+                return;
+            }
+        }
+        let at = match table.crossing(frame, blas.planes[g as usize], r.lo64, r.ld64) {
             Some(None) => return,
             Some(Some(at)) => Some(at),
             None => None,

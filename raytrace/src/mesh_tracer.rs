@@ -606,31 +606,65 @@ impl MeshTracer {
             let t_from = after.map(|a| f32::from_bits(a.0)).unwrap_or(0.0).max(tmin);
             let (lo, ld) = (r.wray.origin, r.wray.dir);
             let q = Query { tmin, tmax, after };
-            let mut test = |v: [Vec3; 3], g: u32, prim: u32, reported: bool, cull: &mut f32| {
-                self.test_triangle(ii, inst.mesh, &r, v, g, prim, reported, &q, buf, cull)
-            };
             // A group's triangles share the hit key: once one of them is decided by it
             // (inserted, or rejected by the range, the stop or an equal key), its triangles of
             // higher index would be rejected (the tile path's rule,
             // `mesh_tiles::group_candidate`). The last such group and triangle, over the runs
             // in the order the walk reaches them (a disc's runs come one after another).
             let mut decided: Option<(u32, usize)> = None;
+            // Where the group table is built (`MeshTracer::prepare_groups`), a run's triangles
+            // of a group of at least `mesh_groups::MIN_MEMBERS` binned triangles are tested as
+            // the tile path tests its group records: the members the ray may cross, by where
+            // it crosses the group's plane (a disc's runs are entered by many rays that cross
+            // none of its triangles). Each such group once a visit: the groups last tested.
+            let table = blas.groups.get().filter(|_| blas.mirror.get().is_some());
+            let mut grouped = [u32::MAX; 4];
+            let mut next = 0;
             blas.accel
                 .traverse_slots(lo, ld, t_from, cull0, &mut |slot, reported, cull| {
                     let s = slot as usize;
                     if blas.run_start.is_empty() {
-                        let v = blas.slot_verts[s];
-                        test(v, blas.slot_group[s], blas.slot_tri[s], reported, cull);
+                        let (v, g) = (blas.slot_verts[s], blas.slot_group[s]);
+                        let prim = blas.slot_tri[s];
+                        self.test_triangle(ii, inst.mesh, &r, v, g, prim, reported, &q, buf, cull);
                     } else {
                         let p = blas.accel.slots().map_or(s, |m| m[s] as usize);
-                        let (start, end) = (blas.run_start[p], blas.run_start[p + 1]);
-                        for t in start as usize..end as usize {
+                        let (start, end) =
+                            (blas.run_start[p] as usize, blas.run_start[p + 1] as usize);
+                        let mut group_once =
+                            |g: u32, buf: &mut KBuffer<TrianglePayload>, cull: &mut f32| {
+                                let Some(table) = table.filter(|tb| tb.is_group(g, true)) else {
+                                    return false;
+                                };
+                                if !grouped.contains(&g) {
+                                    grouped[next] = g;
+                                    next = (next + 1) % grouped.len();
+                                    let frame = table.record(g);
+                                    self.group_test(ii, inst.mesh, &r, g, &frame, &q, buf, cull);
+                                }
+                                true
+                            };
+                        // Most runs lie in one group (a disc's 16 triangles): one check.
+                        let g0 = blas.group.get(p, start);
+                        if table.is_some()
+                            && (start + 1..end).all(|t| blas.group.get(p, t) == g0)
+                            && group_once(g0, buf, cull)
+                        {
+                            return;
+                        }
+                        for t in start..end {
                             let g = blas.group.get(p, t);
+                            if group_once(g, buf, cull) {
+                                continue;
+                            }
                             if decided.is_some_and(|(dg, dt)| dg == g && t > dt) {
                                 continue;
                             }
                             let v = blas.triangle(&mesh.positions, mesh.tris[t]);
-                            if test(v, g, t as u32, false, cull) == Tested::Decided {
+                            let tested = self.test_triangle(
+                                ii, inst.mesh, &r, v, g, t as u32, false, &q, buf, cull,
+                            );
+                            if tested == Tested::Decided {
                                 decided = Some((g, t));
                             }
                         }
@@ -715,6 +749,7 @@ impl MeshTracer {
     ) -> Result<(Frame, Stats)> {
         opts.validate()?;
         let insts = self.prepare(time);
+        self.prepare_groups(insts.list(), false);
         render_frame_spp(cam, opts.spp, |o, d| {
             with_thread_buffer(opts.k, |b| self.trace(&insts, o, d, opts, b))
         })
