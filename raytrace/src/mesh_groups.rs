@@ -28,7 +28,7 @@ use rayon::prelude::*;
 
 use crate::mesh_bin::up;
 use crate::mesh_cands::{leads, LANES};
-use crate::mesh_tracer::Blas;
+use crate::mesh_tracer::{Blas, MeshTracer};
 use crate::model::Mesh;
 
 /// Groups of at least this many binned triangles (pair-leading, see
@@ -339,6 +339,69 @@ impl GroupTable {
         self.lines[s / LANES..e / LANES]
             .iter()
             .map(move |c| c.mask(at))
+    }
+}
+
+/// Candidates a frame's rays test for each triangle of the meshes without a group table, at
+/// which the per-ray path builds the tables first ([`MeshTracer::tables_pay`]). Measured on
+/// one-node exports of two real captures at 320×240 (single `trace`, wall time on 2 cores):
+/// the table costs 70–205 ns a triangle to build (MeshSplats fans of 8 to `rings` discs of 40,
+/// both tables filled in parallel) and saves 10–14 ns of each candidate the run-by-run walk
+/// tests, so it pays from 7–15 candidates a triangle. 16 builds it where it paid (`plant`'s
+/// `rings`, 31 a triangle: 6.0 → 3.75 s with the build; its MeshSplats fans, 38: 1.55 →
+/// 0.93 s) and not where it did not (`fourth_st`'s `rings`, 6.2: 2.15 → 3.76 s; `plant`'s
+/// opaque `rings` OBJ, 3.7: 0.76 → 2.27 s), `docs/trace-speed-groups.md`.
+pub(crate) const TABLE_CANDIDATES_PER_TRIANGLE: f64 = 16.0;
+
+/// Rays the estimate of [`MeshTracer::tables_pay`] traces at most (a 32×32 grid), and the
+/// largest share of a frame's rays it takes (a 16th).
+const SAMPLE_RAYS: u64 = 1024;
+
+impl MeshTracer {
+    /// Whether the per-ray path builds the group tables (`mesh_bin`'s `prepare_groups`)
+    /// before it traces `cam`: where some instanced mesh of runs has none yet and the frame's
+    /// rays, estimated from a grid of sample rays traced without them, test at least
+    /// [`TABLE_CANDIDATES_PER_TRIANGLE`] candidates for each of those meshes' triangles.
+    /// Opaque meshes (whose rays stop at their first hit) and small frames keep the
+    /// run-by-run walk; the images are the same either way (the table only chooses which
+    /// triangles get the exact test).
+    pub(crate) fn tables_pay(
+        &self,
+        insts: &crate::instances::Instances,
+        cam: &splatbridge_scene::Camera,
+        opts: &crate::render::RenderOptions,
+    ) -> bool {
+        let mut seen = vec![false; self.blas.len()];
+        let mut missing = 0u64;
+        for i in insts.list() {
+            let b = &self.blas[i.mesh];
+            if !seen[i.mesh] && !b.run_start.is_empty() && b.groups.get().is_none() {
+                seen[i.mesh] = true;
+                missing += self.scene.meshes[i.mesh].tris.len() as u64;
+            }
+        }
+        if missing == 0 {
+            return false;
+        }
+        let rays = cam.width as u64 * cam.height as u64 * opts.spp as u64;
+        let n = (rays / 16).clamp(1, SAMPLE_RAYS);
+        let aspect = cam.width as f64 / cam.height as f64;
+        let gx = ((n as f64 * aspect).sqrt().ceil() as u64).clamp(1, cam.width as u64);
+        let gy = n.div_ceil(gx).clamp(1, cam.height as u64);
+        let candidates: u64 = (0..gx * gy)
+            .into_par_iter()
+            .map(|s| {
+                let u = ((s % gx) as f64 + 0.5) * cam.width as f64 / gx as f64;
+                let v = ((s / gx) as f64 + 0.5) * cam.height as f64 / gy as f64;
+                let (o, d) = crate::render::camera_ray(cam, u, v);
+                let out = crate::mesh_tracer::with_thread_buffer(opts.k, |b| {
+                    self.trace(insts, o, d, opts, b)
+                });
+                out.candidates as u64
+            })
+            .sum();
+        let per_ray = candidates as f64 / (gx * gy) as f64;
+        per_ray * rays as f64 >= TABLE_CANDIDATES_PER_TRIANGLE * missing as f64
     }
 }
 

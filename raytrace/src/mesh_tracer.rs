@@ -748,10 +748,17 @@ impl MeshTracer {
         opts: &RenderOptions,
     ) -> Result<(Frame, Stats)> {
         opts.validate()?;
+        let start = std::time::Instant::now();
         let insts = self.prepare(time);
-        self.prepare_groups(insts.list(), false);
-        render_frame_spp(cam, opts.spp, |o, d| {
+        if self.tables_pay(&insts, cam, opts) {
+            self.prepare_groups(insts.list(), false);
+        }
+        let tables = start.elapsed().as_secs_f64();
+        let (frame, mut stats) = render_frame_spp(cam, opts.spp, |o, d| {
             with_thread_buffer(opts.k, |b| self.trace(&insts, o, d, opts, b))
-        })
+        })?;
+        // The frame's time includes the tables its rays read, as the tiles' includes binning.
+        stats.seconds += tables;
+        Ok((frame, stats))
     }
 }
