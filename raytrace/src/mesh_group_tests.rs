@@ -14,7 +14,8 @@ use super::mesh_bin::TileLists;
 use super::mesh_groups::GROUP_MARK;
 use super::mesh_hit::LocalRay;
 use super::mesh_tile_tests::{
-    assert_image_is_reference, check_every_sample, hit_bits, ided_mesh, nodes_over, tracer, Rng,
+    assert_image_is_reference, check_every_sample, hit_bits, ided_mesh, nodes_over, tracer,
+    worst_difference, Rng,
 };
 use super::model::{Mesh, TriScene};
 
@@ -262,13 +263,7 @@ fn per_ray_images_of_discs_match_the_tiles() {
                 };
                 let (a, _) = tracer.render_tiles(&cam, 0.0, &opts).unwrap();
                 let (b, _) = tracer.render_per_ray(&cam, 0.0, &opts).unwrap();
-                let worst = a
-                    .rgb
-                    .iter()
-                    .zip(&b.rgb)
-                    .chain(a.alpha.iter().zip(&b.alpha))
-                    .map(|(x, y)| (x - y).abs())
-                    .fold(0.0f32, f32::max);
+                let worst = worst_difference(&a, &b);
                 assert!(worst <= 1e-6, "seed {seed} k = {k}: {worst}");
                 assert!(a.alpha.iter().any(|&x| x > 0.5), "the discs are seen");
             }

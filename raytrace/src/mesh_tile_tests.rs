@@ -455,16 +455,20 @@ fn tile_images_match_per_ray_path() {
             };
             let (a, _) = tracer.render(&cam, 0.0, &opts).unwrap();
             let (b, _) = tracer.render_per_ray(&cam, 0.0, &opts).unwrap();
-            let worst = a
-                .rgb
-                .iter()
-                .zip(&b.rgb)
-                .chain(a.alpha.iter().zip(&b.alpha))
-                .map(|(x, y)| (x - y).abs())
-                .fold(0.0f32, f32::max);
+            let worst = worst_difference(&a, &b);
             assert!(worst <= 1e-6, "k = {k}: {worst}");
         }
     }
+}
+
+/// The largest difference between two images of one size, over colour and alpha.
+pub(crate) fn worst_difference(a: &Frame, b: &Frame) -> f32 {
+    a.rgb
+        .iter()
+        .zip(&b.rgb)
+        .chain(a.alpha.iter().zip(&b.alpha))
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0f32, f32::max)
 }
 
 #[test]
