@@ -612,7 +612,8 @@ impl MeshTracer {
             // `mesh_tiles::group_candidate`). The last such group and triangle, over the runs
             // in the order the walk reaches them (a disc's runs come one after another).
             let mut decided: Option<(u32, usize)> = None;
-            // Where the group table is built (`MeshTracer::prepare_groups`), a run's triangles
+            // Where the group table is built (`MeshTracer::prepare_groups`, on a frame that pays
+            // for it: `MeshTracer::tables_pay`), a run's triangles
             // of a group of at least `mesh_groups::MIN_MEMBERS` binned triangles are tested as
             // the tile path tests its group records: the members the ray may cross, by where
             // it crosses the group's plane (a disc's runs are entered by many rays that cross
