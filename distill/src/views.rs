@@ -54,17 +54,13 @@ impl Frame {
         let (lo, hi) = rig
             .bounds(cloud)
             .map_err(|_| SceneError::Invalid("cannot place views around an empty scene".into()))?;
-        let centre = 0.5 * (lo + hi);
-        let radius = (0.5 * (hi - lo).length()).max(1e-6);
-        let up = rig.up.as_dvec3().normalize();
-        let a = if up.x.abs() < 0.9 { DVec3::X } else { DVec3::Z };
-        let e1 = (a - up * a.dot(up)).normalize();
+        let p = rig.placement(lo, hi);
         Ok(Frame {
-            centre,
-            distance: radius / (0.5 * rig.fov_y_deg.to_radians()).sin() * 1.05,
-            up,
-            e1,
-            e2: up.cross(e1),
+            centre: p.centre,
+            distance: p.distance,
+            up: p.up,
+            e1: p.e1,
+            e2: p.e2,
             fov_y_deg: rig.fov_y_deg,
         })
     }

@@ -68,6 +68,15 @@ fn refine_bary(a: DVec3, b: DVec3, c: DVec3, o: DVec3, d: DVec3) -> Option<[f32;
     (s > 0.0 && s.is_finite()).then(|| [(l[0] / s) as f32, (l[1] / s) as f32, (l[2] / s) as f32])
 }
 
+/// Where the local ray `r` crosses the group plane `n·x = w` (`Blas::planes`), as a ray
+/// parameter: the distance every hit of the group is keyed by where it is finite. The one
+/// place it is computed, so that a group's test (`mesh_tiles::group_test`) and its
+/// triangles' ([`MeshTracer::test_triangle`]) agree on it bit for bit.
+#[inline]
+pub(crate) fn plane_distance((n, w): (DVec3, f64), r: &LocalRay) -> f64 {
+    (w - n.dot(r.lo64)) / n.dot(r.ld64)
+}
+
 impl MeshTracer {
     /// Test triangle `prim` (anchor-relative vertices `[a, b, c]`, planar group `g`) of
     /// instance `ii` (mesh `mesh`) against the local ray `r`, and insert its hit into `buf`,
@@ -103,8 +112,7 @@ impl MeshTracer {
             _ => {}
         }
         let wt = wt.ok();
-        let (pn, pw) = blas.planes[g as usize];
-        let tp = (pw - pn.dot(r.lo64)) / pn.dot(r.ld64);
+        let tp = plane_distance(blas.planes[g as usize], r);
         // From here on, with the group plane's distance the key is the group's: the other
         // winding of this triangle (same group, same Gaussian) would get the same key, and
         // where it is decided by the key alone it is [`Tested::Decided`].

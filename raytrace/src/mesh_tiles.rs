@@ -44,7 +44,7 @@ use crate::kbuffer::{Accum, KBuffer};
 use crate::mesh_bin::TileLists;
 use crate::mesh_cands::{Cand, Cold, HotChunk, LANES};
 use crate::mesh_groups::{RecordFrame, GROUP_MARK};
-use crate::mesh_hit::{Compositor, LocalRay, Query, Tested};
+use crate::mesh_hit::{plane_distance, Compositor, LocalRay, Query, Tested};
 use crate::mesh_tracer::{MeshTracer, PreparedInstance, TrianglePayload};
 use crate::render::{camera_ray, render_frame_tiles, RenderOptions, Stats};
 use crate::screen_cells::cell_span;
@@ -394,8 +394,8 @@ impl MeshTracer {
         // (`test_triangle`, the same arithmetic): beyond the cull distance, before the
         // query's range or at most the last round's key, each would be rejected by the key
         // alone, so none is tested (the buffer ends as it would).
-        let (pn, pw) = blas.planes[g as usize];
-        let tp = (pw - pn.dot(r.lo64)) / pn.dot(r.ld64);
+        let plane = blas.planes[g as usize];
+        let tp = plane_distance(plane, r);
         if tp.is_finite() {
             let t = tp as f32 + 0.0;
             let before_after = q.after.is_some_and(|a| t < f32::from_bits(a.0));
@@ -403,7 +403,7 @@ impl MeshTracer {
                 return;
             }
         }
-        let at = match table.crossing(frame, blas.planes[g as usize], r.lo64, r.ld64) {
+        let at = match table.crossing(frame, plane, r.lo64, r.ld64) {
             Some(None) => return,
             Some(Some(at)) => Some(at),
             None => None,

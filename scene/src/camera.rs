@@ -438,14 +438,13 @@ impl OrbitRig {
     /// Camera `i` of the `n`-camera orbit around explicit bounds; `cameras_around` is this for
     /// every `i`, so one camera and the whole rig agree bit for bit.
     pub fn camera_around(&self, lo: DVec3, hi: DVec3, n: usize, i: usize) -> Result<Camera> {
-        let centre = 0.5 * (lo + hi);
-        let radius = (0.5 * (hi - lo).length()).max(1e-6);
-        let up = self.up.as_dvec3().normalize();
-        let dist = radius / (0.5 * self.fov_y_deg.to_radians()).sin() * 1.05;
-        // Two horizontal axes orthogonal to up.
-        let a = if up.x.abs() < 0.9 { DVec3::X } else { DVec3::Z };
-        let e1 = (a - up * a.dot(up)).normalize();
-        let e2 = up.cross(e1);
+        let OrbitPlacement {
+            centre,
+            distance: dist,
+            up,
+            e1,
+            e2,
+        } = self.placement(lo, hi);
         let el = self.elevation_deg.to_radians();
         let az = std::f64::consts::TAU * i as f64 / n.max(1) as f64;
         let dir = (e1 * az.cos() + e2 * az.sin()) * el.cos() + up * el.sin();
@@ -460,6 +459,38 @@ impl OrbitRig {
         cam.name = format!("orbit {i}/{n}");
         Ok(cam)
     }
+}
+
+impl OrbitRig {
+    /// Where the rig's orbits around explicit bounds stand: the bounds' centre, the distance
+    /// at which their bounding sphere fills the vertical field of view, the unit up and two
+    /// horizontal axes orthogonal to it (azimuth 0 along `e1`). Every orbit camera, and
+    /// distillation's views about the same orbit, are placed from these numbers.
+    pub fn placement(&self, lo: DVec3, hi: DVec3) -> OrbitPlacement {
+        let centre = 0.5 * (lo + hi);
+        let radius = (0.5 * (hi - lo).length()).max(1e-6);
+        let up = self.up.as_dvec3().normalize();
+        let distance = radius / (0.5 * self.fov_y_deg.to_radians()).sin() * 1.05;
+        let a = if up.x.abs() < 0.9 { DVec3::X } else { DVec3::Z };
+        let e1 = (a - up * a.dot(up)).normalize();
+        OrbitPlacement {
+            centre,
+            distance,
+            up,
+            e1,
+            e2: up.cross(e1),
+        }
+    }
+}
+
+/// An orbit's centre, distance and axes ([`OrbitRig::placement`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OrbitPlacement {
+    pub centre: DVec3,
+    pub distance: f64,
+    pub up: DVec3,
+    pub e1: DVec3,
+    pub e2: DVec3,
 }
 
 pub use crate::camera_spec::CameraSpec;
