@@ -152,7 +152,7 @@ impl Distiller {
         composite::scatter(hits, dh, grad);
         if self.positions.is_some() {
             let mut to_local = vec![None; self.base.len()];
-            for inst in self.tracer.prepare(view.time) {
+            for inst in self.tracer.prepare_list(view.time) {
                 to_local[inst.mesh].get_or_insert(inst.to_local);
             }
             let rays = positions::ViewRays {

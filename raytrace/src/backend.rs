@@ -141,6 +141,12 @@ fn check_extent(points: impl Iterator<Item = Vec3>, what: &str) -> Result<()> {
     Ok(())
 }
 
+/// The check [`build_boxes`] makes before building: every corner within what an f32 BVH
+/// holds. After it, an obvhs build over the same boxes cannot fail.
+pub fn check_boxes(boxes: &[(Vec3, Vec3)]) -> Result<()> {
+    check_extent(boxes.iter().flat_map(|(lo, hi)| [*lo, *hi]), "box corner")
+}
+
 /// Build a structure over triangles (`tris` index `verts`).
 pub fn build_triangles(
     kind: BackendKind,
@@ -187,7 +193,7 @@ pub fn build_boxes(
     if boxes.is_empty() {
         return Ok(Box::new(EmptyAccel));
     }
-    check_extent(boxes.iter().flat_map(|(lo, hi)| [*lo, *hi]), "box corner")?;
+    check_boxes(boxes)?;
     match kind {
         BackendKind::Obvhs => {
             if let Some(a) = crate::dedup::FoldedAccel::build(boxes, |d| {

@@ -21,6 +21,8 @@ mod mesh_group_tests;
 mod mesh_groups;
 pub(crate) mod mesh_hit;
 #[cfg(test)]
+mod mesh_load_tests;
+#[cfg(test)]
 mod mesh_tile_tests;
 pub(crate) mod mesh_tiles;
 pub mod mesh_tracer;

@@ -357,8 +357,7 @@ fn crossing_filter_keeps_every_reported_triangle() {
                         continue;
                     }
                     reported += 1;
-                    let plane = blas.planes[g as usize];
-                    let kept = match table.crossing(&table.record(g), plane, ray.lo64, ray.ld64) {
+                    let kept = match table.crossing(g, &table.record(g), &ray) {
                         None => true,
                         Some(None) => false,
                         Some(Some(at)) => {

@@ -137,8 +137,28 @@ pub(crate) struct GroupTable {
     /// Lanes of `members`, eight at a time: chunk `k` is members `8k..8k + 8`.
     lines: Vec<LineChunk>,
     frames: Vec<RecordFrame>,
+    /// Each group's frame in f64 ([`axes`] of its plane and its record's `e1`), made once
+    /// here instead of at every crossing (a square root and four divisions a group a ray).
+    axes: Vec<Axes>,
     /// The largest magnitude of a vertex relative to the anchor.
     vmax: f64,
+}
+
+/// A group's unit normal `n` and offset `w` (`n·x = w`) and its frame's second axis, as
+/// [`axes`] makes them; the first axis is the record's `e1`.
+#[derive(Clone, Copy, Debug)]
+struct Axes {
+    n: DVec3,
+    w: f64,
+    e2: Vec3,
+}
+
+impl Axes {
+    const NONE: Axes = Axes {
+        n: DVec3::ZERO,
+        w: 0.0,
+        e2: Vec3::ZERO,
+    };
 }
 
 /// Where a ray crosses a group's plane, in its frame, and the sideways margin within which
@@ -173,6 +193,7 @@ impl GroupTable {
                 members: Vec::new(),
                 lines: Vec::new(),
                 frames: Vec::new(),
+                axes: Vec::new(),
                 vmax,
             };
         }
@@ -194,6 +215,7 @@ impl GroupTable {
         drop(next);
         let vert = |i: u32| blas.relative(mesh.positions[i as usize]);
         let mut frames = vec![RecordFrame::NONE; groups];
+        let mut group_axes = vec![Axes::NONE; groups];
         let mut lines = vec![LineChunk::EMPTY; members.len() / LANES];
         // Each group's chunks, in group order: the groups are independent and filled in
         // parallel (the table's first frame was a serial pass over every triangle).
@@ -207,10 +229,11 @@ impl GroupTable {
         }
         frames
             .par_iter_mut()
+            .zip(group_axes.par_iter_mut())
             .zip(chunks.into_par_iter())
             .enumerate()
             .with_min_len(256)
-            .for_each(|(g, (frame, lines))| {
+            .for_each(|(g, ((frame, ga), lines))| {
                 let (s, e) = (start[g] as usize, start[g + 1] as usize);
                 let (pn, _) = blas.planes[g];
                 let len = pn.length();
@@ -219,6 +242,11 @@ impl GroupTable {
                 }
                 let e1 = (pn / len).any_orthonormal_vector().as_vec3();
                 let (n, w, e1d, e2d) = axes(blas.planes[g], e1);
+                *ga = Axes {
+                    n,
+                    w,
+                    e2: e2d.as_vec3(),
+                };
                 let origin = vert(mesh.tris[members[s] as usize][0]);
                 let od = origin.as_dvec3();
                 let (mut slab, mut reach) = (0.0f64, 0.0f64);
@@ -247,6 +275,7 @@ impl GroupTable {
             members,
             lines,
             frames,
+            axes: group_axes,
             vmax,
         }
     }
@@ -277,29 +306,34 @@ impl GroupTable {
         self.frames[g as usize]
     }
 
-    /// Where the local ray `o + s·d` crosses the plane `plane` (`blas.planes[g]`) of the group
-    /// whose record carries `f`, with the margin of the module documentation: `Some(None)`
-    /// where the ray can cross none of the group's triangles (the crossing is beyond the
-    /// margin of the members' reach), `None` where every triangle must be tested.
+    /// Where the local ray `r` crosses the plane of group `g`, whose record carries `f`, with
+    /// the margin of the module documentation: `Some(None)` where the ray can cross none of
+    /// the group's triangles (the crossing is beyond the margin of the members' reach),
+    /// `None` where every triangle must be tested.
     #[inline]
     pub(crate) fn crossing(
         &self,
+        g: u32,
         f: &RecordFrame,
-        plane: (DVec3, f64),
-        o: DVec3,
-        d: DVec3,
+        r: &crate::mesh_hit::LocalRay,
     ) -> Option<Option<Crossing>> {
-        let (n, w, e1, e2) = axes(plane, f.e1);
-        let nd = n.dot(d);
-        let c = (nd / d.length()).abs();
         let slab = f.slab as f64;
-        if !(c >= MIN_COSINE) || !slab.is_finite() {
+        // A group without a frame (`RecordFrame::NONE`) has no axes either.
+        if !slab.is_finite() {
+            return None;
+        }
+        let Axes { n, w, e2 } = self.axes[g as usize];
+        let (e1, e2) = (f.e1.as_dvec3(), e2.as_dvec3());
+        let (o, d) = (r.lo64, r.ld64);
+        let nd = n.dot(d);
+        let c = (nd / r.ld_len).abs();
+        if !(c >= MIN_COSINE) {
             return None;
         }
         let p = o + d * ((w - n.dot(o)) / nd);
         let q = p - f.origin.as_dvec3();
         let (x, y) = (q.dot(e1), q.dot(e2));
-        let r = o.length() + self.vmax;
+        let r = r.lo_len + self.vmax;
         // The ray meets a member at most `slab/c` from `p`; the frame's axes, off unit and
         // orthogonal by the f32 rounding, move that displacement's projection by less than
         // 1e-6 of it. The plane normalised rounds by a relative 1e-16, far below the last

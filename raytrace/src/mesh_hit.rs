@@ -20,6 +20,10 @@ use splatbridge_scene::srgb::encode_unit;
 pub(crate) struct LocalRay {
     pub lo64: DVec3,
     pub ld64: DVec3,
+    /// `lo64.length()` and `ld64.length()`, which every group record the ray reaches reads
+    /// (`GroupTable::crossing`): taken once a ray and instance.
+    pub lo_len: f64,
+    pub ld_len: f64,
     pub wray: WRay,
 }
 
@@ -34,6 +38,8 @@ impl LocalRay {
         Some(LocalRay {
             lo64,
             ld64,
+            lo_len: lo64.length(),
+            ld_len: ld64.length(),
             wray: WRay::new(lo, ld),
         })
     }

@@ -403,7 +403,7 @@ impl MeshTracer {
                 return;
             }
         }
-        let at = match table.crossing(frame, plane, r.lo64, r.ld64) {
+        let at = match table.crossing(g, frame, r) {
             Some(None) => return,
             Some(Some(at)) => Some(at),
             None => None,

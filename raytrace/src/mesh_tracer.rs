@@ -34,12 +34,13 @@
 //! only a mesh whose morph weights change is posed and rebuilt, [`MeshTracer::set_time`]).
 
 use std::ops::ControlFlow;
+use std::sync::OnceLock;
 use std::time::Instant;
 
 use glam::{DAffine3, DVec3, Vec3, Vec4};
 use rayon::prelude::*;
 
-use crate::backend::{build_boxes, build_triangles, Accel, BackendKind, BuildPreset};
+use crate::backend::{build_boxes, build_triangles, check_boxes, Accel, BackendKind, BuildPreset};
 use crate::error::Result;
 use crate::geom::{ray_box, transformed_box};
 pub use crate::instances::Instances;
@@ -121,7 +122,11 @@ pub struct Blas {
     /// NaN coordinate is skipped by `min`/`max`): the screen tiles may skip an instance whose
     /// box the camera cannot see (`mesh_tiles::box_unseen`).
     pub finite: bool,
-    pub accel: Box<dyn Accel>,
+    /// The BVH ([`Blas::accel`]). An obvhs BVH over runs is built on the first frame that
+    /// traces ray by ray ([`MeshTracer::prepare`]): frames through the screen tiles bin the
+    /// triangles themselves and never read it (building it was a third of the load of a
+    /// `rings` export, `docs/trace-speed-mesh.md`, "The BVH where a frame reads it").
+    accel: OnceLock<Box<dyn Accel>>,
     /// Over single triangles: the triangles laid out in the acceleration structure's order
     /// (see `Accel::slots`), their vertices (relative to `anchor`), index in the mesh and
     /// group, so traversal reads them in order. Empty over runs of triangles.
@@ -239,6 +244,11 @@ impl Blas {
             group[t] = g;
         }
         group
+    }
+
+    /// Whether the BVH is built (not left for its first use).
+    pub fn accel_built(&self) -> bool {
+        self.accel.get().is_some()
     }
 
     /// A vertex position relative to the anchor, in f32 (what the hit test sees).
@@ -466,25 +476,32 @@ impl MeshTracer {
             Some(n) => run_starts(&m.tri_gaussian, m.tris.len(), n),
             None => Vec::new(),
         };
-        let (accel, group) = match per_box {
+        let accel = OnceLock::new();
+        let group = match per_box {
             Some(_) => {
                 let boxes = run_boxes(m.positions.len(), &rel_of, &m.tris, &run_start)?;
                 // Compacted before the build, whose scratch is the stage's peak.
                 let group = GroupIds::over_runs(group, &run_start);
-                (build_boxes(backend, preset, &boxes)?, group)
+                if backend == BackendKind::Obvhs {
+                    // Checked now, built on first use (`MeshTracer::accel`) from the same
+                    // boxes, made again then (a pass over the triangles, not kept meanwhile).
+                    check_boxes(&boxes)?;
+                } else {
+                    let _ = accel.set(build_boxes(backend, preset, &boxes)?);
+                }
+                group
             }
             None => {
                 let rel: Vec<Vec3> = (0..m.positions.len() as u32).map(rel_of).collect();
-                (
-                    build_triangles(backend, preset, &rel, &m.tris)?,
-                    GroupIds::Full(group),
-                )
+                let _ = accel.set(build_triangles(backend, preset, &rel, &m.tris)?);
+                GroupIds::Full(group)
             }
         };
         let prims = m.tris.len();
         let (mut slot_verts, mut slot_tri, mut slot_group) = (Vec::new(), Vec::new(), Vec::new());
         if per_box.is_none() {
-            slot_tri = match accel.slots() {
+            let accel = accel.get().map(|a| a.as_ref());
+            slot_tri = match accel.and_then(|a| a.slots()) {
                 Some(s) => s.to_vec(),
                 None => (0..prims as u32).collect(),
             };
@@ -521,8 +538,30 @@ impl MeshTracer {
 
     /// Instances visible at `t`, with inverse transforms and world bounds, under a top-level
     /// BVH (see [`Instances`]).
+    /// Mesh `mesh`'s BVH, built here if it was left for its first use (an obvhs BVH over
+    /// runs). Nothing inside the build runs on other threads, so a thread waiting for it
+    /// never holds work it needs.
+    pub fn accel(&self, mesh: usize) -> &dyn Accel {
+        let (blas, m) = (&self.blas[mesh], &self.scene.meshes[mesh]);
+        blas.accel
+            .get_or_init(|| {
+                let rel = |i: u32| blas.relative(m.positions[i as usize]);
+                // `build_blas` made these boxes and refused any an f32 BVH cannot hold (the
+                // only way an obvhs build fails) before leaving the build for later.
+                run_boxes(m.positions.len(), &rel, &m.tris, &blas.run_start)
+                    .and_then(|boxes| build_boxes(BackendKind::Obvhs, self.preset, &boxes))
+                    .unwrap_or_else(|e| unreachable!("the run boxes were checked: {e}"))
+            })
+            .as_ref()
+    }
+
     pub fn prepare(&self, t: f64) -> Instances {
-        Instances::new(self.prepare_list(t), self.backend)
+        let list = self.prepare_list(t);
+        // The BVHs left for their first use, side by side (each build is serial within).
+        list.par_iter().for_each(|i| {
+            self.accel(i.mesh);
+        });
+        Instances::new(list, self.backend)
     }
 
     /// How many triangles the instances `insts` draw (a mesh counted once per instance).
@@ -621,56 +660,54 @@ impl MeshTracer {
             let table = blas.groups.get().filter(|_| blas.mirror.get().is_some());
             let mut grouped = [u32::MAX; 4];
             let mut next = 0;
-            blas.accel
-                .traverse_slots(lo, ld, t_from, cull0, &mut |slot, reported, cull| {
-                    let s = slot as usize;
-                    if blas.run_start.is_empty() {
-                        let (v, g) = (blas.slot_verts[s], blas.slot_group[s]);
-                        let prim = blas.slot_tri[s];
-                        self.test_triangle(ii, inst.mesh, &r, v, g, prim, reported, &q, buf, cull);
-                    } else {
-                        let p = blas.accel.slots().map_or(s, |m| m[s] as usize);
-                        let (start, end) =
-                            (blas.run_start[p] as usize, blas.run_start[p + 1] as usize);
-                        let mut group_once =
-                            |g: u32, buf: &mut KBuffer<TrianglePayload>, cull: &mut f32| {
-                                let Some(table) = table.filter(|tb| tb.is_group(g, true)) else {
-                                    return false;
-                                };
-                                if !grouped.contains(&g) {
-                                    grouped[next] = g;
-                                    next = (next + 1) % grouped.len();
-                                    let frame = table.record(g);
-                                    self.group_test(ii, inst.mesh, &r, g, &frame, &q, buf, cull);
-                                }
-                                true
+            let accel = self.accel(inst.mesh);
+            accel.traverse_slots(lo, ld, t_from, cull0, &mut |slot, reported, cull| {
+                let s = slot as usize;
+                if blas.run_start.is_empty() {
+                    let (v, g) = (blas.slot_verts[s], blas.slot_group[s]);
+                    let prim = blas.slot_tri[s];
+                    self.test_triangle(ii, inst.mesh, &r, v, g, prim, reported, &q, buf, cull);
+                } else {
+                    let p = accel.slots().map_or(s, |m| m[s] as usize);
+                    let (start, end) = (blas.run_start[p] as usize, blas.run_start[p + 1] as usize);
+                    let mut group_once =
+                        |g: u32, buf: &mut KBuffer<TrianglePayload>, cull: &mut f32| {
+                            let Some(table) = table.filter(|tb| tb.is_group(g, true)) else {
+                                return false;
                             };
-                        // Most runs lie in one group (a disc's 16 triangles): one check.
-                        let g0 = blas.group.get(p, start);
-                        if table.is_some()
-                            && (start + 1..end).all(|t| blas.group.get(p, t) == g0)
-                            && group_once(g0, buf, cull)
-                        {
-                            return;
+                            if !grouped.contains(&g) {
+                                grouped[next] = g;
+                                next = (next + 1) % grouped.len();
+                                let frame = table.record(g);
+                                self.group_test(ii, inst.mesh, &r, g, &frame, &q, buf, cull);
+                            }
+                            true
+                        };
+                    // Most runs lie in one group (a disc's 16 triangles): one check.
+                    let g0 = blas.group.get(p, start);
+                    if table.is_some()
+                        && (start + 1..end).all(|t| blas.group.get(p, t) == g0)
+                        && group_once(g0, buf, cull)
+                    {
+                        return;
+                    }
+                    for t in start..end {
+                        let g = blas.group.get(p, t);
+                        if group_once(g, buf, cull) {
+                            continue;
                         }
-                        for t in start..end {
-                            let g = blas.group.get(p, t);
-                            if group_once(g, buf, cull) {
-                                continue;
-                            }
-                            if decided.is_some_and(|(dg, dt)| dg == g && t > dt) {
-                                continue;
-                            }
-                            let v = blas.triangle(&mesh.positions, mesh.tris[t]);
-                            let tested = self.test_triangle(
-                                ii, inst.mesh, &r, v, g, t as u32, false, &q, buf, cull,
-                            );
-                            if tested == Tested::Decided {
-                                decided = Some((g, t));
-                            }
+                        if decided.is_some_and(|(dg, dt)| dg == g && t > dt) {
+                            continue;
+                        }
+                        let v = blas.triangle(&mesh.positions, mesh.tris[t]);
+                        let tested = self
+                            .test_triangle(ii, inst.mesh, &r, v, g, t as u32, false, &q, buf, cull);
+                        if tested == Tested::Decided {
+                            decided = Some((g, t));
                         }
                     }
-                });
+                }
+            });
         }
     }
 

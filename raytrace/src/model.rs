@@ -10,6 +10,7 @@
 //! with morph targets change shape, posed per time by `morph`.
 
 use glam::{DAffine3, DMat3, DQuat, DVec3, Vec2, Vec3, Vec4};
+use rayon::prelude::*;
 use splatbridge_scene::Camera;
 
 pub use crate::texture::{Texture, Wrap};
@@ -693,18 +694,74 @@ impl Mesh {
     /// Gaussian are orthogonal and parallel faces of a solid are offset by their separation.
     /// Returns (per-triangle group, group count).
     pub fn planar_groups(&self) -> (Vec<u32>, u32) {
+        self.planar_groups_in(1 << 16)
+    }
+
+    /// [`Mesh::planar_groups`] with stretches of at least `stretch` triangles.
+    pub(crate) fn planar_groups_in(&self, stretch: usize) -> (Vec<u32>, u32) {
         // Exports list a Gaussian's triangles together, in ascending order: then the order is
-        // the identity and is not materialised (4 bytes a triangle). Otherwise a stable sort,
-        // which gives the same order on ascending input, so groups do not depend on the path.
+        // the identity and is not materialised (4 bytes a triangle), and stretches of whole
+        // Gaussians are grouped side by side, each numbering its groups from 0, then offset
+        // by the groups of the stretches before it: the numbers one pass in this order gives.
+        // Otherwise a stable sort, which gives the same order on ascending input, so groups
+        // do not depend on the path.
         let ascending = self.tri_gaussian.windows(2).all(|w| w[0] <= w[1]);
-        let order: Box<dyn Iterator<Item = u32> + '_> = if ascending {
-            Box::new(0..self.tris.len() as u32)
-        } else {
+        if !ascending {
             let mut order: Vec<u32> = (0..self.tris.len() as u32).collect();
             order.sort_by_key(|&t| self.tri_gaussian[t as usize]);
-            Box::new(order.into_iter())
-        };
-        let mut group = vec![u32::MAX; self.tris.len()];
+            let mut group = vec![u32::MAX; self.tris.len()];
+            let next = self.group_pass(order.into_iter(), 0, &mut group);
+            return (group, next);
+        }
+        let n = self.tris.len();
+        // Stretches of at least `stretch` triangles, ending where a Gaussian does.
+        let mut cuts = vec![0usize];
+        while let Some(&last) = cuts.last() {
+            let mut end = (last + stretch.max(1)).min(n);
+            while end < n && self.tri_gaussian[end] == self.tri_gaussian[end - 1] {
+                end += 1;
+            }
+            cuts.push(end);
+            if end == n {
+                break;
+            }
+        }
+        let mut group = vec![u32::MAX; n];
+        let mut parts: Vec<&mut [u32]> = Vec::with_capacity(cuts.len());
+        let mut rest = &mut group[..];
+        for w in cuts.windows(2) {
+            let (mine, tail) = std::mem::take(&mut rest).split_at_mut(w[1] - w[0]);
+            parts.push(mine);
+            rest = tail;
+        }
+        let counts: Vec<u32> = parts
+            .into_par_iter()
+            .zip(cuts.par_windows(2))
+            .map(|(part, w)| self.group_pass(w[0] as u32..w[1] as u32, w[0], part))
+            .collect();
+        let mut offsets = Vec::with_capacity(counts.len());
+        let mut next = 0u32;
+        for c in counts {
+            offsets.push(next);
+            next += c;
+        }
+        for (w, &off) in cuts.windows(2).zip(&offsets) {
+            if off != 0 {
+                group[w[0]..w[1]].par_iter_mut().for_each(|g| *g += off);
+            }
+        }
+        (group, next)
+    }
+
+    /// One pass of [`Mesh::planar_groups`] over the triangles `order` (a Gaussian's
+    /// triangles together), numbering groups from 0 in order of first appearance: triangle
+    /// `t`'s into `group[t - offset]`. Returns the number of groups.
+    fn group_pass(
+        &self,
+        order: impl Iterator<Item = u32>,
+        offset: usize,
+        group: &mut [u32],
+    ) -> u32 {
         let mut next = 0u32;
         // Representatives of the current Gaussian's groups: (normal, point, tolerance, id).
         let mut reps: Vec<(DVec3, DVec3, f64, u32)> = Vec::new();
@@ -718,7 +775,13 @@ impl Mesh {
             }
             let [a, b, c] = self.tris[t].map(|i| self.positions[i as usize].as_dvec3());
             let n = (b - a).cross(c - a);
-            let ext = (b - a).length().max((c - a).length()).max((c - b).length());
+            // The longest side: the root of the largest squared side is the largest of the
+            // roots (a correctly rounded square root is monotone), one root instead of three.
+            let ext = (b - a)
+                .length_squared()
+                .max((c - a).length_squared())
+                .max((c - b).length_squared())
+                .sqrt();
             let nn = n.normalize_or_zero();
             let found = if nn == DVec3::ZERO {
                 None
@@ -731,7 +794,7 @@ impl Mesh {
                         })
                 })
             };
-            group[t] = match found {
+            group[t - offset] = match found {
                 Some(r) => r.3,
                 None => {
                     let id = next;
@@ -743,6 +806,6 @@ impl Mesh {
                 }
             };
         }
-        (group, next)
+        next
     }
 }
