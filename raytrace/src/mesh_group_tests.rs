@@ -12,7 +12,7 @@ use splatbridge_scene::Camera;
 use super::footprint::sample_offsets;
 use super::mesh_bin::TileLists;
 use super::mesh_groups::GROUP_MARK;
-use super::mesh_hit::LocalRay;
+use super::mesh_hit::{plane_distance, LocalRay};
 use super::mesh_tile_tests::{
     assert_image_is_reference, check_every_sample, hit_bits, ided_mesh, nodes_over, tracer,
     worst_difference, Rng,
@@ -357,7 +357,8 @@ fn crossing_filter_keeps_every_reported_triangle() {
                         continue;
                     }
                     reported += 1;
-                    let kept = match table.crossing(g, &table.record(g), &ray) {
+                    let tp = plane_distance(blas.planes[g as usize], &ray);
+                    let kept = match table.crossing(g, &table.record(g), &ray, tp) {
                         None => true,
                         Some(None) => false,
                         Some(Some(at)) => {

@@ -144,19 +144,17 @@ pub(crate) struct GroupTable {
     vmax: f64,
 }
 
-/// A group's unit normal `n` and offset `w` (`n·x = w`) and its frame's second axis, as
-/// [`axes`] makes them; the first axis is the record's `e1`.
+/// A group's unit normal and its frame's second axis, as [`axes`] makes them; the first
+/// axis is the record's `e1`.
 #[derive(Clone, Copy, Debug)]
 struct Axes {
     n: DVec3,
-    w: f64,
     e2: Vec3,
 }
 
 impl Axes {
     const NONE: Axes = Axes {
         n: DVec3::ZERO,
-        w: 0.0,
         e2: Vec3::ZERO,
     };
 }
@@ -244,7 +242,6 @@ impl GroupTable {
                 let (n, w, e1d, e2d) = axes(blas.planes[g], e1);
                 *ga = Axes {
                     n,
-                    w,
                     e2: e2d.as_vec3(),
                 };
                 let origin = vert(mesh.tris[members[s] as usize][0]);
@@ -309,39 +306,44 @@ impl GroupTable {
     /// Where the local ray `r` crosses the plane of group `g`, whose record carries `f`, with
     /// the margin of the module documentation: `Some(None)` where the ray can cross none of
     /// the group's triangles (the crossing is beyond the margin of the members' reach),
-    /// `None` where every triangle must be tested.
+    /// `None` where every triangle must be tested. `tp`: the ray's distance to the group
+    /// plane as the hit key takes it (`mesh_hit::plane_distance`).
     #[inline]
     pub(crate) fn crossing(
         &self,
         g: u32,
         f: &RecordFrame,
         r: &crate::mesh_hit::LocalRay,
+        tp: f64,
     ) -> Option<Option<Crossing>> {
         let slab = f.slab as f64;
         // A group without a frame (`RecordFrame::NONE`) has no axes either.
         if !slab.is_finite() {
             return None;
         }
-        let Axes { n, w, e2 } = self.axes[g as usize];
+        let Axes { n, e2 } = self.axes[g as usize];
         let (e1, e2) = (f.e1.as_dvec3(), e2.as_dvec3());
-        let (o, d) = (r.lo64, r.ld64);
-        let nd = n.dot(d);
-        let c = (nd / r.ld_len).abs();
+        let nd = n.dot(r.ld64).abs();
+        // The cosine and its reciprocal, each within a few ulps of the quotient `|n·d|/|d|`
+        // (one per ray, one here).
+        let c = nd * r.ld_inv;
         if !(c >= MIN_COSINE) {
             return None;
         }
-        let p = o + d * ((w - n.dot(o)) / nd);
+        let inv_c = r.ld_len / nd;
+        // The crossing at the key's distance: the unnormalised plane's quotient, which differs
+        // from the normalised one's by a relative 1e-16 (far below the margin's last term).
+        let p = r.lo64 + r.ld64 * tp;
         let q = p - f.origin.as_dvec3();
         let (x, y) = (q.dot(e1), q.dot(e2));
-        let r = r.lo_len + self.vmax;
+        let rr = r.lo_len + self.vmax;
         // The ray meets a member at most `slab/c` from `p`; the frame's axes, off unit and
         // orthogonal by the f32 rounding, move that displacement's projection by less than
-        // 1e-6 of it. The plane normalised rounds by a relative 1e-16, far below the last
-        // term.
-        let margin = slab * (1.0 - c * c).max(0.0).sqrt() / c
-            + 1e-6 * slab / c
-            + EPS * r / c
-            + 1e-9 * (r + p.length());
+        // 1e-6 of it. The few ulps of the cosine, of `1/c` and of this sum are covered by the
+        // relative 1e-12; `|p|₁ ≥ |p|` stands for the magnitude of the crossing.
+        let margin =
+            (slab * (1.0 - c * c).max(0.0).sqrt() + 1e-6 * slab + EPS * rr) * inv_c * (1.0 + 1e-12)
+                + 1e-9 * (rr + p.abs().element_sum());
         if !(x.is_finite() && y.is_finite() && margin.is_finite()) {
             return None;
         }

@@ -24,6 +24,8 @@ pub(crate) struct LocalRay {
     /// (`GroupTable::crossing`): taken once a ray and instance.
     pub lo_len: f64,
     pub ld_len: f64,
+    /// `1 / ld_len`.
+    pub ld_inv: f64,
     pub wray: WRay,
 }
 
@@ -40,6 +42,7 @@ impl LocalRay {
             ld64,
             lo_len: lo64.length(),
             ld_len: ld64.length(),
+            ld_inv: 1.0 / ld64.length(),
             wray: WRay::new(lo, ld),
         })
     }

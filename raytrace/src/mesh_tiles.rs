@@ -403,7 +403,7 @@ impl MeshTracer {
                 return;
             }
         }
-        let at = match table.crossing(g, frame, r) {
+        let at = match table.crossing(g, frame, r, tp) {
             Some(None) => return,
             Some(Some(at)) => Some(at),
             None => None,
