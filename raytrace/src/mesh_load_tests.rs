@@ -25,6 +25,7 @@ fn tiles_leave_the_bvh_unbuilt_and_rays_build_it() {
         assert_image_is_reference(&tiles, &cam, 1, "through the tiles");
     }
     assert!(built(&tiles).iter().all(|b| !b), "{:?}", built(&tiles));
+    assert_eq!(tiles.total_build_seconds(), tiles.build_seconds);
     // A frame ray by ray builds every instanced mesh's BVH, and draws what a tracer whose
     // BVHs were built by its own first such frame draws.
     let fresh = tracer(scene(4, Vec3::ZERO, true));
@@ -35,6 +36,8 @@ fn tiles_leave_the_bvh_unbuilt_and_rays_build_it() {
         assert_eq!(bits(&a), bits(&b));
     }
     assert!(built(&tiles).iter().all(|&b| b), "{:?}", built(&tiles));
+    // Their build counts as build time (reported beside the load's), not as a frame's.
+    assert!(tiles.total_build_seconds() > tiles.build_seconds);
 }
 
 #[test]

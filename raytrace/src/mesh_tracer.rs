@@ -340,8 +340,11 @@ pub struct MeshTracer {
     preset: BuildPreset,
     /// Each mesh's triangles per box (`None`: single triangles), to rebuild a posed mesh's BVH.
     per_box: Vec<Option<usize>>,
-    /// Seconds spent building all BVHs (including the planar grouping).
+    /// Seconds spent building at load (the planar grouping included); the BVHs left for
+    /// their first use add theirs to [`MeshTracer::total_build_seconds`].
     pub build_seconds: f64,
+    /// Nanoseconds spent building BVHs left for their first use (`MeshTracer::accel`).
+    deferred_build_nanos: std::sync::atomic::AtomicU64,
 }
 
 impl MeshTracer {
@@ -413,6 +416,7 @@ impl MeshTracer {
             preset,
             per_box: per_boxes,
             build_seconds: start.elapsed().as_secs_f64(),
+            deferred_build_nanos: Default::default(),
         })
     }
 
@@ -545,14 +549,28 @@ impl MeshTracer {
         let (blas, m) = (&self.blas[mesh], &self.scene.meshes[mesh]);
         blas.accel
             .get_or_init(|| {
+                let start = Instant::now();
                 let rel = |i: u32| blas.relative(m.positions[i as usize]);
                 // `build_blas` made these boxes and refused any an f32 BVH cannot hold (the
                 // only way an obvhs build fails) before leaving the build for later.
-                run_boxes(m.positions.len(), &rel, &m.tris, &blas.run_start)
+                let accel = run_boxes(m.positions.len(), &rel, &m.tris, &blas.run_start)
                     .and_then(|boxes| build_boxes(BackendKind::Obvhs, self.preset, &boxes))
-                    .unwrap_or_else(|e| unreachable!("the run boxes were checked: {e}"))
+                    .unwrap_or_else(|e| unreachable!("the run boxes were checked: {e}"));
+                let nanos = start.elapsed().as_nanos().min(u64::MAX as u128) as u64;
+                self.deferred_build_nanos
+                    .fetch_add(nanos, std::sync::atomic::Ordering::Relaxed);
+                accel
             })
             .as_ref()
+    }
+
+    /// Seconds spent building BVHs: at load ([`MeshTracer::build_seconds`]) and on first use
+    /// since (summed over the threads that built them).
+    pub fn total_build_seconds(&self) -> f64 {
+        let deferred = self
+            .deferred_build_nanos
+            .load(std::sync::atomic::Ordering::Relaxed);
+        self.build_seconds + deferred as f64 * 1e-9
     }
 
     pub fn prepare(&self, t: f64) -> Instances {
@@ -786,6 +804,10 @@ impl MeshTracer {
         opts: &RenderOptions,
     ) -> Result<(Frame, Stats)> {
         opts.validate()?;
+        // The BVHs left for their first use count as build time, not as the frame's.
+        self.prepare_list(time).par_iter().for_each(|i| {
+            self.accel(i.mesh);
+        });
         let start = std::time::Instant::now();
         let insts = self.prepare(time);
         if self.tables_pay(&insts, cam, opts) {

@@ -251,10 +251,11 @@ impl Renderer {
         )
     }
 
-    /// Seconds spent building BVHs (0 for native and hybrid).
+    /// Seconds spent building BVHs so far (0 for native and hybrid): mode mesh builds a BVH
+    /// over runs on the first frame that reads it, so after a render this includes it.
     pub fn build_seconds(&self) -> f64 {
         match self {
-            Renderer::Mesh { tracer, .. } => tracer.build_seconds,
+            Renderer::Mesh { tracer, .. } => tracer.total_build_seconds(),
             Renderer::Gaussian { tracer, .. } => tracer.build_seconds,
             _ => 0.0,
         }

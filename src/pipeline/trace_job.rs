@@ -76,7 +76,6 @@ pub fn run_trace(
     let take_gaussians = !job.frames && !job.lidar_all_frames;
     let mut tracer = Renderer::tracer_taking(&mut p, job.backend, job.preset, take_gaussians)
         .with_context(|| name.clone())?;
-    let build_seconds = tracer.build_seconds();
     let lidar_dir = match &job.lidar_out {
         Some(d) => d.clone(),
         None => folder_of(&job.output),
@@ -103,6 +102,8 @@ pub fn run_trace(
         }),
     };
     let r = render_frame(&mut tracer, &req).with_context(|| name.clone())?;
+    // After the frame: mode mesh builds a BVH the frame reads on its first use.
+    let build_seconds = tracer.build_seconds();
     // LiDAR runs inside the frame, so a failing scan fails before the image is written.
     save_frame(&job.output, &r.frame)?;
     if job.shard.is_some() && r.lidar.is_none() {
