@@ -122,10 +122,11 @@ pub struct Blas {
     /// NaN coordinate is skipped by `min`/`max`): the screen tiles may skip an instance whose
     /// box the camera cannot see (`mesh_tiles::box_unseen`).
     pub finite: bool,
-    /// The BVH ([`Blas::accel`]). An obvhs BVH over runs is built on the first frame that
-    /// traces ray by ray ([`MeshTracer::prepare`]): frames through the screen tiles bin the
-    /// triangles themselves and never read it (building it was a third of the load of a
-    /// `rings` export, `docs/trace-speed-mesh.md`, "The BVH where a frame reads it").
+    /// The BVH ([`MeshTracer::accel`]). An obvhs BVH over runs is built on the first frame
+    /// that traces ray by ray ([`MeshTracer::prepare`]): frames through the screen tiles bin
+    /// the triangles themselves and never read it (building it was a third of the load of a
+    /// `rings` export, `docs/trace-speed-groups.md`, "What a mesh costs before its first
+    /// ray").
     accel: OnceLock<Box<dyn Accel>>,
     /// Over single triangles: the triangles laid out in the acceleration structure's order
     /// (see `Accel::slots`), their vertices (relative to `anchor`), index in the mesh and
@@ -540,8 +541,6 @@ impl MeshTracer {
         })
     }
 
-    /// Instances visible at `t`, with inverse transforms and world bounds, under a top-level
-    /// BVH (see [`Instances`]).
     /// Mesh `mesh`'s BVH, built here if it was left for its first use (an obvhs BVH over
     /// runs). Nothing inside the build runs on other threads, so a thread waiting for it
     /// never holds work it needs.
@@ -573,12 +572,19 @@ impl MeshTracer {
         self.build_seconds + deferred as f64 * 1e-9
     }
 
-    pub fn prepare(&self, t: f64) -> Instances {
-        let list = self.prepare_list(t);
-        // The BVHs left for their first use, side by side (each build is serial within).
-        list.par_iter().for_each(|i| {
+    /// The BVHs of `insts`' meshes left for their first use, built side by side (each build
+    /// is serial within), before any ray reads them.
+    fn build_deferred(&self, insts: &[PreparedInstance]) {
+        insts.par_iter().for_each(|i| {
             self.accel(i.mesh);
         });
+    }
+
+    /// Instances visible at `t`, with inverse transforms and world bounds, under a top-level
+    /// BVH (see [`Instances`]); their meshes' BVHs built.
+    pub fn prepare(&self, t: f64) -> Instances {
+        let list = self.prepare_list(t);
+        self.build_deferred(&list);
         Instances::new(list, self.backend)
     }
 
@@ -805,9 +811,7 @@ impl MeshTracer {
     ) -> Result<(Frame, Stats)> {
         opts.validate()?;
         // The BVHs left for their first use count as build time, not as the frame's.
-        self.prepare_list(time).par_iter().for_each(|i| {
-            self.accel(i.mesh);
-        });
+        self.build_deferred(&self.prepare_list(time));
         let start = std::time::Instant::now();
         let insts = self.prepare(time);
         if self.tables_pay(&insts, cam, opts) {
