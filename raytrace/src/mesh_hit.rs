@@ -37,12 +37,13 @@ impl LocalRay {
         if !lo.is_finite() || !ld.is_finite() || ld == Vec3::ZERO {
             return None;
         }
+        let ld_len = ld64.length();
         Some(LocalRay {
             lo64,
             ld64,
             lo_len: lo64.length(),
-            ld_len: ld64.length(),
-            ld_inv: 1.0 / ld64.length(),
+            ld_len,
+            ld_inv: 1.0 / ld_len,
             wray: WRay::new(lo, ld),
         })
     }

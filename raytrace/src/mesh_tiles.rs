@@ -394,8 +394,7 @@ impl MeshTracer {
         // (`test_triangle`, the same arithmetic): beyond the cull distance, before the
         // query's range or at most the last round's key, each would be rejected by the key
         // alone, so none is tested (the buffer ends as it would).
-        let plane = blas.planes[g as usize];
-        let tp = plane_distance(plane, r);
+        let tp = plane_distance(blas.planes[g as usize], r);
         if tp.is_finite() {
             let t = tp as f32 + 0.0;
             let before_after = q.after.is_some_and(|a| t < f32::from_bits(a.0));
