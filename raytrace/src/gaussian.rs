@@ -41,6 +41,7 @@ use crate::kbuffer::{self, Accum, Hit, KBuffer, Key, Payload};
 use crate::render::{render_frame_spp, PixelOut, RenderOptions, Stats};
 
 mod camera;
+mod exp_lanes;
 mod lanes;
 mod part;
 mod proxy_order;

@@ -174,6 +174,12 @@ impl Part {
 /// [`Part::alpha`]).
 #[inline]
 pub(super) fn alpha_of(opacity: f32, q: f32) -> Option<f32> {
-    let alpha = (opacity * (-0.5 * q).exp()).min(0.99);
+    alpha_of_exp(opacity, (-0.5 * q).exp())
+}
+
+/// [`alpha_of`] given its exponential `e = exp(−q/2)` (the tile walk takes eight at once).
+#[inline(always)]
+pub(super) fn alpha_of_exp(opacity: f32, e: f32) -> Option<f32> {
+    let alpha = (opacity * e).min(0.99);
     (alpha >= 1.0 / 255.0).then_some(alpha)
 }

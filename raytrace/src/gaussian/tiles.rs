@@ -25,8 +25,9 @@ use rayon::prelude::*;
 use splatbridge_scene::{sh, Camera};
 
 use super::camera::{LocalFootprint, Padded, PixelSplat};
+use super::exp_lanes;
 use super::lanes::{colors_from_basis, prefetch, Chunk, Products, LANES};
-use super::part::alpha_of;
+use super::part::{alpha_of, alpha_of_exp};
 use super::{GaussianHit, GaussianPayload, GaussianTracer};
 use crate::footprint::{Footprint, HitOrder, RayFootprint, ShDirection};
 use crate::geom::order_bits;
@@ -447,34 +448,44 @@ impl GaussianTracer {
         scratch: &mut Scratch,
     ) -> PixelOut {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: AVX2 is present.
-            return unsafe { self.trace_tile_avx2(ray, opts, scratch) };
+        if vector_exp_supported() {
+            // SAFETY: AVX2 and FMA are present.
+            return unsafe {
+                if exp_lanes::matches_platform() {
+                    self.trace_tile_avx2::<true>(ray, opts, scratch)
+                } else {
+                    self.trace_tile_avx2::<false>(ray, opts, scratch)
+                }
+            };
         }
-        self.trace_tile_with(ray, opts, scratch)
+        self.trace_tile_with::<false>(ray, opts, scratch)
     }
 
-    /// [`GaussianTracer::trace_tile`] compiled for AVX2: the eight-lane rectangle, ellipse and
-    /// `q` of a chunk ([`Chunk::pass`], [`Chunk::q`]) in one 256-bit register each instead of
-    /// two 128-bit ones. The same IEEE operations in the same order (Rust never fuses a
-    /// multiply and an add), so the same bits.
+    /// [`GaussianTracer::trace_tile`] compiled for AVX2 and FMA: the eight-lane rectangle,
+    /// ellipse and `q` of a chunk ([`Chunk::pass`], [`Chunk::q`]) in one 256-bit register each
+    /// instead of two 128-bit ones, and with `VEXP` the lanes' `exp(−q/2)` together
+    /// ([`exp_lanes`]: the platform's `expf` bits, checked by `matches_platform`). The same
+    /// IEEE operations in the same order (Rust fuses a multiply and an add only where
+    /// `mul_add` says so: in `exp_lanes`, where glibc's FMA build fuses them too), so the
+    /// same bits.
     ///
     /// # Safety
-    /// The CPU must support AVX2.
+    /// The CPU must support AVX2 and FMA.
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn trace_tile_avx2(
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn trace_tile_avx2<const VEXP: bool>(
         &self,
         ray: TileRay<'_>,
         opts: &RenderOptions,
         scratch: &mut Scratch,
     ) -> PixelOut {
-        self.trace_tile_with(ray, opts, scratch)
+        self.trace_tile_with::<VEXP>(ray, opts, scratch)
     }
 
-    /// The body of [`GaussianTracer::trace_tile`], inlined into each of its builds.
+    /// The body of [`GaussianTracer::trace_tile`], inlined into each of its builds; `VEXP`:
+    /// take α's exponential from [`exp_lanes`] (only where FMA is compiled in).
     #[inline(always)]
-    fn trace_tile_with(
+    fn trace_tile_with<const VEXP: bool>(
         &self,
         ray: TileRay<'_>,
         opts: &RenderOptions,
@@ -570,6 +581,11 @@ impl GaussianTracer {
                 Some((c, s, s2)) if mode == Footprint::On => Some(chunk.q(c, s, s2)),
                 _ => None,
             };
+            // `alpha_of`'s exponential of every lane at once, where the lanes have its bits.
+            let lanes_e = match lanes_q {
+                Some((q, _)) if VEXP => Some(exp_lanes::exp_lanes(q.map(|q| -0.5 * q))),
+                _ => None,
+            };
             while pass != 0 {
                 let l = pass.trailing_zeros() as usize;
                 pass &= pass - 1;
@@ -588,7 +604,12 @@ impl GaussianTracer {
                                 .and_then(|f| part.widened_q_3d(p, ro, f)),
                         };
                         q.filter(|q| *q <= chunk.r2[l])
-                            .and_then(|q| alpha_of(chunk.opacity[l], q))
+                            .and_then(|q| match lanes_e {
+                                Some(e) if in_exp_range(-0.5 * q) => {
+                                    alpha_of_exp(chunk.opacity[l], e[l])
+                                }
+                                _ => alpha_of(chunk.opacity[l], q),
+                            })
                             .map(|alpha| (0.0, alpha))
                     }
                     _ => part.response(p, ro, rd),
@@ -650,4 +671,22 @@ impl GaussianTracer {
             candidates,
         }
     }
+}
+
+/// Whether the CPU runs [`GaussianTracer::trace_tile`]'s AVX2-and-FMA build.
+pub(super) fn vector_exp_supported() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// Whether `x` is in the range where [`exp_lanes::exp_lanes`] has `f32::exp`'s bits.
+#[inline(always)]
+fn in_exp_range(x: f32) -> bool {
+    x >= exp_lanes::RANGE.0 && x <= exp_lanes::RANGE.1
 }
