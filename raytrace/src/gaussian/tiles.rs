@@ -541,34 +541,7 @@ impl GaussianTracer {
         let table = mean_colors.and_then(|(at, c)| (at == o).then_some(c));
         composited.clear();
         colors.clear();
-        // Composite `pending` (hits of one key distance) in Gaussian order, as `Accum::add`
-        // does but for the colour; true: the ray stopped (native's rule: the hit that would
-        // take T below the threshold is not added).
-        let mut flush = |pending: &mut Vec<GaussianHit>, acc: &mut Accum, hits: &mut u32| {
-            if pending.len() > 1 {
-                pending.sort_unstable_by_key(|h| h.gaussian);
-            }
-            for h in pending.iter() {
-                let a = h.payload.alpha;
-                if acc.after(a) < opts.min_transmittance {
-                    return true;
-                }
-                *hits += 1;
-                let w = a * acc.tr;
-                acc.dsum += w * h.t;
-                acc.wsum += w;
-                acc.tr *= 1.0 - a;
-                if opts.sh_direction == ShDirection::Mean {
-                    colors.push(match table {
-                        Some(c) => c[h.payload.index as usize],
-                        None => self.hit_color_toward_mean(h, o),
-                    });
-                }
-                composited.push((h.payload.index, w));
-            }
-            pending.clear();
-            false
-        };
+        let mean = (opts.sh_direction == ShDirection::Mean).then_some((table, o));
         pending.clear();
         let mut stopped = false;
         'walk: for chunk in list {
@@ -624,7 +597,7 @@ impl GaussianTracer {
                 if pending
                     .first()
                     .is_some_and(|h| h.t.to_bits() != t.to_bits())
-                    && flush(pending, &mut acc, &mut hits)
+                    && self.flush(pending, &mut acc, &mut hits, composited, colors, opts, mean)
                 {
                     stopped = true;
                     break 'walk;
@@ -646,7 +619,7 @@ impl GaussianTracer {
             }
         }
         if !stopped {
-            flush(pending, &mut acc, &mut hits);
+            self.flush(pending, &mut acc, &mut hits, composited, colors, opts, mean);
         }
         if by_ray && !composited.is_empty() {
             // The SH basis of the ray's direction: every hit is seen along it (`hit_color`).
@@ -670,6 +643,52 @@ impl GaussianTracer {
             traversals: 1,
             candidates,
         }
+    }
+}
+
+impl GaussianTracer {
+    /// Composite `pending` (hits of one key distance) in Gaussian order, as `Accum::add`
+    /// does but for the colour: each composited hit's index and weight go to `composited`,
+    /// and with `mean` (SH toward the mean, the frame's table where it holds the ray's
+    /// origin) its colour to `colors`. True: the ray stopped (native's rule: the hit that
+    /// would take T below the threshold is not added). A function inlined where it is
+    /// called, not a closure: a closure is compiled without the walk's AVX2 build, and called
+    /// once a hit.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn flush(
+        &self,
+        pending: &mut Vec<GaussianHit>,
+        acc: &mut Accum,
+        hits: &mut u32,
+        composited: &mut Vec<(u32, f32)>,
+        colors: &mut Vec<Vec3>,
+        opts: &RenderOptions,
+        mean: Option<(Option<&[Vec3]>, DVec3)>,
+    ) -> bool {
+        if pending.len() > 1 {
+            pending.sort_unstable_by_key(|h| h.gaussian);
+        }
+        for h in pending.iter() {
+            let a = h.payload.alpha;
+            if acc.after(a) < opts.min_transmittance {
+                return true;
+            }
+            *hits += 1;
+            let w = a * acc.tr;
+            acc.dsum += w * h.t;
+            acc.wsum += w;
+            acc.tr *= 1.0 - a;
+            if let Some((table, o)) = mean {
+                colors.push(match table {
+                    Some(c) => c[h.payload.index as usize],
+                    None => self.hit_color_toward_mean(h, o),
+                });
+            }
+            composited.push((h.payload.index, w));
+        }
+        pending.clear();
+        false
     }
 }
 
