@@ -96,6 +96,12 @@ fn lanes_are_the_scalar_tests() {
             let fp = footprint(cu, cv, 0.3);
             for (c, chunk) in chunks.iter().enumerate() {
                 let mask = chunk.pass(u, v, cu, cv);
+                #[cfg(target_arch = "x86_64")]
+                if std::arch::is_x86_feature_detected!("avx2") {
+                    // SAFETY: AVX2 is present.
+                    let avx2 = unsafe { chunk.pass_avx2(u, v, cu, cv) };
+                    assert_eq!(avx2, mask, "the AVX2 pass at ({u}, {v})");
+                }
                 let (q, ok) = chunk.q(fp.centred, fp.s, fp.s2);
                 for l in 0..LANES {
                     let i = c * LANES + l;

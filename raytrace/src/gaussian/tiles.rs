@@ -467,7 +467,7 @@ impl GaussianTracer {
                 }
             };
         }
-        self.trace_tile_with::<false>(ray, opts, scratch)
+        self.trace_tile_with::<false, false>(ray, opts, scratch)
     }
 
     /// [`GaussianTracer::trace_tile`] compiled for AVX2 and FMA: the eight-lane rectangle,
@@ -488,13 +488,14 @@ impl GaussianTracer {
         opts: &RenderOptions,
         scratch: &mut Scratch,
     ) -> PixelOut {
-        self.trace_tile_with::<VEXP>(ray, opts, scratch)
+        self.trace_tile_with::<true, VEXP>(ray, opts, scratch)
     }
 
-    /// The body of [`GaussianTracer::trace_tile`], inlined into each of its builds; `VEXP`:
-    /// take α's exponential from [`exp_lanes`] (only where FMA is compiled in).
+    /// The body of [`GaussianTracer::trace_tile`], inlined into each of its builds; `AVX2`:
+    /// the build compiled for AVX2 and FMA (chunks pass by [`Chunk::pass_avx2`]); `VEXP`: take
+    /// α's exponential from [`exp_lanes`] (only in that build).
     #[inline(always)]
-    fn trace_tile_with<const VEXP: bool>(
+    fn trace_tile_with<const AVX2: bool, const VEXP: bool>(
         &self,
         ray: TileRay<'_>,
         opts: &RenderOptions,
@@ -554,7 +555,7 @@ impl GaussianTracer {
         pending.clear();
         let mut stopped = false;
         'walk: for chunk in list {
-            let mut pass = chunk.pass(u, v, cu, cv);
+            let mut pass = chunk_pass::<AVX2>(chunk, u, v, cu, cv);
             if pass == 0 {
                 continue;
             }
@@ -711,6 +712,18 @@ pub(super) fn vector_exp_supported() -> bool {
     {
         false
     }
+}
+
+/// [`Chunk::pass`], or in the AVX2 build (`AVX2`) [`Chunk::pass_avx2`]: the same mask.
+#[inline(always)]
+fn chunk_pass<const AVX2: bool>(chunk: &Chunk, u: f32, v: f32, cu: f32, cv: f32) -> u32 {
+    #[cfg(target_arch = "x86_64")]
+    if AVX2 {
+        // SAFETY: `AVX2` is true only in `trace_tile_avx2`'s build, which runs only where the
+        // CPU has AVX2 and FMA (`vector_exp_supported`).
+        return unsafe { chunk.pass_avx2(u, v, cu, cv) };
+    }
+    chunk.pass(u, v, cu, cv)
 }
 
 /// Whether `x` is in the range where [`exp_lanes::exp_lanes`] has `f32::exp`'s bits.
