@@ -553,6 +553,7 @@ impl GaussianTracer {
         colors.clear();
         let mean = (opts.sh_direction == ShDirection::Mean).then_some((table, o));
         pending.clear();
+        let mut held: Option<GaussianHit> = None;
         let mut stopped = false;
         'walk: for chunk in list {
             let mut pass = chunk_pass::<AVX2>(chunk, u, v, cu, cv);
@@ -604,19 +605,11 @@ impl GaussianTracer {
                     // `camera::mean_depth_key`, its numerator computed once per camera.
                     t = chunk.z[l] / forward_cos;
                 }
-                if pending
-                    .first()
-                    .is_some_and(|h| h.t.to_bits() != t.to_bits())
-                    && self.flush(pending, &mut acc, &mut hits, composited, colors, opts, mean)
-                {
-                    stopped = true;
-                    break 'walk;
-                }
                 if by_ray {
                     // Its colour is evaluated after the walk.
                     prefetch(part.cloud.sh_of(part.index[p] as usize));
                 }
-                pending.push(Hit {
+                let hit = Hit {
                     t,
                     gaussian: part.id_offset + part.index[p],
                     instance: 0,
@@ -625,11 +618,44 @@ impl GaussianTracer {
                         index: part.index[p],
                         alpha,
                     },
-                });
+                };
+                // The hits of one key distance wait until a hit keyed beyond them comes: one
+                // alone in `held`; several (rare: keys rounding equal) in `pending`, sorted.
+                let same = |h: &GaussianHit| h.t.to_bits() == t.to_bits();
+                let stop = match held {
+                    Some(h) if same(&h) => {
+                        pending.extend([h, hit]);
+                        held = None;
+                        false
+                    }
+                    Some(h) => {
+                        held = Some(hit);
+                        self.composite(&h, &mut acc, &mut hits, composited, opts, mean)
+                    }
+                    None if pending.first().is_some_and(same) => {
+                        pending.push(hit);
+                        false
+                    }
+                    None => {
+                        held = Some(hit);
+                        self.flush(pending, &mut acc, &mut hits, composited, opts, mean)
+                    }
+                };
+                if stop {
+                    stopped = true;
+                    break 'walk;
+                }
             }
         }
         if !stopped {
-            self.flush(pending, &mut acc, &mut hits, composited, colors, opts, mean);
+            match held {
+                Some(h) => {
+                    self.composite(&h, &mut acc, &mut hits, composited, opts, mean);
+                }
+                None => {
+                    self.flush(pending, &mut acc, &mut hits, composited, opts, mean);
+                }
+            }
         }
         if by_ray && !composited.is_empty() {
             // The SH basis of the ray's direction: every hit is seen along it (`hit_color`).
@@ -642,6 +668,8 @@ impl GaussianTracer {
                 colors_from_basis(&coeffs[..group.len()], &b, products, colors);
             }
         }
+        // The ray's colours after the walk, in the hits' order (empty with `mean`, whose
+        // colours were added as they came).
         for (c, (_, w)) in colors.iter().zip(composited.iter()) {
             acc.rgb += *c * *w;
         }
@@ -657,14 +685,8 @@ impl GaussianTracer {
 }
 
 impl GaussianTracer {
-    /// Composite `pending` (hits of one key distance) in Gaussian order, as `Accum::add`
-    /// does but for the colour: each composited hit's index and weight go to `composited`,
-    /// and with `mean` (SH toward the mean, the frame's table where it holds the ray's
-    /// origin) its colour to `colors`. True: the ray stopped (native's rule: the hit that
-    /// would take T below the threshold is not added). A function inlined where it is
-    /// called, not a closure: a closure is compiled without the walk's AVX2 build, and called
-    /// once a hit.
-    #[allow(clippy::too_many_arguments)]
+    /// Composite `pending` (hits of one key distance) in Gaussian order ([`Self::composite`]
+    /// each) and empty it; true: the ray stopped.
     #[inline(always)]
     fn flush(
         &self,
@@ -672,7 +694,6 @@ impl GaussianTracer {
         acc: &mut Accum,
         hits: &mut u32,
         composited: &mut Vec<(u32, f32)>,
-        colors: &mut Vec<Vec3>,
         opts: &RenderOptions,
         mean: Option<(Option<&[Vec3]>, DVec3)>,
     ) -> bool {
@@ -680,24 +701,50 @@ impl GaussianTracer {
             pending.sort_unstable_by_key(|h| h.gaussian);
         }
         for h in pending.iter() {
-            let a = h.payload.alpha;
-            if acc.after(a) < opts.min_transmittance {
+            if self.composite(h, acc, hits, composited, opts, mean) {
                 return true;
             }
-            *hits += 1;
-            let w = a * acc.tr;
-            acc.dsum += w * h.t;
-            acc.wsum += w;
-            acc.tr *= 1.0 - a;
-            if let Some((table, o)) = mean {
-                colors.push(match table {
-                    Some(c) => c[h.payload.index as usize],
-                    None => self.hit_color_toward_mean(h, o),
-                });
-            }
-            composited.push((h.payload.index, w));
         }
         pending.clear();
+        false
+    }
+
+    /// Composite hit `h` as `Accum::add` does; true: the ray stopped (native's rule: the hit
+    /// that would take T below the threshold is not added). With `mean` (SH toward the mean,
+    /// the frame's table where it holds the ray's origin) its colour is added at once;
+    /// otherwise its index and weight go to `composited`, whose colours are added after the
+    /// walk in the same order: either way the colour sum's operations are those of adding
+    /// each hit's colour as it comes. A function inlined where it is called, not a closure:
+    /// a closure is compiled without the walk's AVX2 build, and called once a hit.
+    #[inline(always)]
+    fn composite(
+        &self,
+        h: &GaussianHit,
+        acc: &mut Accum,
+        hits: &mut u32,
+        composited: &mut Vec<(u32, f32)>,
+        opts: &RenderOptions,
+        mean: Option<(Option<&[Vec3]>, DVec3)>,
+    ) -> bool {
+        let a = h.payload.alpha;
+        if acc.after(a) < opts.min_transmittance {
+            return true;
+        }
+        *hits += 1;
+        let w = a * acc.tr;
+        acc.dsum += w * h.t;
+        acc.wsum += w;
+        acc.tr *= 1.0 - a;
+        match mean {
+            Some((table, o)) => {
+                let c = match table {
+                    Some(c) => c[h.payload.index as usize],
+                    None => self.hit_color_toward_mean(h, o),
+                };
+                acc.rgb += c * w;
+            }
+            None => composited.push((h.payload.index, w)),
+        }
         false
     }
 }
