@@ -1,6 +1,7 @@
 //! `expf` of eight lanes at once, with the bits of the platform's scalar `f32::exp`, for the
 //! tile walk's α (`alpha_of`'s `exp(−q/2)`): the scalar call, once a candidate, was 11 % of a
-//! 1080p frame of mode `gaussian` (`docs/trace-speed.md`, "The α's exponential in lanes").
+//! 1080p frame of mode `gaussian` (`docs/trace-speed.md`, "The α's exponential in lanes, and
+//! the walk's per-hit bookkeeping").
 //!
 //! The algorithm is glibc's `expf` (since 2.28; ARM's optimized-routines, Szabolcs Nagy):
 //! `x·N/ln 2` rounded to an integer `k` by the 1.5·2⁵² shift, the rest `r` evaluated by a
