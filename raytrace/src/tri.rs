@@ -114,10 +114,13 @@ impl WRay {
     /// The edge functions, determinant and distance numerator of the test.
     #[inline(always)]
     fn edges(&self, a: Vec3, b: Vec3, c: Vec3) -> Result<Covered, Miss> {
-        let (kx, ky, kz) = (self.kx, self.ky, self.kz);
-        let a = a - self.origin;
-        let b = b - self.origin;
-        let c = c - self.origin;
+        // Arrays, not `Vec3`s: glam indexes a `Vec3` by a `match`, a branch per coordinate
+        // (3 % of a mesh frame's instructions). The indices are below 3 (`WRay::new`); `min`
+        // says so to the compiler, which then drops the bounds checks.
+        let (kx, ky, kz) = (self.kx.min(2), self.ky.min(2), self.kz.min(2));
+        let a = (a - self.origin).to_array();
+        let b = (b - self.origin).to_array();
+        let c = (c - self.origin).to_array();
         let ax = a[kx] - self.sx * a[kz];
         let ay = a[ky] - self.sy * a[kz];
         let bx = b[kx] - self.sx * b[kz];
