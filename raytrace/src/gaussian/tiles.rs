@@ -536,8 +536,6 @@ impl GaussianTracer {
         });
         let (u, v) = (uv.0 as f32, uv.1 as f32);
         let (cu, cv) = pixel.map_or((0.0, 0.0), |(c, _, _)| c);
-        let mut acc = Accum::default();
-        let mut hits = 0u32;
         let mut candidates = 0u32;
         let Scratch {
             pending,
@@ -551,7 +549,13 @@ impl GaussianTracer {
         let table = mean_colors.and_then(|(at, c)| (at == o).then_some(c));
         composited.clear();
         colors.clear();
-        let mean = (opts.sh_direction == ShDirection::Mean).then_some((table, o));
+        let mut comp = RayComposite {
+            acc: Accum::default(),
+            hits: 0,
+            composited,
+            opts,
+            mean: (opts.sh_direction == ShDirection::Mean).then_some((table, o)),
+        };
         pending.clear();
         let mut held: Option<GaussianHit> = None;
         let mut stopped = false;
@@ -630,7 +634,7 @@ impl GaussianTracer {
                     }
                     Some(h) => {
                         held = Some(hit);
-                        self.composite(&h, &mut acc, &mut hits, composited, opts, mean)
+                        comp.composite(self, &h)
                     }
                     None if pending.first().is_some_and(same) => {
                         pending.push(hit);
@@ -638,7 +642,7 @@ impl GaussianTracer {
                     }
                     None => {
                         held = Some(hit);
-                        self.flush(pending, &mut acc, &mut hits, composited, opts, mean)
+                        comp.flush(self, pending)
                     }
                 };
                 if stop {
@@ -650,13 +654,19 @@ impl GaussianTracer {
         if !stopped {
             match held {
                 Some(h) => {
-                    self.composite(&h, &mut acc, &mut hits, composited, opts, mean);
+                    comp.composite(self, &h);
                 }
                 None => {
-                    self.flush(pending, &mut acc, &mut hits, composited, opts, mean);
+                    comp.flush(self, pending);
                 }
             }
         }
+        let RayComposite {
+            mut acc,
+            hits,
+            composited,
+            ..
+        } = comp;
         if by_ray && !composited.is_empty() {
             // The SH basis of the ray's direction: every hit is seen along it (`hit_color`).
             let b = sh::basis(part.cloud.sh_degree, rd);
@@ -684,24 +694,31 @@ impl GaussianTracer {
     }
 }
 
-impl GaussianTracer {
-    /// Composite `pending` (hits of one key distance) in Gaussian order ([`Self::composite`]
-    /// each) and empty it; true: the ray stopped.
+/// A ray's compositing in the tile walk: the accumulator, the composited hit count, and
+/// where colours go (`mean`: SH toward the mean, the frame's table where it holds the ray's
+/// origin, each colour added at once; else `composited`, each hit's index and weight, whose
+/// colours are added after the walk in the same order: either way the colour sum's operations
+/// are those of adding each hit's colour as it comes). Methods inlined where they are
+/// called, not closures: a closure is compiled without the walk's AVX2 build, and was called
+/// once a hit.
+struct RayComposite<'a> {
+    acc: Accum,
+    hits: u32,
+    composited: &'a mut Vec<(u32, f32)>,
+    opts: &'a RenderOptions,
+    mean: Option<(Option<&'a [Vec3]>, DVec3)>,
+}
+
+impl RayComposite<'_> {
+    /// Composite `pending` (hits of one key distance) in Gaussian order
+    /// ([`RayComposite::composite`] each) and empty it; true: the ray stopped.
     #[inline(always)]
-    fn flush(
-        &self,
-        pending: &mut Vec<GaussianHit>,
-        acc: &mut Accum,
-        hits: &mut u32,
-        composited: &mut Vec<(u32, f32)>,
-        opts: &RenderOptions,
-        mean: Option<(Option<&[Vec3]>, DVec3)>,
-    ) -> bool {
+    fn flush(&mut self, tracer: &GaussianTracer, pending: &mut Vec<GaussianHit>) -> bool {
         if pending.len() > 1 {
             pending.sort_unstable_by_key(|h| h.gaussian);
         }
         for h in pending.iter() {
-            if self.composite(h, acc, hits, composited, opts, mean) {
+            if self.composite(tracer, h) {
                 return true;
             }
         }
@@ -710,40 +727,28 @@ impl GaussianTracer {
     }
 
     /// Composite hit `h` as `Accum::add` does; true: the ray stopped (native's rule: the hit
-    /// that would take T below the threshold is not added). With `mean` (SH toward the mean,
-    /// the frame's table where it holds the ray's origin) its colour is added at once;
-    /// otherwise its index and weight go to `composited`, whose colours are added after the
-    /// walk in the same order: either way the colour sum's operations are those of adding
-    /// each hit's colour as it comes. A function inlined where it is called, not a closure:
-    /// a closure is compiled without the walk's AVX2 build, and called once a hit.
+    /// that would take T below the threshold is not added).
     #[inline(always)]
-    fn composite(
-        &self,
-        h: &GaussianHit,
-        acc: &mut Accum,
-        hits: &mut u32,
-        composited: &mut Vec<(u32, f32)>,
-        opts: &RenderOptions,
-        mean: Option<(Option<&[Vec3]>, DVec3)>,
-    ) -> bool {
+    fn composite(&mut self, tracer: &GaussianTracer, h: &GaussianHit) -> bool {
         let a = h.payload.alpha;
-        if acc.after(a) < opts.min_transmittance {
+        let acc = &mut self.acc;
+        if acc.after(a) < self.opts.min_transmittance {
             return true;
         }
-        *hits += 1;
+        self.hits += 1;
         let w = a * acc.tr;
         acc.dsum += w * h.t;
         acc.wsum += w;
         acc.tr *= 1.0 - a;
-        match mean {
+        match self.mean {
             Some((table, o)) => {
                 let c = match table {
                     Some(c) => c[h.payload.index as usize],
-                    None => self.hit_color_toward_mean(h, o),
+                    None => tracer.hit_color_toward_mean(h, o),
                 };
                 acc.rgb += c * w;
             }
-            None => composited.push((h.payload.index, w)),
+            None => self.composited.push((h.payload.index, w)),
         }
         false
     }
