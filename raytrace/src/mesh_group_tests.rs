@@ -383,7 +383,7 @@ fn crossing_filter_keeps_every_reported_triangle() {
 /// triangles counted as `GROUP_RECORD_WEIGHT`, not by its triangles; a mesh of small groups
 /// (fans of 6) by its triangles, as before. The count is checked against one made group by
 /// group over every triangle's plane (`Mesh::planar_groups`, the groups the BVH keeps), and
-/// the switch against it at exactly a 25th.
+/// the switch against it at exactly a `TRIANGLES_PER_RAY`-th.
 #[test]
 fn one_node_meshes_count_large_groups_as_records() {
     use super::backend::{BackendKind, BuildPreset};

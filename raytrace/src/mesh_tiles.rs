@@ -50,12 +50,16 @@ use crate::render::{camera_ray, render_frame_tiles, RenderOptions, Stats};
 use crate::screen_cells::cell_span;
 
 /// A scene of fewer than `MIN_INSTANCES` instances is traced through the tiles when its rays
-/// are at least this fraction of its triangles. Measured on `fourth_st`'s one-node exports
-/// (`--layout input`, 0.71 M and 2.83 M triangles) at 80×60 to 1920×1080, the per-ray path
-/// was faster below about a 44th (texture) and a 32nd (meshsplats) of the triangles; a 25th
-/// leaves the tiles only where they clearly pay (`docs/trace-speed-mesh.md`, "Every layout
-/// through the tiles").
-pub const TRIANGLES_PER_RAY: u64 = 25;
+/// are at least this fraction of its binned records (`MeshTracer::records_of`). Measured on
+/// one-node exports (`--layout input`) of `fourth_st` and `plant` at 80×60 to 640×480 with the
+/// BVH already built, the tiles became faster above about a 66th of the records (`fourth_st`'s
+/// texture export), a 200th (its `rings`), a 435th (`plant`'s meshsplats) and a 680th (its
+/// `rings`): the per-ray path's cost a ray grows with the candidates a ray meets, the tiles'
+/// with the records binned. A 500th keeps the per-ray path at thumbnail sizes, where it is
+/// faster on every export measured, and otherwise takes the tiles; a frame traced per ray
+/// also builds the BVH the tiles do not need, 0.15–2.6 s on those exports
+/// (`docs/trace-speed-mesh.md`, "Where the tiles pay, measured again").
+pub const TRIANGLES_PER_RAY: u64 = 500;
 
 /// Tile edge in pixels (native's `BLOCK_X = BLOCK_Y`).
 pub const TILE: u32 = 16;
