@@ -465,3 +465,49 @@ fn per_ray_path_builds_the_tables_where_they_pay() {
     assert!(!built(cam, 1), "one sample a pixel");
     assert!(!built(&small, 1), "four rays");
 }
+
+/// A one-node mesh whose every material is opaque (or which names none, the default material)
+/// switches to the tiles at an `OPAQUE_TRIANGLES_PER_RAY`-th of its records; one blended or
+/// masked (rays may pass through either) at a `TRIANGLES_PER_RAY`-th.
+#[test]
+fn opaque_meshes_switch_at_their_own_share() {
+    use super::backend::{BackendKind, BuildPreset};
+    use super::mesh_tiles::{OPAQUE_TRIANGLES_PER_RAY, TRIANGLES_PER_RAY};
+    use super::mesh_tracer::MeshTracer;
+    use super::model::{AlphaMode, Node};
+    let cases = [
+        (Some(AlphaMode::Opaque), OPAQUE_TRIANGLES_PER_RAY),
+        (None, OPAQUE_TRIANGLES_PER_RAY),
+        (Some(AlphaMode::Blend), TRIANGLES_PER_RAY),
+        (Some(AlphaMode::Mask(0.5)), TRIANGLES_PER_RAY),
+    ];
+    for (mode, share) in cases {
+        let mut scene = nodes_over(
+            discs(5, 60, 1.0, Vec3::ZERO, true, (6, 0)),
+            ided_mesh(),
+            false,
+        );
+        scene.meshes.truncate(1);
+        scene.nodes = vec![Node {
+            mesh: Some(0),
+            ..Node::default()
+        }];
+        match mode {
+            Some(m) => scene.materials.iter_mut().for_each(|x| x.alpha_mode = m),
+            None => scene.materials.clear(),
+        }
+        let t = MeshTracer::new(scene, BackendKind::Obvhs, BuildPreset::Medium).unwrap();
+        let insts = t.prepare_list(0.0);
+        assert_eq!(
+            t.opaque(&insts),
+            share == OPAQUE_TRIANGLES_PER_RAY,
+            "{mode:?}"
+        );
+        let switch = t.records_of(&insts).div_ceil(share);
+        assert!(switch > 1, "{mode:?}: too few records to see the switch");
+        assert!(
+            !t.tiles_pay(0.0, switch - 1) && t.tiles_pay(0.0, switch),
+            "{mode:?}"
+        );
+    }
+}

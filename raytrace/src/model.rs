@@ -114,6 +114,11 @@ impl MaterialRuns {
         }
     }
 
+    /// The materials the runs name, once a run (each distinct material at least once).
+    pub fn named(&self) -> impl Iterator<Item = u32> + '_ {
+        self.materials.iter().copied()
+    }
+
     /// Every triangle's material, in order.
     pub fn iter(&self) -> impl Iterator<Item = u32> + '_ {
         (0..self.starts.len()).flat_map(move |i| {

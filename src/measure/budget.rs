@@ -33,9 +33,14 @@ const EXPORT_BYTES_PER_GAUSSIAN: u64 = 400;
 /// and ids (12 + 16 + 4 B a vertex), indices, material runs and group ids (about 18 B a
 /// triangle). Measured (`trace FILE.glb`, 500k-Gaussian fixture, max RSS): rings 18.8 M
 /// vertices, 73.7 M triangles, 2.06 GB; a least-squares fit with meshsplats' 6.6 M / 14.8 M
-/// (495 MB) gives 27.3 B a vertex and 20.9 B a triangle.
+/// (495 MB) gives 27.3 B a vertex and 20.9 B a triangle. A GLB's blended mesh is traced
+/// through the tiles from a 500th of its records a ray on (`TRIANGLES_PER_RAY`), whose
+/// binned records and lists take the place of the BVH: measured on the 100k fixture at 96×72
+/// (`tests/memory_budget.rs`), rings 473 → 723 MB resident and meshsplats 147 → 216 MB, 34
+/// and 47 B more a triangle; 32 B more is counted, the BVH's boxes (`BYTES_PER_BOX`) still
+/// counted beside them.
 const GLB_VERTEX_BYTES: u64 = 32;
-const GLB_TRIANGLE_BYTES: u64 = 24;
+const GLB_TRIANGLE_BYTES: u64 = 56;
 /// A texture coordinate per vertex (f32 pair), which only the `texture` profile has.
 const UV_BYTES: u64 = 8;
 /// The same for OBJ read-back, whose peak follows the vertices (the reader's per-corner
