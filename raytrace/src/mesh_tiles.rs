@@ -58,7 +58,7 @@ use crate::screen_cells::cell_span;
 /// with the records binned. A 500th keeps the per-ray path at thumbnail sizes, where it is
 /// faster on every export measured, and otherwise takes the tiles; a frame traced per ray
 /// also builds the BVH the tiles do not need, 0.15–2.6 s on those exports
-/// (`docs/trace-speed-mesh.md`, "Where the tiles pay, measured again").
+/// (`docs/trace-speed-mesh-paths.md`, "Where the tiles pay, measured again").
 pub const TRIANGLES_PER_RAY: u64 = 500;
 
 /// [`TRIANGLES_PER_RAY`] for a scene whose every material is opaque (glTF's `OPAQUE`, or no
