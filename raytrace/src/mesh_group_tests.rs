@@ -379,6 +379,22 @@ fn crossing_filter_keeps_every_reported_triangle() {
     );
 }
 
+/// Sixty discs of `shape` (with both windings when `both`) as the one node of a scene with
+/// the blended material of [`nodes_over`].
+fn one_node_discs(both: bool, shape: (u32, u32)) -> crate::model::TriScene {
+    let mut scene = nodes_over(
+        discs(5, 60, 1.0, Vec3::ZERO, both, shape),
+        ided_mesh(),
+        false,
+    );
+    scene.meshes.truncate(1);
+    scene.nodes = vec![crate::model::Node {
+        mesh: Some(0),
+        ..crate::model::Node::default()
+    }];
+    scene
+}
+
 /// A one-node mesh of discs decides on the tiles by its records, each disc of more than 16
 /// triangles counted as `GROUP_RECORD_WEIGHT`, not by its triangles; a mesh of small groups
 /// (fans of 6) by its triangles, as before. The count is checked against one made group by
@@ -390,7 +406,6 @@ fn one_node_meshes_count_large_groups_as_records() {
     use super::mesh_groups::GROUP_RECORD_WEIGHT;
     use super::mesh_tiles::TRIANGLES_PER_RAY;
     use super::mesh_tracer::MeshTracer;
-    use super::model::Node;
     // Every seventh disc is drawn twice over in its group: 12 triangles for a fan of 6 in
     // one winding, still a small group.
     let cases = [
@@ -399,16 +414,7 @@ fn one_node_meshes_count_large_groups_as_records() {
         ((6, 0), false, false),
     ];
     for (shape, both, large) in cases {
-        let mut scene = nodes_over(
-            discs(5, 60, 1.0, Vec3::ZERO, both, shape),
-            ided_mesh(),
-            false,
-        );
-        scene.meshes.truncate(1);
-        scene.nodes = vec![Node {
-            mesh: Some(0),
-            ..Node::default()
-        }];
+        let scene = one_node_discs(both, shape);
         let (groups, count) = scene.meshes[0].planar_groups();
         let n = scene.meshes[0].tris.len() as u64;
         let t = MeshTracer::new(scene, BackendKind::Obvhs, BuildPreset::Medium).unwrap();
@@ -474,7 +480,7 @@ fn opaque_meshes_switch_at_their_own_share() {
     use super::backend::{BackendKind, BuildPreset};
     use super::mesh_tiles::{OPAQUE_TRIANGLES_PER_RAY, TRIANGLES_PER_RAY};
     use super::mesh_tracer::MeshTracer;
-    use super::model::{AlphaMode, Node};
+    use super::model::AlphaMode;
     let cases = [
         (Some(AlphaMode::Opaque), OPAQUE_TRIANGLES_PER_RAY),
         (None, OPAQUE_TRIANGLES_PER_RAY),
@@ -482,16 +488,7 @@ fn opaque_meshes_switch_at_their_own_share() {
         (Some(AlphaMode::Mask(0.5)), TRIANGLES_PER_RAY),
     ];
     for (mode, share) in cases {
-        let mut scene = nodes_over(
-            discs(5, 60, 1.0, Vec3::ZERO, true, (6, 0)),
-            ided_mesh(),
-            false,
-        );
-        scene.meshes.truncate(1);
-        scene.nodes = vec![Node {
-            mesh: Some(0),
-            ..Node::default()
-        }];
+        let mut scene = one_node_discs(true, (6, 0));
         match mode {
             Some(m) => scene.materials.iter_mut().for_each(|x| x.alpha_mode = m),
             None => scene.materials.clear(),
