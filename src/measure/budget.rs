@@ -36,9 +36,10 @@ const EXPORT_BYTES_PER_GAUSSIAN: u64 = 400;
 /// (495 MB) gives 27.3 B a vertex and 20.9 B a triangle. A GLB's blended mesh is traced
 /// through the tiles from a 500th of its records a ray on (`TRIANGLES_PER_RAY`), whose
 /// binned records and lists take the place of the BVH: measured on the 100k fixture at 96×72
-/// (`tests/memory_budget.rs`), rings 473 → 723 MB resident and meshsplats 147 → 216 MB, 34
-/// and 47 B more a triangle; 32 B more is counted, the BVH's boxes (`BYTES_PER_BOX`) still
-/// counted beside them.
+/// (`tests/memory_budget.rs`, each stage in a process of its own), rings 707–715 MB resident
+/// and meshsplats 204–211 MB, against 473 and 147 MB through the BVH (about 32 and 40 B more
+/// a triangle); 32 B more is counted, the BVH's boxes (`BYTES_PER_BOX`) still counted beside
+/// them.
 const GLB_VERTEX_BYTES: u64 = 32;
 const GLB_TRIANGLE_BYTES: u64 = 56;
 /// A texture coordinate per vertex (f32 pair), which only the `texture` profile has.
