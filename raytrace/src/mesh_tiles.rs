@@ -210,8 +210,9 @@ impl MeshTracer {
     /// it applies ([`MeshTracer::tiles_apply`]) and either the scene has at least
     /// [`crate::instances::MIN_INSTANCES`] instances (the per-ray path's two-level traversal is
     /// its slowest case) or the rays are at least a [`TRIANGLES_PER_RAY`]-th (an
-    /// [`OPAQUE_TRIANGLES_PER_RAY`]-th for opaque materials) of the records binning makes ([`MeshTracer::records_of`]: the triangles, with each planar group of
-    /// more than 16 triangles counted as a few). Binning costs a pass over every record a frame,
+    /// [`OPAQUE_TRIANGLES_PER_RAY`]-th for opaque materials) of the records binning makes
+    /// ([`MeshTracer::records_of`]: the triangles, with each planar group of more than 16
+    /// triangles counted as a few). Binning costs a pass over every record a frame,
     /// which a one-node mesh's own BVH does not need; past that many rays the one pass a ray
     /// pays for it (`docs/trace-speed-mesh.md`, "Every layout through the tiles", and
     /// `docs/trace-speed-groups.md`, "One-node meshes of large groups", for the groups).
@@ -220,13 +221,15 @@ impl MeshTracer {
             return false;
         }
         let insts = self.prepare_list(time);
+        if insts.len() >= crate::instances::MIN_INSTANCES {
+            return true;
+        }
         let share = if self.opaque(&insts) {
             OPAQUE_TRIANGLES_PER_RAY
         } else {
             TRIANGLES_PER_RAY
         };
-        insts.len() >= crate::instances::MIN_INSTANCES
-            || rays.saturating_mul(share) >= self.records_of(&insts)
+        rays.saturating_mul(share) >= self.records_of(&insts)
     }
 
     /// Whether every triangle of the instances `insts` is drawn opaque: its material's alpha
