@@ -42,6 +42,7 @@
 
 pub mod chunked;
 pub mod classify;
+pub mod decimal;
 pub mod frames_gltf;
 pub mod frames_morph;
 pub mod gltf_doc;

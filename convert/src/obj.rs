@@ -5,10 +5,9 @@
 //! poses at the written time are baked into the vertices, and opacity is lost (every
 //! triangle is drawn opaque; the compare issue measures what that costs). Colours are
 //! display values (what 3DGS computes), the convention OBJ importers assume for vertex
-//! colours. Numbers are printed in Rust's shortest round-trip form, so a reader parsing
-//! f32 gets back the exact written values.
+//! colours. Numbers are printed in Rust's shortest round-trip form (`Display`, written by
+//! [`crate::decimal`]), so a reader parsing f32 gets back the exact written values.
 
-use std::fmt::Write as _;
 use std::io::{self, Write};
 use std::path::Path;
 
@@ -16,6 +15,7 @@ use glam::{Affine3A, Vec3};
 use splatbridge_scene::dynamic::DynamicScene;
 
 use crate::chunked::ChunkedMesh;
+use crate::decimal::{push_f32, push_u64};
 use crate::options::{ColorEncoding, ConvertOptions, ConvertReport};
 use crate::{prepare, shape_for, FrameClouds, MeshEntry, Role};
 
@@ -100,35 +100,47 @@ fn write_obj<W: Write>(
         )?;
         e.mesher.map_chunks(
             |c| {
-                let mut s = String::with_capacity(c.vertex_count() * 80);
+                let mut s = Vec::with_capacity(c.vertex_count() * 96);
                 for v in 0..c.vertex_count() {
                     let p = xf.transform_point3(Vec3::from_array(c.positions[v]));
                     let nn = xf
                         .transform_vector3(Vec3::from_array(c.normals[v]))
                         .normalize_or_zero();
                     let col = c.colors[v];
-                    let _ = writeln!(
-                        s,
-                        "v {} {} {} {} {} {}",
-                        p.x, p.y, p.z, col[0], col[1], col[2]
-                    );
-                    let _ = writeln!(s, "vn {} {} {}", nn.x, nn.y, nn.z);
+                    s.extend_from_slice(b"v");
+                    for x in [p.x, p.y, p.z, col[0], col[1], col[2]] {
+                        s.push(b' ');
+                        push_f32(&mut s, x);
+                    }
+                    s.extend_from_slice(b"\nvn");
+                    for x in [nn.x, nn.y, nn.z] {
+                        s.push(b' ');
+                        push_f32(&mut s, x);
+                    }
+                    s.push(b'\n');
                 }
                 s
             },
-            |s| out(w, s.as_bytes()),
+            |s| out(w, &s),
         )?;
         e.mesher.map_index_chunks(
             0,
             |idx| {
-                let mut s = String::with_capacity(idx.len() * 12);
+                let mut s = Vec::with_capacity(idx.len() * 16);
                 for t in idx.chunks_exact(3) {
-                    let [a, b, c] = [t[0] as u64 + base, t[1] as u64 + base, t[2] as u64 + base];
-                    let _ = writeln!(s, "f {a}//{a} {b}//{b} {c}//{c}");
+                    s.push(b'f');
+                    for i in t {
+                        let i = *i as u64 + base;
+                        s.push(b' ');
+                        push_u64(&mut s, i);
+                        s.extend_from_slice(b"//");
+                        push_u64(&mut s, i);
+                    }
+                    s.push(b'\n');
                 }
                 s
             },
-            |s| out(w, s.as_bytes()),
+            |s| out(w, &s),
         )?;
         base += e.mesher.counts.vertices;
     }

@@ -44,8 +44,11 @@ pub mod kbuffer;
 pub mod lidar;
 pub mod model;
 pub mod morph;
+mod obj_block;
 pub mod obj_frame;
 pub mod obj_read;
+#[cfg(test)]
+mod obj_read_tests;
 pub mod obvhs_backend;
 pub mod prefetch;
 pub mod render;

@@ -40,10 +40,10 @@ pub struct ObjMaterial {
     pub dissolve: Option<f32>,
 }
 
-struct Pending {
-    name: String,
-    material: Option<usize>,
-    tris: Vec<[u32; 3]>,
+pub(crate) struct Pending {
+    pub name: String,
+    pub material: Option<usize>,
+    pub tris: Vec<[u32; 3]>,
 }
 
 /// Read one line (without its terminator) into `buf`; `false` at end of input.
@@ -60,15 +60,16 @@ fn next_line(r: &mut impl BufRead, buf: &mut Vec<u8>, path: &Path, line: usize) 
     if buf.last() == Some(&b'\n') {
         buf.pop();
     } else if buf.len() > MAX_LINE {
-        return Err(TraceError::format(
-            path,
-            format!("line {line}: longer than {MAX_LINE} bytes"),
-        ));
+        return Err(too_long(path, line));
     }
     if buf.last() == Some(&b'\r') {
         buf.pop();
     }
     Ok(true)
+}
+
+pub(crate) fn too_long(path: &Path, line: usize) -> TraceError {
+    TraceError::format(path, format!("line {line}: longer than {MAX_LINE} bytes"))
 }
 
 fn nums<'a>(
@@ -111,51 +112,74 @@ fn resolve(tok: &str, count: usize, what: &str, path: &Path, line: usize) -> Res
         )
     };
     let i: i64 = tok.parse().map_err(|_| bad())?;
+    resolved(i, count).ok_or_else(bad)
+}
+
+/// Where the parsed OBJ index `i` points among `count` elements: 1-based, or counted back
+/// from the last when negative; None for 0 and out of range.
+#[inline]
+pub(crate) fn resolved(i: i64, count: usize) -> Option<usize> {
     let idx = if i > 0 {
         i - 1
     } else if i < 0 {
         count as i64 + i
     } else {
-        return Err(bad());
+        return None;
     };
-    if idx < 0 || idx as usize >= count {
-        return Err(bad());
-    }
-    Ok(idx as usize)
+    (idx >= 0 && (idx as usize) < count).then_some(idx as usize)
 }
 
-/// Parse an OBJ stream. `load_mtl` is called with each `mtllib` argument and returns that
-/// library's materials (or nothing, when it cannot be read: geometry stays usable).
-pub fn read_obj(
-    r: &mut impl BufRead,
-    path: &Path,
-    mut load_mtl: impl FnMut(&str) -> Option<Vec<ObjMaterial>>,
-) -> Result<(Vec<ObjObject>, Vec<ObjMaterial>)> {
-    let mut positions: Vec<Vec3> = Vec::new();
-    // NaN where the vertex has no colour.
-    let mut colors: Vec<Vec3> = Vec::new();
-    let (mut n_vt, mut n_vn) = (0usize, 0usize);
-    let mut mats: Vec<ObjMaterial> = Vec::new();
-    let mut done: Vec<Pending> = Vec::new();
-    let mut cur = Pending {
-        name: "unnamed_object".into(),
-        material: None,
-        tris: Vec::new(),
-    };
-    let mut buf = Vec::new();
-    let mut corners: Vec<u32> = Vec::new();
-    let mut vals = [0f32; 7];
-    let mut line = 0usize;
-    while next_line(r, &mut buf, path, line + 1)? {
-        line += 1;
-        let text = std::str::from_utf8(&buf)
+/// What has been read so far: every vertex, the objects finished and the one being read.
+pub(crate) struct ObjState<'a, F> {
+    pub path: &'a Path,
+    pub positions: Vec<Vec3>,
+    /// NaN where the vertex has no colour.
+    pub colors: Vec<Vec3>,
+    pub n_vt: usize,
+    pub n_vn: usize,
+    pub mats: Vec<ObjMaterial>,
+    pub done: Vec<Pending>,
+    pub cur: Pending,
+    pub load_mtl: F,
+    corners: Vec<u32>,
+}
+
+impl<'a, F: FnMut(&str) -> Option<Vec<ObjMaterial>>> ObjState<'a, F> {
+    pub fn new(path: &'a Path, load_mtl: F) -> Self {
+        ObjState {
+            path,
+            positions: Vec::new(),
+            colors: Vec::new(),
+            n_vt: 0,
+            n_vn: 0,
+            mats: Vec::new(),
+            done: Vec::new(),
+            cur: Pending {
+                name: "unnamed_object".into(),
+                material: None,
+                tris: Vec::new(),
+            },
+            load_mtl,
+            corners: Vec::new(),
+        }
+    }
+
+    /// One line (without its terminator and one trailing `\r`), the `line`th of the file:
+    /// the reference reading of every statement, which the block reader
+    /// (`obj_block`) reproduces for the lines it reads itself and hands the rest to.
+    pub fn line(&mut self, buf: &[u8], line: usize) -> Result<()> {
+        let path = self.path;
+        let text = std::str::from_utf8(buf)
             .map_err(|_| TraceError::format(path, format!("line {line}: not UTF-8")))?;
         let text = text.trim();
         let mut it = text.split_ascii_whitespace();
-        let Some(key) = it.next() else { continue };
+        let Some(key) = it.next() else {
+            return Ok(());
+        };
         let rest = || text[key.len()..].trim();
         match key {
             "v" => {
+                let mut vals = [0f32; 7];
                 let n = nums(it, path, line, &mut vals)?;
                 let p = Vec3::new(vals[0], vals[1], vals[2]);
                 let c = match n {
@@ -168,22 +192,23 @@ pub fn read_obj(
                         ))
                     }
                 };
-                positions.push(p);
-                colors.push(c);
+                self.positions.push(p);
+                self.colors.push(c);
             }
-            "vt" => n_vt += 1,
-            "vn" => n_vn += 1,
+            "vt" => self.n_vt += 1,
+            "vn" => self.n_vn += 1,
             "f" => {
+                let corners = &mut self.corners;
                 corners.clear();
                 for c in it {
                     let mut parts = c.split('/');
                     let v = parts.next().unwrap_or("");
-                    corners.push(resolve(v, positions.len(), "vertex", path, line)? as u32);
+                    corners.push(resolve(v, self.positions.len(), "vertex", path, line)? as u32);
                     if let Some(t) = parts.next().filter(|t| !t.is_empty()) {
-                        resolve(t, n_vt, "texture", path, line)?;
+                        resolve(t, self.n_vt, "texture", path, line)?;
                     }
                     if let Some(t) = parts.next().filter(|t| !t.is_empty()) {
-                        resolve(t, n_vn, "normal", path, line)?;
+                        resolve(t, self.n_vn, "normal", path, line)?;
                     }
                     if parts.next().is_some() {
                         return Err(TraceError::format(
@@ -202,78 +227,128 @@ pub fn read_obj(
                     ));
                 }
                 for k in 1..corners.len() - 1 {
-                    cur.tris.push([corners[0], corners[k], corners[k + 1]]);
+                    self.cur.tris.push([corners[0], corners[k], corners[k + 1]]);
                 }
             }
-            "o" | "g" => {
-                if !cur.tris.is_empty() {
-                    let next = Pending {
-                        name: String::new(),
-                        material: cur.material,
-                        tris: Vec::new(),
-                    };
-                    done.push(std::mem::replace(&mut cur, next));
-                }
-                cur.name = rest().to_owned();
-                if cur.name.is_empty() {
-                    cur.name = "unnamed_object".into();
-                }
-            }
-            "usemtl" => {
-                let name = rest();
-                let m = mats.iter().position(|m| m.name == name);
-                if m != cur.material && !cur.tris.is_empty() {
-                    let next = Pending {
-                        name: cur.name.clone(),
-                        material: m,
-                        tris: Vec::new(),
-                    };
-                    done.push(std::mem::replace(&mut cur, next));
-                }
-                cur.material = m;
-            }
-            "mtllib" => {
-                if let Some(mut m) = load_mtl(rest()) {
-                    mats.append(&mut m);
-                }
-            }
+            "o" | "g" => self.object(rest()),
+            "usemtl" => self.usemtl(rest()),
+            "mtllib" => self.mtllib(rest()),
             _ => {}
         }
+        Ok(())
     }
-    if !cur.tris.is_empty() {
-        done.push(cur);
+
+    /// `o NAME` or `g NAME` (trimmed).
+    pub fn object(&mut self, name: &str) {
+        if !self.cur.tris.is_empty() {
+            let next = Pending {
+                name: String::new(),
+                material: self.cur.material,
+                tris: Vec::new(),
+            };
+            self.done.push(std::mem::replace(&mut self.cur, next));
+        }
+        self.cur.name = name.to_owned();
+        if self.cur.name.is_empty() {
+            self.cur.name = "unnamed_object".into();
+        }
     }
-    // Renumber each object's vertices in first-use order through one shared table.
-    let mut remap = vec![u32::MAX; positions.len()];
-    let mut objects = Vec::with_capacity(done.len());
-    for p in done {
-        let mut used: Vec<u32> = Vec::new();
-        let mut tris = p.tris;
-        for t in &mut tris {
-            for i in t.iter_mut() {
-                let g = *i as usize;
-                if remap[g] == u32::MAX {
-                    remap[g] = used.len() as u32;
-                    used.push(*i);
+
+    /// `usemtl NAME` (trimmed).
+    pub fn usemtl(&mut self, name: &str) {
+        let m = self.mats.iter().position(|m| m.name == name);
+        if m != self.cur.material && !self.cur.tris.is_empty() {
+            let next = Pending {
+                name: self.cur.name.clone(),
+                material: m,
+                tris: Vec::new(),
+            };
+            self.done.push(std::mem::replace(&mut self.cur, next));
+        }
+        self.cur.material = m;
+    }
+
+    /// `mtllib NAME` (trimmed).
+    pub fn mtllib(&mut self, name: &str) {
+        if let Some(mut m) = (self.load_mtl)(name) {
+            self.mats.append(&mut m);
+        }
+    }
+
+    /// The objects, each with its vertices renumbered from 0 in first-use order (through one
+    /// shared table), and the materials.
+    pub fn finish(self) -> (Vec<ObjObject>, Vec<ObjMaterial>) {
+        let ObjState {
+            positions,
+            colors,
+            mut done,
+            cur,
+            mats,
+            ..
+        } = self;
+        if !cur.tris.is_empty() {
+            done.push(cur);
+        }
+        let mut remap = vec![u32::MAX; positions.len()];
+        let mut objects = Vec::with_capacity(done.len());
+        for p in done {
+            let mut used: Vec<u32> = Vec::new();
+            let mut tris = p.tris;
+            for t in &mut tris {
+                for i in t.iter_mut() {
+                    let g = *i as usize;
+                    if remap[g] == u32::MAX {
+                        remap[g] = used.len() as u32;
+                        used.push(*i);
+                    }
+                    *i = remap[g];
                 }
-                *i = remap[g];
             }
+            let pos: Vec<Vec3> = used.iter().map(|&g| positions[g as usize]).collect();
+            let all_colored = used.iter().all(|&g| !colors[g as usize].is_nan());
+            let col = all_colored.then(|| used.iter().map(|&g| colors[g as usize]).collect());
+            for &g in &used {
+                remap[g as usize] = u32::MAX;
+            }
+            objects.push(ObjObject {
+                name: p.name,
+                positions: pos,
+                colors: col,
+                tris,
+                material: p.material,
+            });
         }
-        let pos: Vec<Vec3> = used.iter().map(|&g| positions[g as usize]).collect();
-        let all_colored = used.iter().all(|&g| !colors[g as usize].is_nan());
-        let col = all_colored.then(|| used.iter().map(|&g| colors[g as usize]).collect());
-        for &g in &used {
-            remap[g as usize] = u32::MAX;
-        }
-        objects.push(ObjObject {
-            name: p.name,
-            positions: pos,
-            colors: col,
-            tris,
-            material: p.material,
-        });
+        (objects, mats)
     }
-    Ok((objects, mats))
+}
+
+/// Parse an OBJ stream. `load_mtl` is called with each `mtllib` argument and returns that
+/// library's materials (or nothing, when it cannot be read: geometry stays usable).
+///
+/// Blocks of whole lines are parsed in parallel (`obj_block`); the result, and the first
+/// error with its line, are those of [`read_obj_lines`], the line-by-line reading.
+pub fn read_obj(
+    r: &mut impl BufRead,
+    path: &Path,
+    load_mtl: impl FnMut(&str) -> Option<Vec<ObjMaterial>>,
+) -> Result<(Vec<ObjObject>, Vec<ObjMaterial>)> {
+    crate::obj_block::read_blocks(r, path, load_mtl, crate::obj_block::BLOCK)
+}
+
+/// [`read_obj`] one line at a time: the reference the block reader is checked against.
+pub fn read_obj_lines(
+    r: &mut impl BufRead,
+    path: &Path,
+    load_mtl: impl FnMut(&str) -> Option<Vec<ObjMaterial>>,
+) -> Result<(Vec<ObjObject>, Vec<ObjMaterial>)> {
+    let mut state = ObjState::new(path, load_mtl);
+    let mut buf = Vec::new();
+    let mut line = 0usize;
+    while next_line(r, &mut buf, path, line + 1)? {
+        line += 1;
+        state.line(&buf, line)?;
+    }
+    Ok(state.finish())
 }
 
 /// Parse an MTL library: `newmtl`, `Kd`, `d` (other statements are skipped).
