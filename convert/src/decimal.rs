@@ -44,10 +44,9 @@ pub fn push_f32(out: &mut Vec<u8>, x: f32) {
         Some((b'-', rest)) => (true, rest),
         _ => (false, s),
     };
-    let (mant, exp) = match s.iter().position(|&c| c == b'e') {
-        Some(i) => (&s[..i], parse_exp(&s[i + 1..])),
-        None => (s, Some(0)),
-    };
+    // The exponential layout: mantissa, `e`, exponent (found above).
+    let i = s.iter().position(|&c| c == b'e').unwrap_or(s.len());
+    let (mant, exp) = (&s[..i], s.get(i + 1..).and_then(parse_exp));
     // The significant digits and where the point falls among them (digits before it).
     let mut digits = [0u8; 64];
     let mut n = 0usize;

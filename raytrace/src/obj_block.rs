@@ -138,12 +138,12 @@ impl<'a> Iterator for Tokens<'a> {
 
 /// A token of a block [`plain`] found to be ASCII.
 #[inline]
-fn text(t: &[u8]) -> Option<&str> {
+fn text(t: &[u8]) -> &str {
     debug_assert!(t.is_ascii());
     // SAFETY: `parse_block` parses only blocks whose every byte is ASCII (`plain`), and
     // ASCII is valid UTF-8; `t` is a sub-slice of such a block. Checking each
     // token again was a tenth of reading an export.
-    Some(unsafe { std::str::from_utf8_unchecked(t) })
+    unsafe { std::str::from_utf8_unchecked(t) }
 }
 
 fn parse_block(block: &[u8]) -> Parsed<'_> {
@@ -181,7 +181,7 @@ fn parse_line<'t>(line: &'t [u8], p: &mut Parsed<'t>) -> Option<()> {
             let mut vals = [0f32; 7];
             let mut n = 0;
             for t in it {
-                *vals.get_mut(n)? = text(t)?.parse().ok()?;
+                *vals.get_mut(n)? = text(t).parse().ok()?;
                 n += 1;
             }
             let c = match n {
@@ -199,7 +199,7 @@ fn parse_line<'t>(line: &'t [u8], p: &mut Parsed<'t>) -> Option<()> {
             for c in it {
                 let mut parts = c.split(|&b| b == b'/');
                 let index = |t: &[u8]| -> Option<i64> {
-                    let i: i64 = text(t)?.parse().ok()?;
+                    let i: i64 = text(t).parse().ok()?;
                     (i != 0).then_some(i)
                 };
                 let v = index(parts.next()?)?;
@@ -223,31 +223,36 @@ fn parse_line<'t>(line: &'t [u8], p: &mut Parsed<'t>) -> Option<()> {
                 before,
             });
         }
-        b"o" | b"g" => p.stmts.push(Stmt::Object(rest()?)),
-        b"usemtl" => p.stmts.push(Stmt::Usemtl(rest()?)),
-        b"mtllib" => p.stmts.push(Stmt::Mtllib(rest()?)),
+        b"o" | b"g" => p.stmts.push(Stmt::Object(rest())),
+        b"usemtl" => p.stmts.push(Stmt::Usemtl(rest())),
+        b"mtllib" => p.stmts.push(Stmt::Mtllib(rest())),
         _ => {}
     }
     Some(())
 }
 
-/// Whether every index of the block's faces resolves against the counts before its line.
-fn resolves<F>(state: &ObjState<'_, F>, p: &Parsed<'_>) -> bool {
+/// The mesh vertex of every face corner of the block, in corner order, where every index of
+/// its faces (vertex, texture and normal) resolves against the counts before its line;
+/// None where one does not.
+fn resolve_corners<F>(state: &ObjState<'_, F>, p: &Parsed<'_>) -> Option<Vec<u32>> {
     let base = [state.positions.len(), state.n_vt, state.n_vn];
-    p.stmts.iter().all(|s| match s {
-        Stmt::Face { corners, before } => {
-            let count = |k: usize| base[k] + before[k] as usize;
-            let (nv, nvt, nvn) = (count(0), count(1), count(2));
-            p.corners[corners.start as usize..corners.end as usize]
-                .iter()
-                .all(|c| {
-                    resolved(c.v, nv).is_some()
-                        && (c.vt == 0 || resolved(c.vt, nvt).is_some())
-                        && (c.vn == 0 || resolved(c.vn, nvn).is_some())
-                })
+    let mut out = Vec::with_capacity(p.corners.len());
+    for s in &p.stmts {
+        let Stmt::Face { corners, before } = s else {
+            continue;
+        };
+        let count = |k: usize| base[k] + before[k] as usize;
+        let (nv, nvt, nvn) = (count(0), count(1), count(2));
+        for c in &p.corners[corners.start as usize..corners.end as usize] {
+            let v = resolved(c.v, nv)?;
+            let other = |i: i64, n: usize| i == 0 || resolved(i, n).is_some();
+            if !(other(c.vt, nvt) && other(c.vn, nvn)) {
+                return None;
+            }
+            out.push(v as u32);
         }
-        _ => true,
-    })
+    }
+    Some(out)
 }
 
 /// Apply block `block` (its lines numbered from `first_line`) to the reading's state.
@@ -257,7 +262,12 @@ fn apply<F: FnMut(&str) -> Option<Vec<ObjMaterial>>>(
     p: Parsed<'_>,
     first_line: usize,
 ) -> Result<()> {
-    if !p.clean || !resolves(state, &p) {
+    let verts = if p.clean {
+        resolve_corners(state, &p)
+    } else {
+        None
+    };
+    let Some(verts) = verts else {
         for (i, line) in lines(block).enumerate() {
             let n = first_line + i;
             if line.len() > MAX_LINE {
@@ -266,20 +276,16 @@ fn apply<F: FnMut(&str) -> Option<Vec<ObjMaterial>>>(
             state.line(line.strip_suffix(b"\r").unwrap_or(line), n)?;
         }
         return Ok(());
-    }
-    let base = state.positions.len();
+    };
     state.positions.extend_from_slice(&p.positions);
     state.colors.extend_from_slice(&p.colors);
     for s in &p.stmts {
         match s {
-            Stmt::Face { corners, before } => {
-                let nv = base + before[0] as usize;
-                let c = &p.corners[corners.start as usize..corners.end as usize];
-                // `resolves` checked every index.
-                let at = |k: usize| resolved(c[k].v, nv).unwrap_or(0) as u32;
-                let a = at(0);
+            Stmt::Face { corners, .. } => {
+                // Faces' corners are consecutive in the block's list, as in `verts`.
+                let c = &verts[corners.start as usize..corners.end as usize];
                 for k in 1..c.len() - 1 {
-                    state.cur.tris.push([a, at(k), at(k + 1)]);
+                    state.cur.tris.push([c[0], c[k], c[k + 1]]);
                 }
             }
             Stmt::Object(name) => state.object(name),
@@ -307,6 +313,54 @@ fn fill(r: &mut impl BufRead, buf: &mut Vec<u8>, more: usize) -> std::io::Result
     Ok(false)
 }
 
+/// Read the next block of whole lines (about `block` bytes, after the `carry` of the last
+/// one) into `blocks`, keeping the partial line after it in `carry`; at the end of the input,
+/// the last line even without its `\n`.
+fn next_block(
+    r: &mut impl BufRead,
+    carry: &mut Vec<u8>,
+    block: usize,
+    blocks: &mut Vec<Vec<u8>>,
+) -> End {
+    let mut buf = std::mem::take(carry);
+    let mut scanned = 0;
+    loop {
+        let eof = match fill(r, &mut buf, block.max(1)) {
+            Ok(eof) => eof,
+            Err(e) => {
+                // The whole lines read before the error are read (and may hold an earlier
+                // error); the error is the next line's.
+                if let Some(i) = memchr::memrchr(b'\n', &buf) {
+                    buf.truncate(i + 1);
+                    blocks.push(buf);
+                }
+                return End::Io(e);
+            }
+        };
+        match memchr::memrchr(b'\n', &buf[scanned..]) {
+            Some(i) => {
+                *carry = buf.split_off(scanned + i + 1);
+                blocks.push(buf);
+                if !eof {
+                    return End::More;
+                }
+                if !carry.is_empty() {
+                    blocks.push(std::mem::take(carry));
+                }
+                return End::Eof;
+            }
+            None if eof => {
+                if !buf.is_empty() {
+                    blocks.push(buf);
+                }
+                return End::Eof;
+            }
+            None if buf.len() > MAX_LINE => return End::TooLong,
+            None => scanned = buf.len(),
+        }
+    }
+}
+
 /// How a batch of blocks ended.
 enum End {
     More,
@@ -331,48 +385,7 @@ pub(crate) fn read_blocks(
         let mut blocks: Vec<Vec<u8>> = Vec::with_capacity(batch);
         let mut end = End::More;
         while blocks.len() < batch && matches!(end, End::More) {
-            let mut buf = std::mem::take(&mut carry);
-            let mut scanned = 0;
-            loop {
-                let eof = match fill(r, &mut buf, block.max(1)) {
-                    Ok(eof) => eof,
-                    Err(e) => {
-                        // The whole lines read before the error are read (and may hold an
-                        // earlier error); the error is the next line's.
-                        if let Some(i) = buf.iter().rposition(|&b| b == b'\n') {
-                            buf.truncate(i + 1);
-                            blocks.push(buf);
-                        }
-                        end = End::Io(e);
-                        break;
-                    }
-                };
-                match buf[scanned..].iter().rposition(|&b| b == b'\n') {
-                    Some(i) => {
-                        carry = buf.split_off(scanned + i + 1);
-                        blocks.push(buf);
-                        if eof && !carry.is_empty() {
-                            blocks.push(std::mem::take(&mut carry));
-                        }
-                        if eof {
-                            end = End::Eof;
-                        }
-                        break;
-                    }
-                    None if eof => {
-                        if !buf.is_empty() {
-                            blocks.push(buf);
-                        }
-                        end = End::Eof;
-                        break;
-                    }
-                    None if buf.len() > MAX_LINE => {
-                        end = End::TooLong;
-                        break;
-                    }
-                    None => scanned = buf.len(),
-                }
-            }
+            end = next_block(r, &mut carry, block, &mut blocks);
         }
         let parsed: Vec<Parsed<'_>> = blocks.par_iter().map(|b| parse_block(b)).collect();
         for (b, p) in blocks.iter().zip(parsed) {
